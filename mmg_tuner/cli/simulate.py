@@ -1,0 +1,92 @@
+"""``simulate``: one manoeuvre of a ship config, written as CSV, with its manoeuvring indices.
+
+Example:
+    simulate --ship suzaku --maneuver turning --rudder-deg 35 --rpm 106 --speed-kn 6 \\
+        --duration 900 --dt 1.0 --integrator euler --out run.csv
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from mmg_tuner.cli.common import run_command
+from mmg_tuner.core import indices as ix
+from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.data.csv_io import csv_text
+from mmg_tuner._atomic import write_atomic
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog='simulate', description=__doc__.split('\n')[0],
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument('--ship', default='suzaku', help='ship config name or YAML path')
+    ap.add_argument('--params', help='params.yaml with tuned values to overlay')
+    ap.add_argument('--maneuver', choices=mv.MANEUVERS, default='turning')
+    ap.add_argument('--rudder-deg', type=float, default=35.0,
+                    help='rudder angle (zigzag amplitude); + = starboard')
+    ap.add_argument('--check-deg', type=float, help='zigzag check angle (default = rudder)')
+    ap.add_argument('--rpm', type=float, default=106.0, help='propeller revolutions [rpm]')
+    speed = ap.add_mutually_exclusive_group()
+    speed.add_argument('--speed-kn', type=float, default=6.0, help='approach speed [kn]')
+    speed.add_argument('--speed-ms', type=float, help='approach speed [m/s]')
+    ap.add_argument('--duration', type=float, default=900.0, help='[s]')
+    ap.add_argument('--dt', type=float, default=1.0, help='output sample step [s]')
+    ap.add_argument('--substeps', type=int, default=1, help='integration steps per sample')
+    ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
+    ap.add_argument('--approach', type=float, default=0.0,
+                    help='straight run before the rudder is executed [s]')
+    ap.add_argument('--pullout-after', type=float, default=300.0,
+                    help='pull-out: time the rudder is held before returning to 0 [s]')
+    ap.add_argument('--rudder-rate', type=float,
+                    help='steering-gear rate [deg/s]; 0 = instantaneous; default: the ship\'s')
+    ap.add_argument('--seed', type=int, default=0, help='random manoeuvre seed')
+    ap.add_argument('--out', help='CSV file to write (t,x,y,psi,u,v,r,rpm,rudder)')
+    return ap
+
+
+def command(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    ship = load_ship(args.ship, args.params)
+    speed = args.speed_ms if args.speed_ms is not None else args.speed_kn * mv.KNOT
+    spec = mv.ManeuverSpec(
+        maneuver=args.maneuver, rudder_deg=args.rudder_deg, check_deg=args.check_deg,
+        rpm=args.rpm, speed_ms=speed, duration_s=args.duration, dt=args.dt,
+        approach_s=args.approach, pullout_s=args.pullout_after,
+        rudder_rate_deg_s=args.rudder_rate, integrator=args.integrator,
+        substeps=args.substeps, seed=args.seed)
+    traj = mv.run(ship, spec)
+    if args.out:
+        write_atomic(args.out, csv_text(traj.t, traj.states, traj.controls))
+        print(f'wrote {args.out} ({traj.t.size} samples)')
+    if not traj.ok:
+        print(f'WARNING: simulation stopped at t = {traj.fail_time_s:.1f} s: {traj.status}',
+              file=sys.stderr)
+    L = ship.L_pp
+    k_exec = ix.execution_index(traj['rudder'])
+    print(f'{ship.name} ({ship.model} model), {args.maneuver} {args.rudder_deg:+g} deg, '
+          f'{args.rpm:g} rpm, u0 = {speed:.3f} m/s, {args.integrator} dt = {args.dt:g} s')
+    if args.maneuver in ('turning', 'pullout'):
+        ti = ix.turning_indices(traj['x'], traj['y'], traj['psi'], k_exec)
+        print(f'  turn to {ti.direction}: advance {ti.advance_m:.1f} m ({ti.advance_m / L:.2f} L),'
+              f' transfer {ti.transfer_m:.1f} m ({ti.transfer_m / L:.2f} L), tactical diameter '
+              f'{ti.tactical_diameter_m:.1f} m ({ti.tactical_diameter_m / L:.2f} L)')
+    elif args.maneuver == 'zigzag':
+        check = math.radians(abs(args.check_deg if args.check_deg is not None
+                                 else args.rudder_deg))
+        zi = ix.zigzag_indices(traj['psi'], traj['rudder'], check, k_exec)
+        print(f'  zigzag, first rudder to {zi.direction}: first overshoot '
+              f'{zi.first_overshoot_deg:.1f} deg, second overshoot {zi.second_overshoot_deg:.1f} deg')
+    final = traj.states[-1]
+    print(f'  final: u = {final[3]:.3f} m/s, v = {final[4]:.3f} m/s, '
+          f'r = {math.degrees(final[5]):.3f} deg/s')
+    return 0 if traj.ok else 1
+
+
+def main(argv: list[str] | None = None) -> None:
+    sys.exit(run_command(command, argv))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,225 @@
+"""Ship configs: YAML files into a frozen :class:`ShipConfig` holding the flat parameter vector.
+
+A ship is data, never code: ``config/<name>.yaml`` holds particulars, added masses, hull
+derivatives, propeller and rudder models (each value citing its source). ``load_ship('suzaku')``
+finds the installed or in-tree config by name; a path to any YAML works too.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX,
+                                   PARAM_NAMES)
+from mmg_tuner.errors import ConfigError
+
+_SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder')
+_REQUIRED = {
+    'container': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
+                  'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'C_w', 'l_P', 'KT_0', 't_R', 'a_H', 'x_H',
+                  'epsilon', 'kappa', 'u_R0', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
+    'standard': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
+                 'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'k_0', 'C_1', 'C_2p', 'C_2n', 'x_P', 't_R',
+                 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
+}
+_DEFAULTS = {'flap_ratio': 1.0, **EFFECT_NEUTRAL}
+
+
+def config_dirs() -> list[Path]:
+    """Where ship configs are looked up by name: the source tree, then the colcon share dir."""
+    here = Path(__file__).resolve()
+    dirs = []
+    for parent in here.parents:
+        for cand in (parent / 'config', parent / 'share' / 'mmg_tuner' / 'config'):
+            if (cand / 'suzaku.yaml').is_file() and cand not in dirs:
+                dirs.append(cand)
+    return dirs
+
+
+def resolve_config_path(name_or_path: str | Path) -> Path:
+    """A ship name (``suzaku``) or a path to a YAML file -> the file's path."""
+    p = Path(name_or_path)
+    if p.suffix in ('.yaml', '.yml') or p.is_file():
+        if not p.is_file():
+            raise ConfigError(f'ship config {p} does not exist')
+        return p
+    for d in config_dirs():
+        cand = d / f'{name_or_path}.yaml'
+        if cand.is_file():
+            return cand
+    known = sorted({f.stem for d in config_dirs() for f in d.glob('*.yaml')})
+    raise ConfigError(f'unknown ship {name_or_path!r}: give a YAML path or one of {known}')
+
+
+@dataclass(frozen=True)
+class ShipConfig:
+    """One ship: its model structure and the full flat parameter vector.
+
+    Attributes:
+        name: ship name.
+        model: ``'container'`` (fine-tuning paper) or ``'standard'`` (MMG standard method).
+        params: float64 vector in :data:`~mmg_tuner.core.layout.PARAM_NAMES` order.
+        rudder_rate_rad_s: steering-gear rate limit.
+        max_rudder_rad: rudder angle limit.
+        tuning_targets: default names to tune.
+        a_r: default relative half-width of the tuning box.
+        scale_ratio: Froude scale ratio to full scale (1 for a real ship).
+        source: the YAML file this came from.
+    """
+
+    name: str
+    model: str
+    params: np.ndarray
+    rudder_rate_rad_s: float
+    max_rudder_rad: float
+    tuning_targets: tuple[str, ...]
+    a_r: float = 0.5
+    scale_ratio: float = 1.0
+    source: str = ''
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def kind(self) -> int:
+        return MODEL_KINDS[self.model]
+
+    @property
+    def L_pp(self) -> float:
+        return float(self.params[PARAM_INDEX['L_pp']])
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.params[_index(name, self.source)])
+
+    def as_dict(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(PARAM_NAMES, self.params)}
+
+    def with_params(self, values: Mapping[str, float]) -> 'ShipConfig':
+        """A copy with some parameters replaced (e.g. tuned values)."""
+        p = self.params.copy()
+        for k, v in values.items():
+            v = float(v)
+            if not math.isfinite(v):
+                raise ConfigError(f'parameter {k} = {v} is not finite')
+            p[_index(k, self.source)] = v
+        p.setflags(write=False)
+        return ShipConfig(self.name, self.model, p, self.rudder_rate_rad_s, self.max_rudder_rad,
+                          self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra)
+
+
+def _index(name: str, source: str) -> int:
+    try:
+        return PARAM_INDEX[name]
+    except KeyError:
+        raise ConfigError(f'{source or "parameters"}: unknown parameter {name!r}') from None
+
+
+def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | None = None
+              ) -> ShipConfig:
+    """Load a ship config by name or path; ``params_file`` overlays tuned values.
+
+    Example:
+        >>> ship = load_ship('suzaku')
+        >>> ship['t_P']
+        0.08
+    """
+    path = resolve_config_path(name_or_path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f'{path}: not valid YAML ({exc})') from None
+    ship = ship_from_dict(doc, str(path))
+    if params_file is not None:
+        ship = ship.with_params(load_params_file(params_file))
+    return ship
+
+
+def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig:
+    if not isinstance(doc, Mapping):
+        raise ConfigError(f'{source}: a ship config must be a mapping')
+    model = doc.get('model')
+    if model not in MODEL_KINDS:
+        raise ConfigError(f'{source}: key "model" must be one of {sorted(MODEL_KINDS)}, '
+                          f'got {model!r}')
+    values: dict[str, Any] = dict(_DEFAULTS)
+    for sec in _SECTIONS:
+        block = doc.get(sec) or {}
+        if not isinstance(block, Mapping):
+            raise ConfigError(f'{source}: section {sec!r} must be a mapping')
+        for k, v in block.items():
+            if k in ('C_b', 'displacement'):
+                values[k] = v
+                continue
+            if k not in PARAM_INDEX:
+                raise ConfigError(f'{source}: {sec}.{k} is not a known parameter')
+            values[k] = v
+    missing = [k for k in _REQUIRED[model] if k not in values]
+    if missing:
+        raise ConfigError(f'{source}: missing required keys {missing}')
+    _derive_mass(values, source)
+    p = np.zeros(N_PARAMS)
+    for k, v in values.items():
+        if k in ('C_b', 'displacement'):
+            continue
+        try:
+            p[PARAM_INDEX[k]] = float(v)
+        except (TypeError, ValueError):
+            raise ConfigError(f'{source}: {k} = {v!r} is not a number') from None
+    if not np.all(np.isfinite(p)):
+        raise ConfigError(f'{source}: non-finite values')
+    for k in ('L_pp', 'B', 'd', 'm', 'I_zG', 'D_P', 'H_R', 'A_R', 'rho'):
+        if p[PARAM_INDEX[k]] <= 0:
+            raise ConfigError(f'{source}: {k} must be positive, got {p[PARAM_INDEX[k]]}')
+    p.setflags(write=False)
+    steering = doc.get('steering') or {}
+    tuning = doc.get('tuning') or {}
+    targets = tuple(tuning.get('targets', ()))
+    for t in targets:
+        _index(t, source)
+    return ShipConfig(
+        name=str(doc.get('name', Path(source).stem)), model=model, params=p,
+        rudder_rate_rad_s=math.radians(float(steering.get('rate_deg_s', 2.32))),
+        max_rudder_rad=math.radians(float(steering.get('max_rudder_deg', 35.0))),
+        tuning_targets=targets, a_r=float(tuning.get('a_r', 0.5)),
+        scale_ratio=float(doc.get('scale_ratio', 1.0)), source=source,
+        extra={k: v for k, v in doc.items() if k not in _SECTIONS})
+
+
+def _derive_mass(values: dict[str, Any], source: str) -> None:
+    """m and I_zG given as 'derived': m = rho C_b L B d (or rho * displacement), I_zG = m (L/4)^2."""
+    rho, L = float(values['rho']), float(values['L_pp'])
+    if values.get('m', 'derived') == 'derived':
+        if 'displacement' in values:
+            values['m'] = rho * float(values['displacement'])
+        elif 'C_b' in values:
+            values['m'] = rho * float(values['C_b']) * L * float(values['B']) * float(values['d'])
+        else:
+            raise ConfigError(f'{source}: m is "derived" but neither C_b nor displacement given')
+    if values.get('I_zG', 'derived') == 'derived':
+        values['I_zG'] = float(values['m']) * (0.25 * L) ** 2
+
+
+def load_params_file(path: str | Path) -> dict[str, float]:
+    """Read a params.yaml written by ``tune``/``diagnose``: ``{params: {name: value}}``."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f'params file {path} does not exist')
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f'{path}: not valid YAML ({exc})') from None
+    params = doc.get('params') if isinstance(doc, Mapping) else None
+    if not isinstance(params, Mapping):
+        raise ConfigError(f'{path}: expected a mapping under key "params"')
+    out = {}
+    for k, v in params.items():
+        if k not in PARAM_INDEX:
+            raise ConfigError(f'{path}: unknown parameter {k!r}')
+        try:
+            out[k] = float(v)
+        except (TypeError, ValueError):
+            raise ConfigError(f'{path}: params.{k} = {v!r} is not a number') from None
+    return out

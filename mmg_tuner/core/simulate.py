@@ -1,0 +1,156 @@
+"""Simulation entry points: one trajectory (:func:`simulate`) or a batch of parameter
+candidates x trials in one compiled call (:func:`simulate_batch`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mmg_tuner.core.layout import INTEGRATORS, N_PARAMS, OK, STATE_NAMES, STATUS_TEXT
+from mmg_tuner.core.mmg import simulate_many, simulate_one
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.errors import SimulationError
+
+
+@dataclass
+class Trajectory:
+    """A simulated or recorded time history in the model frame.
+
+    t [s] (T,), states (T, 6) = x, y, psi, u, v, r (SI, rad), controls (T, 2) = rpm, rudder [rad].
+    status is 'ok' or why the simulation stopped; fail_time_s is when.
+    """
+
+    t: np.ndarray
+    states: np.ndarray
+    controls: np.ndarray
+    status: str = 'ok'
+    fail_time_s: float | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == 'ok'
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name in STATE_NAMES:
+            return self.states[:, STATE_NAMES.index(name)]
+        if name == 'rpm':
+            return self.controls[:, 0]
+        if name == 'rudder':
+            return self.controls[:, 1]
+        if name == 't':
+            return self.t
+        raise KeyError(name)
+
+
+def integrator_code(name: str) -> int:
+    try:
+        return INTEGRATORS[name.lower()]
+    except KeyError:
+        raise SimulationError(f'unknown integrator {name!r}; use one of '
+                              f'{sorted(INTEGRATORS)}') from None
+
+
+def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.0,
+                 what: str = 'simulation') -> None:
+    """Refuse, with a message naming the sample time, inputs outside the model's range."""
+    if not dt > 0:
+        raise SimulationError(f'{what}: time step dt must be positive, got {dt}')
+    if x0.shape != (6,) or not np.all(np.isfinite(x0)):
+        raise SimulationError(f'{what}: initial state must be 6 finite numbers, got {x0}')
+    if x0[3] <= 0:
+        raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
+                              'covers u > 0 only')
+    bad = ~np.all(np.isfinite(controls), axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s')
+    neg = controls[:, 0] <= 0
+    if neg[:-1].any():
+        k = int(np.argmax(neg))
+        raise SimulationError(f'{what}: rpm = {controls[k, 0]:.2f} at t = {t0 + k * dt:.2f} s;'
+                              ' the MMG model covers forward propeller revolutions only')
+
+
+def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',
+             substeps: int = 1, t0: float = 0.0, params: np.ndarray | None = None,
+             check: bool = True) -> Trajectory:
+    """Simulate one trajectory driven by recorded/planned controls (zero-order hold).
+
+    Args:
+        ship: the ship config (its parameter vector is used unless ``params`` is given).
+        x0: first observed state (x, y, psi, u, v, r), velocities over ground.
+        controls: (T, 2) rpm and rudder [rad] at each sample; sample k is held until k+1.
+        dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
+        integrator: 'euler' (the paper's) or 'rk4'.
+
+    A run that leaves the model's range or diverges is returned with ``status`` saying so and
+    NaN after ``fail_time_s``; it never returns NaN silently.
+
+    Example:
+        >>> ship = load_ship('suzaku')
+        >>> ctrl = np.tile([106.0, np.radians(35)], (901, 1))
+        >>> traj = simulate(ship, [0, 0, 0, 3.086, 0, 0], ctrl, dt=1.0)
+    """
+    x0 = np.asarray(x0, dtype=float)
+    controls = np.ascontiguousarray(controls, dtype=float)
+    if check:
+        check_inputs(x0, controls, dt, t0)
+    T = controls.shape[0]
+    out = np.empty((T, 6))
+    p = ship.params if params is None else np.asarray(params, dtype=float)
+    status, k_fail = simulate_one(ship.kind, p, x0, controls, T, float(dt), int(substeps),
+                                  integrator_code(integrator), out)
+    t = t0 + dt * np.arange(T)
+    if status != OK:
+        return Trajectory(t, out, controls, STATUS_TEXT[status], float(t[min(k_fail, T - 1)]))
+    return Trajectory(t, out, controls)
+
+
+def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.ndarray,
+                   dt: float, lengths: np.ndarray | None = None, integrator: str = 'euler',
+                   substeps: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """N candidates x M trials in one compiled, multi-core call.
+
+    Args:
+        kind: model structure code (``ShipConfig.kind``).
+        params: (N, N_PARAMS) parameter vectors.
+        x0s: (M, 6) first states; controls: (M, T, 2), padded to the longest trial;
+        lengths: (M,) samples per trial (default all T).
+
+    Returns:
+        states (N, M, T, 6), status codes (N, M) and failure sample indices (N, M).
+    """
+    params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
+    if params.shape[1] != N_PARAMS:
+        raise SimulationError(f'params must have {N_PARAMS} columns, got {params.shape[1]}')
+    x0s = np.ascontiguousarray(x0s, dtype=float)
+    controls = np.ascontiguousarray(controls, dtype=float)
+    M, T = controls.shape[:2]
+    lengths = np.full(M, T, dtype=np.int64) if lengths is None else np.asarray(lengths, np.int64)
+    N = params.shape[0]
+    out = np.full((N, M, T, 6), np.nan)
+    status = np.zeros((N, M), dtype=np.int64)
+    k_fail = np.zeros((N, M), dtype=np.int64)
+    simulate_many(kind, params, x0s, controls, lengths, float(dt), int(substeps),
+                  integrator_code(integrator), out, status, k_fail)
+    return out, status, k_fail
+
+
+def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
+                        hi: float = 1e5) -> float:
+    """Propeller rpm at which a straight run (rudder 0) holds speed_ms: the surge force
+    balance X_H + X_P + X_R = 0, solved by bisection."""
+    from mmg_tuner.core.mmg import accelerations
+
+    def du(rpm: float) -> float:
+        return accelerations(ship.kind, ship.params, speed_ms, 0.0, 0.0, rpm / 60.0, 0.0)[0]
+
+    if du(lo) > 0 or du(hi) < 0:
+        raise SimulationError(f'{ship.name}: no rpm in [{lo}, {hi}] holds {speed_ms} m/s')
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if du(mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)

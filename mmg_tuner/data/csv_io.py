@@ -1,0 +1,42 @@
+"""CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians."""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.trial import CSV_COLUMNS, Trial
+from mmg_tuner.errors import TrialDataError
+
+
+def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray) -> str:
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack([t, states, controls]), delimiter=',',
+               header=','.join(CSV_COLUMNS), comments='', fmt='%.10g')
+    return buf.getvalue()
+
+
+def write_trial_csv(trial: Trial, path: str | Path) -> None:
+    write_atomic(path, csv_text(trial.t, trial.states, trial.controls))
+
+
+def read_trial_csv(path: str | Path) -> Trial:
+    """Read a CSV with a header naming at least t,x,y,psi,u,v,r,rpm,rudder (any order)."""
+    path = Path(path)
+    try:
+        with open(path) as f:
+            header = f.readline().strip().split(',')
+            data = np.loadtxt(f, delimiter=',', ndmin=2)
+    except (OSError, ValueError) as exc:
+        raise TrialDataError(f'{path}: cannot read CSV ({exc})') from None
+    header = [h.strip().lower() for h in header]
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
+    if data.shape[0] < 2:
+        raise TrialDataError(f'{path}: fewer than 2 rows of data')
+    col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
+    return Trial(col['t'], np.column_stack([col[c] for c in CSV_COLUMNS[1:7]]),
+                 np.column_stack([col['rpm'], col['rudder']]), name=path.stem, source=str(path))

@@ -1,0 +1,78 @@
+"""The trial type used everywhere downstream."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.errors import TrialDataError
+
+CSV_COLUMNS = ('t',) + STATE_NAMES + ('rpm', 'rudder')
+
+
+@dataclass
+class Trial:
+    """A recorded (or generated) trial on a uniform time grid, in the model frame, SI units.
+
+    t [s] (T,); states (T, 6) = x_E, y_E [m], psi [rad, unwrapped], u, v [m/s over ground],
+    r [rad/s]; controls (T, 2) = rpm [rev/min], rudder [rad, + to starboard].
+    """
+
+    t: np.ndarray
+    states: np.ndarray
+    controls: np.ndarray
+    name: str = 'trial'
+    source: str = ''
+    notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.t = np.asarray(self.t, dtype=float)
+        self.states = np.asarray(self.states, dtype=float)
+        self.controls = np.asarray(self.controls, dtype=float)
+        T = self.t.size
+        if self.states.shape != (T, 6) or self.controls.shape != (T, 2):
+            raise TrialDataError(f'{self.source or self.name}: inconsistent shapes t {self.t.shape},'
+                                 f' states {self.states.shape}, controls {self.controls.shape}')
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0]) if self.t.size > 1 else float('nan')
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name == 't':
+            return self.t
+        if name in STATE_NAMES:
+            return self.states[:, STATE_NAMES.index(name)]
+        if name in ('rpm', 'rudder'):
+            return self.controls[:, 0 if name == 'rpm' else 1]
+        raise KeyError(name)
+
+    def slice(self, start_s: float, end_s: float | None = None, name: str | None = None
+              ) -> 'Trial':
+        """The part between start_s and end_s (trial time, inclusive)."""
+        end_s = self.t[-1] if end_s is None else end_s
+        k = (self.t >= start_s - 1e-9) & (self.t <= end_s + 1e-9)
+        return replace(self, t=self.t[k], states=self.states[k], controls=self.controls[k],
+                       name=name or self.name, notes=list(self.notes))
+
+    def froude_scaled(self, ratio: float) -> 'Trial':
+        """Scale by 1/ratio in length (ratio = L_from / L_to), Froude similarity: time and
+        velocity by 1/sqrt(ratio), yaw rate and rpm by sqrt(ratio)."""
+        s = math.sqrt(ratio)
+        st = self.states.copy()
+        st[:, :2] /= ratio
+        st[:, 3:5] /= s
+        st[:, 5] *= s
+        ctrl = self.controls.copy()
+        ctrl[:, 0] *= s
+        return replace(self, t=self.t / s, states=st, controls=ctrl,
+                       notes=self.notes + [f'Froude-scaled by 1/{ratio:g}'])

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Create .venv (Python 3.11), install the pinned requirements and build the package with colcon.
+# Idempotent: a second run only rebuilds.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mkdir -p log
+PY=${PYTHON:-python3.11}
+command -v "$PY" >/dev/null || PY=python3
+if [ ! -x .venv/bin/python ] || [ requirements.txt -nt .venv/.installed ]; then
+  echo "== creating .venv and installing requirements (first run: about a minute)"
+  "$PY" -m venv .venv
+  mkdir -p log
+  .venv/bin/python -m pip install -q --upgrade pip >log/pip.log 2>&1 || { cat log/pip.log; exit 1; }
+  .venv/bin/python -m pip install -q -r requirements.txt >>log/pip.log 2>&1 \
+    || { grep -v 'is ignored' log/pip.log; exit 1; }
+  touch .venv/.installed
+fi
+# shellcheck disable=SC1091
+source .venv/bin/activate
+export ROS_LOG_DIR=${ROS_LOG_DIR:-$PWD/log/ros}
+echo "== colcon build"
+colcon build --base-paths . --event-handlers console_cohesion- >/dev/null 2>log/colcon_build.err \
+  || { cat log/colcon_build.err; exit 1; }

@@ -1,0 +1,36 @@
+"""ament_python package definition for mmg_tuner.
+
+Executables are console scripts installed into lib/mmg_tuner (see setup.cfg) so that
+`ros2 run mmg_tuner <exe>` finds them on a ROS 2 install.
+"""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'mmg_tuner'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        # real KVLCC2 free-running data (SIMMAN 2008, MARIN) used by the checks and examples
+        ('share/' + package_name + '/data/kvlcc2_simman2008_marin',
+         glob('data/kvlcc2_simman2008_marin/*')),
+    ],
+    install_requires=['setuptools', 'numpy', 'pyyaml', 'numba', 'cmaes', 'rosbags', 'mcap'],
+    zip_safe=False,
+    maintainer='mmg_tuner developers',
+    maintainer_email='dev@mmg-tuner.invalid',
+    description='MMG manoeuvring model fine-tuning, diagnosis and ROS 2 simulation',
+    license='Apache-2.0',
+    extras_require={'test': ['pytest', 'hypothesis']},
+    entry_points={
+        'console_scripts': [
+            'simulate = mmg_tuner.cli.simulate:main',
+        ],
+    },
+)
