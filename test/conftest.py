@@ -21,8 +21,6 @@ def installed_executable(name: str):
     from pathlib import Path
     prefixes = [p for v in ('AMENT_PREFIX_PATH', 'COLCON_PREFIX_PATH')
                 for p in os.environ.get(v, '').split(os.pathsep) if p]
-    repo = Path(__file__).resolve().parents[1]
-    prefixes += [str(repo / 'install' / 'mmg_tuner'), str(repo / 'install')]
     for prefix in prefixes:
         for cand in (Path(prefix) / 'lib' / 'mmg_tuner' / name,
                      Path(prefix) / 'mmg_tuner' / 'lib' / 'mmg_tuner' / name):

@@ -106,6 +106,15 @@ _FASTMATH = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
 _U_MIN = 1e-6  # m/s, keeps r' = r L / U finite at rest (u > 0 is enforced separately)
 
 
+@njit(cache=True, fastmath=_FASTMATH, inline='always')
+def _sin_attack(delta, uR, vR):
+    """sin(alpha_R), alpha_R = delta - atan2(v_R, u_R), without the atan2 (hot path)."""
+    UR = math.sqrt(uR * uR + vR * vR)
+    if UR == 0.0:
+        return math.sin(delta)
+    return (math.sin(delta) * uR - math.cos(delta) * vR) / UR
+
+
 @njit(cache=True, fastmath=_FASTMATH)
 def accelerations(kind, p, u, v, r, n_rps, delta):
     """(du/dt, dv_m/dt, dr/dt) for velocities through the water, n_P in rev/s, delta in rad."""
@@ -117,7 +126,7 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
         U = _U_MIN
     vp = v / U                       # v'_m = -sin(beta)
     rp = r * L / U                   # r'
-    beta = math.atan2(-v, u)
+    beta = math.atan(-v / u) if u > 0.0 else math.atan2(-v, u)  # atan: cheaper, u > 0 here
     vp2 = vp * vp
     rp2 = rp * rp
     # Hull (paper eqs. 14-15; standard method eq. 8 with X_vvvr = 0)
@@ -140,7 +149,7 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
         wP = p[_wP0] * math.exp(p[_Cw] * beta_P * beta_P)
         uP = (1.0 - wP) * u
         vt = 0.7 * math.pi * n_rps * DP           # blade-section tangential speed
-        phi = math.degrees(math.atan2(uP, vt))     # advance angle [deg]
+        phi = math.degrees(math.atan(uP / vt))     # advance angle [deg]; vt > 0 (n_P > 0)
         KT = p[_KT0] + phi * (p[_KT1] + phi * (p[_KT2] + phi * p[_KT3]))
         CPY = p[_CPY0] + phi * (p[_CPY1] + phi * p[_CPY2])
         if phi < p[_phisw]:
@@ -164,7 +173,7 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
         gam = p[_gRp] if beta_R > 0.0 else p[_gRn]
         vR = gam * (-v - p[_lR] * L * r)           # gamma_R (U sin(beta) - l_R r)
         df = p[_flap] * delta
-        coef = (p[_fa] + p[_fa2] * df * df) * math.sin(delta - math.atan2(vR, uR)) \
+        coef = (p[_fa] + p[_fa2] * df * df) * _sin_attack(delta, uR, vR) \
             + df * (p[_Cl01] + p[_Cl03] * df * df)
     else:
         # Propeller (standard method eqs. 11-13, 15-16)
@@ -185,7 +194,7 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
         beta_R = beta - p[_lR] * rp
         gam = p[_gRp] if beta_R > 0.0 else p[_gRn]
         vR = U * gam * beta_R
-        coef = p[_fa] * math.sin(delta - math.atan2(vR, uR))
+        coef = p[_fa] * _sin_attack(delta, uR, vR)
     # Rudder forces (paper eqs. 25-28; standard eqs. 17-20)
     FN = 0.5 * rho * p[_AR] * (uR * uR + vR * vR) * coef
     sd = math.sin(delta)
@@ -222,9 +231,12 @@ def derivative(kind, p, s, n_rps, delta, out):
     c = math.cos(psi)
     sn = math.sin(psi)
     du, dv, dr = accelerations(kind, p, u, v, r, n_rps, delta)
+    out[0] = u * c - v * sn
+    out[1] = u * sn + v * c
     Vc = p[_Vc]
-    out[0] = u * c - v * sn + Vc * math.cos(p[_dirc])
-    out[1] = u * sn + v * c + Vc * math.sin(p[_dirc])
+    if Vc != 0.0:
+        out[0] += Vc * math.cos(p[_dirc])
+        out[1] += Vc * math.sin(p[_dirc])
     out[2] = r
     out[3] = du
     out[4] = dv
@@ -281,16 +293,18 @@ def to_water(p, s):
 def observe(p, s, out):
     """Measured quantities from the model state: position at the antenna, velocities over
     ground (the model integrates velocities through the water)."""
+    for i in range(6):
+        out[i] = s[i]
     psi = s[2]
-    c = math.cos(psi)
-    sn = math.sin(psi)
-    out[0] = s[0] + p[_ax] * c - p[_ay] * sn
-    out[1] = s[1] + p[_ax] * sn + p[_ay] * c
-    out[2] = psi
-    rel = p[_dirc] - psi
-    out[3] = s[3] + p[_Vc] * math.cos(rel)
-    out[4] = s[4] + p[_Vc] * math.sin(rel)
-    out[5] = s[5]
+    if p[_ax] != 0.0 or p[_ay] != 0.0:
+        c = math.cos(psi)
+        sn = math.sin(psi)
+        out[0] += p[_ax] * c - p[_ay] * sn
+        out[1] += p[_ax] * sn + p[_ay] * c
+    if p[_Vc] != 0.0:
+        rel = p[_dirc] - psi
+        out[3] += p[_Vc] * math.cos(rel)
+        out[4] += p[_Vc] * math.sin(rel)
 
 
 @njit(cache=True, fastmath=_FASTMATH)
