@@ -31,6 +31,7 @@ setup(
     entry_points={
         'console_scripts': [
             'simulate = mmg_tuner.cli.simulate:main',
+            'generate = mmg_tuner.cli.generate:main',
         ],
     },
 )

@@ -1,0 +1,176 @@
+"""Raw topic series -> validated trials on a uniform grid in the model frame.
+
+Repairs are documented in each trial's notes: non-finite samples dropped, unsorted stamps
+sorted, duplicate stamps dropped, gaps longer than max_gap_s split the trial, samples outside
+the model's range (rpm <= 0, u <= 0) split it too. Anything unrepairable raises
+TrialDataError naming the file, topic and time.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mmg_tuner.data.bag import RawRecording, Series
+from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TrialDataError
+
+MIN_SAMPLES = 10
+MAX_SAMPLES = 20_000_000  # ~230 days at 1 s: more means corrupt stamps
+
+
+def clean_series(s: Series, path: str, t0_ns: int) -> Series:
+    """Drop non-finite and duplicate samples, sort unsorted stamps; say what was done."""
+    def t(ns):
+        return (ns - t0_ns) * 1e-9
+    ok = np.all(np.isfinite(s.values), axis=1)
+    if not ok.all():
+        bad = np.nonzero(~ok)[0]
+        s.notes.append(f'{s.topic}: dropped {bad.size} non-finite sample(s), first at '
+                       f't = {t(s.stamps_ns[bad[0]]):.3f} s')
+        s.stamps_ns, s.values = s.stamps_ns[ok], s.values[ok]
+    if s.stamps_ns.size and np.any(np.diff(s.stamps_ns) < 0):
+        k = int(np.argmax(np.diff(s.stamps_ns) < 0))
+        s.notes.append(f'{s.topic}: stamps not sorted (first at t = {t(s.stamps_ns[k]):.3f} s); '
+                       'sorted by stamp')
+        order = np.argsort(s.stamps_ns, kind='stable')
+        s.stamps_ns, s.values = s.stamps_ns[order], s.values[order]
+    if s.stamps_ns.size > 1:
+        dup = np.concatenate([[False], np.diff(s.stamps_ns) == 0])
+        if dup.any():
+            s.notes.append(f'{s.topic}: dropped {int(dup.sum())} duplicate stamp(s), first at '
+                           f't = {t(s.stamps_ns[np.argmax(dup)]):.3f} s')
+            s.stamps_ns, s.values = s.stamps_ns[~dup], s.values[~dup]
+    if s.stamps_ns.size < 2:
+        raise TrialDataError(f'{path}: topic {s.topic} has fewer than 2 usable samples')
+    return s
+
+
+def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int, notes: list[str]
+              ) -> list[tuple[float, float]]:
+    """Time ranges [s] covered by every topic without a gap longer than max_gap_s."""
+    start = max(float((s.stamps_ns[0] - t0_ns) * 1e-9) for s in series)
+    end = min(float((s.stamps_ns[-1] - t0_ns) * 1e-9) for s in series)
+    if end <= start:
+        raise TrialDataError(f'{rec.path}: the topics do not overlap in time')
+    cuts = []
+    for s in series:
+        t = (s.stamps_ns - t0_ns) * 1e-9
+        gaps = np.nonzero(np.diff(t) > tm.max_gap_s)[0]
+        for g in gaps:
+            cuts.append((t[g], t[g + 1]))
+            notes.append(f'{s.topic}: gap of {t[g + 1] - t[g]:.1f} s at t = {t[g]:.1f} s '
+                         f'(> {tm.max_gap_s:g} s): trial split there')
+    segs = [(start, end)]
+    for a, b in sorted(cuts):
+        new = []
+        for lo, hi in segs:
+            if b <= lo or a >= hi:
+                new.append((lo, hi))
+                continue
+            if a > lo:
+                new.append((lo, a))
+            if b < hi:
+                new.append((b, hi))
+        segs = new
+    return segs
+
+
+def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> list[Trial]:
+    """Frame, resample and split one recording into trials (see module docstring)."""
+    needed = [tm.odom_topic, tm.rudder_topic, tm.rpm_topic]
+    for topic in needed:
+        if topic not in rec.series:
+            found = ', '.join(f'{t} ({ty}, {n} msgs)' for t, (ty, n) in sorted(
+                rec.topics_found.items())) or 'nothing'
+            raise TrialDataError(f'{rec.path}: topic {topic} missing or empty; found: {found}. '
+                                 'Use --topics MAP.yaml to map other names.')
+    t0_ns = int(min(s.stamps_ns.min() for s in rec.series.values()))
+    series = [clean_series(rec.series[t], rec.path, t0_ns) for t in needed]
+    twist = None
+    if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic in rec.series:
+        twist = clean_series(rec.series[tm.twist_topic], rec.path, t0_ns)
+        series.append(twist)
+    notes = [n for s in series for n in s.notes]
+    if any(not np.array_equal(s.stamps_ns, s.receive_ns) for s in series[:1]):
+        notes.append(f'{tm.odom_topic}: header stamps used (not receive time)')
+    trials = []
+    for lo, hi in _segments(rec, series, tm, t0_ns, notes):
+        n = int(math.floor((hi - lo) / tm.dt + 1e-9)) + 1
+        if n > MAX_SAMPLES:
+            raise TrialDataError(f'{rec.path}: segment {lo:.1f}-{hi:.1f} s would need {n} '
+                                 f'samples at dt = {tm.dt:g} s: corrupt stamps?')
+        if n < MIN_SAMPLES:
+            notes.append(f'segment {lo:.1f}-{hi:.1f} s shorter than {MIN_SAMPLES} samples: '
+                         'dropped')
+            continue
+        grid = lo + tm.dt * np.arange(n)
+        trials.extend(_resample(series, twist, tm, t0_ns, grid, rec.path, name, notes))
+    if not trials:
+        raise TrialDataError(f'{rec.path}: no usable trial ({"; ".join(notes) or "too short"})')
+    if len(trials) > 1:  # one recording split into several: number them in time order
+        for i, tr in enumerate(trials, 1):
+            tr.name = f'{name}_{i}'
+    return trials
+
+
+def _interp(s: Series, t0_ns: int, grid: np.ndarray, col: int) -> np.ndarray:
+    return np.interp(grid, (s.stamps_ns - t0_ns) * 1e-9, s.values[:, col])
+
+
+def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes) -> list[Trial]:
+    odom, rud, rpm = series[:3]
+    t_odom = (odom.stamps_ns - t0_ns) * 1e-9
+    yaw = np.unwrap(odom.values[:, 2])
+    # ENU map / FLU base_link (REP-103/105) -> MMG: x_E = y_map, y_E = x_map, psi = pi/2 - yaw
+    x = np.interp(grid, t_odom, odom.values[:, 1])
+    y = np.interp(grid, t_odom, odom.values[:, 0])
+    psi = np.pi / 2 - np.interp(grid, t_odom, yaw)
+    if odom.values.shape[1] == 6:
+        u = np.interp(grid, t_odom, odom.values[:, 3])
+        v = -np.interp(grid, t_odom, odom.values[:, 4])
+        r = -np.interp(grid, t_odom, odom.values[:, 5])
+    elif twist is not None:
+        u, v, r = (_interp(twist, t0_ns, grid, 0), -_interp(twist, t0_ns, grid, 1),
+                   -_interp(twist, t0_ns, grid, 2))
+    else:
+        u, v, r = body_velocities_from_poses(grid, x, y, psi)
+        notes.append('no twist recorded: u, v, r derived from positions and heading '
+                     '(central differences)')
+    rudder = _interp(rud, t0_ns, grid, 0) * tm.rudder_to_rad
+    rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.rpm_factor
+    states = np.column_stack([x, y, psi, u, v, r])
+    controls = np.column_stack([rpm_v, rudder])
+    good = (rpm_v > 0) & (u > 0)
+    out = []
+    k = 0
+    while k < grid.size:
+        if not good[k]:
+            j = k
+            while j < grid.size and not good[j]:
+                j += 1
+            what = 'rpm <= 0 (reverse or stopped propeller)' if np.any(rpm_v[k:j] <= 0) \
+                else 'u <= 0 (going astern or stopped)'
+            notes.append(f'{what} from t = {grid[k]:.1f} to {grid[j - 1]:.1f} s: outside the '
+                         'MMG model range, left out')
+            k = j
+            continue
+        j = k
+        while j < grid.size and good[j]:
+            j += 1
+        if j - k >= MIN_SAMPLES:
+            out.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
+                             source=str(path),
+                             notes=list(notes) + [f'resampled on dt = {tm.dt:g} s, linear '
+                                                  f'interpolation; starts at {grid[k]:.2f} s '
+                                                  'of the recording']))
+        k = j
+    return out
+
+
+def body_velocities_from_poses(t, x, y, psi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body-frame u, v and yaw rate r from earth positions and heading (central differences)."""
+    dx, dy, dpsi = np.gradient(x, t), np.gradient(y, t), np.gradient(psi, t)
+    c, s = np.cos(psi), np.sin(psi)
+    return dx * c + dy * s, -dx * s + dy * c, dpsi

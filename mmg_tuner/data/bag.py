@@ -1,0 +1,248 @@
+"""rosbag2 (sqlite3 or MCAP storage) and bare MCAP files to and from :class:`Trial`.
+
+Reading is two layers, as in rosbags: :func:`read_series` pulls the raw time series of the
+mapped topics (stamps in ns, values as arrays) out of any container; :mod:`.assemble` turns
+those into validated, framed, resampled trials. No ROS install is needed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TrialDataError
+
+try:  # rosbags >= 0.10
+    from rosbags.typesys import Stores, get_typestore
+    TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+except ImportError:  # pragma: no cover
+    TYPESTORE = None
+
+
+@dataclass
+class Series:
+    """One topic's samples: stamps [ns] and values (n, k), plus what was done to them."""
+
+    topic: str
+    msgtype: str
+    stamps_ns: np.ndarray
+    values: np.ndarray
+    receive_ns: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class RawRecording:
+    path: str
+    series: dict[str, Series]
+    topics_found: dict[str, tuple[str, int]]  # topic -> (type, message count)
+    start_ns: int = 0
+    end_ns: int = 0
+
+
+def _stamp_ns(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _yaw_from_quat(q) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _decode(msg, msgtype: str, joint: str, topic: str, path: str) -> tuple[int | None, tuple]:
+    """(header stamp or None, values) of one message, by type."""
+    if msgtype == 'nav_msgs/msg/Odometry':
+        p, tw = msg.pose.pose, msg.twist.twist
+        return _stamp_ns(msg.header), (p.position.x, p.position.y, _yaw_from_quat(p.orientation),
+                                       tw.linear.x, tw.linear.y, tw.angular.z)
+    if msgtype == 'geometry_msgs/msg/PoseStamped':
+        p = msg.pose
+        return _stamp_ns(msg.header), (p.position.x, p.position.y,
+                                       _yaw_from_quat(p.orientation))
+    if msgtype == 'geometry_msgs/msg/TwistStamped':
+        tw = msg.twist
+        return _stamp_ns(msg.header), (tw.linear.x, tw.linear.y, tw.angular.z)
+    if msgtype in ('std_msgs/msg/Float64', 'std_msgs/msg/Float32'):
+        return None, (float(msg.data),)
+    if msgtype == 'sensor_msgs/msg/JointState':
+        names = list(msg.name)
+        if joint not in names:
+            raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} not in {names}')
+        i = names.index(joint)
+        arr = msg.velocity if 'rpm' in topic or len(msg.position) <= i else msg.position
+        return _stamp_ns(msg.header), (float(arr[i]),)
+    raise TrialDataError(f'{path}: topic {topic}: unsupported type {msgtype}')
+
+
+def _wanted(tm: TopicMap) -> dict[str, tuple[str, str]]:
+    """topic -> (expected type, joint)."""
+    w = {tm.odom_topic: (tm.odom_type, ''), tm.rudder_topic: (tm.rudder_type, tm.rudder_joint),
+         tm.rpm_topic: (tm.rpm_type, tm.rpm_joint)}
+    if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic:
+        w[tm.twist_topic] = (tm.twist_type, '')
+    return w
+
+
+def _iter_rosbag2(path: Path):
+    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2.errors import ReaderError
+    try:
+        with Reader(path) as reader:
+            conns = list(reader.connections)
+            yield 'connections', [(c.topic, c.msgtype, c.msgcount) for c in conns]
+            yield from ((c.topic, c.msgtype, ts, raw) for c, ts, raw in reader.messages())
+    except TrialDataError:
+        raise
+    except (ReaderError, Exception) as exc:  # the boundary: corrupt bags raise many types
+        raise TrialDataError(f'{path}: cannot read rosbag2 ({type(exc).__name__}: {exc})') \
+            from None
+
+
+def _iter_mcap(path: Path):
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    try:
+        with open(path, 'rb') as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            if summary is not None:
+                counts = summary.statistics.channel_message_counts if summary.statistics else {}
+                conns = [(ch.topic, summary.schemas[ch.schema_id].name, counts.get(cid, 0))
+                         for cid, ch in summary.channels.items()]
+                yield 'connections', conns
+            else:
+                yield 'connections', None
+            for schema, channel, message in reader.iter_messages():
+                yield channel.topic, schema.name, message.log_time, message.data
+    except TrialDataError:
+        raise
+    except (McapError, Exception) as exc:  # the boundary: corrupt files raise many types
+        raise TrialDataError(f'{path}: cannot read MCAP ({type(exc).__name__}: {exc})') from None
+
+
+def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
+    """Raw series of the mapped topics from a rosbag2 directory or a bare .mcap file."""
+    path = Path(path)
+    if path.is_dir() or path.name == 'metadata.yaml':
+        bag = path if path.is_dir() else path.parent
+        if not (bag / 'metadata.yaml').is_file():
+            raise TrialDataError(f'{bag}: not a rosbag2 directory (no metadata.yaml)')
+        it = _iter_rosbag2(bag)
+    elif path.suffix == '.mcap':
+        if not path.is_file():
+            raise TrialDataError(f'{path}: no such file')
+        it = _iter_mcap(path)
+    else:
+        raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')
+    wanted = _wanted(tm)
+    stamps: dict[str, list] = {t: [] for t in wanted}
+    recv: dict[str, list] = {t: [] for t in wanted}
+    vals: dict[str, list] = {t: [] for t in wanted}
+    found: dict[str, tuple[str, int]] = {}
+    types: dict[str, str] = {}
+    first = last = None
+    for item in it:
+        if item[0] == 'connections':
+            for topic, msgtype, count in item[1] or []:
+                found[topic] = (msgtype, int(count))
+            for topic, (typ, _) in wanted.items():
+                if topic in found and found[topic][0] != typ:
+                    raise TrialDataError(f'{path}: topic {topic} has type {found[topic][0]}, '
+                                         f'the topic map expects {typ}')
+            continue
+        topic, msgtype, ts, raw = item
+        first = ts if first is None else min(first, ts)
+        last = ts if last is None else max(last, ts)
+        if topic not in wanted:
+            continue
+        if msgtype != wanted[topic][0]:
+            raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic map '
+                                 f'expects {wanted[topic][0]}')
+        types[topic] = msgtype
+        try:
+            msg = TYPESTORE.deserialize_cdr(bytes(raw), msgtype)
+        except Exception as exc:  # rosbags raises several types for corrupt CDR
+            raise TrialDataError(f'{path}: topic {topic} at t = {ts * 1e-9:.3f} s: cannot '
+                                 f'decode message ({type(exc).__name__})') from None
+        st, v = _decode(msg, msgtype, wanted[topic][1], topic, str(path))
+        stamps[topic].append(ts if st is None or st == 0 else st)
+        recv[topic].append(ts)
+        vals[topic].append(v)
+    series = {}
+    for topic, (typ, _) in wanted.items():
+        if vals[topic]:
+            try:
+                series[topic] = Series(topic, types[topic],
+                                       np.asarray(stamps[topic], dtype=np.int64),
+                                       np.asarray(vals[topic], dtype=float),
+                                       np.asarray(recv[topic], dtype=np.int64))
+            except (OverflowError, ValueError) as exc:
+                raise TrialDataError(f'{path}: topic {topic}: corrupt stamps or values '
+                                     f'({exc})') from None
+    for topic in list(found):
+        if topic in vals and not vals[topic]:
+            found[topic] = (found[topic][0], 0)
+    return RawRecording(str(path), series, found, first or 0, last or 0)
+
+
+def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
+                    tm: TopicMap | None = None, start_ns: int = 1_700_000_000_000_000_000,
+                    rates_hz: tuple[float, float] | None = None) -> None:
+    """Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics:
+    Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
+    written; each message is stamped at its sample time (ns since start_ns)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2.errors import WriterError
+
+    tm = tm or TopicMap()
+    path = Path(path)
+    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    ts = TYPESTORE
+    Odometry = ts.types['nav_msgs/msg/Odometry']
+    Float64 = ts.types['std_msgs/msg/Float64']
+    try:
+        with Writer(path, version=9, storage_plugin=plugin) as w:
+            c_odom = w.add_connection(tm.odom_topic, Odometry.__msgtype__, typestore=ts)
+            c_rud = w.add_connection(tm.rudder_topic, Float64.__msgtype__, typestore=ts)
+            c_rpm = w.add_connection(tm.rpm_topic, Float64.__msgtype__, typestore=ts)
+            for k in range(len(trial)):
+                stamp = start_ns + int(round(trial.t[k] * 1e9))
+                w.write(c_odom, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
+                                                        Odometry.__msgtype__))
+                w.write(c_rud, stamp, ts.serialize_cdr(
+                    Float64(data=float(trial.controls[k, 1] / tm.rudder_to_rad)),
+                    Float64.__msgtype__))
+                w.write(c_rpm, stamp, ts.serialize_cdr(
+                    Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
+                    Float64.__msgtype__))
+    except WriterError as exc:
+        raise TrialDataError(f'{path}: cannot write rosbag2 ({exc})') from None
+
+
+def odometry_msg(state: np.ndarray, stamp_ns: int):
+    """nav_msgs/Odometry (rosbags type) of a model-frame state: ENU pose, FLU twist."""
+    ts = TYPESTORE.types
+    x, y, psi, u, v, r = (float(s) for s in state)
+    yaw = math.pi / 2 - psi
+    Header = ts['std_msgs/msg/Header']
+    Time = ts['builtin_interfaces/msg/Time']
+    P = ts['geometry_msgs/msg/Point']
+    Q = ts['geometry_msgs/msg/Quaternion']
+    V = ts['geometry_msgs/msg/Vector3']
+    cov = np.zeros(36)
+    return ts['nav_msgs/msg/Odometry'](
+        header=Header(stamp=Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000),
+                      frame_id='map'),
+        child_frame_id='base_link',
+        pose=ts['geometry_msgs/msg/PoseWithCovariance'](
+            pose=ts['geometry_msgs/msg/Pose'](position=P(x=y, y=x, z=0.0),
+                                              orientation=Q(x=0.0, y=0.0, z=math.sin(yaw / 2),
+                                                            w=math.cos(yaw / 2))),
+            covariance=cov),
+        twist=ts['geometry_msgs/msg/TwistWithCovariance'](
+            twist=ts['geometry_msgs/msg/Twist'](linear=V(x=u, y=-v, z=0.0),
+                                                angular=V(x=0.0, y=0.0, z=-r)),
+            covariance=cov))

@@ -1,0 +1,187 @@
+"""Trials in and out: rosbag2 (sqlite3, MCAP), bare MCAP, CSV; framing, repairs and errors."""
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.data.assemble import assemble_trials, body_velocities_from_poses
+from mmg_tuner.data.bag import RawRecording, Series, read_series, write_trial_bag
+from mmg_tuner.data.csv_io import read_trial_csv, write_trial_csv
+from mmg_tuner.data.load import load_trials
+from mmg_tuner.data.topics import TopicMap, topic_map_from_dict
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import ConfigError, TrialDataError
+
+
+@pytest.fixture(scope='module')
+def zigzag_trial(suzaku):
+    tr = mv.run(suzaku, mv.ManeuverSpec('zigzag', rudder_deg=20, duration_s=400, dt=1.0))
+    return Trial(tr.t, tr.states, tr.controls, name='zz')
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_round_trip_rosbag2(tmp_path, zigzag_trial, storage):
+    bag = tmp_path / 'bag'
+    write_trial_bag(zigzag_trial, bag, storage)
+    (back,) = load_trials(bag)
+    np.testing.assert_allclose(back.t, zigzag_trial.t)
+    np.testing.assert_allclose(back.states, zigzag_trial.states, atol=1e-9)
+    np.testing.assert_allclose(back.controls, zigzag_trial.controls, atol=1e-12)
+
+
+def test_bare_mcap_and_csv(tmp_path, zigzag_trial):
+    write_trial_bag(zigzag_trial, tmp_path / 'bag', 'mcap')
+    (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
+    (back,) = load_trials(mcap_file)
+    np.testing.assert_allclose(back.states, zigzag_trial.states, atol=1e-9)
+    write_trial_csv(zigzag_trial, tmp_path / 'zz.csv')
+    back = read_trial_csv(tmp_path / 'zz.csv')
+    np.testing.assert_allclose(back.states, zigzag_trial.states, rtol=1e-9, atol=1e-9)
+
+
+def test_frames_starboard_turn_is_clockwise_in_enu(tmp_path, suzaku):
+    """A starboard turn (MMG r > 0) is a clockwise track in ENU with negative angular.z."""
+    tr = mv.run(suzaku, mv.ManeuverSpec('turning', rudder_deg=35, duration_s=120, dt=1.0))
+    write_trial_bag(Trial(tr.t, tr.states, tr.controls), tmp_path / 'b', 'mcap')
+    rec = read_series(tmp_path / 'b', TopicMap())
+    odom = rec.series['/odom'].values
+    assert odom[-1, 5] < 0                          # angular.z (FLU) negative
+    assert np.all(np.diff(np.unwrap(odom[:, 2]))[5:] < 0)  # ENU yaw decreasing = clockwise
+    assert odom[-1, 0] > 0                          # moved east (x_map) when heading north-east
+
+
+def _rec(t_odom, odom_vals, t_cmd, rud, rpm):
+    ns = lambda t: (np.asarray(t) * 1e9).astype(np.int64)  # noqa: E731
+    series = {
+        '/odom': Series('/odom', 'nav_msgs/msg/Odometry', ns(t_odom), np.asarray(odom_vals, float),
+                        ns(t_odom)),
+        '/rudder_angle': Series('/rudder_angle', 'std_msgs/msg/Float64', ns(t_cmd),
+                                np.asarray(rud, float)[:, None], ns(t_cmd)),
+        '/propeller_rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns(t_cmd),
+                                 np.asarray(rpm, float)[:, None], ns(t_cmd)),
+    }
+    return RawRecording('fake.mcap', series, {k: (s.msgtype, len(s.stamps_ns))
+                                              for k, s in series.items()})
+
+
+def _straight(t):
+    t = np.asarray(t, float)
+    # heading north in MMG = yaw pi/2 in ENU; moving along y_map at 3 m/s
+    return np.column_stack([np.zeros_like(t), 3 * t, np.full_like(t, np.pi / 2),
+                            np.full_like(t, 3.0), np.zeros_like(t), np.zeros_like(t)])
+
+
+def test_repairs_are_documented():
+    t = np.arange(0, 100, 0.1)
+    odom = _straight(t)
+    odom[50, 3] = np.nan
+    t_cmd = np.arange(0, 100, 0.5)
+    t_cmd_shuffled = t_cmd.copy()
+    t_cmd_shuffled[[10, 11]] = t_cmd_shuffled[[11, 10]]
+    rec = _rec(t, odom, t_cmd_shuffled, np.zeros_like(t_cmd), np.full_like(t_cmd, 100.0))
+    (trial,) = assemble_trials(rec, TopicMap())
+    text = ' '.join(trial.notes)
+    assert 'dropped 1 non-finite sample(s), first at t = 5.000 s' in text
+    assert 'not sorted' in text
+    assert trial['x'][-1] == pytest.approx(3 * trial.t[-1], rel=1e-6)  # north in MMG
+    assert np.allclose(trial['psi'], 0) and np.allclose(trial['u'], 3.0)
+
+
+def test_gap_and_reverse_propeller_split_the_trial():
+    t = np.arange(0, 200, 0.1)
+    t = t[(t < 60) | (t > 80)]  # a 20 s gap in odometry
+    t_cmd = np.arange(0, 200, 0.5)
+    rpm = np.where((t_cmd > 140) & (t_cmd < 150), -30.0, 100.0)  # astern for 10 s
+    trials = assemble_trials(_rec(t, _straight(t), t_cmd, np.zeros_like(t_cmd), rpm),
+                             TopicMap(), name='fake')
+    assert len(trials) == 3
+    notes = ' '.join(trials[0].notes)
+    assert 'gap of 20.2 s at t = 59.9 s' in notes
+    assert any('rpm <= 0' in n and 'from t = 141.1' in n for n in trials[-1].notes)
+    assert [t.name for t in trials] == ['fake_1', 'fake_2', 'fake_3']
+
+
+def test_missing_topic_names_what_was_found():
+    t = np.arange(0, 50, 0.1)
+    rec = _rec(t, _straight(t), t, np.zeros_like(t), np.full_like(t, 100.0))
+    del rec.series['/propeller_rpm']
+    with pytest.raises(TrialDataError, match=r'fake.mcap: topic /propeller_rpm missing.*'
+                                             r'/odom \(nav_msgs/msg/Odometry'):
+        assemble_trials(rec, TopicMap())
+
+
+def test_wrong_type_and_corrupt_files(tmp_path, zigzag_trial):
+    write_trial_bag(zigzag_trial, tmp_path / 'bag', 'mcap')
+    tm = topic_map_from_dict({'rudder': {'topic': '/odom'}})
+    with pytest.raises(TrialDataError, match='topic /odom has type nav_msgs/msg/Odometry'):
+        read_series(tmp_path / 'bag', tm)
+    (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
+    data = mcap_file.read_bytes()
+    truncated = tmp_path / 'trunc.mcap'
+    truncated.write_bytes(data[: len(data) // 2])
+    with pytest.raises(TrialDataError, match='trunc.mcap'):
+        load_trials(truncated)
+    empty = tmp_path / 'empty.mcap'
+    empty.write_bytes(b'')
+    with pytest.raises(TrialDataError, match='empty.mcap'):
+        load_trials(empty)
+    garbage = tmp_path / 'garbage.mcap'
+    garbage.write_bytes(np.random.default_rng(0).bytes(5000))
+    with pytest.raises(TrialDataError, match='garbage.mcap'):
+        load_trials(garbage)
+    shutil.copytree(tmp_path / 'bag', tmp_path / 'nometa')
+    (tmp_path / 'nometa' / 'metadata.yaml').unlink()
+    # without metadata.yaml the folder is a directory of inputs: its .mcap reads as bare MCAP
+    (back,) = load_trials(tmp_path / 'nometa')
+    np.testing.assert_allclose(back.states, zigzag_trial.states, atol=1e-9)
+
+
+def test_corrupted_bytes_never_give_a_bare_traceback(tmp_path, zigzag_trial):
+    """Fuzz: flip random bytes of a real MCAP; reading either works or raises TrialDataError."""
+    write_trial_bag(zigzag_trial.slice(0, 60), tmp_path / 'bag', 'mcap')
+    (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
+    data = bytearray(mcap_file.read_bytes())
+    rng = np.random.default_rng(42)
+    for i in range(40):
+        bad = bytearray(data)
+        for k in rng.integers(0, len(bad), size=int(rng.integers(1, 20))):
+            bad[k] = int(rng.integers(0, 256))
+        f = tmp_path / f'fuzz{i}.mcap'
+        f.write_bytes(bytes(bad))
+        try:
+            load_trials(f)
+        except TrialDataError:
+            pass
+
+
+def test_topic_map_options():
+    tm = topic_map_from_dict({'rudder': {'unit': 'deg', 'sign': -1}, 'rpm': {'unit': 'rps'}})
+    assert tm.rudder_to_rad == pytest.approx(-math.pi / 180) and tm.rpm_factor == 60.0
+    with pytest.raises(ConfigError, match='unknown key rudder.units'):
+        topic_map_from_dict({'rudder': {'units': 'deg'}})
+
+
+def test_velocities_derived_from_poses():
+    t = np.arange(0, 100, 0.5)
+    psi = 0.01 * t
+    R = 3.0 / 0.01  # a circle at 3 m/s, r = 0.01 rad/s
+    x, y = R * np.sin(psi), R * (1 - np.cos(psi))
+    u, v, r = body_velocities_from_poses(t, x, y, psi)
+    assert np.allclose(u[1:-1], 3.0, rtol=1e-3) and np.allclose(v[1:-1], 0, atol=1e-2)
+    assert np.allclose(r, 0.01)
+
+
+def test_generate_command(tmp_path, capsys):
+    from mmg_tuner.cli.generate import command
+    assert command(['--out', str(tmp_path), '--maneuvers', 'turning:35', 'zigzag:20/10',
+                    '--duration', '120', '--rate-hz', '5', '--seed', '3']) == 0
+    trials = load_trials(tmp_path)
+    assert sorted(t.name for t in trials) == ['turning_p35', 'zigzag_p20_10']
+    csv = read_trial_csv(tmp_path / 'csv' / 'turning_p35.csv')
+    assert csv.dt == pytest.approx(0.2) and len(csv) == 601
+    # the bag, resampled at 1 s, agrees with the 5 Hz CSV at the common samples (noise kept)
+    bag = next(t for t in trials if t.name == 'turning_p35')
+    np.testing.assert_allclose(bag.states, csv.states[::5], atol=1e-6)
+    assert np.std(np.diff(csv['x'], 2)) > 0.1  # sensor noise present
