@@ -32,6 +32,7 @@ setup(
         'console_scripts': [
             'simulate = mmg_tuner.cli.simulate:main',
             'generate = mmg_tuner.cli.generate:main',
+            'inspect = mmg_tuner.cli.inspect:main',
         ],
     },
 )

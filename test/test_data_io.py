@@ -46,7 +46,7 @@ def test_frames_starboard_turn_is_clockwise_in_enu(tmp_path, suzaku):
     tr = mv.run(suzaku, mv.ManeuverSpec('turning', rudder_deg=35, duration_s=120, dt=1.0))
     write_trial_bag(Trial(tr.t, tr.states, tr.controls), tmp_path / 'b', 'mcap')
     rec = read_series(tmp_path / 'b', TopicMap())
-    odom = rec.series['/odom'].values
+    odom = rec.series['odom'].values
     assert odom[-1, 5] < 0                          # angular.z (FLU) negative
     assert np.all(np.diff(np.unwrap(odom[:, 2]))[5:] < 0)  # ENU yaw decreasing = clockwise
     assert odom[-1, 0] > 0                          # moved east (x_map) when heading north-east
@@ -55,15 +55,15 @@ def test_frames_starboard_turn_is_clockwise_in_enu(tmp_path, suzaku):
 def _rec(t_odom, odom_vals, t_cmd, rud, rpm):
     ns = lambda t: (np.asarray(t) * 1e9).astype(np.int64)  # noqa: E731
     series = {
-        '/odom': Series('/odom', 'nav_msgs/msg/Odometry', ns(t_odom), np.asarray(odom_vals, float),
+        'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns(t_odom), np.asarray(odom_vals, float),
                         ns(t_odom)),
-        '/rudder_angle': Series('/rudder_angle', 'std_msgs/msg/Float64', ns(t_cmd),
+        'rudder': Series('/rudder_angle', 'std_msgs/msg/Float64', ns(t_cmd),
                                 np.asarray(rud, float)[:, None], ns(t_cmd)),
-        '/propeller_rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns(t_cmd),
+        'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns(t_cmd),
                                  np.asarray(rpm, float)[:, None], ns(t_cmd)),
     }
-    return RawRecording('fake.mcap', series, {k: (s.msgtype, len(s.stamps_ns))
-                                              for k, s in series.items()})
+    return RawRecording('fake.mcap', series, {s.topic: (s.msgtype, len(s.stamps_ns))
+                                              for s in series.values()})
 
 
 def _straight(t):
@@ -106,7 +106,8 @@ def test_gap_and_reverse_propeller_split_the_trial():
 def test_missing_topic_names_what_was_found():
     t = np.arange(0, 50, 0.1)
     rec = _rec(t, _straight(t), t, np.zeros_like(t), np.full_like(t, 100.0))
-    del rec.series['/propeller_rpm']
+    del rec.series['rpm']
+    del rec.topics_found['/propeller_rpm']
     with pytest.raises(TrialDataError, match=r'fake.mcap: topic /propeller_rpm missing.*'
                                              r'/odom \(nav_msgs/msg/Odometry'):
         assemble_trials(rec, TopicMap())
@@ -114,8 +115,9 @@ def test_missing_topic_names_what_was_found():
 
 def test_wrong_type_and_corrupt_files(tmp_path, zigzag_trial):
     write_trial_bag(zigzag_trial, tmp_path / 'bag', 'mcap')
-    tm = topic_map_from_dict({'rudder': {'topic': '/odom'}})
-    with pytest.raises(TrialDataError, match='topic /odom has type nav_msgs/msg/Odometry'):
+    tm = topic_map_from_dict({'odom': {'topic': '/rudder_angle'}, 'rudder': {'topic': '/x'}})
+    with pytest.raises(TrialDataError, match='topic /rudder_angle has type std_msgs/msg/Float64,'
+                                             ' the topic map expects nav_msgs/msg/Odometry'):
         read_series(tmp_path / 'bag', tm)
     (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
     data = mcap_file.read_bytes()
@@ -185,3 +187,71 @@ def test_generate_command(tmp_path, capsys):
     bag = next(t for t in trials if t.name == 'turning_p35')
     np.testing.assert_allclose(bag.states, csv.states[::5], atol=1e-6)
     assert np.std(np.diff(csv['x'], 2)) > 0.1  # sensor noise present
+
+
+def _write_custom_bag(path, t, trial_states, rudder_deg, rpm_rps, pose_only=True):
+    """A bag as another ship's logger might write it: PoseStamped (no twist), JointState
+    actuators in degrees and rev/s."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from mmg_tuner.data.bag import TYPESTORE as ts
+    PS, JS = ts.types['geometry_msgs/msg/PoseStamped'], ts.types['sensor_msgs/msg/JointState']
+    H, Tm = ts.types['std_msgs/msg/Header'], ts.types['builtin_interfaces/msg/Time']
+    P, Q, Pose = (ts.types['geometry_msgs/msg/Point'], ts.types['geometry_msgs/msg/Quaternion'],
+                  ts.types['geometry_msgs/msg/Pose'])
+    with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        cp = w.add_connection('/gnss/pose', PS.__msgtype__, typestore=ts)
+        ca = w.add_connection('/actuators', JS.__msgtype__, typestore=ts)
+        for k, tk in enumerate(t):
+            ns = int(tk * 1e9) + 10**18
+            hdr = H(stamp=Tm(sec=ns // 10**9, nanosec=ns % 10**9), frame_id='map')
+            x, y, psi = trial_states[k, :3]
+            yaw = np.pi / 2 - psi
+            msg = PS(header=hdr, pose=Pose(position=P(x=y, y=x, z=0.0),
+                                           orientation=Q(x=0.0, y=0.0, z=np.sin(yaw / 2),
+                                                         w=np.cos(yaw / 2))))
+            w.write(cp, ns + 5_000_000, ts.serialize_cdr(msg, PS.__msgtype__))  # late receipt
+            js = JS(header=hdr, name=['rudder', 'propeller'],
+                    position=np.array([rudder_deg[k], 0.0]),
+                    velocity=np.array([0.0, rpm_rps[k]]), effort=np.array([], dtype=float))
+            w.write(ca, ns, ts.serialize_cdr(js, JS.__msgtype__))
+
+
+def test_posestamped_and_jointstate_with_units(tmp_path, suzaku):
+    tr = mv.run(suzaku, mv.ManeuverSpec('turning', rudder_deg=20, duration_s=200, dt=0.2))
+    _write_custom_bag(tmp_path / 'custom', tr.t, tr.states, np.degrees(tr['rudder']),
+                      tr['rpm'] / 60.0)
+    tm = topic_map_from_dict({
+        'odom': {'topic': '/gnss/pose', 'type': 'geometry_msgs/msg/PoseStamped'},
+        'rudder': {'topic': '/actuators', 'type': 'sensor_msgs/msg/JointState',
+                   'joint': 'rudder', 'unit': 'deg'},
+        'rpm': {'topic': '/actuators', 'type': 'sensor_msgs/msg/JointState',
+                'joint': 'propeller', 'unit': 'rps'}})
+    (back,) = load_trials(tmp_path / 'custom', tm)
+    truth = tr.states[::5]
+    np.testing.assert_allclose(back.controls[:, 1], tr['rudder'][::5], atol=1e-9)
+    np.testing.assert_allclose(back.controls[:, 0], tr['rpm'][::5], rtol=1e-9)
+    np.testing.assert_allclose(back.states[:, :3], truth[:, :3], atol=1e-6)
+    # no twist: velocities derived from the poses, close to the truth
+    np.testing.assert_allclose(back.states[5:-5, 3:], truth[5:-5, 3:], atol=0.02)
+    assert any('derived from positions' in n for n in back.notes)
+    assert any('header stamps used' in n for n in back.notes)
+
+
+def test_time_ranges_cut_one_recording(tmp_path, zigzag_trial):
+    write_trial_bag(zigzag_trial, tmp_path / 'bag', 'mcap')
+    parts = load_trials(tmp_path / 'bag', time_ranges=[(10, 100), (200, 300)])
+    assert [p.name for p in parts] == ['bag_r1', 'bag_r2']
+    assert parts[1].start_s == 200 and len(parts[1]) == 101
+    np.testing.assert_allclose(parts[1].states, zigzag_trial.states[200:301], atol=1e-9)
+
+
+def test_csv_passes_the_same_checks(tmp_path, zigzag_trial):
+    f = tmp_path / 'zz.csv'
+    write_trial_csv(zigzag_trial, f)
+    lines = f.read_text().splitlines()
+    lines[20] = ','.join(['nan' if i == 4 else v for i, v in enumerate(lines[20].split(','))])
+    f.write_text('\n'.join(lines) + '\n')
+    (back,) = load_trials(f)
+    assert any('non-finite' in n for n in back.notes)
+    np.testing.assert_allclose(back.states, zigzag_trial.states, atol=0.05)

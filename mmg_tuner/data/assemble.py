@@ -79,9 +79,10 @@ def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int,
 
 def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> list[Trial]:
     """Frame, resample and split one recording into trials (see module docstring)."""
-    needed = [tm.odom_topic, tm.rudder_topic, tm.rpm_topic]
-    for topic in needed:
-        if topic not in rec.series:
+    needed = ['odom', 'rudder', 'rpm']
+    for role in needed:
+        if role not in rec.series:
+            topic = getattr(tm, f'{role}_topic')
             found = ', '.join(f'{t} ({ty}, {n} msgs)' for t, (ty, n) in sorted(
                 rec.topics_found.items())) or 'nothing'
             raise TrialDataError(f'{rec.path}: topic {topic} missing or empty; found: {found}. '
@@ -89,8 +90,8 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> lis
     t0_ns = int(min(s.stamps_ns.min() for s in rec.series.values()))
     series = [clean_series(rec.series[t], rec.path, t0_ns) for t in needed]
     twist = None
-    if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic in rec.series:
-        twist = clean_series(rec.series[tm.twist_topic], rec.path, t0_ns)
+    if 'twist' in rec.series:
+        twist = clean_series(rec.series['twist'], rec.path, t0_ns)
         series.append(twist)
     notes = [n for s in series for n in s.notes]
     if any(not np.array_equal(s.stamps_ns, s.receive_ns) for s in series[:1]):
@@ -161,7 +162,7 @@ def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes) -> li
             j += 1
         if j - k >= MIN_SAMPLES:
             out.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
-                             source=str(path),
+                             source=str(path), start_s=float(grid[k]),
                              notes=list(notes) + [f'resampled on dt = {tm.dt:g} s, linear '
                                                   f'interpolation; starts at {grid[k]:.2f} s '
                                                   'of the recording']))

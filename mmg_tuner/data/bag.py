@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -52,7 +53,8 @@ def _yaw_from_quat(q) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def _decode(msg, msgtype: str, joint: str, topic: str, path: str) -> tuple[int | None, tuple]:
+def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
+            ) -> tuple[int | None, tuple]:
     """(header stamp or None, values) of one message, by type."""
     if msgtype == 'nav_msgs/msg/Odometry':
         p, tw = msg.pose.pose, msg.twist.twist
@@ -72,18 +74,52 @@ def _decode(msg, msgtype: str, joint: str, topic: str, path: str) -> tuple[int |
         if joint not in names:
             raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} not in {names}')
         i = names.index(joint)
-        arr = msg.velocity if 'rpm' in topic or len(msg.position) <= i else msg.position
+        # the propeller's shaft speed is the joint velocity, the rudder's angle its position
+        arr = msg.velocity if role == 'rpm' else msg.position
+        if len(arr) <= i:
+            raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} has no '
+                                 f'{"velocity" if role == "rpm" else "position"}')
         return _stamp_ns(msg.header), (float(arr[i]),)
     raise TrialDataError(f'{path}: topic {topic}: unsupported type {msgtype}')
 
 
-def _wanted(tm: TopicMap) -> dict[str, tuple[str, str]]:
-    """topic -> (expected type, joint)."""
-    w = {tm.odom_topic: (tm.odom_type, ''), tm.rudder_topic: (tm.rudder_type, tm.rudder_joint),
-         tm.rpm_topic: (tm.rpm_type, tm.rpm_joint)}
+def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, role: str,
+                  topic: str, path: str) -> tuple[list | np.ndarray, list | np.ndarray]:
+    """(stamps [ns], values) of one topic: column-wise when the layout allows, else one by one.
+    Header stamps are preferred; a zero stamp falls back to the receive time."""
+    cols = decode_columns(raws, msgtype)
+    if cols is not None:
+        st, values = cols
+        rec = np.asarray(recv, dtype=np.int64)
+        stamps = rec if st is None else np.where(st == 0, rec, st)
+        return stamps, values
+    stamps, values = [], []
+    for raw, ts in zip(raws, recv):
+        try:
+            msg = TYPESTORE.deserialize_cdr(raw, msgtype)
+        except Exception as exc:  # rosbags raises several types for corrupt CDR
+            raise TrialDataError(f'{path}: topic {topic} at t = {ts * 1e-9:.3f} s: cannot '
+                                 f'decode message ({type(exc).__name__})') from None
+        st, v = _decode(msg, msgtype, joint, role, topic, path)
+        stamps.append(ts if st is None or st == 0 else st)
+        values.append(v)
+    return stamps, values
+
+
+def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
+    """role (odom, twist, rudder, rpm) -> (topic, expected type, joint). One topic may serve
+    several roles (a JointState carrying rudder and propeller)."""
+    roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
+             'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint),
+             'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint)}
     if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic:
-        w[tm.twist_topic] = (tm.twist_type, '')
-    return w
+        roles['twist'] = (tm.twist_topic, tm.twist_type, '')
+    types: dict[str, str] = {}
+    for topic, typ, _ in roles.values():
+        if types.setdefault(topic, typ) != typ:
+            raise TrialDataError(f'topic map: {topic} is mapped with two types '
+                                 f'({types[topic]}, {typ})')
+    return roles
 
 
 def _iter_rosbag2(path: Path):
@@ -99,6 +135,21 @@ def _iter_rosbag2(path: Path):
     except (ReaderError, Exception) as exc:  # the boundary: corrupt bags raise many types
         raise TrialDataError(f'{path}: cannot read rosbag2 ({type(exc).__name__}: {exc})') \
             from None
+
+
+def _iter_bare_mcap(path: Path):
+    """rosbags reads a bare ROS 2 MCAP fastest; other MCAP files go through the mcap library."""
+    try:
+        from rosbags.rosbag2 import Reader
+        with Reader(path) as reader:
+            conns = [(c.topic, c.msgtype, c.msgcount) for c in reader.connections]
+    except Exception:  # not readable by rosbags (profile, schema encoding, corrupt summary)
+        yield from _iter_mcap(path)
+        return
+    yield 'connections', conns
+    for item in _iter_rosbag2(path):
+        if item[0] != 'connections':
+            yield item
 
 
 def _iter_mcap(path: Path):
@@ -134,56 +185,48 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
     elif path.suffix == '.mcap':
         if not path.is_file():
             raise TrialDataError(f'{path}: no such file')
-        it = _iter_mcap(path)
+        it = _iter_bare_mcap(path)
     else:
         raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')
-    wanted = _wanted(tm)
-    stamps: dict[str, list] = {t: [] for t in wanted}
-    recv: dict[str, list] = {t: [] for t in wanted}
-    vals: dict[str, list] = {t: [] for t in wanted}
+    roles = _roles(tm)
+    types = {topic: typ for topic, typ, _ in roles.values()}
+    recv: dict[str, list] = {t: [] for t in types}
+    raws: dict[str, list] = {t: [] for t in types}
     found: dict[str, tuple[str, int]] = {}
-    types: dict[str, str] = {}
     first = last = None
     for item in it:
         if item[0] == 'connections':
             for topic, msgtype, count in item[1] or []:
                 found[topic] = (msgtype, int(count))
-            for topic, (typ, _) in wanted.items():
-                if topic in found and found[topic][0] != typ:
-                    raise TrialDataError(f'{path}: topic {topic} has type {found[topic][0]}, '
-                                         f'the topic map expects {typ}')
+                if topic in types and msgtype != types[topic]:
+                    raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic '
+                                         f'map expects {types[topic]}')
             continue
         topic, msgtype, ts, raw = item
         first = ts if first is None else min(first, ts)
         last = ts if last is None else max(last, ts)
-        if topic not in wanted:
+        if topic not in types:
             continue
-        if msgtype != wanted[topic][0]:
+        if msgtype != types[topic]:
             raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic map '
-                                 f'expects {wanted[topic][0]}')
-        types[topic] = msgtype
-        try:
-            msg = TYPESTORE.deserialize_cdr(bytes(raw), msgtype)
-        except Exception as exc:  # rosbags raises several types for corrupt CDR
-            raise TrialDataError(f'{path}: topic {topic} at t = {ts * 1e-9:.3f} s: cannot '
-                                 f'decode message ({type(exc).__name__})') from None
-        st, v = _decode(msg, msgtype, wanted[topic][1], topic, str(path))
-        stamps[topic].append(ts if st is None or st == 0 else st)
+                                 f'expects {types[topic]}')
         recv[topic].append(ts)
-        vals[topic].append(v)
+        raws[topic].append(bytes(raw))
     series = {}
-    for topic, (typ, _) in wanted.items():
-        if vals[topic]:
-            try:
-                series[topic] = Series(topic, types[topic],
-                                       np.asarray(stamps[topic], dtype=np.int64),
-                                       np.asarray(vals[topic], dtype=float),
-                                       np.asarray(recv[topic], dtype=np.int64))
-            except (OverflowError, ValueError) as exc:
-                raise TrialDataError(f'{path}: topic {topic}: corrupt stamps or values '
-                                     f'({exc})') from None
-    for topic in list(found):
-        if topic in vals and not vals[topic]:
+    for role, (topic, msgtype, joint) in roles.items():
+        if not raws[topic]:
+            continue
+        try:
+            stamps, values = _decode_topic(raws[topic], recv[topic], msgtype, joint, role,
+                                           topic, str(path))
+            series[role] = Series(topic, msgtype, np.asarray(stamps, dtype=np.int64),
+                                  np.asarray(values, dtype=float),
+                                  np.asarray(recv[topic], dtype=np.int64))
+        except (OverflowError, ValueError) as exc:
+            raise TrialDataError(f'{path}: topic {topic}: corrupt stamps or values '
+                                 f'({exc})') from None
+    for topic in found:
+        if topic in raws and not raws[topic]:
             found[topic] = (found[topic][0], 0)
     return RawRecording(str(path), series, found, first or 0, last or 0)
 

@@ -40,3 +40,38 @@ def read_trial_csv(path: str | Path) -> Trial:
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     return Trial(col['t'], np.column_stack([col[c] for c in CSV_COLUMNS[1:7]]),
                  np.column_stack([col['rpm'], col['rudder']]), name=path.stem, source=str(path))
+
+
+def csv_recording(path: str | Path):
+    """A model-frame CSV as a raw recording (ENU/FLU series), so that it passes through the
+    same validation, repair and resampling as a bag."""
+    from mmg_tuner.data.bag import RawRecording, Series
+    path = Path(path)
+    try:
+        with open(path) as f:
+            header = [h.strip().lower() for h in f.readline().strip().split(',')]
+            data = np.genfromtxt(f, delimiter=',', ndmin=2, invalid_raise=False)
+    except (OSError, ValueError) as exc:
+        raise TrialDataError(f'{path}: cannot read CSV ({exc})') from None
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
+    if data.ndim != 2 or data.shape[0] < 2 or data.shape[1] != len(header):
+        raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns')
+    col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
+    if not np.all(np.isfinite(col['t'])):
+        k = int(np.argmax(~np.isfinite(col['t'])))
+        raise TrialDataError(f'{path}: non-finite time in data row {k + 1}')
+    ns = np.round(col['t'] * 1e9).astype(np.int64)
+    odom = np.column_stack([col['y'], col['x'], np.pi / 2 - col['psi'], col['u'], -col['v'],
+                            -col['r']])
+    series = {
+        'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns, odom, ns),
+        'rudder': Series('/rudder_angle', 'std_msgs/msg/Float64', ns,
+                                col['rudder'][:, None], ns),
+        'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns,
+                                 col['rpm'][:, None], ns),
+    }
+    return RawRecording(str(path), series, {v.topic: (v.msgtype, len(ns))
+                                            for v in series.values()},
+                        int(ns.min()), int(ns.max()))

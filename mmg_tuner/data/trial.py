@@ -26,6 +26,7 @@ class Trial:
     name: str = 'trial'
     source: str = ''
     notes: list[str] = field(default_factory=list)
+    start_s: float = 0.0  # where t = 0 lies in the recording it came from [s]
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, dtype=float)

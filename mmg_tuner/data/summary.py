@@ -1,0 +1,110 @@
+"""What is in a recording: topics and rates, trials, detected manoeuvres, ranges, problems."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mmg_tuner.data.assemble import assemble_trials
+from mmg_tuner.data.bag import read_series
+from mmg_tuner.data.load import find_inputs, load_trials
+from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TrialDataError
+
+
+def detect_maneuver(trial: Trial) -> str:
+    """'straight', 'turning', 'pull-out', 'zigzag' or 'mixed' (e.g. random manoeuvres), from
+    the rudder history and the heading change."""
+    rud = np.degrees(trial['rudder'])
+    psi = np.degrees(np.unwrap(trial['psi']))
+    if np.abs(rud).max() < 3.0:
+        return 'straight'
+    on = np.abs(rud) >= 3.0
+    big = rud[on]
+    amp = np.abs(big).max()
+    # most of the time the rudder sits at one magnitude (turning, zigzag, pull-out orders)
+    steady = np.mean(np.abs(np.abs(big) - amp) < 0.15 * amp) > 0.7
+    reversals = int(np.count_nonzero(np.diff(np.sign(big)) != 0))
+    if steady and reversals == 0 and abs(psi[-1] - psi[0]) >= 90.0:
+        last_on = int(np.nonzero(on)[0][-1])
+        if last_on < trial.t.size - 10 and abs(rud[-1]) < 3.0:
+            return 'pull-out'
+        return 'turning'
+    if steady and reversals >= 2 and np.ptp(psi) < 120.0:
+        return 'zigzag'
+    return 'mixed'
+
+
+@dataclass
+class TrialSummary:
+    name: str
+    duration_s: float
+    dt: float
+    maneuver: str
+    speed_range_ms: tuple[float, float]
+    rpm_range: tuple[float, float]
+    rudder_range_deg: tuple[float, float]
+    notes: list[str]
+
+
+@dataclass
+class RecordingSummary:
+    path: str
+    duration_s: float = 0.0
+    topics: dict[str, tuple[str, int, float]] = field(default_factory=dict)  # type, count, Hz
+    trials: list[TrialSummary] = field(default_factory=list)
+    error: str = ''
+
+
+def summarize_trial(tr: Trial) -> TrialSummary:
+    return TrialSummary(
+        tr.name, tr.duration_s, tr.dt, detect_maneuver(tr),
+        (float(tr['u'].min()), float(tr['u'].max())),
+        (float(tr['rpm'].min()), float(tr['rpm'].max())),
+        (math.degrees(float(tr['rudder'].min())), math.degrees(float(tr['rudder'].max()))),
+        list(tr.notes))
+
+
+def summarize(path: str | Path, tm: TopicMap) -> tuple[list[RecordingSummary], list[Trial]]:
+    out, trials = [], []
+    for p in find_inputs(Path(path)):
+        rs = RecordingSummary(str(p))
+        try:
+            if p.suffix in ('.csv', '.dat'):
+                found = load_trials(p, tm)
+            else:
+                rec = read_series(p, tm)
+                rs.duration_s = (rec.end_ns - rec.start_ns) * 1e-9
+                for topic, (typ, n) in sorted(rec.topics_found.items()):
+                    rate = (n - 1) / rs.duration_s if rs.duration_s > 0 and n > 1 else 0.0
+                    rs.topics[topic] = (typ, n, rate)
+                found = assemble_trials(rec, tm, name=p.stem if p.is_file() else p.name)
+            if not rs.duration_s and found:
+                rs.duration_s = sum(t.duration_s for t in found)
+            rs.trials = [summarize_trial(t) for t in found]
+            trials.extend(found)
+        except TrialDataError as exc:
+            rs.error = str(exc)
+        out.append(rs)
+    return out, trials
+
+
+def format_summary(rs: RecordingSummary) -> str:
+    lines = [f'{rs.path}', f'  duration: {rs.duration_s:.1f} s']
+    if rs.topics:
+        lines.append('  topics:')
+        for topic, (typ, n, hz) in rs.topics.items():
+            lines.append(f'    {topic:28s} {typ:34s} {n:8d} msgs {hz:8.2f} Hz')
+    if rs.error:
+        lines.append(f'  PROBLEM: {rs.error}')
+    for ts in rs.trials:
+        lines.append(f'  trial {ts.name}: {ts.maneuver}, {ts.duration_s:.1f} s at dt {ts.dt:g} s,'
+                     f' u {ts.speed_range_ms[0]:.2f}..{ts.speed_range_ms[1]:.2f} m/s, rpm '
+                     f'{ts.rpm_range[0]:.1f}..{ts.rpm_range[1]:.1f}, rudder '
+                     f'{ts.rudder_range_deg[0]:+.1f}..{ts.rudder_range_deg[1]:+.1f} deg')
+        for n in ts.notes:
+            lines.append(f'    - {n}')
+    return '\n'.join(lines)

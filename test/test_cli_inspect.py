@@ -1,0 +1,52 @@
+"""The ``inspect`` command: topics, detected manoeuvres, problems, CSV export, exit status."""
+import subprocess
+
+import pytest
+
+from conftest import installed_executable
+from mmg_tuner.cli.generate import command as generate
+from mmg_tuner.cli.inspect import command as inspect
+from mmg_tuner.data.csv_io import read_trial_csv
+
+
+@pytest.fixture(scope='module')
+def trials_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp('gen')
+    assert generate(['--out', str(d), '--maneuvers', 'turning:35', 'zigzag:20', 'random:30',
+                     'pullout:20', '--duration', '400', '--rate-hz', '5']) == 0
+    return d
+
+
+def test_detects_manoeuvres_and_topics(trials_dir, tmp_path, capsys):
+    assert inspect([str(trials_dir), '--csv', str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert '/odom' in out and 'nav_msgs/msg/Odometry' in out and '5.00 Hz' in out
+    for name, kind in (('turning_p35', 'turning'), ('zigzag_p20', 'zigzag'),
+                       ('random_p30', 'mixed'), ('pullout_p20', 'pull-out')):
+        assert f'trial {name}: {kind},' in out
+        assert len(read_trial_csv(tmp_path / f'{name}.csv')) == 401
+    assert '4 usable trial(s)' in out
+
+
+def test_marin_data_through_the_same_door(capsys):
+    from mmg_tuner.data.marin import marin_data_dir
+    assert inspect([str(marin_data_dir())]) == 0
+    out = capsys.readouterr().out
+    assert out.count(': zigzag,') == 4 and out.count(': pull-out,') == 2
+
+
+def test_nothing_usable_exits_nonzero(tmp_path, capsys):
+    bad = tmp_path / 'bad.mcap'
+    bad.write_bytes(b'not an mcap file at all')
+    assert inspect([str(bad), str(tmp_path / 'missing')]) == 1
+    out = capsys.readouterr().out
+    assert 'PROBLEM' in out and 'bad.mcap' in out and '0 usable trial(s)' in out
+
+
+def test_installed_executables_answer_help():
+    for exe in ('inspect', 'generate'):
+        path = installed_executable(exe)
+        if path is None:
+            pytest.skip('package not installed with colcon (run through scripts/test.sh)')
+        res = subprocess.run([path, '--help'], capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0 and 'usage' in res.stdout
