@@ -33,6 +33,7 @@ setup(
             'simulate = mmg_tuner.cli.simulate:main',
             'generate = mmg_tuner.cli.generate:main',
             'inspect = mmg_tuner.cli.inspect:main',
+            'tune = mmg_tuner.cli.tune:main',
         ],
     },
 )

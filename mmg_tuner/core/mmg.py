@@ -436,13 +436,15 @@ def run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T
                     cmd = 0.0
             else:
                 cmd = rudder_cmd[k]
+            # the step sees the angle at its start (as a zero-order-hold replay of the
+            # recorded angle does); the gear then moves toward the order
+            step(kind, p, s, n_rps, delta, h, method, k1, k2, k3, k4, tmp)
             diff = cmd - delta
             if diff > max_move:
                 diff = max_move
             elif diff < -max_move:
                 diff = -max_move
             delta += diff
-            step(kind, p, s, n_rps, delta, h, method, k1, k2, k3, k4, tmp)
         ok = True
         for i in range(6):
             if not math.isfinite(s[i]):
@@ -463,3 +465,85 @@ def run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T
             for i in range(6):
                 out[k, i] = np.nan
     return status, k_fail
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def _wrap_pi(a):
+    # heading errors are almost always inside (-pi, pi]: skip the costly modulo then
+    if -math.pi < a <= math.pi:
+        return a
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def trajectory_cost(kind, p, meas, ctrl, T, dt, substeps, method, weights, shoot_every):
+    """Weighted squared error of a simulation against a measured trial (Suyama et al. eq. 43).
+
+    The simulation starts from meas[0] and is driven by ctrl; J = sum_{k>=1} e_k' W e_k with
+    e = observed - measured over (x, y, psi (wrapped), u, v, r) and W = diag(weights).
+    shoot_every > 0 restarts the simulation from the measured state every shoot_every samples
+    (multiple shooting). Returns (J, k_fail): k_fail < T means the run failed at that sample
+    (diverged or left the model's range) and J covers only the samples before it.
+    """
+    s = np.empty(6)
+    o = np.empty(6)
+    k1 = np.empty(6)
+    k2 = np.empty(6)
+    k3 = np.empty(6)
+    k4 = np.empty(6)
+    tmp = np.empty(6)
+    h = dt / substeps
+    shift = p[_toff] / dt
+    tau = p[_tau]
+    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    delta_act = _control_at(ctrl, 0, 1, shift, T) + p[_doff]
+    J = 0.0
+    for k in range(T - 1):
+        if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
+            for i in range(6):
+                s[i] = meas[k, i]
+            c = math.cos(s[2])
+            sn = math.sin(s[2])
+            s[0] -= p[_ax] * c - p[_ay] * sn
+            s[1] -= p[_ax] * sn + p[_ay] * c
+            to_water(p, s)
+        n_rps = _control_at(ctrl, k, 0, shift, T) * p[_nscale] / 60.0
+        delta_cmd = _control_at(ctrl, k, 1, shift, T) + p[_doff]
+        if not n_rps > 0.0:
+            return J, k
+        for _ in range(substeps):
+            delta_act = delta_cmd + (delta_act - delta_cmd) * decay
+            step(kind, p, s, n_rps, delta_act, h, method, k1, k2, k3, k4, tmp)
+        if not (math.isfinite(s[0]) and math.isfinite(s[1]) and math.isfinite(s[2])
+                and math.isfinite(s[3]) and math.isfinite(s[4]) and math.isfinite(s[5])):
+            return J, k + 1
+        if s[3] <= 0.0:
+            return J, k + 1
+        observe(p, s, o)
+        m = meas[k + 1]
+        e = o[0] - m[0]
+        J += weights[0] * e * e
+        e = o[1] - m[1]
+        J += weights[1] * e * e
+        e = _wrap_pi(o[2] - m[2])
+        J += weights[2] * e * e
+        if weights[3] != 0.0 or weights[4] != 0.0 or weights[5] != 0.0:
+            for i in range(3, 6):
+                e = o[i] - m[i]
+                J += weights[i] * e * e
+    return J, T
+
+
+@njit(cache=True, parallel=True)
+def cost_many(kind, params, meas, ctrls, lengths, dt, substeps, method, weights, shoot_every,
+              J, k_fail):
+    """trajectory_cost for every (candidate, trial) pair, in parallel: J and k_fail (N, M)."""
+    N = params.shape[0]
+    M = meas.shape[0]
+    for job in prange(N * M):
+        i = job // M
+        j = job % M
+        c, kf = trajectory_cost(kind, params[i], meas[j], ctrls[j], lengths[j], dt, substeps,
+                                method, weights, shoot_every)
+        J[i, j] = c
+        k_fail[i, j] = kf

@@ -18,7 +18,7 @@ class SensorNoise:
 
     position_m: float = 0.5          # GNSS (standalone/SBAS class)
     heading_rad: float = math.radians(0.2)   # GNSS compass / gyrocompass
-    speed_ms: float = 0.05           # GNSS Doppler-derived body velocities
+    speed_ms: float = 0.02           # body velocities from a GNSS/INS navigation filter
     yaw_rate_rad_s: float = math.radians(0.05)  # rate gyro
     rudder_rad: float = math.radians(0.1)    # rudder angle indicator
     rpm: float = 0.2                 # shaft tachometer

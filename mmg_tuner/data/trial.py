@@ -77,3 +77,12 @@ class Trial:
         ctrl[:, 0] *= s
         return replace(self, t=self.t / s, states=st, controls=ctrl,
                        notes=self.notes + [f'Froude-scaled by 1/{ratio:g}'])
+
+    def resampled(self, dt: float) -> 'Trial':
+        """The trial on a uniform grid of step dt (linear interpolation, heading unwrapped)."""
+        n = int(math.floor(self.duration_s / dt + 1e-9)) + 1
+        grid = self.t[0] + dt * np.arange(n)
+        st = np.column_stack([np.interp(grid, self.t, self.states[:, i]) for i in range(6)])
+        ctrl = np.column_stack([np.interp(grid, self.t, self.controls[:, i]) for i in range(2)])
+        return replace(self, t=grid, states=st, controls=ctrl,
+                       notes=self.notes + [f'resampled on dt = {dt:g} s (linear)'])

@@ -1,0 +1,85 @@
+"""Which tuned parameters do the trials determine? Gauss-Newton standard errors at the optimum.
+
+The weighted residuals r(theta) of all trials are linearised by central differences in the
+unit box; cov = s^2 (J'J)^-1 with s^2 = SSR / (n - p). A parameter whose standard error is a
+small fraction of its box is identified by the data; a large one means the data cannot tell
+it apart from others (a correlated combination), so its tuned value carries no information.
+Residuals along a trajectory are correlated, so these errors are optimistic: use them to rank,
+not as confidence intervals.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from mmg_tuner.core.simulate import simulate_batch
+from mmg_tuner.tuning.objective import Objective
+from mmg_tuner.tuning.parameters import ParameterSpace
+
+
+def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
+    """Weighted residual vectors (N, n) of each candidate over all trials (NaN-free: a failed
+    run gives large residuals)."""
+    b = objective.batch
+    x0s = np.ascontiguousarray(b.meas[:, 0, :])
+    integ = {0: 'euler', 1: 'rk4'}[objective.method]
+    out, _, _ = simulate_batch(objective.ship.kind, params, x0s, b.ctrls, b.dt, b.lengths, integ,
+                               objective.substeps)
+    err = out - b.meas[None]
+    err[..., 2] = (err[..., 2] + np.pi) % (2 * np.pi) - np.pi
+    mask = np.arange(b.meas.shape[1])[None, :] < b.lengths[:, None]
+    mask[:, 0] = False
+    err = err * np.sqrt(objective.weights)
+    err = np.where(np.isfinite(err), err, 1e6)
+    return err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
+
+
+def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarray,
+                    h: float = 1e-3) -> np.ndarray:
+    """Standard error of each tuned parameter (in its own units) at theta."""
+    base = objective.ship.params
+    z0 = space.to_unit(theta)
+    Z = [z0]
+    for i in range(space.dim):
+        for sgn in (1, -1):
+            z = z0.copy()
+            z[i] += sgn * h
+            Z.append(z)
+    Z = np.array(Z)
+    theta_all = space.lower + Z * (space.upper - space.lower)  # no clipping: derivatives at bounds
+    R = residuals(objective, space.full_params(base, theta_all))
+    r0 = R[0]
+    Jac = np.column_stack([(R[1 + 2 * i] - R[2 + 2 * i]) / (2 * h) for i in range(space.dim)])
+    n, p = Jac.shape
+    s2 = float(r0 @ r0) / max(n - p, 1)
+    cov = s2 * np.linalg.pinv(Jac.T @ Jac)
+    se_unit = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return se_unit * (space.upper - space.lower)
+
+
+def identified(space: ParameterSpace, se: np.ndarray, frac: float = 0.05) -> list[str]:
+    """Names whose standard error is below frac of their box width."""
+    return [n for n, s, w in zip(space.names, se, space.upper - space.lower) if s < frac * w]
+
+
+def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndarray,
+                     max_se: float = 0.02, h: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Parameter combinations the trials determine: unit-box eigen-directions of J'J whose
+    standard error is below max_se (fraction of the box). Returns (directions (k, d) as rows,
+    their standard errors (k,))."""
+    base = objective.ship.params
+    z0 = space.to_unit(theta)
+    Z = [z0]
+    for i in range(space.dim):
+        for sgn in (1, -1):
+            z = z0.copy()
+            z[i] += sgn * h
+            Z.append(z)
+    theta_all = space.lower + np.array(Z) * (space.upper - space.lower)
+    R = residuals(objective, space.full_params(base, theta_all))
+    Jac = np.column_stack([(R[1 + 2 * i] - R[2 + 2 * i]) / (2 * h) for i in range(space.dim)])
+    n, p = Jac.shape
+    s2 = float(R[0] @ R[0]) / max(n - p, 1)
+    lam, V = np.linalg.eigh(Jac.T @ Jac)
+    se = np.sqrt(s2 / np.clip(lam, 1e-300, None))
+    keep = se < max_se
+    return V[:, keep].T, se[keep]

@@ -1,0 +1,165 @@
+"""CMA-ES fine-tuning: recovery, held-out gain, box constraints, penalties, resume, CLI."""
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.data.generate import SensorNoise
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TuningError
+from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
+from mmg_tuner.tuning.identifiability import standard_errors
+
+TUNE_SPECS = [mv.ManeuverSpec('turning', rudder_deg=35, duration_s=300),
+              mv.ManeuverSpec('turning', rudder_deg=-20, duration_s=300),
+              mv.ManeuverSpec('zigzag', rudder_deg=20, duration_s=300),
+              mv.ManeuverSpec('random', rudder_deg=35, duration_s=300, seed=1,
+                              random_rpm_frac=0.15)]
+TEST_SPECS = [mv.ManeuverSpec('turning', rudder_deg=-35, duration_s=300),
+              mv.ManeuverSpec('random', rudder_deg=30, duration_s=300, seed=9)]
+
+
+def truth_ship(ship, space, seed):
+    rng = np.random.default_rng(seed)
+    theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.6, 0.6, space.dim)
+    return ship.with_params(dict(zip(space.names, theta))), theta
+
+
+def trials(ship, specs, noise, seed0):
+    out = []
+    for i, spec in enumerate(specs):
+        tr = mv.run(ship, spec)
+        out.append(noise.apply(Trial(tr.t, tr.states, tr.controls, name=f'{spec.maneuver}{i}'),
+                               np.random.default_rng(seed0 + i)))
+    return out
+
+
+def test_noise_free_data_recovers_every_parameter(suzaku):
+    space = ParameterSpace.around(suzaku)
+    truth, theta = truth_ship(suzaku, space, 5)
+    obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS, SensorNoise.none(),
+                                                          0), x0_window_s=0))
+    res = Tuner(space, obj, seed=1, max_evaluations=25_000).run()
+    assert res.J < 1e-6 * obj(suzaku.params[None])[0]
+    err = np.abs(space.to_unit(res.theta) - space.to_unit(theta))  # fraction of the box
+    weak = [space.names.index(n) for n in ('t_R', 'a_H')]  # a flat valley: X_R is small
+    assert np.delete(err, weak).max() < 0.01 and err[weak].max() < 0.1
+
+
+def test_noisy_data_test_set_gain(suzaku):
+    """The issue's check: 12 targets moved inside the box, sensor noise: test J >= 90 % lower
+    than with the pre-determined parameters, and close to what the truth itself achieves."""
+    space = ParameterSpace.around(suzaku)
+    truth, theta = truth_ship(suzaku, space, 5)
+    tune = trials(truth, TUNE_SPECS, SensorNoise(), 0)
+    test = trials(truth, TEST_SPECS, SensorNoise(), 50)
+    obj, obj_test = (Objective(suzaku, TrialBatch.from_trials(t)) for t in (tune, test))
+    res = Tuner(space, obj, seed=1, max_evaluations=15_000).run()
+    tuned = space.full_params(suzaku.params, res.theta)
+    J_pre, J_tuned = obj_test(suzaku.params[None])[0], obj_test(tuned)[0]
+    J_truth = obj_test(space.full_params(suzaku.params, theta))[0]
+    assert J_tuned < 0.1 * J_pre
+    assert J_tuned < 5 * J_truth
+    # the data pin R_0 (resistance) far better than the rudder interaction coefficients
+    se = standard_errors(obj, space, theta) / (space.upper - space.lower)
+    names = list(space.names)
+    assert se[names.index('R_0')] < 0.1 < se[names.index('a_H')]
+
+
+def test_candidates_stay_in_the_box_and_divergence_is_penalised(suzaku):
+    space = ParameterSpace.around(suzaku, ['N_r', 'Y_v'], overrides={'N_r': (-0.2, 400.0)})
+    tr = trials(suzaku, TUNE_SPECS[:1], SensorNoise.none(), 0)
+    obj = Objective(suzaku, TrialBatch.from_trials(tr))
+    seen = []
+    original = obj.__call__
+
+    class Spy(Objective):
+        def __call__(self, params):
+            seen.append(params[:, space.indices].copy())
+            return original(params)
+
+    obj.__class__ = Spy
+    res = Tuner(space, obj, seed=0, max_evaluations=600, max_popsize=24).run()
+    allp = np.concatenate(seen)
+    assert np.all(allp >= space.lower - 1e-12) and np.all(allp <= space.upper + 1e-12)
+    J = original(space.full_params(suzaku.params, np.array([[400.0, -0.33], [-0.057, -0.329]])))
+    assert np.isfinite(J).all() and J[0] > J[1]  # the unstable hull: a penalty, not a crash
+    assert math.isfinite(res.J)
+
+
+def test_interrupt_and_resume_match_an_uninterrupted_run(suzaku, tmp_path):
+    space = ParameterSpace.around(suzaku, ['R_0', 't_P', 'gamma_Rn'])
+    truth, _ = truth_ship(suzaku, space, 3)
+    obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS[:2],
+                                                          SensorNoise(), 0)))
+    full = Tuner(space, obj, seed=4, max_evaluations=2000, max_popsize=48).run()
+
+    def stop_after(n):
+        def cb(p):
+            if p.evaluations >= n:
+                raise KeyboardInterrupt
+        return cb
+
+    ck = tmp_path / 'ck.pkl'
+    part = Tuner(space, obj, seed=4, max_evaluations=2000, max_popsize=48,
+                 checkpoint=ck).run(progress=stop_after(500))
+    assert part.interrupted and ck.is_file() and part.evaluations < 2000
+    rest = Tuner(space, obj, seed=4, max_evaluations=2000, max_popsize=48,
+                 checkpoint=ck).run(resume=True)
+    # cmaes pickles the covariance as a triangle: a resumed run matches to rounding error
+    assert rest.evaluations == full.evaluations
+    assert rest.J == pytest.approx(full.J, rel=1e-9)
+    np.testing.assert_allclose(rest.theta, full.theta, rtol=1e-9)
+    other = ParameterSpace.around(suzaku, ['R_0', 't_P'])
+    with pytest.raises(TuningError, match='another problem'):
+        Tuner(other, obj, seed=4, checkpoint=ck).run(resume=True)
+
+
+def test_parameter_space_boxes(suzaku):
+    space = ParameterSpace.around(suzaku, ['R_0', 'C_w'], a_r=0.2, overrides={'C_w': 0.5})
+    np.testing.assert_allclose(space.lower, [0.017 * 0.8, -3.0])
+    np.testing.assert_allclose(space.upper, [0.017 * 1.2, -1.0])
+    with pytest.raises(TuningError, match='empty box'):
+        ParameterSpace.around(suzaku, ['X_vvvr'], overrides={}) if suzaku['X_vvvr'] == 0 else \
+            ParameterSpace.around(load_ship('kvlcc2'), ['X_vvvr'])
+    with pytest.raises(TuningError, match='unknown tuning target'):
+        ParameterSpace.around(suzaku, ['R0'])
+
+
+def test_multiple_shooting_bounds_drift(suzaku):
+    tr = trials(suzaku.with_params({'N_r': -0.07}), TUNE_SPECS[:1], SensorNoise.none(), 0)
+    batch = TrialBatch.from_trials(tr)
+    free = Objective(suzaku, batch)(suzaku.params[None])[0]
+    shot = Objective(suzaku, batch, shoot_every_s=30.0)(suzaku.params[None])[0]
+    assert 0 < shot < 0.2 * free
+
+
+def test_tune_command_outputs(tmp_path, capsys):
+    from mmg_tuner.cli.generate import command as generate
+    from mmg_tuner.cli.tune import command as tune
+    gen = tmp_path / 'gen'
+    assert generate(['--out', str(gen), '--maneuvers', 'turning:35', 'turning:-20', 'zigzag:20',
+                     'random:30', '--duration', '200', '--rate-hz', '2', '--seed', '1']) == 0
+    out = tmp_path / 'tuned'
+    rc = tune([str(gen / 'turning_p35'), str(gen / 'turning_m20'), str(gen / 'random_p30'),
+               '--test', str(gen / 'zigzag_p20'), '--out', str(out), '--max-evals', '600',
+               '--integrator', 'rk4', '--quiet'])
+    assert rc == 0
+    rep = json.loads((out / 'report.json').read_text())
+    for key in ('J', 'per_trial', 'params', 'bounds_hit', 'evaluations', 'wall_s'):
+        assert key in rep
+    assert rep['J']['tuned']['tune'] < rep['J']['pre']['tune']
+    assert rep['J']['pre']['test'] is not None and rep['evaluations'] >= 600
+    assert set(rep['per_trial']) == {'turning_p35', 'turning_m20', 'random_p30', 'zigzag_p20'}
+    tuned = yaml.safe_load((out / 'params.yaml').read_text())['params']
+    ship = load_ship('suzaku', out / 'params.yaml')  # loadable by simulate / sim_node
+    assert ship['R_0'] == pytest.approx(tuned['R_0'])
+    assert (out / 'report.md').read_text().startswith('# Tuning report')
+    assert (out / 'plot_zigzag_p20.png').stat().st_size > 10_000
+    # resume a finished run: nothing left to do, same answer
+    assert tune(['--resume', str(out)]) == 0
+    assert json.loads((out / 'report.json').read_text())['params'] == rep['params']
