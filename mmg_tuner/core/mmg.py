@@ -308,12 +308,59 @@ def observe(p, s, out):
 
 
 @njit(cache=True, fastmath=_FASTMATH)
+def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4, tmp):
+    """Advance the model state s (in place) over one sample interval dt with the recorded or
+    commanded rpm and rudder [rad] held; the one implementation used by offline simulation, the
+    tuning objective and the simulator node.
+
+    delta_act is the actual rudder angle (the steering-gear lag state); the effects act here:
+    rpm_scale, rudder_offset, rudder_lag_tau. Returns (status, new delta_act).
+    """
+    n_rps = rpm * p[_nscale] / 60.0
+    if not n_rps > 0.0:
+        return RPM_NOT_POSITIVE, delta_act
+    delta_cmd = rudder + p[_doff]
+    h = dt / substeps
+    tau = p[_tau]
+    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    for _ in range(substeps):
+        # steering gear: exact first-order response to the held command
+        delta_act = delta_cmd + (delta_act - delta_cmd) * decay
+        if method == EULER:  # the tuning hot path: keep the call chain shallow for inlining
+            derivative(kind, p, s, n_rps, delta_act, k1)
+            for i in range(6):
+                s[i] += h * k1[i]
+        else:
+            step(kind, p, s, n_rps, delta_act, h, method, k1, k2, k3, k4, tmp)
+    # one test for all six: NaN/inf propagate through the sum (an overflowing sum is a
+    # divergence too)
+    if not math.isfinite(s[0] + s[1] + s[2] + s[3] + s[4] + s[5]):
+        return DIVERGED, delta_act
+    if s[3] <= 0.0:
+        return SURGE_NOT_POSITIVE, delta_act
+    return OK, delta_act
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def start_state(p, x0, s):
+    """Model state from a first observed state: antenna position moved to midship, velocities
+    over ground turned into velocities through the water."""
+    for i in range(6):
+        s[i] = x0[i]
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    s[0] -= p[_ax] * c - p[_ay] * sn
+    s[1] -= p[_ax] * sn + p[_ay] * c
+    to_water(p, s)
+
+
+@njit(cache=True, fastmath=_FASTMATH)
 def simulate_one(kind, p, x0, ctrl, T, dt, substeps, method, out):
     """Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
 
-    x0 is the first observed state (midship position, velocities over ground); ctrl[k] =
-    (rpm, rudder_rad) held from sample k to k+1. Returns (status, sample index of failure).
-    After a failure the remaining rows are NaN.
+    x0 is the first observed state (antenna position, velocities over ground); ctrl[k] =
+    (rpm, rudder_rad) held from sample k to k+1 (delayed by time_offset if set). Returns
+    (status, sample index of failure). After a failure the remaining rows are NaN.
     """
     s = np.empty(6)
     k1 = np.empty(6)
@@ -321,44 +368,18 @@ def simulate_one(kind, p, x0, ctrl, T, dt, substeps, method, out):
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
-    for i in range(6):
-        s[i] = x0[i]
-    # x0 is observed at the antenna: move it to midship
-    c = math.cos(s[2])
-    sn = math.sin(s[2])
-    s[0] -= p[_ax] * c - p[_ay] * sn
-    s[1] -= p[_ax] * sn + p[_ay] * c
-    to_water(p, s)
+    start_state(p, x0, s)
     observe(p, s, out[0])
-    h = dt / substeps
     shift = p[_toff] / dt
-    tau = p[_tau]
-    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
     delta_act = _control_at(ctrl, 0, 1, shift, T) + p[_doff]
     status = OK
     k_fail = T
     for k in range(T - 1):
-        n_rps = _control_at(ctrl, k, 0, shift, T) * p[_nscale] / 60.0
-        delta_cmd = _control_at(ctrl, k, 1, shift, T) + p[_doff]
-        if not n_rps > 0.0:
-            status = RPM_NOT_POSITIVE
-            k_fail = k
-            break
-        for _ in range(substeps):
-            # steering gear: exact first-order response to the held command
-            delta_act = delta_cmd + (delta_act - delta_cmd) * decay
-            step(kind, p, s, n_rps, delta_act, h, method, k1, k2, k3, k4, tmp)
-        ok = True
-        for i in range(6):
-            if not math.isfinite(s[i]):
-                ok = False
-        if not ok:
-            status = DIVERGED
-            k_fail = k + 1
-            break
-        if s[3] <= 0.0:
-            status = SURGE_NOT_POSITIVE
-            k_fail = k + 1
+        status, delta_act = advance(kind, p, s, delta_act, _control_at(ctrl, k, 0, shift, T),
+                                    _control_at(ctrl, k, 1, shift, T), dt, substeps, method,
+                                    k1, k2, k3, k4, tmp)
+        if status != OK:
+            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
         observe(p, s, out[k + 1])
     if status != OK:
@@ -409,13 +430,17 @@ def run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T
     max_move = rate * h if rate > 0.0 else 1e9
     delta = 0.0  # straight approach: the rudder starts amidships and moves at the gear's rate
     rudder_out[0] = delta
+    # effects between the recorded (indicated) rudder/rpm and what acts on the ship
+    tau = p[_tau]
+    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    delta_act = delta + p[_doff]
     zz_started = False
     zz_cmd = zigzag_amp
     psi0 = s[2]
     status = OK
     k_fail = T
     for k in range(T - 1):
-        n_rps = rpm[k] / 60.0
+        n_rps = rpm[k] * p[_nscale] / 60.0
         if not n_rps > 0.0:
             status = RPM_NOT_POSITIVE
             k_fail = k
@@ -438,7 +463,8 @@ def run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T
                 cmd = rudder_cmd[k]
             # the step sees the angle at its start (as a zero-order-hold replay of the
             # recorded angle does); the gear then moves toward the order
-            step(kind, p, s, n_rps, delta, h, method, k1, k2, k3, k4, tmp)
+            delta_act = delta + p[_doff] + (delta_act - delta - p[_doff]) * decay
+            step(kind, p, s, n_rps, delta_act, h, method, k1, k2, k3, k4, tmp)
             diff = cmd - delta
             if diff > max_move:
                 diff = max_move
@@ -492,33 +518,17 @@ def trajectory_cost(kind, p, meas, ctrl, T, dt, substeps, method, weights, shoot
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
-    h = dt / substeps
     shift = p[_toff] / dt
-    tau = p[_tau]
-    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
     delta_act = _control_at(ctrl, 0, 1, shift, T) + p[_doff]
     J = 0.0
     for k in range(T - 1):
         if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
-            for i in range(6):
-                s[i] = meas[k, i]
-            c = math.cos(s[2])
-            sn = math.sin(s[2])
-            s[0] -= p[_ax] * c - p[_ay] * sn
-            s[1] -= p[_ax] * sn + p[_ay] * c
-            to_water(p, s)
-        n_rps = _control_at(ctrl, k, 0, shift, T) * p[_nscale] / 60.0
-        delta_cmd = _control_at(ctrl, k, 1, shift, T) + p[_doff]
-        if not n_rps > 0.0:
-            return J, k
-        for _ in range(substeps):
-            delta_act = delta_cmd + (delta_act - delta_cmd) * decay
-            step(kind, p, s, n_rps, delta_act, h, method, k1, k2, k3, k4, tmp)
-        if not (math.isfinite(s[0]) and math.isfinite(s[1]) and math.isfinite(s[2])
-                and math.isfinite(s[3]) and math.isfinite(s[4]) and math.isfinite(s[5])):
-            return J, k + 1
-        if s[3] <= 0.0:
-            return J, k + 1
+            start_state(p, meas[k], s)
+        status, delta_act = advance(kind, p, s, delta_act, _control_at(ctrl, k, 0, shift, T),
+                                    _control_at(ctrl, k, 1, shift, T), dt, substeps, method,
+                                    k1, k2, k3, k4, tmp)
+        if status != OK:
+            return J, (k if status == RPM_NOT_POSITIVE else k + 1)
         observe(p, s, o)
         m = meas[k + 1]
         e = o[0] - m[0]
