@@ -1,0 +1,144 @@
+"""``replay_node``: plays a recorded trial through the model beside the recording.
+
+Publishes /clock (trial time), the recorded commands, the recorded odometry on
+/recorded/odom and the model's odometry on /odom, at ``speed`` x real time; logs the error
+summary at the end; optionally writes everything to an MCAP that Foxglove opens.
+
+    ros2 run mmg_tuner replay_node --ros-args -p trial:=trials/zigzag_p20 -p speed:=10.0
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import replace
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Float64
+from nav_msgs.msg import Odometry
+
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.simulate import simulate
+from mmg_tuner.data.bag import write_replay_bag
+from mmg_tuner.data.load import load_trials
+from mmg_tuner.data.topics import load_topic_map
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
+
+PARAMS = {
+    'trial': ('', 'recorded trial: rosbag2 dir, .mcap, .csv or .dat'),
+    'trial_index': (0, 'which trial when the recording holds several'),
+    'topics': ('', 'topic map YAML for the recording'),
+    'dt': (1.0, 'resampling step of the recording [s]'),
+    'ship': ('suzaku', 'ship config name or YAML path'),
+    'params_file': ('', 'tuned params.yaml'),
+    'integrator': ('rk4', 'euler or rk4'),
+    'speed': (1.0, 'replay speed factor'),
+    'output_mcap': ('', 'write recorded + simulated odometry and commands to this rosbag2 '
+                        'MCAP directory (empty: none)'),
+    'exit_at_end': (True, 'shut down after the last sample'),
+}
+
+
+def error_summary(recorded: np.ndarray, simulated: np.ndarray) -> dict[str, float]:
+    d = np.hypot(simulated[:, 0] - recorded[:, 0], simulated[:, 1] - recorded[:, 1])
+    dpsi = (simulated[:, 2] - recorded[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return {'position_rms_m': float(np.sqrt(np.nanmean(d ** 2))),
+            'position_final_m': float(d[-1]),
+            'heading_rms_deg': float(np.degrees(np.sqrt(np.nanmean(dpsi ** 2)))),
+            'speed_rms_ms': float(np.sqrt(np.nanmean((simulated[:, 3] - recorded[:, 3]) ** 2)))}
+
+
+class ReplayNode(Node):
+    def __init__(self) -> None:
+        super().__init__('replay_node')
+        for name, (default, desc) in PARAMS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=desc))
+        p = {n: self.get_parameter(n).value for n in PARAMS}
+        if not p['trial']:
+            raise MmgTunerError('parameter "trial" is empty: give a recording to replay')
+        tm = replace(load_topic_map(p['topics'] or None), dt=float(p['dt']))
+        trials = load_trials(p['trial'], tm)
+        if not 0 <= p['trial_index'] < len(trials):
+            raise MmgTunerError(f"{p['trial']}: trial_index {p['trial_index']} out of range "
+                                f'(it holds {len(trials)} trial(s))')
+        self.trial = trials[p['trial_index']]
+        ship = load_ship(p['ship'], p['params_file'] or None)
+        sim = simulate(ship, self.trial.states[0], self.trial.controls, self.trial.dt,
+                       p['integrator'], check=False)
+        if not sim.ok:
+            self.get_logger().warn(f'the model stopped at t = {sim.fail_time_s:.1f} s: '
+                                   f'{sim.status}')
+        self.sim_states = sim.states
+        self.summary = error_summary(self.trial.states, self.sim_states)
+        if p['output_mcap']:
+            write_replay_bag(self.trial, self.sim_states, p['output_mcap'])
+            self.get_logger().info(f"wrote {p['output_mcap']} (open it in Foxglove)")
+        self.speed = float(p['speed'])
+        self.exit_at_end = bool(p['exit_at_end'])
+        self.pub_odom = self.create_publisher(Odometry, '/odom', 10)
+        self.pub_rec = self.create_publisher(Odometry, '/recorded/odom', 10)
+        self.pub_rud = self.create_publisher(Float64, tm.rudder_topic, 10)
+        self.pub_rpm = self.create_publisher(Float64, tm.rpm_topic, 10)
+        self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
+        self.steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.wall0 = self.steady.now().nanoseconds * 1e-9
+        self.k = 0
+        self.done = False
+        period = max(0.005, min(0.1, self.trial.dt / self.speed))
+        self.create_timer(period, self._tick, clock=self.steady)
+        self.get_logger().info(f'replaying {self.trial.name} ({len(self.trial)} samples, '
+                               f'{self.trial.duration_s:.0f} s) at {self.speed:g}x')
+
+    def _tick(self) -> None:
+        elapsed = (self.steady.now().nanoseconds * 1e-9 - self.wall0) * self.speed
+        tr = self.trial
+        while self.k < len(tr) and tr.t[self.k] - tr.t[0] <= elapsed:
+            t = float(tr.t[self.k] - tr.t[0])
+            self.pub_clock.publish(ClockMsg(clock=stamp_from_seconds(t)))
+            self.pub_rud.publish(Float64(data=float(tr.controls[self.k, 1])))
+            self.pub_rpm.publish(Float64(data=float(tr.controls[self.k, 0])))
+            self.pub_rec.publish(odometry_from_state(tr.states[self.k], t))
+            if np.all(np.isfinite(self.sim_states[self.k])):
+                self.pub_odom.publish(odometry_from_state(self.sim_states[self.k], t))
+            self.k += 1
+        if self.k >= len(tr) and not self.done:
+            self.done = True
+            s = self.summary
+            self.get_logger().info(
+                f"replay finished: position error rms {s['position_rms_m']:.2f} m, final "
+                f"{s['position_final_m']:.2f} m; heading rms {s['heading_rms_deg']:.2f} deg; "
+                f"speed rms {s['speed_rms_ms']:.3f} m/s")
+            if self.exit_at_end:
+                raise SystemExit(0)
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = ReplayNode()
+        rclpy.spin(node)
+    except MmgTunerError as exc:
+        print(f'ERROR: {exc}', file=sys.stderr)
+        code = 2
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    sys.exit(code)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,180 @@
+"""The nodes as separate processes, driven over ROS topics from this test (no launch here:
+PyPI rclpy has none). Needs rclpy; skipped without it."""
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+from nav_msgs.msg import Odometry  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from conftest import installed_executable  # noqa: E402
+from mmg_tuner.core.ship import load_ship  # noqa: E402
+from mmg_tuner.core.simulate import simulate  # noqa: E402
+from mmg_tuner.ros.conversions import seconds_from_stamp, state_from_odometry  # noqa: E402
+
+
+@pytest.fixture(scope='module')
+def ros(tmp_path_factory):
+    """A private ROS graph: random domain, localhost only, logs in a temp dir."""
+    env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid()).randint(1, 100)),
+           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+           'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('test_driver', context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    yield dict(os.environ), node, ex
+    node.destroy_node()
+    rclpy.shutdown(context=ctx)
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+def start(exe: str, env: dict, *params: str) -> subprocess.Popen:
+    path = installed_executable(exe)
+    cmd = [path] if path else [sys.executable, '-m', f'mmg_tuner.ros.{exe}']
+    args = ['--ros-args'] + [a for p in params for a in ('-p', p)]
+    return subprocess.Popen(cmd + args, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+
+
+def stop(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return proc.stdout.read()
+
+
+def spin_until(ex, cond, timeout=30.0):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end and not cond():
+        ex.spin_once(timeout_sec=0.05)
+    return cond()
+
+
+@pytest.fixture
+def sim_proc(ros):
+    env, node, ex = ros
+    proc = start('sim_node', env, 'publish_clock:=true', 'wait_for_commands:=true',
+                 'real_time_factor:=20.0', 'rate_hz:=50.0', 'dt:=0.1', 'initial_speed:=3.0')
+    yield proc
+    out = stop(proc)
+    proc.output = out
+
+
+def test_sim_node_equals_offline_simulation(ros, sim_proc):
+    env, node, ex = ros
+    got = []
+    sub = node.create_subscription(Odometry, '/odom', lambda m: got.append(m), 50)
+    rud = node.create_publisher(Float64, '/rudder_angle', 10)
+    rpm = node.create_publisher(Float64, '/propeller_rpm', 10)
+
+    def commanding():
+        rud.publish(Float64(data=0.3))
+        rpm.publish(Float64(data=100.0))
+        return bool(got) and seconds_from_stamp(got[-1].header.stamp) >= 60.0
+
+    assert spin_until(ex, commanding, 60.0), f'no odometry; node said:\n{stop(sim_proc)}'
+    node.destroy_subscription(sub)
+    ship = load_ship('suzaku')
+    T = 601
+    offline = simulate(ship, [0, 0, 0, 3.0, 0, 0], np.tile([100.0, 0.3], (T, 1)), 0.1, 'rk4')
+    checked = 0
+    for m in got:
+        k = int(round(seconds_from_stamp(m.header.stamp) / 0.1))
+        if 0 < k < T:
+            np.testing.assert_allclose(state_from_odometry(m), offline.states[k], atol=1e-6)
+            checked += 1
+    assert checked > 50
+    # REP-103/105: a starboard turn is negative angular.z in FLU and clockwise in ENU
+    last = got[-1]
+    assert last.twist.twist.angular.z < 0
+    assert last.header.frame_id == 'map' and last.child_frame_id == 'base_link'
+    yaw = [math.atan2(2 * m.pose.pose.orientation.w * m.pose.pose.orientation.z,
+                      1 - 2 * m.pose.pose.orientation.z ** 2) for m in got]
+    assert np.all(np.diff(np.unwrap(yaw))[len(yaw) // 4:] < 0)
+
+
+def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
+    env, node, ex = ros
+    got = []
+    sub = node.create_subscription(Odometry, '/odom', lambda m: got.append(m), 50)
+    rud = node.create_publisher(Float64, '/rudder_angle', 10)
+    rpm = node.create_publisher(Float64, '/propeller_rpm', 10)
+
+    def bad():
+        rud.publish(Float64(data=float('nan')))
+        rud.publish(Float64(data=2.0))   # beyond the 45 deg limit: clamped
+        rpm.publish(Float64(data=-50.0))  # astern: outside the model, ignored
+        rpm.publish(Float64(data=106.0))
+        return len(got) > 30
+
+    assert spin_until(ex, bad, 60.0)
+    assert sim_proc.poll() is None  # alive
+    assert all(np.all(np.isfinite(state_from_odometry(m))) for m in got)
+    # reset: simulated time starts again near zero
+    cli = node.create_client(Trigger, '/sim_node/reset')
+    assert cli.wait_for_service(timeout_sec=20)
+    fut = cli.call_async(Trigger.Request())
+    assert spin_until(ex, fut.done, 20) and fut.result().success
+    t_before = seconds_from_stamp(got[-1].header.stamp)
+    got.clear()
+    assert spin_until(ex, lambda: len(got) > 3, 20)
+    assert seconds_from_stamp(got[0].header.stamp) < t_before
+    # a ship that does not exist is refused with a reason; the node keeps running
+    pcli = node.create_client(SetParameters, '/sim_node/set_parameters')
+    assert pcli.wait_for_service(timeout_sec=20)
+    req = SetParameters.Request(parameters=[Parameter(name='ship', value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value='no_such_ship'))])
+    fut = pcli.call_async(req)
+    assert spin_until(ex, fut.done, 20)
+    res = fut.result().results[0]
+    assert not res.successful and 'unknown ship' in res.reason
+    node.destroy_subscription(sub)
+    out = stop(sim_proc)
+    assert 'not finite' in out and 'clamped' in out and '<= 0' in out
+
+
+def test_replay_node_publishes_and_writes_mcap(ros, tmp_path):
+    from mmg_tuner.cli.generate import command as generate
+    from mmg_tuner.data.load import load_trials
+    env, node, ex = ros
+    assert generate(['--out', str(tmp_path / 'g'), '--maneuvers', 'zigzag:20', '--duration',
+                     '120', '--rate-hz', '2']) == 0
+    rec, sim = [], []
+    node.create_subscription(Odometry, '/recorded/odom', lambda m: rec.append(m), 50)
+    node.create_subscription(Odometry, '/odom', lambda m: sim.append(m), 50)
+    out = tmp_path / 'replay'
+    proc = start('replay_node', env, f"trial:={tmp_path / 'g' / 'zigzag_p20'}", 'speed:=20.0',
+                 f'output_mcap:={out}')
+    spin_until(ex, lambda: proc.poll() is not None, 60.0)
+    log = stop(proc)
+    assert proc.returncode == 0, log
+    assert 'replay finished: position error rms' in log
+    assert len(rec) > 50 and len(sim) > 50
+    trial = load_trials(tmp_path / 'g' / 'zigzag_p20')[0]
+    (from_mcap,) = load_trials(out)  # /odom in the file is the model's odometry
+    offline = simulate(load_ship('suzaku'), trial.states[0], trial.controls, 1.0, 'rk4',
+                       check=False)
+    np.testing.assert_allclose(from_mcap.states, offline.states, atol=1e-6)
