@@ -22,13 +22,19 @@ def seconds_from_stamp(stamp) -> float:
 
 
 def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'map',
-                        child_frame_id: str = 'base_link') -> Odometry:
+                        child_frame_id: str = 'base_link', msg: Odometry | None = None
+                        ) -> Odometry:
+    """Odometry of a model-frame state; pass msg to refill a preallocated message (cheaper
+    than building one per tick in a 50 Hz loop)."""
     x, y, psi, u, v, r = (float(a) for a in state)
     yaw = math.pi / 2 - psi
-    msg = Odometry()
-    msg.header.stamp = stamp_from_seconds(t)
-    msg.header.frame_id = frame_id
-    msg.child_frame_id = child_frame_id
+    if msg is None:
+        msg = Odometry()
+        msg.header.frame_id = frame_id
+        msg.child_frame_id = child_frame_id
+    sec = math.floor(t)
+    msg.header.stamp.sec = int(sec)
+    msg.header.stamp.nanosec = int(round((t - sec) * 1e9)) % 1_000_000_000
     msg.pose.pose.position.x = y
     msg.pose.pose.position.y = x
     msg.pose.pose.orientation.z = math.sin(yaw / 2)

@@ -72,7 +72,14 @@ class SimNode(Node):
         self.last_cmd = {'rudder': None, 'rpm': None}
         self._warned: dict[str, float] = {}
         self._restart_clock()
-        self.create_timer(1.0 / self.p['rate_hz'], self._tick, clock=self.steady)
+        self._odom = odometry_from_state(self.sim.observed(), 0.0, self.p['frame_id'],
+                                         self.p['child_frame_id'])
+        self._clock_msg = ClockMsg()
+        # on system time the default clock's timer is the cheapest; with use_sim_time a timer on
+        # ROS time would wait for /clock, which this node may be the one to publish
+        sim_time = self.get_parameter('use_sim_time').value
+        self.create_timer(1.0 / self.p['rate_hz'], self._tick,
+                          clock=self.steady if sim_time else None)
         self.get_logger().info(
             f"{self.sim.ship.name} ({self.sim.ship.model} model) at {self.p['rate_hz']:g} Hz, "
             f"dt {self.p['dt']:g} s, real-time factor {self.p['real_time_factor']:g}")
@@ -144,11 +151,11 @@ class SimNode(Node):
             return
         self._check_stale(now)
         t = self.stamp0 + self.sim.t
-        self.odom_pub.publish(odometry_from_state(self.sim.observed(), t, self.p['frame_id'],
-                                                  self.p['child_frame_id']))
+        msg = odometry_from_state(self.sim.observed(), t, msg=self._odom)
+        self.odom_pub.publish(msg)
         if self.clock_pub is not None:
-            self.clock_pub.publish(ClockMsg(clock=odometry_from_state(
-                self.sim.observed(), t).header.stamp))
+            self._clock_msg.clock = msg.header.stamp
+            self.clock_pub.publish(self._clock_msg)
 
     def _advance(self, n: int) -> bool:
         if self.sim.step(n):

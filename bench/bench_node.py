@@ -1,0 +1,51 @@
+"""Simulator node speed: CPU share of sim_node publishing at 50 Hz in real time, and the
+free-running speed of the stepper (SUZAKU, dt = 0.1 s). Targets: < 5 % of one core at 50 Hz;
+>= 1000x real time free-running.    python bench/bench_node.py  (needs rclpy)
+"""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from mmg_tuner.core.ship import load_ship  # noqa: E402
+from mmg_tuner.core.stepper import ShipSimulator  # noqa: E402
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def main() -> None:
+    sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
+    sim.set_rudder(math.radians(20))
+    n = 200_000
+    t0 = time.perf_counter()
+    sim.step(n)
+    wall = time.perf_counter() - t0
+    print(f'free-running stepper: {n / wall:,.0f} steps/s = {n * 0.1 / wall:,.0f}x real time '
+          '(SUZAKU, RK4, dt 0.1 s)')
+    env = dict(os.environ, ROS_DOMAIN_ID='77', ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_LOG_DIR='/tmp/mmg_bench_roslog', PYTHONPATH=str(Path(__file__).parents[1]))
+    proc = subprocess.Popen([sys.executable, '-m', 'mmg_tuner.ros.sim_node', '--ros-args',
+                             '-p', 'rate_hz:=50.0', '-p', 'dt:=0.1'], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        time.sleep(8.0)  # start-up (imports, kernel load) is not the steady state
+        c0, w0 = cpu_seconds(proc.pid), time.monotonic()
+        time.sleep(20.0)
+        c1, w1 = cpu_seconds(proc.pid), time.monotonic()
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    print(f'sim_node at 50 Hz, real time: {100 * (c1 - c0) / (w1 - w0):.1f} % of one core '
+          f'over {w1 - w0:.0f} s')
+
+
+if __name__ == '__main__':
+    main()
