@@ -34,6 +34,7 @@ setup(
             'generate = mmg_tuner.cli.generate:main',
             'inspect = mmg_tuner.cli.inspect:main',
             'tune = mmg_tuner.cli.tune:main',
+            'diagnose = mmg_tuner.cli.diagnose:main',
             'sim_node = mmg_tuner.ros.sim_node:main',
             'replay_node = mmg_tuner.ros.replay_node:main',
         ],

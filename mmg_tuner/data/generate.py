@@ -71,7 +71,12 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
     if not traj.ok:
         raise SimulationError(f'{name}: generation stopped at t = {traj.fail_time_s:.1f} s: '
                               f'{traj.status}')
-    truth = Trial(traj.t, traj.states, traj.controls, name=name,
+    controls = traj.controls
+    toff = ship['time_offset']
+    if toff != 0.0:  # the command topics are stamped toff seconds early: recorded(t) = actual(t + toff)
+        controls = np.column_stack([np.interp(traj.t + toff, traj.t, traj.controls[:, i])
+                                    for i in range(2)])
+    truth = Trial(traj.t, traj.states, controls, name=name,
                   notes=[f'generated: {ship.name} {maneuver} {rudder_deg:+g} deg, {rpm:g} rpm, '
                          f'{speed_ms:.3f} m/s, seed {seed}'])
     return truth, noise.apply(truth, np.random.default_rng(seed + 1))

@@ -75,7 +75,8 @@ class Tuner:
 
     def __init__(self, space: ParameterSpace, objective: Objective, *, popsize: int = 12,
                  max_popsize: int = 128, max_evaluations: int = 200_000, sigma0: float = 0.25,
-                 seed: int = 0, checkpoint: str | Path | None = None, rtol: float = 1e-9):
+                 seed: int = 0, checkpoint: str | Path | None = None, rtol: float = 1e-9,
+                 x0: np.ndarray | None = None):
         self.space = space
         self.objective = objective
         self.popsize0 = popsize
@@ -85,6 +86,7 @@ class Tuner:
         self.seed = seed
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.rtol = rtol
+        self.x0 = None if x0 is None else np.asarray(x0, dtype=float)  # warm start (values)
         self._base = objective.ship.params
 
     def fingerprint(self) -> str:
@@ -97,8 +99,9 @@ class Tuner:
     def _new_optimizer(self, restart: int, popsize: int, rng: np.random.Generator) -> CMA:
         d = self.space.dim
         mean = np.full(d, 0.5) if restart == 0 else rng.uniform(0.1, 0.9, d)
-        if restart == 0:  # start from the pre-determined values
-            mean = np.clip(self.space.to_unit(self.space.pre), 0.0, 1.0)
+        if restart == 0:  # start from the pre-determined values (or the warm start)
+            start = self.space.pre if self.x0 is None else self.x0
+            mean = np.clip(self.space.to_unit(start), 0.0, 1.0)
         return CMA(mean=mean, sigma=self.sigma0, bounds=np.tile([0.0, 1.0], (d, 1)),
                    population_size=popsize, seed=self.seed + 7919 * restart)
 
@@ -110,9 +113,12 @@ class Tuner:
         state = self._load() if resume else None
         if state is None:
             pre_J = float(self.evaluate_unit(self.space.to_unit(self.space.pre)[None])[0])
+            start = self.space.pre if self.x0 is None else self.x0
+            if self.x0 is not None:
+                pre_J = float(self.evaluate_unit(self.space.to_unit(start)[None])[0])
             state = _State(CHECKPOINT_VERSION, self.fingerprint(), self.seed, 0, self.popsize0,
                            self._new_optimizer(0, self.popsize0, np.random.default_rng(self.seed)),
-                           self.space.to_unit(self.space.pre), pre_J, 1, 0.0)
+                           self.space.to_unit(start), pre_J, 1, 0.0)
         t_start = time.perf_counter() - state.wall_s
         interrupted = False
         try:

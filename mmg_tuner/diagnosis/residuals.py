@@ -1,0 +1,69 @@
+"""Residual analysis: per trial and state, when and how large the errors are, and what they
+correlate with (heading, speed, rudder, rudder rate, time)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.simulate import simulate
+from mmg_tuner.data.trial import Trial
+
+
+def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
+                    integrator: str = 'rk4') -> list[np.ndarray]:
+    return [simulate(ship, tr.states[0], tr.controls, tr.dt, integrator, params=params,
+                     check=False).states for tr in trials]
+
+
+def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
+    """simulated - recorded, heading wrapped; (T, 6)."""
+    e = sim - trial.states
+    e[:, 2] = (e[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return e
+
+
+def regressors(trial: Trial) -> dict[str, np.ndarray]:
+    psi = trial['psi']
+    return {'cos_heading': np.cos(psi), 'sin_heading': np.sin(psi), 'speed': trial['u'],
+            'rudder': trial['rudder'], 'rudder_rate': np.gradient(trial['rudder'], trial.t),
+            'time': trial.t - trial.t[0]}
+
+
+def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
+    """Per trial: RMS and maximum (with its time) of each state's error; pooled correlation
+    of the velocity residuals with each regressor."""
+    per_trial = {}
+    pooled_e, pooled_x = [], {k: [] for k in regressors(trials[0])}
+    for tr, sim in zip(trials, sims):
+        e = residual_series(tr, sim)
+        ok = np.all(np.isfinite(e), axis=1)
+        stats = {}
+        for i, n in enumerate(STATE_NAMES):
+            if not ok.any():
+                break
+            ei = e[ok, i]
+            k = int(np.argmax(np.abs(ei)))
+            scale = math.degrees(1) if n in ('psi', 'r') else 1.0
+            stats[n] = {'rms': float(np.sqrt(np.mean(ei ** 2)) * scale),
+                        'max': float(ei[k] * scale), 't_max': float(tr.t[ok][k] - tr.t[0])}
+        stats['position_rms_m'] = float(np.sqrt(np.mean(e[ok, 0] ** 2 + e[ok, 1] ** 2))) \
+            if ok.any() else float('nan')
+        per_trial[tr.name] = stats
+        pooled_e.append(e[ok][:, 3:])
+        for k, v in regressors(tr).items():
+            pooled_x[k].append(v[ok])
+    E = np.concatenate(pooled_e)
+    corr = {}
+    for k, parts in pooled_x.items():
+        x = np.concatenate(parts)
+        corr[k] = {n: _corr(x, E[:, j]) for j, n in enumerate(('u', 'v', 'r'))}
+    return {'per_trial': per_trial, 'correlation': corr}
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    if np.std(a) < 1e-12 or np.std(b) < 1e-12:
+        return 0.0
+    return float(np.corrcoef(a, b)[0, 1])
