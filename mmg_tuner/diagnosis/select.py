@@ -47,7 +47,7 @@ class DiagnosisSettings:
     param_penalty: float = 0.02
     # and the reduction must be this fraction of the base model's held-out error: below it
     # lies what no effect explains (discretisation, the noise's own drift)
-    min_abs_gain: float = 0.02
+    min_abs_gain: float = 0.05
     # a real effect helps where it shows and hurts nowhere: no test trial may get worse by more
     worse_tol: float = 0.5
     seed: int = 0
@@ -205,6 +205,12 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                        'description': EFFECTS[cand.effect].description})
         remaining.remove(cand.effect)
         log(f'   -> named: {cand.effect}')
+    if causes:  # report the final model's values (later rounds re-tuned them)
+        final_vals = dict(zip(model.space.names, theta))
+        se_all = dict(zip(model.space.names, standard_errors(obj, model.space, theta)))
+        for c in causes:
+            c['parameters'] = {p: float(final_vals[p]) for p in c['parameters']}
+            c['uncertainty'] = {p: float(se_all[p]) for p in c['parameters']}
     final = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
              'J_test': float(J_test.sum()),
              'J_test_per_trial': dict(zip(obj_test.batch.names, np.atleast_1d(J_test).tolist())),

@@ -33,10 +33,9 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     return err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
 
 
-def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarray,
-                    h: float = 1e-3) -> np.ndarray:
-    """Standard error of each tuned parameter (in its own units) at theta."""
-    base = objective.ship.params
+def _jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h: float
+              ) -> tuple[np.ndarray, float]:
+    """Central-difference Jacobian of the weighted residuals in the unit box, and s^2."""
     z0 = space.to_unit(theta)
     Z = [z0]
     for i in range(space.dim):
@@ -44,16 +43,19 @@ def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarr
             z = z0.copy()
             z[i] += sgn * h
             Z.append(z)
-    Z = np.array(Z)
-    theta_all = space.lower + Z * (space.upper - space.lower)  # no clipping: derivatives at bounds
-    R = residuals(objective, space.full_params(base, theta_all))
-    r0 = R[0]
+    theta_all = space.lower + np.array(Z) * (space.upper - space.lower)  # no clipping at bounds
+    R = residuals(objective, space.full_params(objective.ship.params, theta_all))
     Jac = np.column_stack([(R[1 + 2 * i] - R[2 + 2 * i]) / (2 * h) for i in range(space.dim)])
     n, p = Jac.shape
-    s2 = float(r0 @ r0) / max(n - p, 1)
+    return Jac, float(R[0] @ R[0]) / max(n - p, 1)
+
+
+def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarray,
+                    h: float = 1e-3) -> np.ndarray:
+    """Standard error of each tuned parameter (in its own units) at theta."""
+    Jac, s2 = _jacobian(objective, space, theta, h)
     cov = s2 * np.linalg.pinv(Jac.T @ Jac)
-    se_unit = np.sqrt(np.clip(np.diag(cov), 0, None))
-    return se_unit * (space.upper - space.lower)
+    return np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
 
 
 def identified(space: ParameterSpace, se: np.ndarray, frac: float = 0.05) -> list[str]:
@@ -66,19 +68,7 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
     """Parameter combinations the trials determine: unit-box eigen-directions of J'J whose
     standard error is below max_se (fraction of the box). Returns (directions (k, d) as rows,
     their standard errors (k,))."""
-    base = objective.ship.params
-    z0 = space.to_unit(theta)
-    Z = [z0]
-    for i in range(space.dim):
-        for sgn in (1, -1):
-            z = z0.copy()
-            z[i] += sgn * h
-            Z.append(z)
-    theta_all = space.lower + np.array(Z) * (space.upper - space.lower)
-    R = residuals(objective, space.full_params(base, theta_all))
-    Jac = np.column_stack([(R[1 + 2 * i] - R[2 + 2 * i]) / (2 * h) for i in range(space.dim)])
-    n, p = Jac.shape
-    s2 = float(R[0] @ R[0]) / max(n - p, 1)
+    Jac, s2 = _jacobian(objective, space, theta, h)
     lam, V = np.linalg.eigh(Jac.T @ Jac)
     se = np.sqrt(s2 / np.clip(lam, 1e-300, None))
     keep = se < max_se
