@@ -45,6 +45,38 @@ def main() -> None:
         proc.wait(10)
     print(f'sim_node at 50 Hz, real time: {100 * (c1 - c0) / (w1 - w0):.1f} % of one core '
           f'over {w1 - w0:.0f} s')
+    print(f'sim_node free-running: {free_running_factor(env):,.0f}x real time '
+          '(simulated seconds on its /clock per wall second)')
+
+
+def free_running_factor(env: dict, window_s: float = 10.0) -> float:
+    import rclpy
+    from rosgraph_msgs.msg import Clock as ClockMsg
+    env = dict(env, ROS_DOMAIN_ID='78')
+    os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
+    proc = subprocess.Popen([sys.executable, '-m', 'mmg_tuner.ros.sim_node', '--ros-args',
+                             '-p', 'rate_hz:=50.0', '-p', 'dt:=0.1', '-p',
+                             'real_time_factor:=0.0', '-p', 'publish_clock:=true'], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rclpy.init()
+    node = rclpy.create_node('bench_clock')
+    seen = []
+    node.create_subscription(ClockMsg, '/clock', lambda m: seen.append(
+        (time.monotonic(), m.clock.sec + m.clock.nanosec * 1e-9)), 10)
+    try:
+        t_end = time.monotonic() + 30.0
+        while time.monotonic() < t_end and not seen:
+            rclpy.spin_once(node, timeout_sec=0.1)
+        t_end = time.monotonic() + window_s
+        while time.monotonic() < t_end:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        proc.terminate()
+        proc.wait(10)
+        node.destroy_node()
+        rclpy.shutdown()
+    (w0, s0), (w1, s1) = seen[0], seen[-1]
+    return (s1 - s0) / (w1 - w0)
 
 
 if __name__ == '__main__':
