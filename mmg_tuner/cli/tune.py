@@ -119,8 +119,7 @@ def command(argv: list[str] | None = None) -> int:
           f'{f", testing on {len(test_trials)}" if test_trials else ""}; box a_r = '
           f'{args.ar or ship.a_r:g}; output {out}', file=sys.stderr)
     bar = None if args.quiet else _progress_bar(args.max_evals)
-    # a kill (SIGTERM) stops like Ctrl-C: best-so-far written, resumable
-    old = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    old = signal.signal(signal.SIGTERM, _interrupt)
     try:
         result = tuner.run(resume=resume, progress=bar)
     finally:
@@ -151,6 +150,11 @@ def command(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 130
     return 0
+
+
+def _interrupt(signum, frame) -> None:
+    """A kill (SIGTERM) stops like Ctrl-C: best so far written, resumable."""
+    raise KeyboardInterrupt
 
 
 def _progress_bar(total: int):

@@ -232,8 +232,8 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
 
 
 def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
-                    tm: TopicMap | None = None, start_ns: int = 1_700_000_000_000_000_000,
-                    rates_hz: tuple[float, float] | None = None) -> None:
+                    tm: TopicMap | None = None, start_ns: int = 1_700_000_000_000_000_000
+                    ) -> None:
     """Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics:
     Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
     written; each message is stamped at its sample time (ns since start_ns)."""

@@ -1,7 +1,6 @@
 """diagnosis.json, diagnosis.md and the plots a naval architect would look at."""
 from __future__ import annotations
 
-import math
 from dataclasses import asdict
 from pathlib import Path
 
@@ -128,6 +127,3 @@ def plot_residuals(out: Path, trials: list[Trial], sims_base: list[np.ndarray],
     plt.close(fig)
     return paths
 
-
-def heading_degrees(rad: float) -> float:
-    return math.degrees(rad) % 360.0

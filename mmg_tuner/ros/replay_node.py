@@ -8,7 +8,6 @@ summary at the end; optionally writes everything to an MCAP that Foxglove opens.
 """
 from __future__ import annotations
 
-import math
 import sys
 from dataclasses import replace
 
