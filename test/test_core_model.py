@@ -169,7 +169,8 @@ def test_indices_on_a_perfect_circle():
 @pytest.mark.parametrize('effect', [
     {'current_speed': 0.4, 'current_dir': 1.2}, {'rudder_offset': math.radians(2.0)},
     {'rudder_lag_tau': 5.0}, {'rpm_scale': 0.95}, {'yaw_moment_bias': 0.002},
-    {'antenna_x': 20.0, 'antenna_y': -3.0}])
+    {'antenna_x': 20.0, 'antenna_y': -3.0}, {'wind_speed': 12.0, 'wind_dir': -0.7},
+    {'prop_side_force': 0.01}])
 def test_effects_generated_and_replayed_consistently(suzaku, effect):
     """A manoeuvre generated with an effect replays exactly through the simulator given the
     same effect, and visibly differs without it."""
@@ -180,3 +181,46 @@ def test_effects_generated_and_replayed_consistently(suzaku, effect):
     np.testing.assert_allclose(replay.states, gen.states, atol=1e-8)
     base = simulate(suzaku, gen.states[0], gen.controls, 1.0)
     assert np.abs(base.states[:, :2] - gen.states[:, :2]).max() > 1.0
+
+
+def test_wind_loads_act_the_way_a_seaman_expects(suzaku):
+    """Blendermann loads, heading north at 3 m/s: a head wind slows the ship, a beam wind
+    pushes it to leeward, and on a ship at rest, with the windage centroid aft (s_L < 0), a
+    beam wind turns the bow into it; port and starboard winds mirror each other."""
+    from mmg_tuner.core.mmg import wind_loads
+
+    def loads(wind_from_deg, u=3.0):
+        p = suzaku.with_params({'wind_speed': 10.0, 'wind_dir': math.radians(wind_from_deg)})
+        return wind_loads(p.params, 0.0, u, 0.0)
+
+    X, Y, N = loads(0.0)
+    assert X < 0 and abs(Y) < 1e-6 * abs(X) and abs(N) < 1e-6 * abs(X)
+    head = X
+    X, Y, N = loads(90.0, u=0.0)        # from starboard, at rest
+    assert Y < 0 and N > 0              # pushed to port, bow to starboard (into the wind)
+    assert N == pytest.approx(Y * suzaku['s_L'])
+    X, Y, N = loads(90.0)               # under way the apparent wind comes from forward of
+    assert Y < 0 and N < 0              # the beam: the centre of effort moves forward
+    Xp, Yp, Np = loads(-90.0)           # from port: the mirror image
+    assert (Xp, Yp, Np) == pytest.approx((X, -Y, -N))
+    X, _, _ = loads(180.0)              # from astern, less than the head wind's 8 m/s more
+    assert 0 < X < -head
+    # the apparent wind speed counts: 10 m/s from ahead at 3 m/s ahead = 13 m/s apparent
+    q = 0.5 * suzaku['rho_air'] * 13.0 ** 2
+    assert head == pytest.approx(-suzaku['CD_lAF_bow'] * q * suzaku['A_F'])
+
+
+def test_measured_wind_replaces_the_wind_parameters(suzaku):
+    """The kernels read a measured wind from two extra input channels (north/east air
+    velocity): a steady measured wind replays exactly what the wind parameters generate."""
+    ship = suzaku.with_params({'wind_speed': 12.0, 'wind_dir': 1.0})
+    gen = mv.run(ship, mv.ManeuverSpec('zigzag', rudder_deg=20, rpm=106, speed_ms=KN6,
+                                       duration_s=200))
+    to = 1.0 + math.pi
+    wind = np.tile([12.0 * math.cos(to), 12.0 * math.sin(to)], (len(gen.t), 1))
+    measured = simulate(suzaku, gen.states[0], np.column_stack([gen.controls, wind]), 1.0)
+    np.testing.assert_allclose(measured.states, gen.states, atol=1e-8)
+    nan_wind = simulate(ship, gen.states[0], np.column_stack([gen.controls, wind * np.nan]), 1.0)
+    np.testing.assert_allclose(nan_wind.states, gen.states, atol=1e-8)  # NaN: parameters
+    with pytest.raises(SimulationError, match='controls must be'):
+        simulate(suzaku, gen.states[0], gen.controls[:, :1], 1.0)

@@ -255,3 +255,33 @@ def test_csv_passes_the_same_checks(tmp_path, zigzag_trial):
     (back,) = load_trials(f)
     assert any('non-finite' in n for n in back.notes)
     np.testing.assert_allclose(back.states, zigzag_trial.states, atol=0.05)
+
+
+def test_measured_wind_round_trips_and_apparent_wind_becomes_true(tmp_path, suzaku):
+    from mmg_tuner.data.assemble import _true_wind
+    from mmg_tuner.data.generate import SensorNoise, generate_trial
+    ship = suzaku.with_params({'wind_speed': 9.0, 'wind_dir': -2.0})
+    _, meas = generate_trial(ship, 'turning', 25, None, 106, 3.086, 120, 1.0, SensorNoise(), 4,
+                             'w', record_wind=True)
+    assert meas.wind is not None and meas.wind.shape == (len(meas), 2)
+    write_trial_bag(meas, tmp_path / 'bag')
+    (back,) = load_trials(tmp_path / 'bag')
+    np.testing.assert_allclose(back.wind, meas.wind, atol=1e-9)
+    write_trial_csv(meas, tmp_path / 'w.csv')
+    np.testing.assert_allclose(read_trial_csv(tmp_path / 'w.csv').wind, meas.wind, atol=1e-7)
+    (from_csv,) = load_trials(tmp_path / 'w.csv')
+    np.testing.assert_allclose(from_csv.wind, meas.wind, atol=1e-7)
+    # an anemometer on board sees the air relative to the ship in FLU; turned back to true
+    # wind with the recorded heading and velocity it must give the true wind again
+    tr = meas
+    psi, u, v = tr['psi'], tr['u'], tr['v']
+    n, e = tr.wind[:, 0], tr.wind[:, 1]
+    ub = n * np.cos(psi) + e * np.sin(psi) - u        # air minus ship, MMG body axes
+    vb = -n * np.sin(psi) + e * np.cos(psi) - v
+    ns = np.round(tr.t * 1e9).astype(np.int64)
+    s = Series('/wind', 'geometry_msgs/msg/Vector3Stamped', ns, np.column_stack([ub, -vb]), ns,
+               frame='apparent_flu')
+    np.testing.assert_allclose(_true_wind(s, 0, tr.t, psi, u, v), tr.wind, atol=1e-9)
+    assert topic_map_from_dict({'wind': {'topic': ''}}).wind_topic == ''
+    with pytest.raises(ConfigError, match='wind.frame'):
+        topic_map_from_dict({'wind': {'frame': 'from_north'}})

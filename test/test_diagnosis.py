@@ -17,9 +17,10 @@ SPECS = [('turning', 35, None), ('turning', -25, None), ('zigzag', 20, None), ('
 QUICK = dict(base_evals=6000, screen_evals=300, effect_evals=3000, screen=3, max_effects=2)
 
 
-def hidden(suzaku, effect: dict, seed: int = 3):
-    """Trials of SUZAKU with the 12 targets moved inside the box and an effect hidden."""
-    space = ParameterSpace.around(suzaku)
+def hidden(suzaku, effect: dict, seed: int = 3, targets=None):
+    """Trials of SUZAKU with the targets (default: the paper's 12) moved inside the box and an
+    effect hidden."""
+    space = ParameterSpace.around(suzaku, targets)
     rng = np.random.default_rng(seed)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
     truth = suzaku.with_params({**dict(zip(space.names, theta)), **effect})
@@ -28,9 +29,14 @@ def hidden(suzaku, effect: dict, seed: int = 3):
     return trials[::2], trials[1::2]
 
 
-def run(suzaku, effect):
-    tune, test = hidden(suzaku, effect)
-    return diagnose(suzaku, tune, test, DiagnosisSettings(**QUICK), log=lambda m: None)
+def run(suzaku, effect, seed: int = 3, **settings):
+    tune, test = hidden(suzaku, effect, seed, settings.get('targets'))
+    return diagnose(suzaku, tune, test, DiagnosisSettings(**{**QUICK, **settings}),
+                    log=lambda m: None)
+
+
+def _angle_deg(a: float, b: float) -> float:
+    return abs((math.degrees(a - b) + 180.0) % 360.0 - 180.0)
 
 
 def test_clean_data_names_nothing(suzaku):
@@ -76,3 +82,83 @@ def test_every_effect_is_registered_with_bounds_containing_neutral(suzaku):
     for e in EFFECTS.values():
         for p, (lo, hi) in zip(e.params, e.bounds(suzaku)):
             assert lo <= EFFECT_NEUTRAL[p] <= hi, (e.name, p)
+
+
+def test_finds_a_hidden_wind(suzaku):
+    d = run(suzaku, {'wind_speed': 10.0, 'wind_dir': -2.2})
+    assert [c['effect'] for c in d.causes] == ['wind']
+    p = d.causes[0]['parameters']
+    assert p['wind_speed'] == pytest.approx(10.0, abs=1.5)
+    assert _angle_deg(p['wind_dir'], -2.2) < 15
+    assert d.causes[0]['heldout_gain'] > 0.8
+
+
+def test_finds_a_hidden_steering_gear_lag(suzaku):
+    """The lag is named first. Its size is poorly determined by 1 Hz trials with a 2.3 deg/s
+    gear while the rudder coefficients are tuned too (standard error ~3 s at the base
+    optimum): here the estimate comes out about twice the truth and a -1 s time offset joins
+    it as a second effect (the benchmark has the statistics; README, Diagnosis)."""
+    d = run(suzaku, {'rudder_lag_tau': 8.0})
+    assert [c['effect'] for c in d.causes][:1] == ['rudder_lag']
+    assert 4.0 < d.causes[0]['parameters']['rudder_lag_tau'] < 20.0
+    assert d.causes[0]['heldout_gain'] > 0.3
+
+
+def test_finds_a_hidden_antenna_offset(suzaku):
+    d = run(suzaku, {'antenna_x': -25.0, 'antenna_y': 2.0})
+    assert [c['effect'] for c in d.causes][:1] == ['antenna_offset']
+    p = d.causes[0]['parameters']
+    assert p['antenna_x'] == pytest.approx(-25.0, abs=4.0)
+    assert p['antenna_y'] == pytest.approx(2.0, abs=2.5)
+
+
+def test_two_hidden_effects_are_both_named(suzaku):
+    """Each must explain at least min_abs_gain (5 %) of the base model's held-out error: a
+    0.2 m/s current and a 3 deg rudder offset both do (a 2 deg offset beside a 0.3 m/s
+    current explains 3 % and goes unnamed: the documented detection limit)."""
+    d = run(suzaku, {'current_speed': 0.2, 'current_dir': 2.0,
+                     'rudder_offset': math.radians(3.0)})
+    assert sorted(c['effect'] for c in d.causes) == ['current', 'rudder_offset']
+    p = {k: v for c in d.causes for k, v in c['parameters'].items()}
+    assert p['current_speed'] == pytest.approx(0.2, abs=0.07)
+    assert _angle_deg(p['current_dir'], 2.0) < 25
+    assert math.degrees(p['rudder_offset']) == pytest.approx(3.0, abs=1.0)
+
+
+def test_rpm_scale_is_named_when_the_propulsion_coefficients_are_known(suzaku):
+    """An rpm scale error and a changed wake fraction / thrust deduction produce the same
+    thrust (J and K_T are unchanged when (1 - w_P) scales with n): with those tuned the
+    diagnosis must say the effect is barely identifiable; with them held, it must find it."""
+    d = run(suzaku, {'rpm_scale': 0.94}, effects=['rpm_scale', 'rudder_offset', 'current'])
+    assert 'rpm_scale' in d.aliased
+    hull_rudder = ['t_R', 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn']
+    d = run(suzaku, {'rpm_scale': 0.94}, targets=hull_rudder,
+            effects=['rpm_scale', 'rudder_offset', 'current'])
+    assert [c['effect'] for c in d.causes] == ['rpm_scale']
+    assert d.causes[0]['parameters']['rpm_scale'] == pytest.approx(0.94, abs=0.02)
+
+
+def test_an_estimate_pinned_on_its_bound_is_not_accepted():
+    from mmg_tuner.diagnosis.select import pinned_on_bound
+    space = ParameterSpace(('R_0', 'antenna_x', 'antenna_y', 'current_dir', 'rudder_lag_tau'),
+                           np.zeros(5), np.array([0, -40, -6.75, -math.pi, 0.0]),
+                           np.array([1, 40, 6.75, math.pi, 20.0]))
+    names = ('antenna_x', 'antenna_y', 'current_dir', 'rudder_lag_tau')
+    assert pinned_on_bound(space, np.array([1.0, 3.0, -6.74, math.pi, 0.0]), names, 0.01) \
+        == ['antenna_y']  # base targets, periodic angles and neutral bounds are not suspect
+    assert pinned_on_bound(space, np.array([0.5, 39.9, 0.0, 0.0, 19.9]), names, 0.01) \
+        == ['antenna_x', 'rudder_lag_tau']
+
+
+def test_effects_too_small_to_matter_are_not_causes(suzaku):
+    from mmg_tuner.core.ship import load_ship
+    cur = EFFECTS['current']
+    assert cur.too_small(suzaku, {'current_speed': 0.02, 'current_dir': 1.0})
+    assert not cur.too_small(suzaku, {'current_speed': 0.25, 'current_dir': 1.0})
+    ant = EFFECTS['antenna_offset']
+    assert not ant.too_small(suzaku, {'antenna_x': 0.5, 'antenna_y': 2.0})  # one is enough
+    # Froude scaling for a model: speeds and times by 1/sqrt(45.7), lengths by 1/45.7
+    kv = load_ship('kvlcc2')
+    assert cur.smallest_for(kv)[0] == pytest.approx(0.1 / math.sqrt(kv.scale_ratio))
+    assert ant.smallest_for(kv)[0] == pytest.approx(5.0 / kv.scale_ratio)
+    assert EFFECTS['rudder_offset'].smallest_for(kv) == EFFECTS['rudder_offset'].smallest

@@ -163,3 +163,21 @@ def test_tune_command_outputs(tmp_path, capsys):
     # resume a finished run: nothing left to do, same answer
     assert tune(['--resume', str(out)]) == 0
     assert json.loads((out / 'report.json').read_text())['params'] == rep['params']
+
+
+def test_measured_wind_in_the_trials_is_used_by_the_objective(suzaku):
+    """Trials recorded with an anemometer drive the model with the measured wind: the true
+    model without any wind parameter then fits them; without the measurement it cannot."""
+    from dataclasses import replace
+
+    from mmg_tuner.data.generate import SensorNoise, generate_trial
+    truth = suzaku.with_params({'wind_speed': 12.0, 'wind_dir': 2.5})
+    trials = [generate_trial(truth, m, a, None, 106, 3.086, 200, 1.0, SensorNoise(), 7 + i,
+                             f'{m}{a}', record_wind=True)[1]
+              for i, (m, a) in enumerate((('turning', 30), ('zigzag', 20)))]
+    J_meas = Objective(suzaku, TrialBatch.from_trials(trials))(suzaku.params[None])[0]
+    bare = [replace(t, wind=None) for t in trials]
+    J_none = Objective(suzaku, TrialBatch.from_trials(bare))(suzaku.params[None])[0]
+    J_param = Objective(truth, TrialBatch.from_trials(bare))(truth.params[None])[0]
+    assert J_meas < 0.1 * J_none
+    assert J_meas < 2 * J_param  # what is left: the anemometer noise (0.5 m/s)

@@ -87,7 +87,9 @@ def command(argv: list[str] | None = None) -> int:
     if d.causes:
         for c in d.causes:
             print(f"CAUSE: {describe_values(EFFECTS[c['effect']], c['parameters'], c['uncertainty'])}"
-                  f" -- held-out gain {100 * c['heldout_gain']:.1f} %")
+                  f" -- held-out gain {100 * c['heldout_gain']:.1f} %"
+                  + (f" (not distinguishable here from {', '.join(c['indistinguishable_from'])})"
+                     if c.get('indistinguishable_from') else ''))
     else:
         print('CAUSE: none found -- no effect in the library explains the errors significantly')
     b, f = d.baseline['J_test'], d.final['J_test']

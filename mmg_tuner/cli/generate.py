@@ -36,6 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--no-noise', action='store_true', help='write the truth, no sensor noise')
     ap.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
                     help='hidden model extension parameter, e.g. current_speed=0.3 (repeatable)')
+    ap.add_argument('--record-wind', action='store_true',
+                    help='also record the (steady) true wind on /wind, as an anemometer would')
     ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     ap.add_argument('--seed', type=int, default=0)
     return ap
@@ -62,7 +64,7 @@ def command(argv: list[str] | None = None) -> int:
             name += f'_{chk:g}'
         _, measured = generate_trial(ship, kind, rud, chk, args.rpm, args.speed_kn * mv.KNOT,
                                      args.duration, args.rate_hz, noise, args.seed + 100 * i,
-                                     name)
+                                     name, record_wind=args.record_wind)
         bag = out / name
         if bag.exists():
             import shutil

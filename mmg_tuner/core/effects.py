@@ -22,9 +22,26 @@ class Effect:
     params: tuple[str, ...]
     units: tuple[str, ...]
     description: str
+    # the smallest magnitude of each parameter worth finding (a realistic small error) at full
+    # scale, measured from the neutral value; 0 for directions
+    smallest: tuple[float, ...] = ()
 
     def bounds(self, ship: ShipConfig) -> list[tuple[float, float]]:
         return [_BOUNDS[p](ship) for p in self.params]
+
+    def smallest_for(self, ship: ShipConfig) -> tuple[float, ...]:
+        """The smallest magnitudes Froude-scaled to the ship's scale (times and speeds by
+        1/sqrt(ratio), lengths by 1/ratio)."""
+        r = ship.scale_ratio
+        scale = {'s': 1 / math.sqrt(r), 'm/s': 1 / math.sqrt(r), 'm': 1 / r}
+        return tuple(v * scale.get(u, 1.0) for v, u in zip(self.smallest, self.units))
+
+    def too_small(self, ship: ShipConfig, values: dict[str, float]) -> bool:
+        """Whether every sized parameter is below the smallest magnitude worth finding (an
+        effect that small is noise-fitting, not a cause)."""
+        from mmg_tuner.core.layout import EFFECT_NEUTRAL
+        sized = [(p, s) for p, s in zip(self.params, self.smallest_for(ship)) if s > 0]
+        return bool(sized) and all(abs(values[p] - EFFECT_NEUTRAL[p]) < s for p, s in sized)
 
 
 _BOUNDS = {
@@ -37,27 +54,46 @@ _BOUNDS = {
     'antenna_x': lambda s: (-0.5 * s.L_pp, 0.5 * s.L_pp),       # m, forward of midship
     'antenna_y': lambda s: (-0.5 * s['B'], 0.5 * s['B']),       # m, to starboard
     'time_offset': lambda s: (-3.0, 3.0),                       # s, commands lag the state
+    # up to Beaufort 7 at full scale (Froude-scaled for a model)
+    'wind_speed': lambda s: (0.0, 17.0 / math.sqrt(s.scale_ratio)),  # m/s
+    'wind_dir': lambda s: (-math.pi, math.pi),                  # rad, from, clockwise from N
+    'prop_side_force': lambda s: (-0.03, 0.03),                 # C_YPS, ~15 % of K_T at most
 }
 
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect('current', ('current_speed', 'current_dir'), ('m/s', 'rad'),
            'uniform steady current; hull, propeller and rudder see the velocity through the '
-           'water, positions move with the water'),
+           'water, positions move with the water',
+           smallest=(0.1, 0.0)),
     Effect('rudder_offset', ('rudder_offset',), ('rad',),
            'constant error between indicated and actual rudder angle (actual = indicated + '
-           'offset)'),
+           'offset)',
+           smallest=(math.radians(1.0),)),
     Effect('rudder_lag', ('rudder_lag_tau',), ('s',),
-           'first-order steering-gear lag between the recorded rudder and the actual angle'),
+           'first-order steering-gear lag between the recorded rudder and the actual angle',
+           smallest=(2.0,)),
     Effect('rpm_scale', ('rpm_scale',), ('-',),
-           'shaft-speed measurement scale error (actual = scale x recorded)'),
+           'shaft-speed measurement scale error (actual = scale x recorded)',
+           smallest=(0.03,)),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "
-           'propeller side force'),
+           'propeller side force',
+           smallest=(0.0005,)),
     Effect('antenna_offset', ('antenna_x', 'antenna_y'), ('m', 'm'),
-           'positions recorded at a GNSS antenna away from midship and not moved there'),
+           'positions recorded at a GNSS antenna away from midship and not moved there',
+           smallest=(5.0, 1.0)),
     Effect('time_offset', ('time_offset',), ('s',),
            'delay between the command topics and the state topic (commands act time_offset '
-           'seconds after their stamps)'),
+           'seconds after their stamps)',
+           smallest=(0.5,)),
+    Effect('prop_side_force', ('prop_side_force',), ('-',),
+           'propeller side force (paddle-wheel effect) Y = C_YPS rho n^2 D_P^4 at the stern: '
+           'a turning asymmetry that grows with the propeller load, not with speed',
+           smallest=(0.003,)),
+    Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
+           'steady true wind on the above-water ship; loads from the windage areas with '
+           "Blendermann's (1994) coefficients",
+           smallest=(5.0, 0.0)),
 )}
 
 
@@ -92,6 +128,14 @@ def describe_values(effect: Effect, values: dict[str, float],
     if n == 'antenna_offset':
         return (f"GNSS antenna {pm('antenna_x', fmt='.1f')} m forward, "
                 f"{pm('antenna_y', fmt='.1f')} m to starboard of midship")
+    if n == 'prop_side_force':
+        return (f"propeller side force C_YPS = {pm('prop_side_force', fmt='.2e')} "
+                f"(+: stern pushed to starboard)")
+    if n == 'wind':
+        e = errors.get('wind_dir')
+        return (f"wind {pm('wind_speed', fmt='.1f')} m/s from "
+                f"{math.degrees(values['wind_dir']) % 360.0:.0f}"
+                + (f' ± {math.degrees(abs(e)):.2g}' if e is not None else '') + ' deg')
     if n == 'time_offset':
         return f"commands lag the state by {pm('time_offset', fmt='.2f')} s"
     return n

@@ -28,14 +28,20 @@ _PROPELLER = ('t_P', 'w_P0',
               'k_0', 'k_1', 'k_2', 'C_1', 'C_2p', 'C_2n', 'x_P')
 _RUDDER = ('t_R', 'a_H', 'x_H', 'epsilon', 'kappa', 'u_R0', 'l_R', 'gamma_Rp', 'gamma_Rn',
            'f_alpha', 'f_alpha2', 'C_l01', 'C_l03', 'flap_ratio')
+# Above-water hull and superstructure for wind loads (Blendermann 1994); all zero: no windage.
+_WINDAGE = ('rho_air', 'A_F', 'A_L', 'L_OA', 's_L', 'CD_t', 'CD_lAF_bow', 'CD_lAF_stern',
+            'wind_delta')
 # Model extensions (effects); their neutral values make them vanish.
 _EFFECTS = ('current_speed', 'current_dir', 'rudder_offset', 'rudder_lag_tau', 'rpm_scale',
-            'yaw_moment_bias', 'antenna_x', 'antenna_y', 'time_offset')
+            'yaw_moment_bias', 'antenna_x', 'antenna_y', 'time_offset', 'wind_speed', 'wind_dir',
+            'prop_side_force')
 EFFECT_NEUTRAL = {'current_speed': 0.0, 'current_dir': 0.0, 'rudder_offset': 0.0,
                   'rudder_lag_tau': 0.0, 'rpm_scale': 1.0, 'yaw_moment_bias': 0.0,
-                  'antenna_x': 0.0, 'antenna_y': 0.0, 'time_offset': 0.0}
+                  'antenna_x': 0.0, 'antenna_y': 0.0, 'time_offset': 0.0, 'wind_speed': 0.0,
+                  'wind_dir': 0.0, 'prop_side_force': 0.0}
 
-PARAM_NAMES: tuple[str, ...] = _PARTICULARS + _ADDED_MASS + _HULL + _PROPELLER + _RUDDER + _EFFECTS
+PARAM_NAMES: tuple[str, ...] = (_PARTICULARS + _ADDED_MASS + _HULL + _PROPELLER + _RUDDER
+                                 + _WINDAGE + _EFFECTS)
 PARAM_INDEX: dict[str, int] = {name: i for i, name in enumerate(PARAM_NAMES)}
 N_PARAMS = len(PARAM_NAMES)
 

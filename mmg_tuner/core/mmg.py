@@ -100,6 +100,18 @@ _Nbias = PARAM_INDEX['yaw_moment_bias']
 _ax = PARAM_INDEX['antenna_x']
 _ay = PARAM_INDEX['antenna_y']
 _toff = PARAM_INDEX['time_offset']
+_CYP = PARAM_INDEX['prop_side_force']
+_Vw = PARAM_INDEX['wind_speed']
+_dirw = PARAM_INDEX['wind_dir']
+_rhoa = PARAM_INDEX['rho_air']
+_AF = PARAM_INDEX['A_F']
+_AL = PARAM_INDEX['A_L']
+_LOA = PARAM_INDEX['L_OA']
+_sL = PARAM_INDEX['s_L']
+_CDt = PARAM_INDEX['CD_t']
+_CDlb = PARAM_INDEX['CD_lAF_bow']
+_CDls = PARAM_INDEX['CD_lAF_stern']
+_wdel = PARAM_INDEX['wind_delta']
 
 # Fast-math without 'nnan'/'ninf': divergence checks rely on isfinite.
 _FASTMATH = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
@@ -195,6 +207,12 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
         gam = p[_gRp] if beta_R > 0.0 else p[_gRn]
         vR = U * gam * beta_R
         coef = p[_fa] * _sin_attack(delta, uR, vR)
+    if p[_CYP] != 0.0:
+        # propeller side force (paddle-wheel effect) at the stern, scaling with n^2 like the
+        # thrust: Y_PS = C_YPS rho n^2 D^4 at x_R (an effect, not in the standard method)
+        YPS = p[_CYP] * rho * n_rps * n_rps * DP ** 4
+        Y += YPS
+        N += YPS * p[_xR] * L
     # Rudder forces (paper eqs. 25-28; standard eqs. 17-20)
     FN = 0.5 * rho * p[_AR] * (uR * uR + vR * vR) * coef
     sd = math.sin(delta)
@@ -222,6 +240,53 @@ def accelerations(kind, p, u, v, r, n_rps, delta):
 
 
 @njit(cache=True, fastmath=_FASTMATH)
+def wind_loads(p, psi, u_g, v_g):
+    """Wind force and moment (X [N], Y [N], N [N m]) on the above-water ship, Blendermann (1994).
+
+    A steady true wind of p[wind_speed] m/s blows *from* p[wind_dir] (rad, clockwise from north,
+    the meteorological convention); u_g, v_g is the ship's velocity over ground (body axes).
+    gamma is the apparent wind's angle *from* the bow, + from starboard, so the formulas read
+    (Blendermann 1994 eqs. for C_X, C_Y, C_N as given in Fossen 2011 sec. 8.1, with that
+    book's gamma_rw = -gamma and |gamma| in the moment arm so port and starboard are mirror
+    images):
+      C_X = -CD_lAF cos(gamma) / D,  C_Y = -CD_t sin(gamma) / D,
+      D = 1 - delta/2 (1 - CD_l/CD_t) sin^2(2 gamma),  CD_l = CD_lAF A_F / A_L,
+      C_N = C_Y (s_L/L_OA - 0.18 (|gamma| - pi/2)),
+    X = C_X q A_F, Y = C_Y q A_L, N = C_N q A_L L_OA, q = 1/2 rho_air V_A^2.
+    """
+    rel = p[_dirw] - psi
+    ua = -p[_Vw] * math.cos(rel) - u_g        # apparent wind (air relative to the ship)
+    va = -p[_Vw] * math.sin(rel) - v_g
+    VA2 = ua * ua + va * va
+    if VA2 == 0.0:
+        return 0.0, 0.0, 0.0
+    gamma = math.atan2(-va, -ua)
+    CDlAF = p[_CDlb] if abs(gamma) <= 0.5 * math.pi else p[_CDls]
+    CDt = p[_CDt]
+    s2 = math.sin(2.0 * gamma)
+    D = 1.0 - 0.5 * p[_wdel] * (1.0 - CDlAF * p[_AF] / (p[_AL] * CDt)) * s2 * s2
+    q = 0.5 * p[_rhoa] * VA2
+    CY = -CDt * math.sin(gamma) / D
+    Y = CY * q * p[_AL]
+    X = -CDlAF * math.cos(gamma) / D * q * p[_AF]
+    N = CY * (p[_sL] / p[_LOA] - 0.18 * (abs(gamma) - 0.5 * math.pi)) * q * p[_AL] * p[_LOA]
+    return X, Y, N
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def _external_accelerations(p, X, Y, N):
+    """Accelerations from external forces through the same mass matrix as eq. 7."""
+    m = p[_m]
+    xG = p[_xG]
+    q2 = 0.5 * p[_rho] * p[_L] * p[_L] * p[_d]
+    a11 = m + p[_my] * q2
+    a12 = xG * m
+    a22 = p[_IzG] + xG * xG * m + p[_Jz] * q2 * p[_L] * p[_L]
+    det = a11 * a22 - a12 * a12
+    return X / (m + p[_mx] * q2), (a22 * Y - a12 * N) / det, (a11 * N - a12 * Y) / det
+
+
+@njit(cache=True, fastmath=_FASTMATH)
 def derivative(kind, p, s, n_rps, delta, out):
     """ds/dt for s = (x, y, psi, u, v, r) with u, v through the water (current added here)."""
     psi = s[2]
@@ -237,6 +302,17 @@ def derivative(kind, p, s, n_rps, delta, out):
     if Vc != 0.0:
         out[0] += Vc * math.cos(p[_dirc])
         out[1] += Vc * math.sin(p[_dirc])
+    if p[_Vw] != 0.0:
+        ug = u
+        vg = v
+        if Vc != 0.0:
+            ug += Vc * math.cos(p[_dirc] - psi)
+            vg += Vc * math.sin(p[_dirc] - psi)
+        Xw, Yw, Nw = wind_loads(p, psi, ug, vg)
+        au, av, ar = _external_accelerations(p, Xw, Yw, Nw)
+        du += au
+        dv += av
+        dr += ar
     out[2] = r
     out[3] = du
     out[4] = dv
@@ -355,13 +431,27 @@ def start_state(p, x0, s):
 
 
 @njit(cache=True, fastmath=_FASTMATH)
-def simulate_one(kind, p, x0, ctrl, T, dt, substeps, method, out):
+def _use_measured_wind(p, ctrl, k):
+    """Set the wind parameters of p (a per-trajectory copy) from the measured wind channels
+    (air velocity north/east [m/s]) at sample k; NaN keeps the parameters."""
+    wn = ctrl[k, 2]
+    we = ctrl[k, 3]
+    if wn == wn and we == we:
+        p[_Vw] = math.sqrt(wn * wn + we * we)
+        p[_dirw] = math.atan2(-we, -wn)  # blows from the opposite of where the air goes
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     """Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
 
     x0 is the first observed state (antenna position, velocities over ground); ctrl[k] =
-    (rpm, rudder_rad) held from sample k to k+1 (delayed by time_offset if set). Returns
-    (status, sample index of failure). After a failure the remaining rows are NaN.
+    (rpm, rudder_rad) held from sample k to k+1 (delayed by time_offset if set), optionally
+    followed by the measured wind (north, east) [m/s]. Returns (status, sample index of
+    failure). After a failure the remaining rows are NaN.
     """
+    measured_wind = ctrl.shape[1] >= 4
+    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
     k1 = np.empty(6)
     k2 = np.empty(6)
@@ -375,6 +465,8 @@ def simulate_one(kind, p, x0, ctrl, T, dt, substeps, method, out):
     status = OK
     k_fail = T
     for k in range(T - 1):
+        if measured_wind:
+            _use_measured_wind(p, ctrl, k)
         status, delta_act = advance(kind, p, s, delta_act, _control_at(ctrl, k, 0, shift, T),
                                     _control_at(ctrl, k, 1, shift, T), dt, substeps, method,
                                     k1, k2, k3, k4, tmp)
@@ -502,7 +594,7 @@ def _wrap_pi(a):
 
 
 @njit(cache=True, fastmath=_FASTMATH)
-def trajectory_cost(kind, p, meas, ctrl, T, dt, substeps, method, weights, shoot_every):
+def trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, shoot_every):
     """Weighted squared error of a simulation against a measured trial (Suyama et al. eq. 43).
 
     The simulation starts from meas[0] and is driven by ctrl; J = sum_{k>=1} e_k' W e_k with
@@ -511,6 +603,8 @@ def trajectory_cost(kind, p, meas, ctrl, T, dt, substeps, method, weights, shoot
     (multiple shooting). Returns (J, k_fail): k_fail < T means the run failed at that sample
     (diverged or left the model's range) and J covers only the samples before it.
     """
+    measured_wind = ctrl.shape[1] >= 4
+    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
     o = np.empty(6)
     k1 = np.empty(6)
@@ -524,6 +618,8 @@ def trajectory_cost(kind, p, meas, ctrl, T, dt, substeps, method, weights, shoot
     for k in range(T - 1):
         if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
             start_state(p, meas[k], s)
+        if measured_wind:
+            _use_measured_wind(p, ctrl, k)
         status, delta_act = advance(kind, p, s, delta_act, _control_at(ctrl, k, 0, shift, T),
                                     _control_at(ctrl, k, 1, shift, T), dt, substeps, method,
                                     k1, k2, k3, k4, tmp)

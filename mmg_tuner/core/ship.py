@@ -18,7 +18,7 @@ from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_
                                    PARAM_NAMES)
 from mmg_tuner.errors import ConfigError
 
-_SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder')
+_SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'windage')
 _REQUIRED = {
     'container': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
                   'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'C_w', 'l_P', 'KT_0', 't_R', 'a_H', 'x_H',
@@ -90,6 +90,11 @@ class ShipConfig:
     @property
     def L_pp(self) -> float:
         return float(self.params[PARAM_INDEX['L_pp']])
+
+    @property
+    def has_windage(self) -> bool:
+        """Whether the config describes the above-water ship (needed by the wind effect)."""
+        return all(self[k] > 0 for k in ('rho_air', 'A_F', 'A_L', 'L_OA', 'CD_t'))
 
     def __getitem__(self, name: str) -> float:
         return float(self.params[_index(name, self.source)])

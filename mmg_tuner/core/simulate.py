@@ -60,7 +60,10 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
     if x0[3] <= 0:
         raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
                               'covers u > 0 only')
-    bad = ~np.all(np.isfinite(controls), axis=1)
+    if controls.ndim != 2 or controls.shape[1] not in (2, 4):
+        raise SimulationError(f'{what}: controls must be (T, 2) rpm, rudder or (T, 4) with the '
+                              f'wind north/east components, got shape {controls.shape}')
+    bad = ~np.all(np.isfinite(controls[:, :2]), axis=1)
     if bad.any():
         k = int(np.argmax(bad))
         raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s')
@@ -80,6 +83,8 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
         ship: the ship config (its parameter vector is used unless ``params`` is given).
         x0: first observed state (x, y, psi, u, v, r), velocities over ground.
         controls: (T, 2) rpm and rudder [rad] at each sample; sample k is held until k+1.
+            Two more columns, if given, are the measured true wind's north/east components
+            [m/s] (the air's velocity); they replace the wind parameters (NaN: not measured).
         dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
         integrator: 'euler' (the paper's) or 'rk4'.
 

@@ -93,7 +93,12 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> lis
     if 'twist' in rec.series:
         twist = clean_series(rec.series['twist'], rec.path, t0_ns)
         series.append(twist)
-    notes = [n for s in series for n in s.notes]
+    wind = None
+    if 'wind' in rec.series:
+        wind = clean_series(rec.series['wind'], rec.path, t0_ns)
+        if not wind.frame:
+            wind.frame = tm.wind_frame
+    notes = [n for s in series for n in s.notes] + (wind.notes if wind is not None else [])
     if any(not np.array_equal(s.stamps_ns, s.receive_ns) for s in series[:1]):
         notes.append(f'{tm.odom_topic}: header stamps used (not receive time)')
     trials = []
@@ -107,7 +112,7 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> lis
                          'dropped')
             continue
         grid = lo + tm.dt * np.arange(n)
-        trials.extend(_resample(series, twist, tm, t0_ns, grid, rec.path, name, notes))
+        trials.extend(_resample(series, twist, tm, t0_ns, grid, rec.path, name, notes, wind))
     if not trials:
         raise TrialDataError(f'{rec.path}: no usable trial ({"; ".join(notes) or "too short"})')
     if len(trials) > 1:  # one recording split into several: number them in time order
@@ -120,7 +125,8 @@ def _interp(s: Series, t0_ns: int, grid: np.ndarray, col: int) -> np.ndarray:
     return np.interp(grid, (s.stamps_ns - t0_ns) * 1e-9, s.values[:, col])
 
 
-def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes) -> list[Trial]:
+def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes, wind=None
+              ) -> list[Trial]:
     odom, rud, rpm = series[:3]
     t_odom = (odom.stamps_ns - t0_ns) * 1e-9
     yaw = np.unwrap(odom.values[:, 2])
@@ -143,6 +149,7 @@ def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes) -> li
     rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.rpm_factor
     states = np.column_stack([x, y, psi, u, v, r])
     controls = np.column_stack([rpm_v, rudder])
+    wind_ne = None if wind is None else _true_wind(wind, t0_ns, grid, psi, u, v)
     good = (rpm_v > 0) & (u > 0)
     out = []
     k = 0
@@ -163,11 +170,26 @@ def _resample(series, twist, tm: TopicMap, t0_ns, grid, path, name, notes) -> li
         if j - k >= MIN_SAMPLES:
             out.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
                              source=str(path), start_s=float(grid[k]),
+                             wind=None if wind_ne is None else wind_ne[k:j],
                              notes=list(notes) + [f'resampled on dt = {tm.dt:g} s, linear '
                                                   f'interpolation; starts at {grid[k]:.2f} s '
                                                   'of the recording']))
         k = j
     return out
+
+
+def _true_wind(wind: Series, t0_ns: int, grid, psi, u, v) -> np.ndarray:
+    """Measured wind on the grid as the true air velocity (north, east) [m/s]."""
+    a = _interp(wind, t0_ns, grid, 0)
+    b = _interp(wind, t0_ns, grid, 1)
+    if wind.frame == 'true_enu':
+        return np.column_stack([b, a])
+    # apparent wind in FLU -> MMG body axes (y to starboard), plus the ship's velocity over
+    # ground, turned to north/east
+    ub = a + u
+    vb = -b + v
+    c, s = np.cos(psi), np.sin(psi)
+    return np.column_stack([ub * c - vb * s, ub * s + vb * c])
 
 
 def body_velocities_from_poses(t, x, y, psi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -34,6 +34,7 @@ class Series:
     values: np.ndarray
     receive_ns: np.ndarray
     notes: list[str] = field(default_factory=list)
+    frame: str = ''  # for wind: 'true_enu' or 'apparent_flu' (empty: the topic map's)
 
 
 @dataclass
@@ -67,6 +68,8 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
     if msgtype == 'geometry_msgs/msg/TwistStamped':
         tw = msg.twist
         return _stamp_ns(msg.header), (tw.linear.x, tw.linear.y, tw.angular.z)
+    if msgtype == 'geometry_msgs/msg/Vector3Stamped':
+        return _stamp_ns(msg.header), (msg.vector.x, msg.vector.y)
     if msgtype in ('std_msgs/msg/Float64', 'std_msgs/msg/Float32'):
         return None, (float(msg.data),)
     if msgtype == 'sensor_msgs/msg/JointState':
@@ -107,13 +110,15 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
 
 
 def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
-    """role (odom, twist, rudder, rpm) -> (topic, expected type, joint). One topic may serve
+    """role (odom, twist, rudder, rpm, wind) -> (topic, expected type, joint). One topic may serve
     several roles (a JointState carrying rudder and propeller)."""
     roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
              'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint),
              'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint)}
     if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic:
         roles['twist'] = (tm.twist_topic, tm.twist_type, '')
+    if tm.wind_topic:
+        roles['wind'] = (tm.wind_topic, tm.wind_type, '')
     types: dict[str, str] = {}
     for topic, typ, _ in roles.values():
         if types.setdefault(topic, typ) != typ:
@@ -236,7 +241,8 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                     ) -> None:
     """Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics:
     Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
-    written; each message is stamped at its sample time (ns since start_ns)."""
+    written; each message is stamped at its sample time (ns since start_ns). A trial with
+    measured wind also gets the wind topic (Vector3Stamped, true wind in ENU)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 
@@ -251,6 +257,11 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
             c_odom = w.add_connection(tm.odom_topic, Odometry.__msgtype__, typestore=ts)
             c_rud = w.add_connection(tm.rudder_topic, Float64.__msgtype__, typestore=ts)
             c_rpm = w.add_connection(tm.rpm_topic, Float64.__msgtype__, typestore=ts)
+            V3S = ts.types['geometry_msgs/msg/Vector3Stamped']
+            c_wind = None
+            if trial.wind is not None:
+                c_wind = w.add_connection(tm.wind_topic or '/wind', V3S.__msgtype__,
+                                          typestore=ts)
             for k in range(len(trial)):
                 stamp = start_ns + int(round(trial.t[k] * 1e9))
                 w.write(c_odom, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
@@ -261,8 +272,22 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                 w.write(c_rpm, stamp, ts.serialize_cdr(
                     Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
                     Float64.__msgtype__))
+                if c_wind is not None:  # true wind, ENU: x east, y north
+                    w.write(c_wind, stamp, ts.serialize_cdr(V3S(
+                        header=_header(stamp, 'map'),
+                        vector=ts.types['geometry_msgs/msg/Vector3'](
+                            x=float(trial.wind[k, 1]), y=float(trial.wind[k, 0]), z=0.0)),
+                        V3S.__msgtype__))
     except WriterError as exc:
         raise TrialDataError(f'{path}: cannot write rosbag2 ({exc})') from None
+
+
+def _header(stamp_ns: int, frame_id: str):
+    ts = TYPESTORE.types
+    return ts['std_msgs/msg/Header'](
+        stamp=ts['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000,
+                                                nanosec=stamp_ns % 1_000_000_000),
+        frame_id=frame_id)
 
 
 def odometry_msg(state: np.ndarray, stamp_ns: int):

@@ -1,4 +1,5 @@
-"""CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians."""
+"""CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians; optional
+wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]."""
 from __future__ import annotations
 
 import io
@@ -11,15 +12,21 @@ from mmg_tuner.data.trial import CSV_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
 
 
-def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray) -> str:
+WIND_COLUMNS = ('wind_n', 'wind_e')
+
+
+def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray,
+             wind: np.ndarray | None = None) -> str:
     buf = io.StringIO()
-    np.savetxt(buf, np.column_stack([t, states, controls]), delimiter=',',
-               header=','.join(CSV_COLUMNS), comments='', fmt='%.10g')
+    cols = [t, states, controls] + ([] if wind is None else [wind])
+    header = CSV_COLUMNS + (() if wind is None else WIND_COLUMNS)
+    np.savetxt(buf, np.column_stack(cols), delimiter=',', header=','.join(header), comments='',
+               fmt='%.10g')
     return buf.getvalue()
 
 
 def write_trial_csv(trial: Trial, path: str | Path) -> None:
-    write_atomic(path, csv_text(trial.t, trial.states, trial.controls))
+    write_atomic(path, csv_text(trial.t, trial.states, trial.controls, trial.wind))
 
 
 def read_trial_csv(path: str | Path) -> Trial:
@@ -38,8 +45,12 @@ def read_trial_csv(path: str | Path) -> Trial:
     if data.shape[0] < 2:
         raise TrialDataError(f'{path}: fewer than 2 rows of data')
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
+    wind = None
+    if all(c in header for c in WIND_COLUMNS):
+        wind = np.column_stack([data[:, header.index(c)] for c in WIND_COLUMNS])
     return Trial(col['t'], np.column_stack([col[c] for c in CSV_COLUMNS[1:7]]),
-                 np.column_stack([col['rpm'], col['rudder']]), name=path.stem, source=str(path))
+                 np.column_stack([col['rpm'], col['rudder']]), name=path.stem, source=str(path),
+                 wind=wind)
 
 
 def csv_recording(path: str | Path):
@@ -72,6 +83,10 @@ def csv_recording(path: str | Path):
         'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns,
                                  col['rpm'][:, None], ns),
     }
+    if all(c in header for c in WIND_COLUMNS):  # as true wind in ENU: (east, north)
+        enu = np.column_stack([data[:, header.index('wind_e')], data[:, header.index('wind_n')]])
+        series['wind'] = Series('/wind', 'geometry_msgs/msg/Vector3Stamped', ns, enu, ns,
+                                frame='true_enu')
     return RawRecording(str(path), series, {v.topic: (v.msgtype, len(ns))
                                             for v in series.values()},
                         int(ns.min()), int(ns.max()))

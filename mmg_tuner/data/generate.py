@@ -22,10 +22,11 @@ class SensorNoise:
     yaw_rate_rad_s: float = math.radians(0.05)  # rate gyro
     rudder_rad: float = math.radians(0.1)    # rudder angle indicator
     rpm: float = 0.2                 # shaft tachometer
+    wind_ms: float = 0.5             # anemometer, per velocity component (gusts not modelled)
 
     @staticmethod
     def none() -> 'SensorNoise':
-        return SensorNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return SensorNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def apply(self, trial: Trial, rng: np.random.Generator) -> Trial:
         st = trial.states.copy()
@@ -37,9 +38,12 @@ class SensorNoise:
         st[:, 5] += rng.normal(0, self.yaw_rate_rad_s, n)
         ctrl[:, 0] += rng.normal(0, self.rpm, n)
         ctrl[:, 1] += rng.normal(0, self.rudder_rad, n)
+        wind = None
+        if trial.wind is not None:
+            wind = trial.wind + rng.normal(0, self.wind_ms, (n, 2))
         return Trial(trial.t, st, ctrl, trial.name, trial.source,
                      trial.notes + ['sensor noise added: ' + ', '.join(
-                         f'{k}={v:.4g}' for k, v in self.__dict__.items())])
+                         f'{k}={v:.4g}' for k, v in self.__dict__.items())], wind=wind)
 
 
 def parse_maneuver(text: str) -> tuple[str, float, float | None]:
@@ -58,9 +62,10 @@ def parse_maneuver(text: str) -> tuple[str, float, float | None]:
 
 def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg: float | None,
                    rpm: float, speed_ms: float, duration_s: float, rate_hz: float,
-                   noise: SensorNoise, seed: int, name: str, approach_s: float = 10.0
-                   ) -> tuple[Trial, Trial]:
-    """(truth, measured) for one manoeuvre; truth is integrated with RK4 at <= 0.1 s."""
+                   noise: SensorNoise, seed: int, name: str, approach_s: float = 10.0,
+                   record_wind: bool = False) -> tuple[Trial, Trial]:
+    """(truth, measured) for one manoeuvre; truth is integrated with RK4 at <= 0.1 s.
+    record_wind: the trial carries the (steady) true wind as a measurement."""
     dt = 1.0 / rate_hz
     substeps = max(1, int(math.ceil(dt / 0.1)))
     spec = mv.ManeuverSpec(maneuver, rudder_deg=rudder_deg, check_deg=check_deg, rpm=rpm,
@@ -76,7 +81,12 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
     if toff != 0.0:  # the command topics are stamped toff seconds early: recorded(t) = actual(t + toff)
         controls = np.column_stack([np.interp(traj.t + toff, traj.t, traj.controls[:, i])
                                     for i in range(2)])
-    truth = Trial(traj.t, traj.states, controls, name=name,
+    wind = None
+    if record_wind:  # the air's velocity north/east: it blows toward wind_dir + pi
+        to = ship['wind_dir'] + math.pi
+        wind = np.tile([ship['wind_speed'] * math.cos(to), ship['wind_speed'] * math.sin(to)],
+                       (traj.t.size, 1))
+    truth = Trial(traj.t, traj.states, controls, name=name, wind=wind,
                   notes=[f'generated: {ship.name} {maneuver} {rudder_deg:+g} deg, {rpm:g} rpm, '
                          f'{speed_ms:.3f} m/s, seed {seed}'])
     return truth, noise.apply(truth, np.random.default_rng(seed + 1))

@@ -60,12 +60,17 @@ class RecordingSummary:
 
 
 def summarize_trial(tr: Trial) -> TrialSummary:
+    notes = list(tr.notes)
+    if tr.wind is not None:  # the air's mean velocity -> speed and where it blows from
+        n, e = tr.wind.mean(axis=0)
+        notes.append(f'measured wind: mean {math.hypot(n, e):.1f} m/s from '
+                     f'{math.degrees(math.atan2(-e, -n)) % 360:.0f} deg (used by the model)')
     return TrialSummary(
         tr.name, tr.duration_s, tr.dt, detect_maneuver(tr),
         (float(tr['u'].min()), float(tr['u'].max())),
         (float(tr['rpm'].min()), float(tr['rpm'].max())),
         (math.degrees(float(tr['rudder'].min())), math.degrees(float(tr['rudder'].max()))),
-        list(tr.notes))
+        notes)
 
 
 def summarize(path: str | Path, tm: TopicMap) -> tuple[list[RecordingSummary], list[Trial]]:

@@ -14,6 +14,11 @@ POSE_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped')
 SCALAR_TYPES = ('std_msgs/msg/Float64', 'std_msgs/msg/Float32', 'sensor_msgs/msg/JointState')
 RUDDER_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
 RPM_UNITS = {'rpm': 1.0, 'rps': 60.0, 'rad_s': 60.0 / (2.0 * math.pi)}
+WIND_TYPES = ('geometry_msgs/msg/Vector3Stamped',)
+# true_enu: the air's velocity over ground in the map frame (ENU, m/s);
+# apparent_flu: the air's velocity relative to the ship in base_link (FLU, m/s), as an
+# anemometer on the ship measures it (converted to true wind with the recorded motion)
+WIND_FRAMES = ('true_enu', 'apparent_flu')
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,9 @@ class TopicMap:
     rpm_type: str = 'std_msgs/msg/Float64'
     rpm_joint: str = ''
     rpm_unit: str = 'rpm'
+    wind_topic: str = '/wind'   # optional: used when the recording has it; '' = never
+    wind_type: str = 'geometry_msgs/msg/Vector3Stamped'
+    wind_frame: str = 'true_enu'
     dt: float = 1.0
     max_gap_s: float = 5.0
 
@@ -67,7 +75,7 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
 
 def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> TopicMap:
     kw: dict[str, Any] = {}
-    for sec in ('odom', 'twist', 'rudder', 'rpm'):
+    for sec in ('odom', 'twist', 'rudder', 'rpm', 'wind'):
         block = doc.get(sec) or {}
         for k, v in block.items():
             key = f'{sec}_{k}'
@@ -87,6 +95,9 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
     if tm.rudder_unit not in RUDDER_UNITS or tm.rpm_unit not in RPM_UNITS:
         raise ConfigError(f'{source}: units must be rudder {list(RUDDER_UNITS)}, '
                           f'rpm {list(RPM_UNITS)}')
+    if tm.wind_type not in WIND_TYPES or tm.wind_frame not in WIND_FRAMES:
+        raise ConfigError(f'{source}: wind.type must be one of {WIND_TYPES} and wind.frame one '
+                          f'of {WIND_FRAMES}')
     if tm.rudder_sign not in (1, -1):
         raise ConfigError(f'{source}: rudder.sign must be 1 or -1')
     if not tm.dt > 0 or not tm.max_gap_s > 0:

@@ -22,7 +22,7 @@ def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
     return {'causes': causes, 'baseline': d.baseline, 'final': d.final,
             'candidates': [[asdict(c) for c in r] for r in d.rounds],
             'residuals': {'base_model': residuals_base, 'final_model': residuals_final},
-            'params': d.params, 'wall_s': d.wall_s}
+            'barely_identifiable': d.aliased, 'params': d.params, 'wall_s': d.wall_s}
 
 
 def markdown(doc: dict, ship: ShipConfig) -> str:
@@ -34,7 +34,11 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
         for c in doc['causes']:
             lines.append(f"- **{c['effect']}** — {c['summary']}. Held-out gain "
                          f"{100 * c['heldout_gain']:.1f} % ± {100 * c['heldout_gain_se']:.1f} "
-                         f"(jackknife over test trials). {c['description'].capitalize()}.")
+                         f"(jackknife over test trials). {c['description'].capitalize()}."
+                         + (f" These trials cannot tell it apart from "
+                            f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
+                            "their combined uncertainty)." if c.get('indistinguishable_from')
+                            else ''))
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
@@ -42,12 +46,26 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
               f"| base model, tuned | {b['J_test']:.4g} |",
               f"| final model | {f['J_test']:.4g} |",
               f"| gain | {100 * f['heldout_gain_total']:.1f} % |", '',
-              '## Candidates', '', '| round | effect | held-out gain | ± | named |',
-              '|---|---|---|---|---|']
+              '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
+              '|---|---|---|---|---|---|']
     for i, r in enumerate(doc['candidates'], 1):
         for c in r:
+            note = ', '.join(f'{p} on its bound' for p in c.get('on_bound', []))
             lines.append(f"| {i} | {c['effect']} | {100 * c['gain']:.1f} % | "
-                         f"{100 * c['gain_se']:.1f} | {'yes' if c['accepted'] else ''} |")
+                         f"{100 * c['gain_se']:.1f} | {'yes' if c['accepted'] else ''} | "
+                         f"{note} |")
+    if doc.get('barely_identifiable'):
+        lines += ['', '## Effects these trials can barely see', '',
+                  'With the base targets tuned, these effects have a standard error over half '
+                  'the smallest magnitude worth finding: the tuned coefficients reproduce most '
+                  'of their signature, so they may go unnamed even if present. Trials that '
+                  'separate them (other speeds, rpm changes, more samples) or fewer base '
+                  'targets would.', '',
+                  '| effect | standard error | smallest worth finding | share mimicked | '
+                  'mimicked by |', '|---|---|---|---|---|']
+        for n, a in doc['barely_identifiable'].items():
+            lines.append(f"| {n} | {a['se']:.3g} | {a['smallest']:.3g} | "
+                         f"{100 * a['r2']:.2f} % | {', '.join(a['mimicked_by'])} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',
               '| trial | position rms [m] | psi rms [deg] | u rms [m/s] | v rms [m/s] | '
               'r rms [deg/s] |', '|---|---|---|---|---|---|']

@@ -14,7 +14,7 @@ from mmg_tuner.data.trial import Trial
 
 def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
                     integrator: str = 'rk4') -> list[np.ndarray]:
-    return [simulate(ship, tr.states[0], tr.controls, tr.dt, integrator, params=params,
+    return [simulate(ship, tr.states[0], tr.inputs, tr.dt, integrator, params=params,
                      check=False).states for tr in trials]
 
 

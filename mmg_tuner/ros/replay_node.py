@@ -68,7 +68,7 @@ class ReplayNode(Node):
                                 f'(it holds {len(trials)} trial(s))')
         self.trial = trials[p['trial_index']]
         ship = load_ship(p['ship'], p['params_file'] or None)
-        sim = simulate(ship, self.trial.states[0], self.trial.controls, self.trial.dt,
+        sim = simulate(ship, self.trial.states[0], self.trial.inputs, self.trial.dt,
                        p['integrator'], check=False)
         if not sim.ok:
             self.get_logger().warn(f'the model stopped at t = {sim.fail_time_s:.1f} s: '

@@ -73,3 +73,37 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
     se = np.sqrt(s2 / np.clip(lam, 1e-300, None))
     keep = se < max_se
     return V[:, keep].T, se[keep]
+
+
+def aliasing(objective: Objective, space: ParameterSpace, theta: np.ndarray,
+             probe: list[str], h: float = 1e-3) -> dict[str, dict]:
+    """How well the trials separate each probe parameter from the parameters not probed.
+
+    Probe parameter j's Jacobian column is split into the part the other parameters can mimic
+    (least squares on their columns) and the rest; only the rest is evidence. Returns
+    {name: {'r2': share mimicked, 'se': standard error of j with the others free (own units),
+    'mimicked_by': the three largest contributors}}. A standard error above the magnitudes
+    worth finding means the trials cannot identify the parameter while the others are tuned
+    (e.g. an rpm scale error against wake fraction and thrust deduction).
+    """
+    Jac, s2 = _jacobian(objective, space, theta, h)
+    others = [i for i, n in enumerate(space.names) if n not in probe]
+    A = Jac[:, others]
+    width = space.upper - space.lower
+    out = {}
+    for j, n in enumerate(space.names):
+        if n not in probe:
+            continue
+        y = Jac[:, j]
+        ss = float(y @ y)
+        if ss == 0.0:
+            out[n] = {'r2': float('nan'), 'se': float('inf'), 'mimicked_by': []}
+            continue
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        r = y - A @ coef
+        rr = float(r @ r)
+        contrib = np.abs(coef) * np.linalg.norm(A, axis=0)
+        top = [space.names[others[k]] for k in np.argsort(-contrib)[:3]]
+        out[n] = {'r2': 1 - rr / ss, 'se': float(np.sqrt(s2 / max(rr, 1e-300)) * width[j]),
+                  'mimicked_by': top}
+    return out

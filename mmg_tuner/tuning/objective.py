@@ -16,7 +16,7 @@ from mmg_tuner.errors import TuningError
 
 @dataclass
 class TrialBatch:
-    """Trials packed for the compiled kernels: meas (M, T, 6), ctrls (M, T, 2), padded."""
+    """Trials packed for the compiled kernels: meas (M, T, 6), ctrls (M, T, 2 or 4), padded."""
 
     names: list[str]
     meas: np.ndarray
@@ -38,16 +38,20 @@ class TrialBatch:
         T = max(len(t) for t in trials)
         M = len(trials)
         meas = np.zeros((M, T, 6))
-        ctrls = np.zeros((M, T, 2))
+        # measured wind: two more input channels, NaN for trials without (they use the wind
+        # parameters)
+        n_in = 4 if any(t.wind is not None for t in trials) else 2
+        ctrls = np.full((M, T, n_in), np.nan)
         for j, tr in enumerate(trials):
             n = len(tr)
-            if not np.all(np.isfinite(tr.states)) or not np.all(np.isfinite(tr.controls)):
+            inputs = tr.inputs
+            if not np.all(np.isfinite(tr.states)) or not np.all(np.isfinite(inputs)):
                 raise TuningError(f'trial {tr.name}: non-finite values')
             meas[j, :n] = tr.states
             meas[j, 0] = initial_state(tr, x0_window_s)
-            ctrls[j, :n] = tr.controls
+            ctrls[j, :n, :inputs.shape[1]] = inputs
             meas[j, n:] = tr.states[-1]
-            ctrls[j, n:] = tr.controls[-1]
+            ctrls[j, n:, :inputs.shape[1]] = inputs[-1]
         return cls([t.name for t in trials], meas, ctrls,
                    np.array([len(t) for t in trials], dtype=np.int64), float(dts.pop()))
 

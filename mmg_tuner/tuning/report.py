@@ -39,7 +39,7 @@ def simulate_trial(ship: ShipConfig, trial: Trial, params: np.ndarray, integrato
                    substeps: int = 1) -> np.ndarray:
     """States simulated from the trial's first state with its recorded controls (NaN after a
     failure)."""
-    return simulate(ship, trial.states[0], trial.controls, trial.dt, integrator, substeps,
+    return simulate(ship, trial.states[0], trial.inputs, trial.dt, integrator, substeps,
                     params=params, check=False).states
 
 

@@ -1,0 +1,75 @@
+"""The diagnosis on real data: KVLCC2 (standard MMG, model scale) on MARIN's free-running tests.
+
+Tunes on both 35 deg turns and the two 10/10 zigzags and holds out the two 20/20 zigzags (the
+turns must both be in the tuning set, or the port/starboard asymmetry cannot show in the tuning
+error). Two runs:
+  A. the ship's 12 targets, which include the asymmetric flow-straightening coefficients
+     gamma_R+ / gamma_R- (they can bend to make port and starboard turns differ);
+  B. the same without gamma_R+ / gamma_R- (held at their captive-model values), so that an
+     asymmetry must come from an effect.
+For each it prints what is named, and the starboard/port tactical-diameter ratio of the
+resulting model against MARIN's (1.087).
+
+    python bench/diagnose_kvlcc2_marin.py [--budget quick|standard]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from mmg_tuner.cli.diagnose import command as diagnose  # noqa: E402
+from mmg_tuner.core.ship import load_ship  # noqa: E402
+from mmg_tuner.data.marin import MARIN_FILES, compare_with_marin, marin_data_dir  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin_diagnosis'
+TD = 'tactical_diameter_L'
+
+
+def td_ratio(ship) -> tuple[float, float]:
+    by = {r['manoeuvre']: r for r in compare_with_marin(ship, 'hold_speed')
+          if r['manoeuvre'].startswith('turn')}
+    m = by['turn_starboard_35']['measured'][TD] / by['turn_port_35']['measured'][TD]
+    s = by['turn_starboard_35']['simulated'][TD] / by['turn_port_35']['simulated'][TD]
+    return m, s
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--budget', default='quick')
+    args = ap.parse_args()
+    d = marin_data_dir()
+    tune = [str(d / MARIN_FILES[k]) for k in MARIN_FILES
+            if k.startswith('turn') or '10' in k]
+    test = [str(d / MARIN_FILES[k]) for k in MARIN_FILES if k.startswith('zigzag') and '20' in k]
+    ship = load_ship('kvlcc2')
+    all_targets = list(ship.tuning_targets)
+    runs = {'A_all_targets': all_targets,
+            'B_without_gamma_R': [t for t in all_targets if not t.startswith('gamma_R')]}
+    m, s0 = td_ratio(ship)
+    print(f'starboard/port tactical diameter: MARIN {m:.3f}; pre-determined model {s0:.3f}')
+    for name, targets in runs.items():
+        out = OUT / name
+        rc = diagnose(tune + ['--test'] + test + [
+            '--ship', 'kvlcc2', '--trial-scale', 'full', '--dt', '0.1', '--budget', args.budget,
+            '--targets', *targets, '--out', str(out), '--no-plots'])
+        if rc:
+            sys.exit(rc)
+        doc = json.loads((out / 'diagnosis.json').read_text())
+        tuned = load_ship('kvlcc2', out / 'params.yaml')
+        base = ship.with_params(doc['baseline']['params'])
+        print(f'\n== {name}: named {[c["summary"] for c in doc["causes"]] or "nothing"}')
+        print(f"   held-out J {doc['baseline']['J_test']:.4g} -> {doc['final']['J_test']:.4g}")
+        print(f'   starboard/port TD ratio: tuned base {td_ratio(base)[1]:.3f}, final model '
+              f'{td_ratio(tuned)[1]:.3f} (MARIN {m:.3f})')
+        gam = {k: round(v, 3) for k, v in doc['baseline']['params'].items()
+               if k.startswith('gamma_R')}
+        if gam:
+            print(f"   tuned gamma_R: {gam} (pre-determined "
+                  f"{ship['gamma_Rp']:.3f} / {ship['gamma_Rn']:.3f})")
+
+
+if __name__ == '__main__':
+    main()
