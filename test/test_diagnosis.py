@@ -162,3 +162,12 @@ def test_effects_too_small_to_matter_are_not_causes(suzaku):
     assert cur.smallest_for(kv)[0] == pytest.approx(0.1 / math.sqrt(kv.scale_ratio))
     assert ant.smallest_for(kv)[0] == pytest.approx(5.0 / kv.scale_ratio)
     assert EFFECTS['rudder_offset'].smallest_for(kv) == EFFECTS['rudder_offset'].smallest
+
+
+def test_a_time_offset_the_trials_cannot_see_is_reported_not_misnamed(suzaku):
+    """A 1.5 s command delay under a 2.3 deg/s gear sampled at 1 Hz is below what these trials
+    resolve: the diagnosis must say so and must not blame another effect for it."""
+    d = run(suzaku, {'time_offset': 1.5})
+    assert 'time_offset' in d.aliased
+    assert d.aliased['time_offset']['se'] > 0.5 * d.aliased['time_offset']['smallest']
+    assert [c['effect'] for c in d.causes] in ([], ['time_offset'])
