@@ -23,7 +23,7 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
-from common import moved_truth  # noqa: F401  (puts the repository on sys.path)
+import common  # noqa: F401  (puts the repository on sys.path)
 
 from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship

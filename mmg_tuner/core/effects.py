@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 
 
@@ -39,7 +40,6 @@ class Effect:
     def too_small(self, ship: ShipConfig, values: dict[str, float]) -> bool:
         """Whether every sized parameter is below the smallest magnitude worth finding (an
         effect that small is noise-fitting, not a cause)."""
-        from mmg_tuner.core.layout import EFFECT_NEUTRAL
         sized = [(p, s) for p, s in zip(self.params, self.smallest_for(ship)) if s > 0]
         return bool(sized) and all(abs(values[p] - EFFECT_NEUTRAL[p]) < s for p, s in sized)
 

@@ -8,14 +8,11 @@ summary at the end; optionally writes everything to an MCAP that Foxglove opens.
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import replace
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
@@ -27,6 +24,7 @@ from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import load_topic_map
 from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.ros.run import spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
 
 PARAMS = {
@@ -118,25 +116,7 @@ class ReplayNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = ReplayNode()
-        rclpy.spin(node)
-    except MmgTunerError as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
-        code = 2
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    sys.exit(code)
+    spin_node(ReplayNode, args)
 
 
 if __name__ == '__main__':

@@ -9,13 +9,10 @@ All model work is :class:`~mmg_tuner.core.stepper.ShipSimulator`; this file only
 from __future__ import annotations
 
 import math
-import sys
 import time
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
@@ -25,6 +22,7 @@ from nav_msgs.msg import Odometry
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import ShipSimulator
 from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.ros.run import spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, seconds_from_stamp
 
 PARAMS = {  # name: (default, description)
@@ -208,21 +206,7 @@ class SimNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        rclpy.spin(node)
-    except MmgTunerError as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
-        sys.exit(2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    spin_node(SimNode, args)
 
 
 if __name__ == '__main__':
