@@ -23,3 +23,7 @@ class TuningError(MmgTunerError):
 
 class DiagnosisError(MmgTunerError):
     """The diagnosis cannot run on the given trials."""
+
+
+class OutputError(MmgTunerError):
+    """An output location cannot be used (a file, not writable, in use, would overwrite)."""

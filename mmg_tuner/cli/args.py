@@ -1,0 +1,64 @@
+"""argparse value types that validate at the edge: every option is checked once, here, with a
+message naming the option's value (argparse adds the option's name), before any work starts."""
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def _number(kind, s: str, what: str):
+    try:
+        v = kind(s)
+    except (TypeError, ValueError):
+        raise argparse.ArgumentTypeError(f'{s!r} is not {what}') from None
+    if kind is float and not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f'{s!r} is not {what} (must be finite)')
+    return v
+
+
+def finite_float(s: str) -> float:
+    """Any finite number."""
+    return _number(float, s, 'a finite number')
+
+
+def positive_float(s: str) -> float:
+    """A finite number > 0."""
+    v = _number(float, s, 'a positive number')
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f'{s!r} must be > 0')
+    return v
+
+
+def nonneg_float(s: str) -> float:
+    """A finite number >= 0."""
+    v = _number(float, s, 'a number >= 0')
+    if v < 0:
+        raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
+    return v
+
+
+def positive_int(s: str) -> int:
+    """A whole number >= 1."""
+    v = _number(int, s, 'a whole number')
+    if v < 1:
+        raise argparse.ArgumentTypeError(f'{s!r} must be >= 1')
+    return v
+
+
+def nonneg_int(s: str) -> int:
+    """A whole number >= 0."""
+    v = _number(int, s, 'a whole number')
+    if v < 0:
+        raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
+    return v
+
+
+def bounded(kind, lo: float, hi: float, what: str = 'value'):
+    """A type accepting kind(s) within [lo, hi], e.g. ``bounded(float, 1e-4, 3600, 'dt [s]')``."""
+    def parse(s: str):
+        v = _number(kind, s, f'a {what}')
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f'{what} {s!r} is outside [{lo:g}, {hi:g}]')
+        return v
+    parse.__name__ = what
+    return parse
