@@ -17,10 +17,16 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         # real KVLCC2 free-running data (SIMMAN 2008, MARIN) used by the checks and examples
         ('share/' + package_name + '/data/kvlcc2_simman2008_marin',
          glob('data/kvlcc2_simman2008_marin/*')),
-    ],
+        # real Esso Osaka 3 m pond data (FRT-DS-ESSO, CC BY-NC-SA 4.0: LICENSE kept beside it)
+        ('share/' + package_name + '/data/esso_osaka_frt',
+         glob('data/esso_osaka_frt/LICENSE') + glob('data/esso_osaka_frt/README.md')),
+    ] + [('share/' + package_name + '/data/esso_osaka_frt/' + kind,
+          glob('data/esso_osaka_frt/' + kind + '/*.csv'))
+         for kind in ('berthing', 'random', 'turning', 'zigzag')],
     install_requires=['setuptools', 'numpy', 'pyyaml', 'numba', 'cmaes', 'rosbags', 'mcap'],
     zip_safe=False,
     maintainer='mmg_tuner developers',
@@ -35,6 +41,7 @@ setup(
             'inspect = mmg_tuner.cli.inspect:main',
             'tune = mmg_tuner.cli.tune:main',
             'diagnose = mmg_tuner.cli.diagnose:main',
+            'fleet = mmg_tuner.cli.fleet:main',
             'sim_node = mmg_tuner.ros.sim_node:main',
             'replay_node = mmg_tuner.ros.replay_node:main',
         ],

@@ -20,6 +20,7 @@ from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from conftest import installed_executable  # noqa: E402
+from mmg_tuner.core.limits import input_limits  # noqa: E402
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate  # noqa: E402
 from mmg_tuner.ros.conversions import seconds_from_stamp, state_from_odometry  # noqa: E402
@@ -125,14 +126,21 @@ def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
 
     def bad():
         rud.publish(Float64(data=float('nan')))
-        rud.publish(Float64(data=2.0))   # beyond the 45 deg limit: clamped
+        rud.publish(Float64(data=0.3))
+        rud.publish(Float64(data=1.0))   # beyond the 45 deg limit: clamped
         rpm.publish(Float64(data=-50.0))  # astern: outside the model, ignored
+        rpm.publish(Float64(data=1e308))  # killed the node (ZeroDivisionError)
+        rpm.publish(Float64(data=1e4))    # with rudder 0.3, then 1e6: NaN odometry, status ok
+        rpm.publish(Float64(data=1e6))
         rpm.publish(Float64(data=106.0))
         return len(got) > 30
 
     assert spin_until(ex, bad, 60.0)
     assert sim_proc.poll() is None  # alive
-    assert all(np.all(np.isfinite(state_from_odometry(m))) for m in got)
+    speed_max = input_limits(load_ship('suzaku')).speed_max_ms
+    for m in got:
+        s = state_from_odometry(m)
+        assert np.all(np.isfinite(s)) and math.hypot(s[3], s[4]) < speed_max
     # reset: simulated time starts again near zero
     cli = node.create_client(Trigger, '/sim_node/reset')
     assert cli.wait_for_service(timeout_sec=20)
@@ -151,9 +159,115 @@ def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
     assert spin_until(ex, fut.done, 20)
     res = fut.result().results[0]
     assert not res.successful and 'unknown ship' in res.reason
+    # every bad value is refused with a reason at run time; the node keeps running
+    for name, value in BAD_PARAMS + [('initial_speed', 30.0), ('ship', '')]:
+        res = set_param(node, ex, pcli, name, value)
+        assert not res.successful and res.reason, (name, value)
+    assert 'read-only' in set_param(node, ex, pcli, 'rate_hz', 10.0).reason
+    # an accepted change is applied, never "successful" and ignored
+    assert set_param(node, ex, pcli, 'frame_id', 'odom').successful
+    got.clear()
+    assert spin_until(ex, lambda: len(got) > 3, 20)
+    assert got[-1].header.frame_id == 'odom'
     node.destroy_subscription(sub)
     out = stop(sim_proc)
     assert 'not finite' in out and 'clamped' in out and '<= 0' in out
+    assert 'exceeds the plausible' in out and 'Traceback' not in out
+
+
+# refused at start (exit 2, one ERROR line) and at run time (a reason)
+BAD_PARAMS = [('initial_speed', math.nan), ('initial_rudder', 1000.0), ('initial_x', math.inf),
+              ('initial_rpm', -50.0), ('initial_rpm', 1e308), ('dt', math.inf),
+              ('dt', 1e-7), ('real_time_factor', 1e9), ('rate_hz', 0.0), ('integrator', 'rk9')]
+
+
+def set_param(node, ex, client, name, value):
+    if isinstance(value, str):
+        pv = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+    else:
+        pv = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+    fut = client.call_async(SetParameters.Request(parameters=[Parameter(name=name, value=pv)]))
+    assert spin_until(ex, fut.done, 20), f'no answer setting {name}'
+    return fut.result().results[0]
+
+
+def test_bad_start_parameters_exit_2_with_one_error_line(ros, tmp_path):
+    env, node, ex = ros
+    tuned = tmp_path / 'params.yaml'
+    tuned.write_text('params:\n  R_0: 0.022\n')
+    keep = tmp_path / 'replay_out'
+    keep.mkdir()
+    (keep / 'recording.mcap').write_text('precious')
+    runs = {f'{n}:={v}': start('sim_node', env, f'{n}:={v}') for n, v in BAD_PARAMS}
+    path = installed_executable('sim_node')
+    cmd = [path] if path else [sys.executable, '-m', 'mmg_tuner.ros.sim_node']
+    runs['--params-file'] = subprocess.Popen(
+        cmd + ['--ros-args', '--params-file', str(tuned)], env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True)
+    # replay_node with output_mcap at an existing folder deleted it
+    runs['output_mcap'] = start('replay_node', env, f'trial:={tmp_path / "none"}',
+                                f'output_mcap:={keep}')
+    for what, proc in runs.items():
+        try:
+            out, _ = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out = proc.communicate()[0] + '\n(still running after 60 s)'
+        assert proc.returncode == 2, f'{what}:\n{out}'
+        errors = [line for line in out.splitlines() if line.startswith('ERROR: ')]
+        assert len(errors) == 1 and 'Traceback' not in out, f'{what}:\n{out}'
+        name = what.split(':=')[0].lstrip('-')
+        assert name.replace('-', '_') in errors[0] or name in errors[0], f'{what}: {errors[0]}'
+    assert (keep / 'recording.mcap').read_text() == 'precious'
+
+
+def test_work_per_tick_is_bounded(ros):
+    """dt 1 ms at 10000x real time asks for 1e7 steps/s: the node stays at its rate, answers
+    its parameter service and reports the shortfall (it used to wedge at 0 Hz)."""
+    env, node, ex = ros
+    proc = start('sim_node', env, 'dt:=0.001', 'real_time_factor:=10000.0', 'rate_hz:=50.0',
+                 'odom_topic:=/wedge/odom')
+    got = []
+    sub = node.create_subscription(Odometry, '/wedge/odom', lambda m: got.append(
+        time.monotonic()), 50)
+    try:
+        assert spin_until(ex, lambda: len(got) > 5, 30), stop(proc)
+        t0 = time.monotonic()
+        got.clear()
+        spin_until(ex, lambda: time.monotonic() - t0 > 2.0, 5)
+        assert len(got) >= 40  # >= 20 Hz of the 50 asked, on a loaded machine
+        pcli = node.create_client(SetParameters, '/sim_node/set_parameters')
+        assert pcli.wait_for_service(timeout_sec=10)
+        t0 = time.monotonic()
+        assert set_param(node, ex, pcli, 'command_timeout_s', 7.0).successful
+        assert time.monotonic() - t0 < 5.0
+    finally:
+        node.destroy_subscription(sub)
+        out = stop(proc)
+    assert 'real-time factor shortfall' in out, out
+
+
+def test_divergence_resets_and_never_publishes_nan(ros):
+    """Explicit Euler at the coarsest accepted step, full rpm and helm: the model blows up
+    within seconds of simulated time; the node resets with an ERROR saying when and why."""
+    env, node, ex = ros
+    proc = start('sim_node', env, 'ship:=kvlcc2', 'integrator:=euler', 'dt:=1.6',
+                 'initial_speed:=1.0', 'initial_rpm:=4900.0', 'initial_rudder:=0.6',
+                 'real_time_factor:=50.0', 'odom_topic:=/diverge/odom')
+    got = []
+    sub = node.create_subscription(Odometry, '/diverge/odom', lambda m: got.append(m), 50)
+    try:
+        assert spin_until(ex, lambda: len(got) > 100, 30), stop(proc)
+    finally:
+        node.destroy_subscription(sub)
+        out = stop(proc)
+    speed_max = input_limits(load_ship('kvlcc2')).speed_max_ms
+    for m in got:
+        s = state_from_odometry(m)
+        assert np.all(np.isfinite(s)) and math.hypot(s[3], s[4]) < speed_max
+    err = [line for line in out.splitlines() if 'simulation failed at t =' in line]
+    assert err and 'ERROR' in err[0] and 'reset to the initial state' in err[0], out
+    assert 'commands rpm 4900' in err[0] and 'last good state' in err[0]
 
 
 def test_replay_node_publishes_and_writes_mcap(ros, tmp_path):

@@ -9,11 +9,17 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from mmg_tuner.core.layout import INTEGRATORS, OK, STATUS_TEXT
+from mmg_tuner.core.layout import DIVERGED, OK, STATE_NAMES, STATUS_TEXT
+from mmg_tuner.core.limits import InputLimits, input_limits
 from mmg_tuner.core.mmg import advance, observe, start_state
 from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
+
+IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed or yaw rate
+MAX_SUBSTEPS = 1000
 
 
 @dataclass
@@ -24,8 +30,66 @@ class CommandCheck:
     problem: str = ''
 
 
+@dataclass(frozen=True)
+class StepFailure:
+    """Why and when a step failed; the simulator was then reset to its initial state.
+
+    time_s: simulated time of the step that failed [s]; reason: what was wrong;
+    last_state / bad_state: the model state (x, y, psi, u, v, r; SI, rad) before and after it;
+    rpm, rudder_rad, delta_act_rad: the commands held and the actual rudder angle.
+    """
+
+    time_s: float
+    reason: str
+    last_state: tuple[float, ...]
+    bad_state: tuple[float, ...]
+    rpm: float
+    rudder_rad: float
+    delta_act_rad: float
+
+    def __str__(self) -> str:
+        def fmt(state):
+            return ', '.join(f'{n} {v:.4g}' for n, v in zip(STATE_NAMES, state))
+        return (f'at t = {self.time_s:.2f} s: {self.reason}; commands rpm {self.rpm:.6g}, '
+                f'rudder {math.degrees(self.rudder_rad):.2f} deg (actual '
+                f'{math.degrees(self.delta_act_rad):.2f} deg); last good state '
+                f'[{fmt(self.last_state)}]; failed state [{fmt(self.bad_state)}]')
+
+
+@njit(cache=True)
+def _advance_checked(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4,
+                     tmp, n, speed_max, yaw_rate_max, last):
+    """n calls of advance, each followed by a per-element finiteness and plausibility check.
+
+    Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
+    isfinite(a + b + ...) to True, so advance's own check cannot be relied on. Returns
+    (status, steps done, delta_act); on failure ``last`` holds the state before the failed step
+    and ``s`` the failed one.
+    """
+    vmax2 = speed_max * speed_max
+    for i in range(n):
+        for j in range(6):
+            last[j] = s[j]
+        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method,
+                                    k1, k2, k3, k4, tmp)
+        if status != OK:
+            return status, i, delta_act
+        for j in range(6):
+            if not math.isfinite(s[j]):
+                return DIVERGED, i, delta_act
+        if s[3] * s[3] + s[4] * s[4] > vmax2 or abs(s[5]) > yaw_rate_max:
+            return IMPLAUSIBLE, i, delta_act
+    return OK, n, delta_act
+
+
 class ShipSimulator:
     """Fixed-step simulation of one ship driven by held rpm and rudder commands.
+
+    Everything is validated against the ship's plausibility ranges
+    (:func:`~mmg_tuner.core.limits.input_limits`): construction refuses bad settings with a
+    SimulationError; a bad command is ignored or clamped and the problem returned; every step
+    checks the state, and a non-finite or implausible one resets the simulator (``failure``
+    says what happened), so the state is never NaN.
 
     Example:
         >>> sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106)
@@ -35,25 +99,72 @@ class ShipSimulator:
 
     def __init__(self, ship: ShipConfig, dt: float = 0.1, x0=None, rpm: float = 100.0,
                  rudder_rad: float = 0.0, integrator: str = 'rk4', substeps: int = 1):
-        if not dt > 0:
-            raise SimulationError(f'dt must be positive, got {dt}')
         self.ship = ship
-        self.dt = float(dt)
-        self.method = INTEGRATORS[integrator]
+        self.limits: InputLimits = input_limits(ship)
+        lim = self.limits
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise SimulationError(f'dt must be a number, got {dt!r}') from None
+        if problem := lim.check_dt(dt):
+            raise SimulationError(f'{ship.name}: {problem}')
+        self.dt = dt
+        if not isinstance(integrator, str):
+            raise SimulationError(f'integrator must be a name, got {integrator!r}')
+        self.method = integrator_code(integrator)
+        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
+                or not 1 <= substeps <= MAX_SUBSTEPS:
+            raise SimulationError(f'substeps must be an integer in [1, {MAX_SUBSTEPS}], '
+                                  f'got {substeps!r}')
         self.substeps = int(substeps)
-        self.x0 = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0] if x0 is None else x0, dtype=float)
-        if self.x0[3] <= 0:
-            raise SimulationError('initial surge speed must be positive (the MMG model covers '
-                                  'u > 0)')
-        self.rpm0 = float(rpm)
-        self.rudder0 = float(rudder_rad)
+        self.x0 = self._check_x0(x0)
+        rpm, rudder_rad = float(rpm), float(rudder_rad)
+        if problem := lim.check_rpm(rpm):
+            raise SimulationError(f'{ship.name}: initial {problem}')
+        if not (math.isfinite(rudder_rad) and abs(rudder_rad) <= lim.rudder_max_rad):
+            raise SimulationError(f'{ship.name}: initial rudder {rudder_rad:g} rad is outside '
+                                  f'the steering gear\'s +-{lim.rudder_max_rad:.4f} rad '
+                                  f'(+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
+        self.rpm0 = rpm
+        self.rudder0 = rudder_rad
         self._work = [np.empty(6) for _ in range(5)]
+        self._last = np.empty(6)
         self._obs = np.empty(6)
+        self.failure: StepFailure | None = None
+        self.failures = 0
         self.reset()
         self.step(1)  # compile (or load from cache) now, not in the middle of a real-time loop
         self.reset()
+        if self.failures:  # the very first step failed: refuse the settings
+            raise SimulationError(f'{ship.name}: the first step fails ({self.failure})')
+
+    def _check_x0(self, x0) -> np.ndarray:
+        lim = self.limits
+        try:
+            x = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0] if x0 is None else x0, dtype=float)
+        except (TypeError, ValueError):
+            raise SimulationError(f'initial state must be 6 numbers, got {x0!r}') from None
+        if x.shape != (6,):
+            raise SimulationError(f'initial state must be 6 numbers (x, y, psi, u, v, r), '
+                                  f'got shape {x.shape}')
+        bad = [f'{n} = {v}' for n, v in zip(STATE_NAMES, x) if not math.isfinite(v)]
+        if bad:
+            raise SimulationError(f'initial state not finite: {", ".join(bad)}')
+        if max(abs(x[0]), abs(x[1])) > lim.position_max_m:
+            raise SimulationError(f'initial position ({x[0]:g}, {x[1]:g}) m is beyond '
+                                  f'{lim.position_max_m:g} m from the frame origin')
+        if not 0 < x[3] <= lim.top_speed_ms:
+            raise SimulationError(
+                f'{self.ship.name}: initial surge speed u = {x[3]:g} m/s is outside (0, '
+                f'{lim.top_speed_ms:.2f}] m/s (the MMG model covers u > 0; the upper bound is '
+                f'a generous top speed, Froude number 0.5)')
+        if abs(x[4]) > lim.top_speed_ms or abs(x[5]) > lim.yaw_rate_max_rad_s:
+            raise SimulationError(f'{self.ship.name}: initial sway {x[4]:g} m/s or yaw rate '
+                                  f'{x[5]:g} rad/s is implausible')
+        return x
 
     def reset(self) -> None:
+        """Back to the initial state and the initial commands."""
         self.t = 0.0
         self.steps = 0
         self.rpm = self.rpm0
@@ -64,22 +175,30 @@ class ShipSimulator:
         self.status = 'ok'
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
-        lim = self.ship.max_rudder_rad
-        if not math.isfinite(rudder_rad):
-            return CommandCheck(None, f'rudder command {rudder_rad} is not finite: ignored')
-        if abs(rudder_rad) > lim:
-            clamped = math.copysign(lim, rudder_rad)
+        """Non-finite or beyond the plausible cap (a unit error, garbage): ignored; beyond the
+        steering gear's limit: clamped to it."""
+        lim = self.limits
+        try:
+            rudder_rad = float(rudder_rad)
+        except (TypeError, ValueError):
+            return CommandCheck(None, f'rudder command {rudder_rad!r} is not a number: ignored')
+        if problem := lim.check_rudder(rudder_rad):
+            return CommandCheck(None, f'rudder command: {problem}: ignored')
+        if abs(rudder_rad) > lim.rudder_max_rad:
+            clamped = math.copysign(lim.rudder_max_rad, rudder_rad)
             return CommandCheck(clamped, f'rudder command {math.degrees(rudder_rad):.1f} deg '
-                                f'beyond the {math.degrees(lim):.1f} deg limit: clamped')
+                                f'beyond the {math.degrees(lim.rudder_max_rad):.1f} deg limit: '
+                                'clamped')
         return CommandCheck(rudder_rad)
 
-    @staticmethod
-    def check_rpm(rpm: float) -> CommandCheck:
-        if not math.isfinite(rpm):
-            return CommandCheck(None, f'rpm command {rpm} is not finite: ignored')
-        if rpm <= 0:
-            return CommandCheck(None, f'rpm command {rpm:.1f} <= 0 is outside the MMG model '
-                                '(forward propeller revolutions only): ignored')
+    def check_rpm(self, rpm: float) -> CommandCheck:
+        """Non-finite, <= 0 (outside the model) or beyond the plausible maximum: ignored."""
+        try:
+            rpm = float(rpm)
+        except (TypeError, ValueError):
+            return CommandCheck(None, f'rpm command {rpm!r} is not a number: ignored')
+        if problem := self.limits.check_rpm(rpm):
+            return CommandCheck(None, f'rpm command: {problem}: ignored')
         return CommandCheck(rpm)
 
     def set_rudder(self, rudder_rad: float) -> str:
@@ -90,27 +209,44 @@ class ShipSimulator:
         return c.problem
 
     def set_rpm(self, rpm: float) -> str:
+        """Apply an rpm command (validated); returns a problem description or ''."""
         c = self.check_rpm(rpm)
         if c.value is not None:
             self.rpm = c.value
         return c.problem
 
     def step(self, n: int = 1) -> bool:
-        """Advance n steps of dt with the held commands. False (and status says why) if the
-        simulation left the model's range or diverged; the state is then left unchanged."""
+        """Advance n steps of dt with the held commands.
+
+        False if a step left the model's range, diverged or reached an implausible state:
+        ``failure`` then says when, why, with which commands and from which state, and the
+        simulator is back at its initial state and commands (``status`` keeps the reason).
+        """
         k1, k2, k3, k4, tmp = self._work
-        for _ in range(n):
-            s = self.s.copy()
-            status, delta = advance(self.ship.kind, self.ship.params, s, self.delta_act,
-                                    self.rpm, self.rudder, self.dt, self.substeps, self.method,
-                                    k1, k2, k3, k4, tmp)
-            if status != OK:
-                self.status = STATUS_TEXT[status]
-                return False
-            self.s, self.delta_act = s, delta
-            self.steps += 1
-            self.t = self.steps * self.dt
-        return True
+        lim = self.limits
+        status, done, delta = _advance_checked(
+            self.ship.kind, self.ship.params, self.s, self.delta_act, self.rpm, self.rudder,
+            self.dt, self.substeps, self.method, k1, k2, k3, k4, tmp, int(n),
+            lim.speed_max_ms, lim.yaw_rate_max_rad_s, self._last)
+        self.steps += done
+        self.t = self.steps * self.dt
+        self.delta_act = delta
+        if status == OK:
+            return True
+        if status == IMPLAUSIBLE:
+            u, v, r = self.s[3:]
+            reason = 'implausible state: ' + lim.state_problem(u, v, r)
+        else:
+            reason = STATUS_TEXT[status]
+        self.failure = StepFailure(
+            time_s=self.t + self.dt, reason=reason,
+            last_state=tuple(float(a) for a in self._last),
+            bad_state=tuple(float(a) for a in self.s), rpm=self.rpm, rudder_rad=self.rudder,
+            delta_act_rad=float(delta))
+        self.failures += 1
+        self.reset()
+        self.status = reason
+        return False
 
     def observed(self) -> np.ndarray:
         """x, y, psi, u, v, r as measured (antenna position, velocities over ground)."""

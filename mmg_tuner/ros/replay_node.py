@@ -8,10 +8,13 @@ summary at the end; optionally writes everything to an MCAP that Foxglove opens.
 """
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -23,22 +26,26 @@ from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import load_topic_map
-from mmg_tuner.errors import MmgTunerError
-from mmg_tuner.ros.run import spin_node
+from mmg_tuner.errors import MmgTunerError, OutputError
+from mmg_tuner.ros.run import Param, declare_parameters, spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
 
+# All read once at start-up: none can change while the node runs.
 PARAMS = {
-    'trial': ('', 'recorded trial: rosbag2 dir, .mcap, .csv or .dat'),
-    'trial_index': (0, 'which trial when the recording holds several'),
-    'topics': ('', 'topic map YAML for the recording'),
-    'dt': (1.0, 'resampling step of the recording [s]'),
-    'ship': ('suzaku', 'ship config name or YAML path'),
-    'params_file': ('', 'tuned params.yaml'),
-    'integrator': ('rk4', 'euler or rk4'),
-    'speed': (1.0, 'replay speed factor'),
-    'output_mcap': ('', 'write recorded + simulated odometry and commands to this rosbag2 '
-                        'MCAP directory (empty: none)'),
-    'exit_at_end': (True, 'shut down after the last sample'),
+    'trial': Param('', 'recorded trial: rosbag2 dir, .mcap, .csv or .dat', read_only=True),
+    'trial_index': Param(0, 'which trial when the recording holds several', (0, 1_000_000),
+                         read_only=True),
+    'topics': Param('', 'topic map YAML for the recording', read_only=True),
+    'dt': Param(1.0, 'resampling step of the recording [s]', (1e-3, 60.0), read_only=True),
+    'ship': Param('suzaku', 'ship config name or YAML path', read_only=True),
+    'params_file': Param('', 'tuned params.yaml', read_only=True),
+    'integrator': Param('rk4', 'integration method', read_only=True,
+                        constraints='euler or rk4'),
+    'speed': Param(1.0, 'replay speed factor', (0.01, 1000.0), read_only=True),
+    'output_mcap': Param('', 'write recorded + simulated odometry and commands to this new '
+                         'rosbag2 MCAP directory (empty: none); an existing path is refused, '
+                         'never overwritten', read_only=True),
+    'exit_at_end': Param(True, 'shut down after the last sample', read_only=True),
 }
 
 
@@ -51,14 +58,47 @@ def error_summary(recorded: np.ndarray, simulated: np.ndarray) -> dict[str, floa
             'speed_rms_ms': float(np.sqrt(np.nanmean((simulated[:, 3] - recorded[:, 3]) ** 2)))}
 
 
+def check_new_output(path: str) -> Path:
+    """The output_mcap path, refused (like ``ros2 bag record -o``) if anything exists there
+    and checked writable before any work starts."""
+    out = Path(path).expanduser()
+    if os.path.lexists(out):
+        kind = 'folder' if out.is_dir() else 'file'
+        raise OutputError(f'output_mcap {out} is an existing {kind}; nothing is overwritten: '
+                          'choose a new path')
+    parent = out.parent
+    if not parent.is_dir():
+        raise OutputError(f'output_mcap {out}: folder {parent} does not exist')
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f'output_mcap {out}: cannot write in {parent}')
+    return out
+
+
+def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
+    """Write the replay bag into a private temporary folder beside ``out`` and move it into
+    place only when complete (the path is checked again just before the move)."""
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f'.{out.name}.'))
+    try:
+        staged = tmp / out.name  # rosbag2 names its file after the folder
+        write_replay_bag(trial, sim_states, staged)
+        if os.path.lexists(out):
+            raise OutputError(f'output_mcap {out} appeared while writing; nothing is '
+                              f'overwritten: choose a new path')
+        os.rename(staged, out)
+    except OSError as exc:
+        raise OutputError(f'output_mcap {out}: writing failed ({exc.strerror or exc}); '
+                          'nothing was written') from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)  # our own temporary folder, created above
+
+
 class ReplayNode(Node):
     def __init__(self) -> None:
         super().__init__('replay_node')
-        for name, (default, desc) in PARAMS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=desc))
-        p = {n: self.get_parameter(n).value for n in PARAMS}
+        p = declare_parameters(self, PARAMS)
         if not p['trial']:
             raise MmgTunerError('parameter "trial" is empty: give a recording to replay')
+        out = check_new_output(p['output_mcap']) if p['output_mcap'] else None
         tm = replace(load_topic_map(p['topics'] or None), dt=float(p['dt']))
         trials = load_trials(p['trial'], tm)
         if not 0 <= p['trial_index'] < len(trials):
@@ -73,9 +113,9 @@ class ReplayNode(Node):
                                    f'{sim.status}')
         self.sim_states = sim.states
         self.summary = error_summary(self.trial.states, self.sim_states)
-        if p['output_mcap']:
-            write_replay_bag(self.trial, self.sim_states, p['output_mcap'])
-            self.get_logger().info(f"wrote {p['output_mcap']} (open it in Foxglove)")
+        if out is not None:
+            write_new_bag(self.trial, self.sim_states, out)
+            self.get_logger().info(f'wrote {out} (open it in Foxglove)')
         self.speed = float(p['speed'])
         self.exit_at_end = bool(p['exit_at_end'])
         self.pub_odom = self.create_publisher(Odometry, '/odom', 10)

@@ -1,27 +1,95 @@
-"""One way to run a node from a console script: errors a user can act on, a clean shutdown."""
+"""One way to run a node from a console script: declared, described parameters; errors a user
+can act on; a clean shutdown."""
 from __future__ import annotations
 
 import sys
-from typing import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
 
 import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
+                              ParameterException)
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
-from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.errors import ConfigError, MmgTunerError
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter: default, description (with units), optional inclusive range and
+    whether it can change at run time (read_only: fixed once the node has started)."""
+
+    default: Any
+    description: str
+    range: tuple[float, float] | None = None
+    read_only: bool = False
+    constraints: str = ''
+
+    def descriptor(self) -> ParameterDescriptor:
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only,
+                                additional_constraints=self.constraints)
+        if self.range is not None:
+            lo, hi = self.range
+            if isinstance(self.default, bool):
+                pass
+            elif isinstance(self.default, int):
+                d.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=0)]
+            elif isinstance(self.default, float):
+                d.floating_point_range = [FloatingPointRange(from_value=float(lo),
+                                                             to_value=float(hi), step=0.0)]
+        return d
+
+
+def declare_parameters(node: Node, specs: Mapping[str, Param]) -> dict[str, Any]:
+    """Declare every parameter with its descriptor; a value given at start that the
+    descriptor refuses (type, range) becomes a one-line ConfigError naming it."""
+    for name, spec in specs.items():
+        try:
+            node.declare_parameter(name, spec.default, spec.descriptor())
+        except InvalidParameterTypeException:
+            given = _override(node, name)
+            kind = type(spec.default).__name__
+            hint = f' (write {given}.0)' if isinstance(spec.default, float) and \
+                isinstance(given, int) else ''
+            raise ConfigError(f'parameter {name} := {given!r} has the wrong type: expected '
+                              f'{kind}{hint}; {spec.description}') from None
+        except InvalidParameterValueException:
+            given = _override(node, name)
+            lo, hi = spec.range if spec.range is not None else (None, None)
+            raise ConfigError(f'parameter {name} := {given!r} is outside [{lo:g}, {hi:g}]; '
+                              f'{spec.description}') from None
+    return {n: node.get_parameter(n).value for n in specs}
+
+
+def _override(node: Node, name: str) -> Any:
+    p = node._parameter_overrides.get(name)  # what -p / --params-file gave (rclpy keeps it)
+    return p.value if p is not None else '?'
 
 
 def spin_node(make_node: Callable[[], Node], args=None) -> None:
-    """Create and spin a node until shutdown; an MmgTunerError (bad ship, params or trial) is
-    printed as one ``ERROR:`` line with exit code 2, a node's own SystemExit keeps its code,
-    Ctrl-C and external shutdown end quietly."""
-    rclpy.init(args=args)
+    """Create and spin a node until shutdown; an MmgTunerError (bad ship, params or trial), a
+    parameter the node refuses or ROS arguments rcl cannot parse are printed as one ``ERROR:``
+    line with exit code 2, a node's own SystemExit keeps its code, Ctrl-C and external shutdown
+    end quietly."""
+    try:
+        rclpy.init(args=args)
+    except _rclpy.RCLError as exc:
+        print(f'ERROR: {_explain_init_error(exc, sys.argv if args is None else args)}',
+              file=sys.stderr)
+        sys.exit(2)
     node = None
     code = 0
     try:
         node = make_node()
         rclpy.spin(node)
     except MmgTunerError as exc:
+        print(f'ERROR: {exc}', file=sys.stderr)
+        code = 2
+    except ParameterException as exc:
         print(f'ERROR: {exc}', file=sys.stderr)
         code = 2
     except SystemExit as exc:
@@ -34,3 +102,29 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         if rclpy.ok():
             rclpy.shutdown()
     sys.exit(code)
+
+
+def _explain_init_error(exc: Exception, argv: list[str]) -> str:
+    """rcl refuses the command line (typically a --params-file it cannot parse): say which
+    file and, for a tuned params.yaml given by reflex, what to do instead."""
+    files = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
+    for f in files:
+        if _is_tuned_params(f):
+            return (f'{f} is a tuned params.yaml from tune/diagnose (top-level "params:"), not '
+                    'a ROS parameter file (<node>: ros__parameters: ...); load it with '
+                    f'-p params_file:={f}')
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    if files:
+        return (f'ROS could not read --params-file {" ".join(files)}: {first} (a ROS parameter '
+                'file maps a node name to ros__parameters: see config/sim_node.yaml)')
+    return f'ROS could not parse the command-line arguments: {first}'
+
+
+def _is_tuned_params(path: str) -> bool:
+    import yaml
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return False
+    return isinstance(doc, dict) and isinstance(doc.get('params'), dict) and \
+        not any(isinstance(v, dict) and 'ros__parameters' in v for v in doc.values())

@@ -1,96 +1,228 @@
 """``sim_node``: the tuned ship as a ROS 2 simulator.
 
 Subscribes rudder and propeller commands (last value holds), publishes nav_msgs/Odometry
-(REP-103/105) at ``rate_hz``; ``~/reset`` (std_srvs/Trigger) returns to the initial state.
-All model work is :class:`~mmg_tuner.core.stepper.ShipSimulator`; this file only wires ROS.
+(REP-103/105) and TF (``odom -> base_link``, static ``map -> odom``) at ``rate_hz``, optional
+simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) on simulated time, and its
+health on ``/diagnostics`` at 1 Hz; ``~/reset`` (std_srvs/Trigger) returns to the initial
+state. Topic names are relative and the ship's frames carry ``frame_prefix`` (default: the
+namespace), so ``-r __ns:=/ship2`` runs a second ship. All model work is
+:class:`~mmg_tuner.core.stepper.ShipSimulator`; this file only wires ROS.
 
     ros2 run mmg_tuner sim_node --ros-args --params-file config/sim_node.yaml
 """
 from __future__ import annotations
 
 import math
+import re
 import time
+from dataclasses import replace
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry
 
+from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import ShipSimulator
 from mmg_tuner.errors import MmgTunerError
-from mmg_tuner.ros.run import spin_node
-from mmg_tuner.ros.conversions import odometry_from_state, seconds_from_stamp
+from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state,
+                                       seconds_from_stamp, stamp_from_seconds,
+                                       transform_from_state)
+from mmg_tuner.ros.health import CommandHealth, Health
+from mmg_tuner.ros.run import Param, declare_parameters, spin_node
+from mmg_tuner.ros.sensors import SimulatedSensors, datum_from_params
 
-PARAMS = {  # name: (default, description)
-    'ship': ('suzaku', 'ship config name or YAML path'),
-    'params_file': ('', 'tuned params.yaml from tune/diagnose (empty: none)'),
-    'rate_hz': (50.0, 'odometry publication rate [Hz, wall clock]'),
-    'dt': (0.1, 'integration step [s of simulated time]'),
-    'integrator': ('rk4', 'euler or rk4'),
-    'real_time_factor': (1.0, 'simulated seconds per wall second; <= 0: as fast as possible'),
-    'initial_x': (0.0, 'initial position x in frame_id (ENU, east) [m]'),
-    'initial_y': (0.0, 'initial position y in frame_id (ENU, north) [m]'),
-    'initial_yaw': (math.pi / 2, 'initial yaw in frame_id (ENU, from east) [rad]'),
-    'initial_speed': (3.0, 'initial surge speed [m/s]'),
-    'initial_rpm': (106.0, 'propeller rpm until a command arrives'),
-    'initial_rudder': (0.0, 'rudder angle until a command arrives [rad, + starboard]'),
-    'odom_topic': ('/odom', 'published odometry'),
-    'rudder_topic': ('/rudder_angle', 'std_msgs/Float64 rudder command [rad, + starboard]'),
-    'rpm_topic': ('/propeller_rpm', 'std_msgs/Float64 propeller command [rpm]'),
-    'frame_id': ('map', 'odometry frame (ENU)'),
-    'child_frame_id': ('base_link', 'body frame (FLU)'),
-    'publish_clock': (False, 'publish /clock with the simulated time (stamps start at 0)'),
-    'wait_for_commands': (False, 'hold the simulation until both commands have arrived'),
-    'command_timeout_s': (5.0, 'warn when a command is older than this [s, wall clock]'),
+try:  # no wheel on PyPI: scripts/build_tf2_msgs.py builds it; a ROS install has it
+    from tf2_msgs.msg import TFMessage
+except ImportError:  # pragma: no cover - depends on the installation
+    TFMessage = None
+
+# Static ranges; the ship-dependent ones (rpm, speed, rudder and dt limits of
+# mmg_tuner.core.limits.input_limits) are checked when the simulator is built.
+PARAMS = {
+    'ship': Param('suzaku', 'ship config name or YAML path (a change restarts the simulation)'),
+    'params_file': Param('', 'tuned params.yaml from tune/diagnose, empty: none (a change '
+                         'restarts the simulation)'),
+    'rate_hz': Param(50.0, 'odometry publication rate [Hz, wall clock]', (1.0, 1000.0),
+                     read_only=True),
+    'dt': Param(0.1, 'integration step [s of simulated time]; at most the time to sail one '
+                'ship length at its top speed', (DT_MIN_S, 10.0)),
+    'integrator': Param('rk4', 'integration method', constraints='euler or rk4'),
+    'real_time_factor': Param(1.0, 'simulated seconds per wall second; 0: as fast as possible',
+                              (0.0, 1e4)),
+    'initial_x': Param(0.0, 'initial position x in frame_id (ENU, east) [m]',
+                       (-POSITION_MAX_M, POSITION_MAX_M)),
+    'initial_y': Param(0.0, 'initial position y in frame_id (ENU, north) [m]',
+                       (-POSITION_MAX_M, POSITION_MAX_M)),
+    'initial_yaw': Param(math.pi / 2, 'initial yaw in frame_id (ENU, from east) [rad]',
+                         (-2 * math.pi, 2 * math.pi)),
+    'initial_speed': Param(3.0, 'initial surge speed [m/s]; > 0, at most the ship\'s top speed '
+                           '(Froude number 0.5)', (0.0, 1000.0)),
+    'initial_rpm': Param(106.0, 'propeller rpm until a command arrives; > 0, at most the '
+                         'ship\'s plausible maximum', (0.0, 1e5)),
+    'initial_rudder': Param(0.0, 'rudder angle until a command arrives [rad, + starboard]; '
+                            'within the steering gear\'s limit', (-math.pi / 2, math.pi / 2)),
+    # relative names: /odom etc. in the root namespace, /ship2/odom under -r __ns:=/ship2
+    'odom_topic': Param('odom', 'published odometry (relative: in the node\'s namespace)',
+                        read_only=True),
+    'rudder_topic': Param('rudder_angle', 'std_msgs/Float64 rudder command [rad, + starboard]',
+                          read_only=True),
+    'rpm_topic': Param('propeller_rpm', 'std_msgs/Float64 propeller command [rpm]',
+                       read_only=True),
+    'frame_id': Param('map', 'world frame of the odometry (ENU), shared by all ships: not '
+                      'prefixed'),
+    'odom_frame_id': Param('odom', 'the ship\'s odometry frame (ENU; TF map -> odom is a static '
+                           'identity); prefixed with frame_prefix'),
+    'child_frame_id': Param('base_link', 'body frame (FLU); prefixed with frame_prefix'),
+    'frame_prefix': Param('', 'prefix of the ship\'s own frames, joined with "/" (default: the '
+                          'node\'s namespace, e.g. ship2 -> ship2/base_link)'),
+    'publish_tf': Param(True, 'publish odom -> base_link on /tf and map -> odom on /tf_static '
+                        '(needs tf2_msgs)', read_only=True),
+    'gnss_topic': Param('fix', 'simulated sensor_msgs/NavSatFix (relative)', read_only=True),
+    'gnss_rate_hz': Param(0.0, 'simulated GNSS rate [Hz of simulated time]; 0: off',
+                          (0.0, 100.0), read_only=True),
+    'gnss_noise_m': Param(0.5, 'GNSS horizontal noise, 1 sigma per axis [m]', (0.0, 100.0)),
+    'gnss_alt_noise_m': Param(1.0, 'GNSS altitude noise, 1 sigma [m]', (0.0, 100.0)),
+    # ASSUMPTION: a datum in Tokyo Bay, SUZAKU's waters; any other place works the same
+    'datum_lat_deg': Param(35.5, 'WGS84 latitude of the map origin [deg]', (-90.0, 90.0)),
+    'datum_lon_deg': Param(139.8, 'WGS84 longitude of the map origin [deg]', (-180.0, 180.0)),
+    'datum_alt_m': Param(0.0, 'WGS84 ellipsoidal height of the map origin [m]',
+                         (-1e4, 1e4)),
+    'imu_topic': Param('imu/data', 'simulated sensor_msgs/Imu (relative)', read_only=True),
+    'imu_rate_hz': Param(0.0, 'simulated IMU rate [Hz of simulated time]; 0: off',
+                         (0.0, 1000.0), read_only=True),
+    'imu_yaw_noise_rad': Param(0.005, 'IMU heading noise, 1 sigma [rad]', (0.0, 1.0)),
+    'imu_gyro_noise_rad_s': Param(0.001, 'IMU yaw-rate noise, 1 sigma [rad/s]', (0.0, 1.0)),
+    'imu_accel_noise_m_s2': Param(0.02, 'IMU acceleration noise, 1 sigma [m/s^2]',
+                                  (0.0, 10.0)),
+    'noise_seed': Param(0, 'seed of the sensor noise (a change reseeds)', (0, 2 ** 31 - 1)),
+    'publish_clock': Param(False, 'publish /clock with the simulated time (stamps start at 0)',
+                           read_only=True),
+    'wait_for_commands': Param(False, 'hold the simulation until both commands have arrived',
+                               read_only=True),
+    'command_timeout_s': Param(5.0, 'a command older than this is stale (diagnostics WARN) '
+                               '[s, wall clock]', (0.1, 86400.0)),
 }
+FRAME_PARAMS = {'frame_id', 'odom_frame_id', 'child_frame_id', 'frame_prefix'}
+DATUM_PARAMS = {'datum_lat_deg', 'datum_lon_deg', 'datum_alt_m'}
+DIAGNOSTICS_PERIOD_S = 1.0
 RESTART_PARAMS = {'ship', 'params_file', 'dt', 'integrator', 'initial_x', 'initial_y',
                   'initial_yaw', 'initial_speed', 'initial_rpm', 'initial_rudder'}
+BUSY_FRACTION = 0.8  # of each timer period spent stepping at most: the executor stays served
+CHUNK_STEPS = 50     # steps per compiled call between deadline checks (~0.2 ms with RK4)
+_NUMBER = re.compile(r'[-+]?\d[\d.e+-]*')
+FAILURE_LOG_S = 5.0  # [s] at most one divergence ERROR per this wall time
 
 
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__('sim_node')
-        for name, (default, desc) in PARAMS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=desc))
-        self.p = {n: self.get_parameter(n).value for n in PARAMS}
+        specs = dict(PARAMS)  # the frame prefix defaults to the namespace: /ship2 -> ship2/
+        specs['frame_prefix'] = replace(PARAMS['frame_prefix'],
+                                        default=self.get_namespace().strip('/'))
+        self.p = declare_parameters(self, specs)
+        self._check_frames(self.p)
+        datum_from_params(self.p)  # a bad datum is refused at start (ConfigError)
         self.sim = self._build(self.p)
+        self._pending: ShipSimulator | None = None  # built by _validate, taken by _apply
+        self.frames = self._frames(self.p)
+        world, odom, body = self.frames
         self.odom_pub = self.create_publisher(Odometry, self.p['odom_topic'], 10)
         self.clock_pub = self.create_publisher(ClockMsg, '/clock', 10) \
             if self.p['publish_clock'] else None
+        self.tf_pub = self.tf_static_pub = None
+        if self.p['publish_tf'] and TFMessage is None:
+            self.get_logger().warn('tf2_msgs is not installed: no TF (run scripts/install.sh, '
+                                   'or install ros-jazzy-tf2-msgs)')
+        elif self.p['publish_tf']:
+            self.tf_pub = self.create_publisher(TFMessage, '/tf', 10)
+            self.tf_static_pub = self.create_publisher(
+                TFMessage, '/tf_static',
+                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        pubs = {}
+        if self.p['gnss_rate_hz'] > 0:
+            pubs['gnss'] = self.create_publisher(NavSatFix, self.p['gnss_topic'], 10).publish
+        if self.p['imu_rate_hz'] > 0:
+            pubs['imu'] = self.create_publisher(Imu, self.p['imu_topic'], 10).publish
+        self.sensors = SimulatedSensors(self.p, self.sim.dt, pubs, body)
         self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
         self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.last_cmd = {'rudder': None, 'rpm': None}
+        self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name, commands={
+            'rudder': CommandHealth('rad', self.sim.rudder),
+            'rpm': CommandHealth('rpm', self.sim.rpm)})
+        self.health.rtf_requested = self.p['real_time_factor']
         self._warned: dict[str, float] = {}
-        self._stale_checked = 0.0
+        self._failure_logged, self._unlogged_failures = -math.inf, 0
         self._restart_clock()
-        self._odom = odometry_from_state(self.sim.observed(), 0.0, self.p['frame_id'],
-                                         self.p['child_frame_id'])
+        self._odom = odometry_from_state(self.sim.observed(), 0.0, world, body)
+        self._tf = None if self.tf_pub is None else \
+            TFMessage(transforms=[transform_from_state(self.sim.observed(), 0.0, odom, body)])
+        self._publish_static_tf()
         self._clock_msg = ClockMsg()
+        self._period = 1.0 / self.p['rate_hz']
+        # real-time shortfall bookkeeping: simulated and wall seconds over the last window
+        self._window = (self._steady_s(), 0)
+        self._steps_done = 0  # steps since start, across resets (achieved real-time factor)
+        self._report_at = (self._steady_s(), 0)
         # on system time the default clock's timer is the cheapest; with use_sim_time a timer on
         # ROS time would wait for /clock, which this node may be the one to publish
         sim_time = self.get_parameter('use_sim_time').value
-        self.create_timer(1.0 / self.p['rate_hz'], self._tick,
-                          clock=self.steady if sim_time else None)
+        self.create_timer(self._period, self._tick, clock=self.steady if sim_time else None)
+        lim = self.sim.limits
         self.get_logger().info(
             f"{self.sim.ship.name} ({self.sim.ship.model} model) at {self.p['rate_hz']:g} Hz, "
-            f"dt {self.p['dt']:g} s, real-time factor {self.p['real_time_factor']:g}")
+            f"dt {self.p['dt']:g} s, real-time factor {self.p['real_time_factor']:g}; "
+            f"commands accepted: rpm in (0, {lim.rpm_max:.0f}], rudder clamped to "
+            f"+-{math.degrees(lim.rudder_max_rad):.1f} deg; frames {world} -> {odom} -> {body}")
+        for key in ('gnss_rate_hz', 'imu_rate_hz'):
+            if self.p[key] * self.sim.dt > 1.0:
+                self.get_logger().warn(f'{key} {self.p[key]:g} exceeds the step rate 1/dt = '
+                                       f'{1 / self.sim.dt:g} Hz: one sample per step')
 
     # ---- set-up -------------------------------------------------------------------------
     @staticmethod
     def _build(p: dict) -> ShipSimulator:
+        """The simulator for parameters p; a SimulationError/ConfigError says what is wrong."""
         ship = load_ship(p['ship'], p['params_file'] or None)
         psi = math.pi / 2 - p['initial_yaw']
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]
         return ShipSimulator(ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
                              p['integrator'])
+
+    @staticmethod
+    def _frames(p: dict) -> tuple[str, str, str]:
+        """(world, odom, body) frame names: the ship's own two carry the prefix."""
+        pre = p['frame_prefix'].strip('/')
+        return (p['frame_id'],) + tuple(f'{pre}/{p[k]}' if pre else p[k]
+                                        for k in ('odom_frame_id', 'child_frame_id'))
+
+    @staticmethod
+    def _check_frames(p: dict) -> None:
+        for name in ('frame_id', 'odom_frame_id', 'child_frame_id', 'frame_prefix'):
+            v = p[name]
+            if name != 'frame_prefix' and not v.strip():
+                raise MmgTunerError(f'parameter {name} is empty: give a frame name')
+            if v != v.strip() or any(c.isspace() for c in v) or \
+                    (name != 'frame_prefix' and v.startswith('/')):
+                raise MmgTunerError(f'parameter {name} = {v!r}: a TF frame name has no spaces '
+                                    'and no leading "/"')
+        world, odom, body = SimNode._frames(p)
+        if body in (world, odom):
+            raise MmgTunerError(f'parameter child_frame_id: the body frame {body!r} must differ '
+                                f'from the world frame {world!r} and the odometry frame '
+                                f'{odom!r}')
 
     def _restart_clock(self) -> None:
         self.wall0 = self._steady_s()
@@ -98,27 +230,49 @@ class SimNode(Node):
             seconds_from_stamp(self.get_clock().now().to_msg())
         # wait_for_commands gates only the first start: after a reset the last commands hold
         self.started = not self.p['wait_for_commands'] or \
-            all(v is not None for v in getattr(self, 'last_cmd', {'x': None}).values())
+            all(c.last_rx is not None for c in self.health.commands.values())
+        self.health.waiting = not self.started
+        self.sensors.restart(self.sim.steps, self.sim.dt)
 
     @staticmethod
     def _steady_s() -> float:
         return time.monotonic()  # cheaper than rclpy's Clock.now() in a 50 Hz loop
 
+    def _publish_static_tf(self) -> None:
+        """map -> odom, identity (the simulator knows its pose exactly: no drift to correct)."""
+        world, odom, _ = self.frames
+        if self.tf_static_pub is not None and world != odom:
+            self.tf_static_pub.publish(TFMessage(transforms=[identity_transform(
+                self.stamp0, world, odom)]))
+
     # ---- commands -----------------------------------------------------------------------
     def _on_rudder(self, msg: Float64) -> None:
-        problem = self.sim.set_rudder(msg.data)
-        self._command_received('rudder', problem)
+        c = self.sim.check_rudder(msg.data)
+        if c.value is not None:
+            self.sim.set_rudder(c.value)
+        self._command_received('rudder', c.value, c.problem)
 
     def _on_rpm(self, msg: Float64) -> None:
-        problem = self.sim.set_rpm(msg.data)
-        self._command_received('rpm', problem)
+        c = self.sim.check_rpm(msg.data)
+        if c.value is not None:
+            self.sim.set_rpm(c.value)
+        self._command_received('rpm', c.value, c.problem)
 
-    def _command_received(self, which: str, problem: str) -> None:
-        self.last_cmd[which] = self._steady_s()
+    def _command_received(self, which: str, value: float | None, problem: str) -> None:
+        now = self._steady_s()
+        cmd = self.health.commands[which]
+        if cmd.stale:  # one line per transition, not one per message
+            self.get_logger().info(f'{which} commands resumed after '
+                                   f'{now - cmd.last_rx:.0f} s')
+            cmd.stale = False
+        self.health.command(which, value, problem, now)
         if problem:
-            self._warn(problem, key=which + problem.split(':')[-1])
-        if not self.started and all(v is not None for v in self.last_cmd.values()):
+            # throttle per kind of problem: the message without its numbers
+            self._warn(problem, key=which + _NUMBER.sub('#', problem))
+        if not self.started and all(c.last_rx is not None
+                                    for c in self.health.commands.values()):
             self.started = True
+            self.health.waiting = False
             self.wall0 = self._steady_s()
 
     def _warn(self, msg: str, key: str, period_s: float = 2.0) -> None:
@@ -130,79 +284,160 @@ class SimNode(Node):
 
     # ---- simulation ---------------------------------------------------------------------
     def _tick(self) -> None:
+        """Step the simulation to the wall clock (or as far as the time budget allows), then
+        publish odometry and TF; diagnostics once a second."""
         now = self._steady_s()
+        if self.started:
+            self._step(now)
+        if now - self._report_at[0] >= DIAGNOSTICS_PERIOD_S:
+            self._report(now)
         if not self.started:
             return
-        rtf = self.p['real_time_factor']
-        if rtf > 0:
-            n = int((now - self.wall0) * rtf / self.sim.dt + 1e-9) - self.sim.steps
-            behind_s = n * self.sim.dt / rtf  # wall time worth of steps still to do
-            if behind_s > 1.0:  # stalled (e.g. the machine paused us): resynchronise
-                self._warn(f'fell {behind_s:.1f} s behind real time: resynchronising',
-                           key='behind', period_s=10.0)
-                self.wall0 += behind_s - 1.0 / self.p['rate_hz']
-                n = int((now - self.wall0) * rtf / self.sim.dt + 1e-9) - self.sim.steps
-        else:  # free running: spend most of each tick stepping
-            n = 0
-            deadline = time.perf_counter() + 0.8 / self.p['rate_hz']
-            while time.perf_counter() < deadline and self._advance(50):
-                pass
-        if n > 0 and not self._advance(n):
-            return
-        if now - self._stale_checked > 1.0:
-            self._stale_checked = now
-            self._check_stale(now)
         t = self.stamp0 + self.sim.t
-        msg = odometry_from_state(self.sim.observed(), t, msg=self._odom)
+        state = self.sim.observed()
+        msg = odometry_from_state(state, t, msg=self._odom)
         self.odom_pub.publish(msg)
+        if self._tf is not None:
+            transform_from_state(state, t, msg=self._tf.transforms[0])
+            self.tf_pub.publish(self._tf)
         if self.clock_pub is not None:
             self._clock_msg.clock = msg.header.stamp
             self.clock_pub.publish(self._clock_msg)
 
+    def _step(self, now: float) -> None:
+        """The stepping per tick is bounded by BUSY_FRACTION of the period whatever dt and
+        real_time_factor ask for, so services and subscriptions are always served; a demand
+        beyond that is reported as a real-time-factor shortfall. With sensors on, the steps
+        stop exactly at each sample's simulated time."""
+        rtf = self.p['real_time_factor']
+        deadline = time.perf_counter() + BUSY_FRACTION * self._period
+        if rtf > 0:
+            n = int((now - self.wall0) * rtf / self.sim.dt + 1e-9) - self.sim.steps
+        else:  # free running: as many steps as the budget allows
+            n = 1 << 62
+        sensors = self.sensors if self.sensors.active else None
+        if sensors is not None:
+            sensors.sample_due(self.sim, self.stamp0)
+        while n > 0:
+            k = min(n, CHUNK_STEPS)
+            if sensors is not None:
+                k = min(k, sensors.steps_to_next(self.sim.steps))
+            if not self._advance(k):
+                return
+            n -= k
+            if sensors is not None:
+                sensors.sample_due(self.sim, self.stamp0)
+            if time.perf_counter() >= deadline:
+                break
+        if rtf > 0 and n > 0:
+            self._behind(now, n, rtf)
+
+    def _behind(self, now: float, n_left: int, rtf: float) -> None:
+        """Steps are still owed after this tick's budget: report the achieved real-time factor
+        and, when more than a second behind, drop the backlog (never catch up in a burst)."""
+        behind_s = n_left * self.sim.dt / rtf  # wall time worth of steps still to do
+        if behind_s <= 1.0:
+            return
+        w0, steps0 = self._window
+        if now - w0 > 0:
+            achieved = (self.sim.steps - steps0) * self.sim.dt / (now - w0)
+            self._warn(f'real-time factor shortfall: achieving {achieved:.3g} of the requested '
+                       f'{rtf:g} (dt {self.sim.dt:g} s: {rtf / self.sim.dt:.3g} steps/s asked); '
+                       'simulated time runs slower than requested', key='behind', period_s=10.0)
+        self.wall0 = now - self.sim.steps * self.sim.dt / rtf
+        self._window = (now, self.sim.steps)
+
     def _advance(self, n: int) -> bool:
         if self.sim.step(n):
+            self._steps_done += n
             return True
-        self.get_logger().error(f'simulation stopped at t = {self.sim.t:.1f} s: '
-                                f'{self.sim.status}; reset to the initial state')
-        self.sim.reset()
+        # an ERROR per failure, at most one per FAILURE_LOG_S (a configuration that diverges
+        # from its initial state would otherwise flood the log), with the count in between
+        now = self._steady_s()
+        self.health.reset(str(self.sim.failure), now)
+        self._unlogged_failures += 1
+        if now - self._failure_logged >= FAILURE_LOG_S:
+            more = f' ({self._unlogged_failures} failures since the last report)' \
+                if self._unlogged_failures > 1 else ''
+            self.get_logger().error(f'simulation failed {self.sim.failure}; reset to the '
+                                    f'initial state and commands{more}')
+            self._failure_logged, self._unlogged_failures = now, 0
         self._restart_clock()
+        self._window = (self._steady_s(), 0)
         return False
 
-    def _check_stale(self, now: float) -> None:
+    def _report(self, now: float) -> None:
+        """Once a second: staleness transitions (logged once) and /diagnostics."""
+        t0, steps0 = self._report_at
+        self._report_at = (now, self._steps_done)
+        if self.started:
+            self.health.rtf_achieved = (self._steps_done - steps0) * self.sim.dt / (now - t0)
         limit = self.p['command_timeout_s']
-        for which, t in self.last_cmd.items():
-            if t is not None and now - t > limit:
-                self._warn(f'no {which} command for {now - t:.0f} s: holding the last value',
-                           key='stale ' + which, period_s=10.0)
+        for which, cmd in self.health.commands.items():
+            if self.health.update_stale(which, now, limit) == 'stale':
+                self.get_logger().warn(
+                    f'no {which} command for {limit:g} s: holding the last value '
+                    f'{cmd.value:.6g} {cmd.unit} (stale until the next one; see /diagnostics)')
+        self.diag_pub.publish(self.health.array(now, stamp_from_seconds(
+            self.stamp0 + self.sim.t), self.sim.t, limit))
 
     # ---- services and parameters --------------------------------------------------------
     def _on_reset(self, request, response):
         self.sim.reset()
         self._restart_clock()
+        self._window = (self._steady_s(), 0)
         response.success, response.message = True, 'reset to the initial state'
         return response
 
     def _validate(self, params) -> SetParametersResult:
+        """Refuse, with the reason, any change that cannot be applied (descriptor ranges and
+        read-only flags are checked by rclpy before this)."""
         trial = dict(self.p)
         trial.update({p.name: p.value for p in params})
-        if {p.name for p in params} & {'odom_topic', 'rudder_topic', 'rpm_topic',
-                                       'publish_clock', 'rate_hz'}:
-            return SetParametersResult(successful=False,
-                                       reason='topics, clock and rate are fixed at start-up')
-        if {p.name for p in params} & RESTART_PARAMS:
-            try:
-                self._build(trial)
-            except (MmgTunerError, KeyError, TypeError, ValueError) as exc:
-                return SetParametersResult(successful=False, reason=str(exc))
+        names = {p.name for p in params}
+        try:
+            self._check_frames(trial)
+            if names & DATUM_PARAMS:
+                datum_from_params(trial)
+            if names & RESTART_PARAMS:
+                self._pending = self._build(trial)
+        except MmgTunerError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _apply(self, params) -> None:
+        """Apply an accepted change: a new simulator (restart), a new real-time anchor, new
+        frame names, datum or noise seed; nothing accepted is ignored."""
+        names = {p.name for p in params}
         self.p.update({p.name: p.value for p in params})
-        if {p.name for p in params} & RESTART_PARAMS:
-            self.sim = self._build(self.p)
+        if names & RESTART_PARAMS:
+            self.sim = self._pending or self._build(self.p)
+            self._pending = None
+            self.health.hardware_id = self.sim.ship.name
             self._restart_clock()
-            self.get_logger().info(f'applied {[p.name for p in params]}: restarted '
-                                   f'{self.sim.ship.name}')
+            self._window = (self._steady_s(), 0)
+        elif 'real_time_factor' in names:  # keep the simulated time, re-anchor the wall clock
+            rtf = self.p['real_time_factor']
+            now = self._steady_s()
+            self.wall0 = now - (self.sim.steps * self.sim.dt / rtf if rtf > 0 else 0.0)
+            self._window = (now, self.sim.steps)
+        self.health.rtf_requested = self.p['real_time_factor']
+        if names & FRAME_PARAMS:
+            self.frames = self._frames(self.p)
+            world, odom, body = self.frames
+            self._odom.header.frame_id, self._odom.child_frame_id = world, body
+            if self._tf is not None:
+                tf = self._tf.transforms[0]
+                tf.header.frame_id, tf.child_frame_id = odom, body
+            self.sensors.frame_id = body
+            self._publish_static_tf()
+        if names & DATUM_PARAMS:
+            self.sensors.datum = datum_from_params(self.p)
+        if 'noise_seed' in names:
+            self.sensors.reseed(self.p['noise_seed'])
+        self.get_logger().info(f'applied {sorted(names)}'
+                               + (f': restarted {self.sim.ship.name}'
+                                  if names & RESTART_PARAMS else ''))
 
 
 def main(args=None) -> None:

@@ -1,0 +1,166 @@
+"""Physical plausibility ranges of a ship's inputs and states.
+
+One place says what a command, a recorded sample or a simulated state of *this* ship can
+physically be, so that the node, the CLIs and the trial readers refuse the same nonsense (a
+rudder of 1e308 rad, 1e6 rpm, a state moving at Mach 3) with the same numbers. The ranges are
+deliberately generous: they catch unit errors, corrupt data and divergence, not unusual trials.
+
+Scale: a displacement hull cannot be driven much beyond its "hull speed" (Froude number
+Fn = U / sqrt(g L_pp) about 0.4, where wave resistance walls it off); merchant ships serve at
+Fn 0.15-0.25. So
+
+- ``top_speed_ms`` (Fn 0.5) is a generous top speed,
+- ``speed_max_ms`` (Fn 1.5) is a speed no simulated or recorded state of the ship can reach:
+  beyond it the state has diverged. The MMG model has no wave wall, so ``rpm_max`` held in a
+  straight run drives it to about Fn 1.0; Fn 1.5 leaves a margin above that,
+- ``rpm_max`` is ``RPM_FACTOR`` x the rpm that holds ``top_speed_ms`` in a straight run
+  (:func:`~mmg_tuner.core.simulate.self_propulsion_rpm`): the factor covers transient overload
+  (a propeller accelerating the ship from rest turns faster than its self-propulsion rpm at
+  the same power only by some 10-20 %), rpm_scale effects and a resistance the config
+  underestimates, and still excludes unit errors (rad/s or rev/s read as rpm differ by 6.28
+  and 60). For SUZAKU (service 106 rpm at 6 kn) this gives about 840 rpm; for the 7 m KVLCC2
+  model (about 710 rpm at 1.18 m/s) about 5000 rpm.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.simulate import self_propulsion_rpm
+from mmg_tuner.errors import SimulationError
+
+G = 9.80665  # m/s^2, standard gravity
+FN_TOP = 0.5  # Froude number of a generous top speed for a displacement hull
+FN_MAX = 1.5  # Froude number beyond which a state is taken as diverged
+RPM_FACTOR = 2.0  # rpm_max / rpm that holds the top speed (see the module docstring)
+RUDDER_HARD_CAP_RAD = math.pi / 2  # beyond 90 deg a rudder angle has no physical meaning
+DT_MIN_S = 1e-3  # finer than any manoeuvring dynamics; real time then costs 1000 steps/s
+POSITION_MAX_M = 2.0e7  # half the Earth's circumference: no local frame reaches farther
+
+
+@dataclass(frozen=True)
+class InputLimits:
+    """Plausibility ranges for one ship's inputs and simulated states (SI units, rpm).
+
+    Attributes:
+        rpm_max: largest plausible propeller speed [rev/min]; the model covers rpm > 0 only.
+        rudder_max_rad: the steering gear's limit (``ShipConfig.max_rudder_rad``): commands
+            beyond it are clamped to it.
+        rudder_plausible_rad: hard cap for recorded rudder angles, min(2 x rudder_max_rad,
+            90 deg): beyond it a sample is a unit error or corrupt, not a steering action.
+        top_speed_ms: generous top speed (Fn 0.5) [m/s]; e.g. the largest initial speed.
+        speed_max_ms: no state of the ship moves faster (Fn 1.5) [m/s]; beyond it the
+            simulation has diverged or a recording is corrupt.
+        yaw_rate_max_rad_s: |r| beyond speed_max_ms / (L_pp / 2) (turning on a circle of one
+            ship length at speed_max_ms) is a diverged state [rad/s].
+        dt_min_s, dt_max_s: the integration step range [s]; dt_max_s is the time to sail one
+            ship length at the top speed: a coarser step cannot resolve a turn. (Within the
+            range an explicit integrator may still diverge at high speed; the simulation
+            detects that at run time.)
+        position_max_m: |x|, |y| beyond it [m] is no position in a local frame.
+        rpm_basis: how rpm_max was found (for messages).
+    """
+
+    rpm_max: float
+    rudder_max_rad: float
+    rudder_plausible_rad: float
+    top_speed_ms: float
+    speed_max_ms: float
+    yaw_rate_max_rad_s: float
+    dt_min_s: float
+    dt_max_s: float
+    position_max_m: float = POSITION_MAX_M
+    rpm_basis: str = ''
+
+    def check_rpm(self, rpm: float) -> str:
+        """'' if rpm is a plausible forward propeller speed, else why not."""
+        if not math.isfinite(rpm):
+            return f'rpm {rpm} is not finite'
+        if rpm <= 0:
+            return f'rpm {rpm:g} <= 0 is outside the MMG model (forward revolutions only)'
+        if rpm > self.rpm_max:
+            return f'rpm {rpm:g} exceeds the plausible {self.rpm_max:.0f} rpm ({self.rpm_basis})'
+        return ''
+
+    def check_rudder(self, rudder_rad: float) -> str:
+        """'' if rudder_rad is within the hard plausibility cap, else why not (the steering
+        gear's own limit, a clamp, is the caller's business)."""
+        if not math.isfinite(rudder_rad):
+            return f'rudder {rudder_rad} is not finite'
+        if abs(rudder_rad) > self.rudder_plausible_rad:
+            return (f'rudder {rudder_rad:g} rad ({math.degrees(rudder_rad):.0f} deg) is beyond '
+                    f'the plausible {math.degrees(self.rudder_plausible_rad):.0f} deg')
+        return ''
+
+    def check_speed(self, speed_ms: float) -> str:
+        """'' if speed_ms is a plausible (initial or recorded) forward speed, else why not."""
+        if not math.isfinite(speed_ms):
+            return f'speed {speed_ms} is not finite'
+        if abs(speed_ms) > self.speed_max_ms:
+            return (f'speed {speed_ms:g} m/s exceeds the plausible {self.speed_max_ms:.1f} m/s '
+                    f'(Froude number {FN_MAX:g})')
+        return ''
+
+    def check_dt(self, dt: float) -> str:
+        """'' if dt [s] is a usable integration step, else why not."""
+        if not (math.isfinite(dt) and self.dt_min_s <= dt <= self.dt_max_s):
+            return (f'dt {dt} s is outside [{self.dt_min_s:g}, {self.dt_max_s:.3g}] s '
+                    f'(1 ms to one ship length at the top speed)')
+        return ''
+
+    def state_problem(self, u: float, v: float, r: float) -> str:
+        """'' if velocities (u, v [m/s], r [rad/s]) are finite and plausible, else why not."""
+        if not (math.isfinite(u) and math.isfinite(v) and math.isfinite(r)):
+            return f'non-finite velocity (u {u}, v {v}, r {r})'
+        speed = math.hypot(u, v)
+        if speed > self.speed_max_ms:
+            return (f'speed {speed:.3g} m/s beyond the plausible {self.speed_max_ms:.1f} m/s '
+                    f'(Froude number {FN_MAX:g})')
+        if abs(r) > self.yaw_rate_max_rad_s:
+            return (f'yaw rate {math.degrees(r):.3g} deg/s beyond the plausible '
+                    f'{math.degrees(self.yaw_rate_max_rad_s):.1f} deg/s')
+        return ''
+
+
+def input_limits(ship: ShipConfig) -> InputLimits:
+    """The plausibility ranges of ``ship`` (cached per model, parameter vector and rudder limit).
+
+    Example:
+        >>> lim = input_limits(load_ship('suzaku'))
+        >>> round(lim.rpm_max)   # about 840
+    """
+    key = (ship.kind, ship.params.tobytes(), ship.max_rudder_rad)
+    lim = _CACHE.get(key)
+    if lim is None:
+        if len(_CACHE) >= 64:
+            _CACHE.clear()
+        lim = _CACHE[key] = _compute(ship)
+    return lim
+
+
+_CACHE: dict[tuple, InputLimits] = {}
+
+
+def _compute(ship: ShipConfig) -> InputLimits:
+    L = ship.L_pp
+    top = FN_TOP * math.sqrt(G * L)
+    vmax = FN_MAX * math.sqrt(G * L)
+    try:
+        rpm_top = self_propulsion_rpm(ship, top)
+        basis = (f'{RPM_FACTOR:g} x the {rpm_top:.0f} rpm that holds a top speed of '
+                 f'{top:.1f} m/s, Froude number {FN_TOP:g}')
+    except SimulationError:  # no rpm holds it (an odd tuned resistance): the search bracket
+        rpm_top = 1e5 / RPM_FACTOR
+        basis = f'no rpm holds {top:.1f} m/s; the search bracket'
+    rudder = float(ship.max_rudder_rad)
+    return InputLimits(
+        rpm_max=RPM_FACTOR * rpm_top,
+        rudder_max_rad=rudder,
+        rudder_plausible_rad=min(2.0 * rudder, RUDDER_HARD_CAP_RAD),
+        top_speed_ms=top,
+        speed_max_ms=vmax,
+        yaw_rate_max_rad_s=vmax / (0.5 * L),
+        dt_min_s=DT_MIN_S,
+        dt_max_s=L / top,
+        rpm_basis=basis)

@@ -1,0 +1,351 @@
+"""Reader for the FRT-DS-ESSO free-running pond tests of the Esso Osaka 3 m model
+(data/esso_osaka_frt, CC BY-NC-SA 4.0; see its README), and cutting trials at events.
+
+Layout (one CSV per run, 10 Hz, header line): ``t [s]``, ``x_position_mid [m]``,
+``y_position_mid [m]``, ``u_velo [m/s]``, ``vm_velo [m/s]``, ``psi_hat [rad]``,
+``r_angvelo [rad/s]``, ``n_prop [rps]``, ``delta_rudder [rad]`` and optionally
+``wind_velo_true [m/s]``, ``wind_dir_true [rad]`` (true wind, direction it blows FROM,
+clockwise from x0) and ``wind_velo_relative_mid [m/s]``, ``wind_dir_relative_mid [rad]``
+(apparent wind at midship, FROM, clockwise from the bow).
+
+Conventions, checked on all 33 files (test/test_esso.py keeps the checks):
+- the pond frame O0-x0y0 is the MMG earth frame: x_E = x0 ("north"), y_E = y0 ("east"),
+  psi clockwise from x0. dx/dt = u cos psi - v sin psi fits to 0.03-0.19 m/s rms, the
+  counter-clockwise reading is worse in every file;
+- v (midship) to starboard, r clockwise, rudder + to starboard (r has the rudder's sign in
+  the steady part of every turning run);
+- n_prop in rps, signed (astern < 0): the Trial holds rpm = 60 n;
+- the true wind becomes Trial.wind = the air's velocity over ground toward (north, east) =
+  -U_T (cos zeta_T, sin zeta_T); the relative columns equal the true wind minus the ship's
+  velocity to ~1e-4 m/s rms (:func:`apparent_wind`), so they are only used when the true
+  ones are missing.
+
+By default a trial keeps only rpm > 0 and u > 0, as every other reader does (the standard
+and container models cannot run outside it) and says what it left out; ``keep_astern=True``
+keeps the whole run for families that handle astern propeller and u <= 0 (``lowspeed``).
+The data are read at their own rate (0.1 s), not resampled onto a topic map's dt.
+"""
+from __future__ import annotations
+
+import io
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TrialDataError
+
+MIN_SAMPLES = 10  # as data/assemble.py: shorter pieces are dropped with a note
+
+#: our name -> the FRT-DS-ESSO header
+ESSO_COLUMNS = {
+    't': 't [s]',
+    'x': 'x_position_mid [m]',
+    'y': 'y_position_mid [m]',
+    'psi': 'psi_hat [rad]',
+    'u': 'u_velo [m/s]',
+    'v': 'vm_velo [m/s]',
+    'r': 'r_angvelo [rad/s]',
+    'n': 'n_prop [rps]',
+    'delta': 'delta_rudder [rad]',
+}
+ESSO_WIND_TRUE = ('wind_velo_true [m/s]', 'wind_dir_true [rad]')
+ESSO_WIND_REL = ('wind_velo_relative_mid [m/s]', 'wind_dir_relative_mid [rad]')
+STATE_KEYS = ('x', 'y', 'psi', 'u', 'v', 'r')
+
+
+def _norm(h: str) -> str:
+    return ' '.join(h.strip().strip('"').lower().split())
+
+
+def is_esso_header(header: list[str]) -> bool:
+    """True when a CSV header names every required FRT-DS-ESSO column."""
+    names = {_norm(h) for h in header}
+    return all(c in names for c in ESSO_COLUMNS.values())
+
+
+def is_esso_csv(path: str | Path) -> bool:
+    """True when path is a readable CSV whose first line is an FRT-DS-ESSO header (anything
+    unreadable says False, so the generic CSV reader reports it)."""
+    try:
+        with open(path, encoding='utf-8', errors='replace') as f:
+            first = f.readline(10_000)
+    except OSError:
+        return False
+    return is_esso_header(first.split(','))
+
+
+def read_esso_table(path: str | Path) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The file's columns by FRT-DS-ESSO header name (float arrays, NaN where a field is empty
+    or not a number), rows with a non-finite value in a required column removed, and notes
+    saying what was removed. Raises TrialDataError naming the file when nothing usable is left.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding='utf-8', errors='strict')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TrialDataError(f'{path}: cannot read ({exc})') from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise TrialDataError(f'{path}: empty file (expected an FRT-DS-ESSO header line)')
+    header = [_norm(h) for h in lines[0].split(',')]
+    missing = [c for c in ESSO_COLUMNS.values() if c not in header]
+    if missing:
+        raise TrialDataError(f'{path}: not an FRT-DS-ESSO CSV, missing columns {missing}')
+    ncol = len(header)
+    notes: list[str] = []
+    good, bad_lines = [], []
+    for i, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        if line.count(',') != ncol - 1:
+            bad_lines.append(i)
+            continue
+        good.append(line)
+    if bad_lines:
+        notes.append(f'{path.name}: {len(bad_lines)} line(s) without {ncol} fields dropped '
+                     f'(cut or malformed), first at line {bad_lines[0]}')
+    if not good:
+        raise TrialDataError(f'{path}: no data rows after the header')
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        data = np.genfromtxt(io.StringIO('\n'.join(good)), delimiter=',', ndmin=2,
+                             dtype=float, invalid_raise=False)
+    if data.shape != (len(good), ncol):  # pragma: no cover - field count checked above
+        raise TrialDataError(f'{path}: cannot parse the data rows (shape {data.shape})')
+    cols = {h: data[:, j] for j, h in enumerate(header)}
+    t = cols[ESSO_COLUMNS['t']]
+    bad_t = ~np.isfinite(t)
+    if bad_t.any():
+        finite = np.nonzero(~bad_t)[0]
+        trailing = t.size - 1 - int(finite[-1]) if finite.size else t.size
+        isolated = int(bad_t.sum()) - trailing
+        notes.append(f'{path.name}: {trailing} trailing and {isolated} isolated row(s) with no '
+                     'time (NaN) trimmed')
+    required = [cols[c] for c in ESSO_COLUMNS.values()]
+    ok = np.all(np.isfinite(np.column_stack(required)), axis=1)
+    other = ok != ~bad_t
+    if other.any():
+        k = int(np.argmax(other))
+        notes.append(f'{path.name}: {int(other.sum())} row(s) with a non-finite state, '
+                     f'propeller or rudder value dropped, first at t = {t[k]:.2f} s')
+    cols = {h: c[ok] for h, c in cols.items()}
+    if cols[ESSO_COLUMNS['t']].size < 2:
+        raise TrialDataError(f'{path}: fewer than 2 complete data rows')
+    return cols, notes
+
+
+def apparent_wind(true_speed, true_from, psi, u, v):
+    """Apparent wind (speed [m/s], FROM-angle clockwise from the bow [rad] in [0, 2pi)) at a
+    point moving with body velocity (u, v) on heading psi, from the true wind (speed,
+    FROM-direction clockwise from x_E). The air's velocity relative to the ship in body axes is
+    w = -U_T (cos(zeta - psi), sin(zeta - psi)) - (u, v)."""
+    wx = -true_speed * np.cos(true_from - psi) - u
+    wy = -true_speed * np.sin(true_from - psi) - v
+    return np.hypot(wx, wy), np.mod(np.arctan2(-wy, -wx), 2.0 * np.pi)
+
+
+def true_wind_ne(true_speed, true_from) -> np.ndarray:
+    """(T, 2) the air's velocity over ground toward north (x_E) and east (y_E) [m/s]."""
+    return np.column_stack([-true_speed * np.cos(true_from), -true_speed * np.sin(true_from)])
+
+
+def _wind_from_table(cols, psi, u, v, notes, name) -> np.ndarray | None:
+    if all(c in cols for c in ESSO_WIND_TRUE):
+        ne = true_wind_ne(cols[ESSO_WIND_TRUE[0]], cols[ESSO_WIND_TRUE[1]])
+        what = 'true wind columns'
+    elif all(c in cols for c in ESSO_WIND_REL):
+        # apparent FROM-angle gamma, speed U_A: air velocity rel. to the ship in body axes
+        ua, ga = cols[ESSO_WIND_REL[0]], cols[ESSO_WIND_REL[1]]
+        bx, by = -ua * np.cos(ga) + u, -ua * np.sin(ga) + v
+        c, s = np.cos(psi), np.sin(psi)
+        ne = np.column_stack([bx * c - by * s, bx * s + by * c])
+        what = 'relative wind columns plus the ship velocity (no true wind columns)'
+    else:
+        return None
+    ok = np.all(np.isfinite(ne), axis=1)
+    if not ok.any():
+        notes.append(f'{name}: wind columns hold no finite value: no measured wind')
+        return None
+    if not ok.all():
+        k = np.nonzero(ok)[0]
+        notes.append(f'{name}: {int((~ok).sum())} non-finite wind sample(s) interpolated')
+        idx = np.arange(ok.size)
+        ne = np.column_stack([np.interp(idx, k, ne[k, i]) for i in range(2)])
+    notes.append(f'{name}: measured wind from the {what}')
+    return ne
+
+
+def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float = 1.0,
+                  dt: float | None = None) -> list[Trial]:
+    """One FRT-DS-ESSO run -> trials in the model frame (SI, rpm = 60 n, wind north/east).
+
+    keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that
+    handles them); by default the run is split around them with a note, as every reader does.
+    Gaps longer than max_gap_s split the run. dt: resampling step [s] (default the file's
+    median step, 0.1 s). Every repair is in the trials' notes.
+    """
+    path = Path(path)
+    name = path.stem
+    cols, notes = read_esso_table(path)
+    t = cols[ESSO_COLUMNS['t']]
+    order = np.argsort(t, kind='stable')
+    if np.any(np.diff(t) < 0):
+        notes.append(f'{name}: time not sorted; sorted')
+        cols = {h: c[order] for h, c in cols.items()}
+        t = cols[ESSO_COLUMNS['t']]
+    dup = np.concatenate([[False], np.diff(t) == 0])
+    if dup.any():
+        notes.append(f'{name}: {int(dup.sum())} duplicate time(s) dropped, first at '
+                     f't = {t[np.argmax(dup)]:.2f} s')
+        cols = {h: c[~dup] for h, c in cols.items()}
+        t = cols[ESSO_COLUMNS['t']]
+    if t.size < 2:
+        raise TrialDataError(f'{path}: fewer than 2 distinct times')
+    step = float(np.median(np.diff(t))) if dt is None else float(dt)
+    if not step > 0 or not math.isfinite(step):
+        raise TrialDataError(f'{path}: cannot resample with dt = {step}')
+    raw = {k: cols[ESSO_COLUMNS[k]] for k in ESSO_COLUMNS}
+    raw['psi'] = np.unwrap(raw['psi'])
+    wind = _wind_from_table(cols, raw['psi'], raw['u'], raw['v'], notes, name)
+    notes.append(f'{name}: FRT-DS-ESSO CSV, pond frame = MMG earth frame, n_prop [rps] x 60 '
+                 '-> rpm')
+    # segments between gaps
+    gaps = np.nonzero(np.diff(t) > max_gap_s)[0]
+    bounds = [0] + [int(g) + 1 for g in gaps] + [t.size]
+    for g in gaps:
+        notes.append(f'{name}: gap of {t[g + 1] - t[g]:.1f} s at t = {t[g]:.1f} s '
+                     f'(> {max_gap_s:g} s): trial split there')
+    trials: list[Trial] = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        ts = t[a:b]
+        n = int(math.floor((ts[-1] - ts[0]) / step + 1e-6)) + 1   # 1e-6: float time stamps
+        if n < MIN_SAMPLES:
+            notes.append(f'{name}: segment {ts[0]:.1f}-{ts[-1]:.1f} s shorter than '
+                         f'{MIN_SAMPLES} samples: dropped')
+            continue
+        grid = ts[0] + step * np.arange(n)
+        if n == ts.size and np.allclose(grid, ts, rtol=0, atol=1e-6 * step):
+            g = {k: raw[k][a:b] for k in raw if k != 't'}   # already uniform: values as read
+            w = None if wind is None else wind[a:b]
+        else:
+            g = {k: np.interp(grid, ts, raw[k][a:b]) for k in raw if k != 't'}
+            w = None if wind is None else np.column_stack(
+                [np.interp(grid, ts, wind[a:b, i]) for i in range(2)])
+        states = np.column_stack([g[k] for k in STATE_KEYS])
+        controls = np.column_stack([60.0 * g['n'], g['delta']])
+        good = np.ones(n, bool) if keep_astern else (controls[:, 0] > 0) & (states[:, 3] > 0)
+        k = 0
+        while k < n:
+            j = k
+            while j < n and good[j] == good[k]:
+                j += 1
+            if not good[k]:
+                what = ('rpm <= 0 (reverse or stopped propeller)'
+                        if np.any(controls[k:j, 0] <= 0) else 'u <= 0 (going astern or stopped)')
+                notes.append(f'{what} from t = {grid[k]:.1f} to {grid[j - 1]:.1f} s: outside '
+                             'the MMG model range, left out (keep_astern=True keeps it for the '
+                             'lowspeed family)')
+            elif j - k >= MIN_SAMPLES:
+                trials.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
+                                    source=str(path), start_s=float(grid[k]),
+                                    wind=None if w is None else w[k:j], notes=[]))
+            k = j
+    if not trials:
+        raise TrialDataError(f'{path}: no usable trial ({"; ".join(notes[-3:])})')
+    for i, tr in enumerate(trials, 1):
+        tr.notes = list(notes) + [f'starts at {tr.start_s:.2f} s of the recording']
+        if len(trials) > 1:
+            tr.name = f'{name}_{i}'
+    if keep_astern:
+        for tr in trials:
+            astern = float(np.mean((tr.controls[:, 0] <= 0) | (tr.states[:, 3] <= 0)))
+            tr.notes.append(f'astern propeller or u <= 0 kept ({100 * astern:.0f} % of samples)')
+    return trials
+
+
+def read_esso(path: str | Path, keep_astern: bool = False) -> list[Trial]:
+    """Every FRT-DS-ESSO run in path: one CSV, or a folder searched recursively (sorted), such
+    as data/esso_osaka_frt itself."""
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(p for p in path.rglob('*.csv') if p.is_file())
+        if not files:
+            raise TrialDataError(f'{path}: no .csv files inside')
+        return [tr for p in files for tr in read_esso_csv(p, keep_astern=keep_astern)]
+    if not path.exists():
+        raise TrialDataError(f'{path}: no such file or directory')
+    return read_esso_csv(path, keep_astern=keep_astern)
+
+
+def esso_data_dir() -> Path:
+    """The FRT-DS-ESSO runs shipped with the package (data/esso_osaka_frt)."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        for cand in (parent / 'data' / 'esso_osaka_frt',
+                     parent / 'share' / 'mmg_tuner' / 'data' / 'esso_osaka_frt'):
+            if cand.is_dir():
+                return cand
+    raise TrialDataError('Esso Osaka data not found (data/esso_osaka_frt)')
+
+
+# --- events ---------------------------------------------------------------------------
+
+EVENTS = ('rudder_first_over', 'propeller_first_astern')
+
+
+def event_time(trial: Trial, event: str = 'rudder_first_over', hold_s: float = 3.0,
+               min_deg: float | None = None) -> float | None:
+    """Trial time [s] of an event, or None when it does not occur.
+
+    rudder_first_over: the rudder's first move to a held helm angle (held within 1 deg for
+    hold_s) of at least min_deg; by default min_deg is 90 % of the largest angle held anywhere
+    in the trial, since the manual approach steering of the pond runs reaches 22 deg but is
+    never held. The time returned is where the move toward that angle began.
+    propeller_first_astern: the first sample with rpm < 0.
+    """
+    if event == 'propeller_first_astern':
+        k = np.nonzero(trial.controls[:, 0] < 0)[0]
+        return float(trial.t[k[0]]) if k.size else None
+    if event != 'rudder_first_over':
+        raise TrialDataError(f'{trial.name}: unknown event {event!r} (one of {EVENTS})')
+    d = np.degrees(trial.controls[:, 1])
+    w = max(1, int(round(hold_s / trial.dt))) if len(trial) > 1 else 1
+    if d.size <= w:
+        return None
+    # running max/min over the window [k, k + w]
+    win = np.lib.stride_tricks.sliding_window_view(d, w + 1)
+    held = (win.max(axis=1) - win.min(axis=1)) <= 1.0
+    level = np.abs(d[:held.size])
+    if not held.any():
+        return None
+    thr = 0.9 * float(level[held].max()) if min_deg is None else float(min_deg)
+    cand = np.nonzero(held & (level >= max(thr, 1.0)))[0]
+    if cand.size == 0:
+        return None
+    k = int(cand[0])
+    h = d[k]
+    while k > 0 and np.sign(h - d[k - 1]) * (d[k] - d[k - 1]) > 0:
+        k -= 1
+    return float(trial.t[k])
+
+
+def cut_from_event(trial: Trial, event: str = 'rudder_first_over', before_s: float = 5.0,
+                   **kw) -> Trial:
+    """The trial from before_s seconds before the event to its end, time restarting at 0
+    (start_s and notes say where it was cut). Raises TrialDataError when the event does not
+    occur. kw go to :func:`event_time` (hold_s, min_deg)."""
+    te = event_time(trial, event, **kw)
+    if te is None:
+        raise TrialDataError(f'{trial.name}: event {event!r} not found; cannot cut')
+    start = max(float(trial.t[0]), te - before_s)
+    part = trial.slice(start, None)
+    if len(part) < 2:
+        raise TrialDataError(f'{trial.name}: fewer than 2 samples after the cut at {start:.2f} s')
+    part.notes.append(f'cut from {before_s:g} s before {event} (at {te:.2f} s): starts at '
+                      f'{start:.2f} s of the trial')
+    part.start_s = trial.start_s + float(part.t[0])
+    part.t = part.t - part.t[0]
+    return part

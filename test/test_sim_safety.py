@@ -1,0 +1,152 @@
+"""The interactive simulator never dies or lies: plausibility ranges from the ship, bad
+commands ignored or clamped, bad settings refused, and any non-finite or implausible state
+reset with a diagnostic (issue 10 section 2). Unit level, no ROS."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mmg_tuner.core.limits import input_limits
+from mmg_tuner.core.simulate import self_propulsion_rpm, simulate
+from mmg_tuner.core.stepper import ShipSimulator
+from mmg_tuner.errors import SimulationError
+
+NASTY = [math.nan, math.inf, -math.inf, 1e308, -1e308, 1e6, 1e4, -50.0, 0.0, -0.0, 5e-324]
+
+
+@pytest.fixture(scope='module')
+def sim(suzaku):
+    return ShipSimulator(suzaku, dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
+
+
+def plausible(sim) -> bool:
+    s = sim.s
+    lim = sim.limits
+    return bool(np.all(np.isfinite(s)) and math.hypot(s[3], s[4]) <= lim.speed_max_ms
+                and abs(s[5]) <= lim.yaw_rate_max_rad_s)
+
+
+def test_limits_are_physical_and_consistent(suzaku, kvlcc2):
+    for ship, service_rpm in ((suzaku, 106.0), (kvlcc2, 706.0)):
+        lim = input_limits(ship)
+        assert lim is input_limits(ship)  # cached
+        # a generous multiple of the service rpm, far below a unit error (rad/s or rev/s)
+        assert 3 * service_rpm < lim.rpm_max < 20 * service_rpm
+        assert lim.rpm_max == pytest.approx(2 * self_propulsion_rpm(ship, lim.top_speed_ms))
+        assert lim.rudder_max_rad == ship.max_rudder_rad
+        assert lim.rudder_max_rad < lim.rudder_plausible_rad <= math.pi / 2
+        froude = lim.top_speed_ms / math.sqrt(9.80665 * ship.L_pp)
+        assert froude == pytest.approx(0.5)
+        assert lim.dt_min_s <= 0.1 <= lim.dt_max_s
+        # the largest accepted command held in a straight run never looks like divergence
+        # (steady speed about Fn 1.0 against the Fn 1.5 cap: no knife-edge)
+        T = 2001
+        traj = simulate(ship, [0, 0, 0, 1.0, 0, 0], np.tile([lim.rpm_max, 0.0], (T, 1)), 0.5,
+                        'rk4')
+        speed = np.hypot(traj['u'], traj['v'])
+        assert traj.ok and np.all(np.isfinite(speed)) and speed.max() < 0.8 * lim.speed_max_ms
+        assert lim.check_rpm(lim.rpm_max) == '' and lim.check_rpm(2 * lim.rpm_max)
+        assert lim.check_rudder(1e308) and lim.check_rudder(math.nan)
+
+
+def test_huge_rpm_commands_never_give_a_nan_state(suzaku):
+    """Rudder 0.3 with rpm 1e4, then 1e6: the state went NaN and step() said success."""
+    sim = ShipSimulator(suzaku, dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
+    assert sim.set_rudder(0.3) == ''
+    assert 'ignored' in sim.set_rpm(1e4)
+    assert sim.step(250)
+    assert 'ignored' in sim.set_rpm(1e6)
+    assert 'ignored' in sim.set_rpm(1e308)
+    assert sim.step(250)
+    assert sim.rpm == 106.0 and plausible(sim)
+
+
+def test_a_non_finite_state_is_detected_and_reset(suzaku):
+    """advance()'s own isfinite(sum) check is folded away under fastmath: a NaN must still be
+    caught, even in x (which feeds no derivative)."""
+    sim = ShipSimulator(suzaku, dt=0.1, x0=[5.0, 0, 0, 3.0, 0, 0], rpm=106.0)
+    sim.set_rudder(0.2)
+    assert sim.step(30)
+    sim.s[0] = math.nan
+    assert not sim.step(10)
+    f = sim.failure
+    assert f is not None and 'non-finite' in f.reason and f.time_s == pytest.approx(3.1)
+    assert f.rpm == 106.0 and f.rudder_rad == 0.2
+    assert 'rpm 106' in str(f) and 'rudder 11.46 deg' in str(f) and 'last good state' in str(f)
+    # back at the initial state and commands, and running again
+    assert sim.t == 0.0 and sim.rudder == 0.0 and np.all(np.isfinite(sim.s))
+    assert sim.s[0] == pytest.approx(5.0) and sim.failures == 1
+    assert sim.step(10) and plausible(sim)
+
+
+def test_divergence_within_the_limits_resets_with_a_diagnostic(kvlcc2):
+    """Explicit Euler with the coarsest accepted step at full rpm and helm blows up (an
+    exponential instability, not a marginal one): reset with the reason, never NaN."""
+    lim = input_limits(kvlcc2)
+    sim = ShipSimulator(kvlcc2, dt=lim.dt_max_s, x0=[0, 0, 0, 1.0, 0, 0], rpm=700.0,
+                        rudder_rad=0.0, integrator='euler')
+    assert sim.set_rpm(lim.rpm_max) == '' and sim.set_rudder(lim.rudder_max_rad) == ''
+    ok = [sim.step(10) for _ in range(200)]
+    assert not all(ok)
+    f = sim.failure
+    assert f.reason.startswith(('implausible state', 'diverged', 'surge'))
+    assert f.rpm == lim.rpm_max and f.time_s > 0
+    assert all(math.isfinite(v) for v in f.last_state)
+    assert np.all(np.isfinite(sim.s))
+
+
+@pytest.mark.parametrize('kw, words', [
+    (dict(dt=math.nan), 'dt'), (dict(dt=math.inf), 'dt'), (dict(dt=0.0), 'dt'),
+    (dict(dt=-1.0), 'dt'), (dict(dt=1e-7), 'dt'), (dict(dt=100.0), 'dt'),
+    (dict(integrator='rk9'), 'integrator'), (dict(substeps=0), 'substeps'),
+    (dict(substeps=2.5), 'substeps'),
+    (dict(x0=[0, 0, 0, math.nan, 0, 0]), 'not finite'),
+    (dict(x0=[math.inf, 0, 0, 3.0, 0, 0]), 'not finite'),
+    (dict(x0=[1e300, 0, 0, 3.0, 0, 0]), 'position'),
+    (dict(x0=[0, 0, 0, 0.0, 0, 0]), 'surge'), (dict(x0=[0, 0, 0, 1e3, 0, 0]), 'surge'),
+    (dict(x0=[0, 0, 0, 3.0]), 'shape'),
+    (dict(rpm=-50.0), 'rpm'), (dict(rpm=0.0), 'rpm'), (dict(rpm=1e308), 'rpm'),
+    (dict(rpm=math.nan), 'rpm'), (dict(rudder_rad=1000.0), 'rudder'),
+    (dict(rudder_rad=math.nan), 'rudder'),
+])
+def test_bad_settings_are_refused(suzaku, kw, words):
+    args = dict(dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
+    args.update(kw)
+    with pytest.raises(SimulationError, match=words):
+        ShipSimulator(suzaku, **args)
+
+
+floats = st.one_of(st.sampled_from(NASTY), st.floats(allow_nan=True, allow_infinity=True),
+                   st.floats(-2000.0, 2000.0))
+
+
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(cmds=st.lists(st.tuples(floats, floats), min_size=1, max_size=6))
+def test_any_command_sequence_keeps_the_state_finite_and_plausible(sim, cmds):
+    sim.reset()
+    lim = sim.limits
+    for rpm, rudder in cmds:
+        p_rpm = sim.set_rpm(rpm)
+        p_rud = sim.set_rudder(rudder)
+        assert 0 < sim.rpm <= lim.rpm_max and abs(sim.rudder) <= lim.rudder_max_rad
+        if not (math.isfinite(rpm) and 0 < rpm <= lim.rpm_max):
+            assert p_rpm  # refused with a reason, never silently
+        if not (math.isfinite(rudder) and abs(rudder) <= lim.rudder_max_rad):
+            assert p_rud
+        ok = sim.step(20)
+        assert ok or sim.failure is not None
+        assert plausible(sim)
+
+
+@settings(max_examples=60, deadline=None)
+@given(dt=floats, rpm=floats, rudder=floats, speed=floats)
+def test_any_settings_are_either_refused_or_simulate_plausibly(suzaku, dt, rpm, rudder, speed):
+    try:
+        sim = ShipSimulator(suzaku, dt=dt, x0=[0, 0, 0, speed, 0, 0], rpm=rpm, rudder_rad=rudder)
+    except SimulationError:
+        return
+    sim.step(max(1, min(200, int(20.0 / sim.dt))))
+    assert plausible(sim)
