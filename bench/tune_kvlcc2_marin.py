@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -15,6 +16,7 @@ from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.data.marin import MARIN_FILES, compare_with_marin, marin_data_dir  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin'
+OUT = OUT / time.strftime('%Y%m%d-%H%M%S')  # a new folder per run: --out refuses a used one
 
 
 def main() -> None:

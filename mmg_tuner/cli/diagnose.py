@@ -4,98 +4,114 @@ its gain on held-out trials.
 Example:
     diagnose trials/ --ship suzaku --out diag          # alternate trials held out
     diagnose T1 T2 T3 --test T4 T5 --effects current rudder_offset --out diag
+    diagnose --resume diag                             # continue an interrupted diagnosis
 """
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
-from pathlib import Path
 
-from mmg_tuner._atomic import write_atomic
+from mmg_tuner import api
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import run_command
-from mmg_tuner.cli.tune import load_set
-from mmg_tuner.core.effects import EFFECTS, describe_values
-from mmg_tuner.core.ship import load_ship
-from mmg_tuner.diagnosis.report import markdown, plot_residuals, residuals_for, to_dict
-from mmg_tuner.diagnosis.select import DiagnosisSettings, diagnose
-from mmg_tuner.errors import DiagnosisError
-from mmg_tuner.tuning.report import plot_trials, write_json, write_params_yaml
+from mmg_tuner.cli.tune import (DT, SEED, Parser, UsageError, resumed_args, show_log,
+                                sigterm_as_interrupt, store_args)
+from mmg_tuner.core.effects import EFFECTS
+from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
+from mmg_tuner.tuning.report import fmt_gain, fmt_J
 
-BUDGETS = {  # base tuning, screening per candidate, re-tune per candidate
-    'quick': (6_000, 300, 3_000),
-    'standard': (20_000, 400, 6_000),
-    'full': (60_000, 800, 15_000),
-}
+CHECKPOINT = 'checkpoint.pkl'
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog='diagnose', description=__doc__.split('\n')[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    ap.add_argument('trials', nargs='+', help='trials: bags, .mcap, .csv, .dat, or folders')
+    ap = Parser(prog='diagnose', description=__doc__.split('\n')[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument('trials', nargs='*', help='trials: bags, .mcap, .csv, .dat, or folders')
     ap.add_argument('--test', nargs='*', default=[],
-                    help='held-out trials (default: every second trial is held out)')
+                    help='held-out trials, at least two (default: every second trial is held '
+                    'out)')
     ap.add_argument('--ship', default='suzaku')
     ap.add_argument('--params', help='params.yaml overlay as the pre-determined values')
-    ap.add_argument('--out', required=True)
+    ap.add_argument('--out', help='output directory (new or empty)')
+    ap.add_argument('--resume', metavar='DIR', help='continue the interrupted diagnosis in DIR')
     ap.add_argument('--effects', nargs='+', default=list(EFFECTS), choices=list(EFFECTS))
     ap.add_argument('--targets', nargs='+', help="base parameters to tune (default: ship's)")
-    ap.add_argument('--ar', type=float)
-    ap.add_argument('--budget', choices=list(BUDGETS), default='standard')
-    ap.add_argument('--max-effects', type=int, default=3)
+    ap.add_argument('--ar', type=positive_float, help='relative box half-width a_r')
+    ap.add_argument('--budget', choices=list(api.BUDGETS), default='standard')
+    ap.add_argument('--max-effects', type=bounded(int, 1, len(EFFECTS), 'number of effects'),
+                    default=3)
     ap.add_argument('--topics')
-    ap.add_argument('--dt', type=float, default=1.0, help='resampling step [s]')
+    ap.add_argument('--dt', type=DT, default=1.0, help='resampling step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
-    ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--seed', type=SEED, default=0)
     ap.add_argument('--no-plots', action='store_true')
+    ap.add_argument('--quiet', action='store_true', help='no progress messages')
     return ap
 
 
+def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
+    return api.DiagnoseConfig(effects=tuple(args.effects), targets=args.targets, a_r=args.ar,
+                              budget=args.budget, max_effects=args.max_effects,
+                              integrator=args.integrator, seed=args.seed)
+
+
 def command(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    ship = load_ship(args.ship, args.params)
-    trials = load_set(args.trials, args, ship)
-    if args.test:
-        tune, test = trials, load_set(args.test, args, ship)
-    else:
-        if len(trials) < 2:
-            raise DiagnosisError('need at least two trials (one to tune, one to hold out)')
-        tune, test = trials[::2], trials[1::2]
-        print(f"held out (every second trial): {', '.join(t.name for t in test)}")
-    out = Path(args.out)
-    base_e, screen_e, eff_e = BUDGETS[args.budget]
-    settings = DiagnosisSettings(targets=args.targets, a_r=args.ar, effects=args.effects,
-                                 integrator=args.integrator, base_evals=base_e,
-                                 screen_evals=screen_e, effect_evals=eff_e,
-                                 max_effects=args.max_effects, seed=args.seed)
-    d = diagnose(ship, tune, test, settings, log=lambda m: print(m, flush=True))
-    print('3/3 reporting')
-    res_base, sims_base = residuals_for(ship, d.base_params, test, args.integrator)
-    res_final, sims_final = residuals_for(ship, d.params, test, args.integrator)
-    doc = to_dict(d, res_base, res_final)
-    write_json(out / 'diagnosis.json', doc)
-    write_atomic(out / 'diagnosis.md', markdown(doc, ship))
-    names = ', '.join(c['effect'] for c in d.causes) or 'none'
-    write_params_yaml(out / 'params.yaml', ship, d.params,
-                      f'tuned and extended by mmg_tuner diagnose (effects: {names})')
-    if not args.no_plots:
-        plot_residuals(out, test, sims_base, sims_final)
-        plot_trials(out, ship, test, {'base tuned': ship.with_params(d.base_params).params,
-                                      'with effects': ship.with_params(d.params).params},
-                    'overlay_', args.integrator)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    notes: list[str] = []
+    resume = bool(args.resume)
+    if resume:
+        args, notes = resumed_args(parser, argv, 'diagnose', ('quiet', 'no_plots'))
+    elif not args.trials or not args.out:
+        raise UsageError('give trials and --out DIR (or --resume DIR)')
+    config = diagnose_config(args)        # every option checked before any work
+    log = logging.getLogger(__name__)
+    with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
+        for n in notes:
+            log.warning('resume: %s', n)
+        ship = api.load_ship(args.ship, args.params)
+        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale)
+        trials = api.load_trials(args.trials, **load)
+        test = api.load_trials(args.test, **load) if args.test else None
+        if test is None:
+            if len(trials) < 4:
+                raise UsageError(
+                    f'{len(trials)} trial(s) and no --test: holding out every second trial '
+                    'needs at least four (with one held-out trial no cause can ever be named: '
+                    'the gain\'s uncertainty is infinite); give more trials or --test with two '
+                    'or more')
+            trials, test = api.split_alternate(trials)
+            print(f"held out (every second trial): {', '.join(t.name for t in test)}")
+        elif len(test) < 2:
+            raise UsageError(
+                f'--test gives {len(test)} trial(s): at least two are needed (with one the '
+                "held-out gain's uncertainty is infinite and no cause can ever be named)")
+        if not resume:
+            store_args(out, 'diagnose', args)
+        try:
+            with sigterm_as_interrupt():
+                dx = api.diagnose(ship, trials, test, config,
+                                  checkpoint=out.path / CHECKPOINT, resume=resume)
+        except KeyboardInterrupt:
+            print(f'interrupted: every completed tuning is kept in {out.path / CHECKPOINT}; '
+                  f'continue with: diagnose --resume {out.path}', file=sys.stderr)
+            return 130
+        dx.write(out, plots=not args.no_plots)
     print()
-    if d.causes:
-        for c in d.causes:
-            print(f"CAUSE: {describe_values(EFFECTS[c['effect']], c['parameters'], c['uncertainty'])}"
-                  f" -- held-out gain {100 * c['heldout_gain']:.1f} %"
-                  + (f" (not distinguishable here from {', '.join(c['indistinguishable_from'])})"
-                     if c.get('indistinguishable_from') else ''))
+    if dx.causes:
+        for c in dx.causes:
+            print(f'CAUSE: {c.summary} -- held-out gain {100 * c.heldout_gain:.1f} %'
+                  + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
+                     if c.indistinguishable_from else ''))
     else:
         print('CAUSE: none found -- no effect in the library explains the errors significantly')
-    b, f = d.baseline['J_test'], d.final['J_test']
-    print(f'held-out J: tuned base model {b:.4g} -> final model {f:.4g} '
-          f'({100 * (1 - f / b):.1f} % lower); {d.wall_s:.0f} s')
-    print(f'wrote {out}/diagnosis.json, diagnosis.md, params.yaml'
+    b, f = dx.baseline.J_test, dx.final.J_test
+    print(f'held-out J: tuned base model {fmt_J(b)} -> final model {fmt_J(f)} '
+          f'({fmt_gain(b, f)} lower); {dx.wall_s:.0f} s')
+    print(f'wrote {out.path}/params.yaml, diagnosis.md, diagnosis.json'
           + ('' if args.no_plots else ', residuals_*.png, overlay_*.png'))
     return 0
 

@@ -2,159 +2,293 @@
 
 Example:
     tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suzaku --out tuned
-    tune --resume tuned        # continue an interrupted run
+    tune --resume tuned        # continue an interrupted run (from any working directory)
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import logging
 import math
 import signal
 import sys
-from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
-from mmg_tuner._atomic import write_atomic
+from mmg_tuner import api
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.cli.args import bounded, nonneg_float, positive_float, positive_int
 from mmg_tuner.cli.common import run_command
-from mmg_tuner.core.ship import load_ship
-from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import load_topic_map
-from mmg_tuner.errors import TuningError
-from mmg_tuner.tuning.objective import Objective, TrialBatch, paper_weights
-from mmg_tuner.tuning.parameters import ParameterSpace
-from mmg_tuner.tuning.report import (markdown_report, plot_trials, write_json,
-                                     write_params_yaml)
-from mmg_tuner.tuning.tuner import Progress, Tuner
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.tuning.report import fmt_gain, fmt_J
+from mmg_tuner.tuning.tuner import Progress
+
+ARGS_FILE = 'args.json'
+ARGS_VERSION = 2
+SEED = bounded(int, 0, api.MAX_SEED, 'seed')
+DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
+SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
+POPSIZE = bounded(int, 2, 100_000, 'population size')
+
+
+class UsageError(MmgTunerError):
+    """A command-line option is malformed or out of range."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose errors become ``ERROR: ...`` with exit status 2 (via run_command)."""
+
+    def error(self, message: str):
+        raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')
+
+
+def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
+    """NAME=AR (a finite a_r > 0) or NAME=LO:HI (finite, LO < HI)."""
+    name, eq, val = s.partition('=')
+    if not eq or not name.strip():
+        raise argparse.ArgumentTypeError(f'{s!r}: expected NAME=AR or NAME=LO:HI')
+    try:
+        if ':' in val:
+            lo, hi = (float(x) for x in val.split(':'))
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError
+            return name.strip(), (lo, hi)
+        ar = float(val)
+        if not (math.isfinite(ar) and ar > 0):
+            raise ValueError
+        return name.strip(), ar
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'{s!r}: expected NAME=AR with a finite AR > 0, or NAME=LO:HI with finite '
+            'LO < HI') from None
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog='tune', description=__doc__.split('\n')[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='tune', description=__doc__.split('\n')[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('trials', nargs='*', help='tuning trials: bags, .mcap, .csv, .dat, folders')
     ap.add_argument('--test', nargs='*', default=[], help='held-out test trials')
     ap.add_argument('--ship', default='suzaku')
     ap.add_argument('--params', help='params.yaml overlay as the pre-determined values')
-    ap.add_argument('--out', help='output directory')
+    ap.add_argument('--out', help='output directory (new or empty)')
     ap.add_argument('--resume', metavar='DIR', help='continue the interrupted run in DIR')
     ap.add_argument('--targets', nargs='+', help="parameters to tune (default: the ship's)")
-    ap.add_argument('--ar', type=float, help='relative box half-width a_r (default: ship, 0.5)')
-    ap.add_argument('--bound', action='append', default=[], metavar='NAME=AR|NAME=LO:HI',
+    ap.add_argument('--ar', type=positive_float,
+                    help='relative box half-width a_r (default: ship, 0.5)')
+    ap.add_argument('--bound', action='append', default=[], type=bound_spec,
+                    metavar='NAME=AR|NAME=LO:HI',
                     help='per-parameter a_r or explicit bounds (repeatable)')
-    ap.add_argument('--weights', nargs=6, type=float, metavar=('X', 'Y', 'PSI', 'U', 'V', 'R'),
-                    help='error weights (default: the paper\'s L_pp, L_pp, pi/4, 0, 0, 0)')
-    ap.add_argument('--shoot-every', type=float, default=0.0,
+    ap.add_argument('--weights', nargs=6, type=nonneg_float,
+                    metavar=('X', 'Y', 'PSI', 'U', 'V', 'R'),
+                    help='error weights, >= 0, not all 0 (default: the paper\'s L_pp, L_pp, '
+                    'pi/4, 0, 0, 0)')
+    ap.add_argument('--shoot-every', type=nonneg_float, default=0.0,
                     help='restart the simulation from the recorded state every H s (0: never)')
     ap.add_argument('--topics', help='topic map YAML for bags')
-    ap.add_argument('--dt', type=float, help='resample every trial to this step [s]')
+    ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
-    ap.add_argument('--substeps', type=int, default=1)
-    ap.add_argument('--popsize', type=int, default=12)
-    ap.add_argument('--max-popsize', type=int, default=128)
-    ap.add_argument('--max-evals', type=int, default=200_000)
-    ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--substeps', type=SUBSTEPS, default=1)
+    ap.add_argument('--popsize', type=POPSIZE, default=12)
+    ap.add_argument('--max-popsize', type=POPSIZE, default=128)
+    ap.add_argument('--max-evals', type=positive_int, default=200_000)
+    ap.add_argument('--seed', type=SEED, default=0)
     ap.add_argument('--no-plots', action='store_true')
-    ap.add_argument('--quiet', action='store_true', help='no progress bar')
+    ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
     return ap
 
 
-def _bounds(items: list[str]) -> dict:
-    out: dict = {}
-    for item in items:
-        name, _, val = item.partition('=')
-        try:
-            if ':' in val:
-                lo, hi = val.split(':')
-                out[name] = (float(lo), float(hi))
-            else:
-                out[name] = float(val)
-        except ValueError:
-            raise TuningError(f'--bound {item!r}: expected NAME=AR or NAME=LO:HI') from None
-    return out
+# ----------------------------------------------------------------- shared with ``diagnose``
+PATH_LISTS = ('trials', 'test')
+PATH_OPTS = ('params', 'topics', 'out')
 
 
-def load_set(paths: list[str], args, ship) -> list:
-    tm = load_topic_map(args.topics)
-    if args.dt:
-        tm = replace(tm, dt=args.dt)
-    trials = []
-    for p in paths:
-        trials.extend(load_trials(p, tm))
-    if args.trial_scale == 'full' and ship.scale_ratio != 1.0:
-        trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
-    if args.dt:
-        trials = [t if abs(t.dt - args.dt) < 1e-9 else t.resampled(args.dt) for t in trials]
-    return trials
+def absolute_paths(opts: dict) -> dict:
+    """Option values with every path made absolute (a resume may run from another folder).
+    --ship stays a name unless it names an existing file."""
+    o = dict(opts)
+    for k in PATH_LISTS:
+        if o.get(k):
+            o[k] = [str(Path(p).absolute()) for p in o[k]]
+    for k in PATH_OPTS:
+        if o.get(k):
+            o[k] = str(Path(o[k]).absolute())
+    ship = o.get('ship')
+    if ship and (Path(ship).is_file() or Path(ship).suffix in ('.yaml', '.yml')):
+        o['ship'] = str(Path(ship).absolute())
+    return o
+
+
+def explicit_options(parser: argparse.ArgumentParser, argv: list[str] | None) -> dict:
+    """The options actually given on the command line (not defaults)."""
+    quiet = Parser(prog=parser.prog, add_help=False)
+    for a in parser._actions:
+        if a.dest == 'help':
+            continue
+        kw = dict(dest=a.dest, default=argparse.SUPPRESS)
+        if isinstance(a, argparse._StoreTrueAction):
+            quiet.add_argument(*a.option_strings, action='store_true', **kw)
+        elif isinstance(a, argparse._AppendAction):
+            quiet.add_argument(*a.option_strings, action='append', type=a.type, **kw)
+        elif a.option_strings:
+            quiet.add_argument(*a.option_strings, nargs=a.nargs, type=a.type,
+                               choices=a.choices, **kw)
+        else:
+            quiet.add_argument(a.dest, nargs=a.nargs, type=a.type, default=argparse.SUPPRESS)
+    given = vars(quiet.parse_args(argv))
+    return {k: v for k, v in given.items() if not (k in PATH_LISTS and v == [])}
+
+
+def option_name(parser: argparse.ArgumentParser, dest: str) -> str:
+    for a in parser._actions:
+        if a.dest == dest:
+            return a.option_strings[0] if a.option_strings else dest
+    return dest
+
+
+def resumed_args(parser: argparse.ArgumentParser, argv: list[str] | None, command: str,
+                 applicable: tuple[str, ...]) -> tuple[argparse.Namespace, list[str]]:
+    """The stored options of the run in --resume DIR. Options given with --resume must equal
+    the stored ones, except ``applicable`` ones (which cannot change the result so far),
+    which are applied. Returns (options, messages about what was applied)."""
+    given = explicit_options(parser, argv)
+    out = Path(given.pop('resume'))
+    saved = out / ARGS_FILE
+    if not out.is_dir():
+        raise UsageError(f'--resume {out}: no such folder')
+    if not saved.is_file():
+        raise UsageError(f'--resume {out}: nothing to resume (no {ARGS_FILE}; is it a '
+                         f'{command} output folder?)')
+    try:
+        doc = json.loads(saved.read_text())
+    except (OSError, ValueError) as exc:
+        raise UsageError(f'--resume {out}: {saved} is unreadable ({exc})') from None
+    if isinstance(doc, list):  # version 1: the raw argv (paths relative to where it ran)
+        stored = vars(parser.parse_args(doc))
+    elif isinstance(doc, dict) and doc.get('command') == command and 'options' in doc:
+        stored = {**vars(parser.parse_args([])), **doc['options']}
+        stored['bound'] = [tuple(b) if isinstance(b, list) else b
+                           for b in stored.get('bound', [])]
+        stored['bound'] = [(n, tuple(v) if isinstance(v, list) else v)
+                           for n, v in stored['bound']]
+    else:
+        raise UsageError(f'--resume {out}: {saved} is not a {command} run')
+    stored['resume'] = str(out)
+    stored['out'] = str(out)
+    notes = []
+    given = absolute_paths(given)
+    for k, v in given.items():
+        if k == 'out' and Path(v) == out.absolute():
+            continue
+        cur = stored.get(k)
+        if k == 'bound':
+            v = [(n, tuple(x) if isinstance(x, list) else x) for n, x in v]
+        if k in applicable:
+            if v != cur:
+                notes.append(f'{option_name(parser, k)} {v} applied (the run had {cur})')
+            stored[k] = v
+        elif v != cur:
+            raise UsageError(
+                f'--resume {out}: {option_name(parser, k)} {v} differs from the stored run '
+                f'({cur}); a resumed run keeps its options (only '
+                f'{", ".join(option_name(parser, a) for a in applicable)} can change): start a '
+                'new run with another --out to change it')
+    return argparse.Namespace(**stored), notes
+
+
+def store_args(out: OutputDir, command: str, args: argparse.Namespace) -> None:
+    opts = absolute_paths({k: v for k, v in vars(args).items() if k != 'resume'})
+    out.write_text(ARGS_FILE, json.dumps({'command': command, 'version': ARGS_VERSION,
+                                          'options': opts}, indent=1) + '\n')
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """A kill (SIGTERM) stops like Ctrl-C: what is done is kept, the run is resumable."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        old = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+@contextlib.contextmanager
+def show_log(quiet: bool = False):
+    """Print the library's progress messages (the ``mmg_tuner`` loggers) on stderr."""
+    root = logging.getLogger('mmg_tuner')
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter('%(message)s'))
+    old_level = root.level
+    root.addHandler(handler)
+    root.setLevel(logging.WARNING if quiet else logging.INFO)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(old_level)
+
+
+# ----------------------------------------------------------------------------- the command
+def tune_config(args: argparse.Namespace) -> api.TuneConfig:
+    return api.TuneConfig(targets=args.targets, a_r=args.ar, bounds=dict(args.bound),
+                          weights=tuple(args.weights) if args.weights else None,
+                          shoot_every_s=args.shoot_every, integrator=args.integrator,
+                          substeps=args.substeps, popsize=args.popsize,
+                          max_popsize=args.max_popsize, max_evals=args.max_evals,
+                          seed=args.seed)
 
 
 def command(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    resume = False
-    if args.resume:
-        out = Path(args.resume)
-        saved = out / 'args.json'
-        if not saved.is_file():
-            raise TuningError(f'{out}: nothing to resume (no args.json)')
-        args = build_parser().parse_args(json.loads(saved.read_text()))
-        resume = True
-    else:
-        if not args.trials or not args.out:
-            raise TuningError('give tuning trials and --out DIR (or --resume DIR)')
-        out = Path(args.out)
-        write_atomic(out / 'args.json', json.dumps(argv if argv is not None else sys.argv[1:]))
-    ship = load_ship(args.ship, args.params)
-    tune_trials = load_set(args.trials, args, ship)
-    test_trials = load_set(args.test, args, ship) if args.test else []
-    space = ParameterSpace.around(ship, args.targets, args.ar, _bounds(args.bound))
-    weights = np.array(args.weights) if args.weights else paper_weights(ship.L_pp)
-    obj = Objective(ship, TrialBatch.from_trials(tune_trials), weights, args.shoot_every,
-                    args.integrator, args.substeps)
-    tuner = Tuner(space, obj, popsize=args.popsize, max_popsize=args.max_popsize,
-                  max_evaluations=args.max_evals, seed=args.seed,
-                  checkpoint=out / 'checkpoint.pkl')
-    print(f'tuning {space.dim} parameters of {ship.name} on {len(tune_trials)} trial(s)'
-          f'{f", testing on {len(test_trials)}" if test_trials else ""}; box a_r = '
-          f'{args.ar or ship.a_r:g}; output {out}', file=sys.stderr)
-    bar = None if args.quiet else _progress_bar(args.max_evals)
-    old = signal.signal(signal.SIGTERM, _interrupt)
-    try:
-        result = tuner.run(resume=resume, progress=bar)
-    finally:
-        signal.signal(signal.SIGTERM, old)
-        if bar is not None:
-            bar.close()
-    tuned = space.full_params(ship.params, result.theta)[0]
-    doc = build_report(ship, space, result, obj, tune_trials, test_trials, tuned, args)
-    write_params_yaml(out / 'params.yaml', ship, dict(zip(space.names, result.theta)),
-                      f'tuned by mmg_tuner on {", ".join(t.name for t in tune_trials)}')
-    write_json(out / 'report.json', doc)
-    write_atomic(out / 'report.md', markdown_report(doc))
-    if not args.no_plots:
-        runs = {'pre-determined': ship.params, 'tuned': tuned}
-        plot_trials(out, ship, tune_trials + test_trials, runs, 'plot_', args.integrator,
-                    args.substeps)
-    J = doc['J']
-    print(f"J tuning: {J['pre']['tune']:.4g} -> {J['tuned']['tune']:.4g}"
-          + (f"; J test: {J['pre']['test']:.4g} -> {J['tuned']['test']:.4g} "
-             f"({100 * (1 - J['tuned']['test'] / J['pre']['test']):.1f} % lower)"
-             if test_trials else ''))
-    if doc['bounds_hit']:
-        print(f"on a bound of their box: {', '.join(doc['bounds_hit'])}")
-    print(f'{result.evaluations} evaluations in {result.wall_s:.1f} s; wrote {out}/params.yaml, '
-          'report.json, report.md' + ('' if args.no_plots else ', plot_*.png'))
-    if result.interrupted:
-        print(f'interrupted: best so far written; continue with: tune --resume {out}',
-              file=sys.stderr)
-        return 130
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    notes: list[str] = []
+    resume = bool(args.resume)
+    if resume:
+        args, notes = resumed_args(parser, argv, 'tune', ('quiet', 'no_plots'))
+    elif not args.trials or not args.out:
+        raise UsageError('give tuning trials and --out DIR (or --resume DIR)')
+    config = tune_config(args)             # every option checked before any work
+    with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
+        for n in notes:
+            logging.getLogger(__name__).warning('resume: %s', n)
+        ship = api.load_ship(args.ship, args.params)
+        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale)
+        tune_trials = api.load_trials(args.trials, **load)
+        test_trials = api.load_trials(args.test, **load) if args.test else []
+        if not resume:
+            store_args(out, 'tune', args)
+        bar = None if args.quiet else _progress_bar(config.max_evals)
+        try:
+            with sigterm_as_interrupt():
+                result = api.tune(ship, tune_trials, test_trials, config,
+                                  checkpoint=out.path / 'checkpoint.pkl', resume=resume,
+                                  progress=bar)
+        finally:
+            if bar is not None:
+                bar.close()
+        result.write(out, plots=not args.no_plots)
+        J, J0 = result.J, result.J_pre
+        print(f'J tuning: {fmt_J(J0.tune)} -> {fmt_J(J.tune)}'
+              + (f'; J test: {fmt_J(J0.test)} -> {fmt_J(J.test)} '
+                 f'({fmt_gain(J0.test, J.test)} lower)' if test_trials else ''))
+        for n, t in J.failed_at_s.items():
+            print(f'the tuned model diverges on {n} at t = {t:.1f} s')
+        if result.bounds_hit:
+            print(f"on a bound of their box: {', '.join(result.bounds_hit)}")
+        print(f'{result.evaluations} evaluations in {result.wall_s:.1f} s; wrote {out.path}/'
+              'params.yaml, report.json, report.md' + ('' if args.no_plots else ', plot_*.png'))
+        if result.interrupted:
+            print(f'interrupted: best so far written; continue with: tune --resume {out.path}',
+                  file=sys.stderr)
+            return 130
     return 0
-
-
-def _interrupt(signum, frame) -> None:
-    """A kill (SIGTERM) stops like Ctrl-C: best so far written, resumable."""
-    raise KeyboardInterrupt
 
 
 def _progress_bar(total: int):
@@ -169,41 +303,6 @@ def _progress_bar(total: int):
 
     update.close = bar.close  # type: ignore[attr-defined]
     return update
-
-
-def build_report(ship, space, result, obj, tune_trials, test_trials, tuned, args) -> dict:
-    pre = ship.params
-    J_tune_pre, _ = obj.per_trial(pre[None])
-    J_tune, _ = obj.per_trial(tuned[None])
-    per_trial = {t.name: {'set': 'tune', 'J_pre': float(a), 'J_tuned': float(b)}
-                 for t, a, b in zip(tune_trials, J_tune_pre[0], J_tune[0])}
-    J_test_pre = J_test = None
-    if test_trials:
-        tobj = Objective(ship, TrialBatch.from_trials(test_trials), obj.weights,
-                         args.shoot_every, args.integrator, args.substeps)
-        a, _ = tobj.per_trial(pre[None])
-        b, _ = tobj.per_trial(tuned[None])
-        J_test_pre, J_test = float(a.sum()), float(b.sum())
-        per_trial.update({t.name: {'set': 'test', 'J_pre': float(x), 'J_tuned': float(y)}
-                          for t, x, y in zip(test_trials, a[0], b[0])})
-    hit = space.on_bound(result.theta)
-    return {
-        'ship': ship.name,
-        'J': {'pre': {'tune': float(J_tune_pre.sum()), 'test': J_test_pre},
-              'tuned': {'tune': float(J_tune.sum()), 'test': J_test}},
-        'per_trial': per_trial,
-        'params': {n: {'pre': float(p), 'tuned': float(v), 'lower': float(lo),
-                       'upper': float(hi), 'on_bound': n in hit}
-                   for n, p, v, lo, hi in zip(space.names, space.pre, result.theta, space.lower,
-                                              space.upper)},
-        'bounds_hit': hit, 'evaluations': int(result.evaluations), 'restarts': result.restarts,
-        'wall_s': float(result.wall_s), 'interrupted': result.interrupted,
-        'settings': {'a_r': args.ar or ship.a_r, 'weights': obj.weights.tolist(),
-                     'shoot_every_s': args.shoot_every, 'integrator': args.integrator,
-                     'dt': obj.batch.dt, 'seed': args.seed, 'max_evals': args.max_evals,
-                     'popsize': [args.popsize, args.max_popsize]},
-        'finite': bool(math.isfinite(result.J)),
-    }
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,5 +1,11 @@
 """Diagnosis: what the tuned model gets wrong, which physical effect explains it, and the
-held-out gain of the extended model. Imports core, data and tuning; never rclpy."""
-from mmg_tuner.diagnosis.select import Diagnosis, DiagnosisSettings, diagnose
+held-out gain of the extended model. Imports core, data and tuning; never rclpy.
 
-__all__ = ['Diagnosis', 'DiagnosisSettings', 'diagnose']
+``select`` holds the search (:func:`diagnose`), the one acceptance rule (:func:`acceptance`)
+used by its forward and backward steps, and the typed results (:class:`Cause`,
+:class:`Diagnosis`); ``residuals`` and ``report`` describe what remains."""
+from mmg_tuner.diagnosis.select import (BUDGETS, Cause, Diagnosis, DiagnosisSettings, Verdict,
+                                        acceptance, diagnose)
+
+__all__ = ['BUDGETS', 'Cause', 'Diagnosis', 'DiagnosisSettings', 'Verdict', 'acceptance',
+           'diagnose']

@@ -1,24 +1,20 @@
-"""diagnosis.json, diagnosis.md and the plots a naval architect would look at."""
+"""diagnosis.json, diagnosis.md and the plots a naval architect would look at (returned as
+text and PNG bytes; the caller writes them)."""
 from __future__ import annotations
 
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 
-from mmg_tuner.core.effects import EFFECTS, describe_values
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.residuals import residual_series, simulate_trials, summarize
 from mmg_tuner.diagnosis.select import Diagnosis
+from mmg_tuner.tuning.report import display_name, fmt_J, fmt_gain, png_bytes, unique_names
 
 
 def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
-    causes = []
-    for c in d.causes:
-        cc = dict(c)
-        cc['summary'] = describe_values(EFFECTS[c['effect']], c['parameters'], c['uncertainty'])
-        causes.append(cc)
+    causes = [c.to_dict() for c in d.causes]
     return {'causes': causes, 'baseline': d.baseline, 'final': d.final,
             'candidates': [[asdict(c) for c in r] for r in d.rounds],
             'residuals': {'base_model': residuals_base, 'final_model': residuals_final},
@@ -43,16 +39,16 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
     lines += ['', '| held-out J (test trials) | value |', '|---|---|',
-              f"| base model, tuned | {b['J_test']:.4g} |",
-              f"| final model | {f['J_test']:.4g} |",
-              f"| gain | {100 * f['heldout_gain_total']:.1f} % |", '',
+              f"| base model, tuned | {fmt_J(b['J_test'])} |",
+              f"| final model | {fmt_J(f['J_test'])} |",
+              f"| gain | {fmt_gain(b['J_test'], f['J_test'])} |", '',
               '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
               '|---|---|---|---|---|---|']
     for i, r in enumerate(doc['candidates'], 1):
         for c in r:
             note = ', '.join(f'{p} on its bound' for p in c.get('on_bound', []))
-            lines.append(f"| {i} | {c['effect']} | {100 * c['gain']:.1f} % | "
-                         f"{100 * c['gain_se']:.1f} | {'yes' if c['accepted'] else ''} | "
+            lines.append(f"| {i} | {c['effect']} | {_pct(c['gain'])} | "
+                         f"{_pct(c['gain_se'])} | {'yes' if c['accepted'] else ''} | "
                          f"{note} |")
     if doc.get('barely_identifiable'):
         lines += ['', '## Effects these trials can barely see', '',
@@ -65,12 +61,15 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   'mimicked by |', '|---|---|---|---|---|']
         for n, a in doc['barely_identifiable'].items():
             lines.append(f"| {n} | {a['se']:.3g} | {a['smallest']:.3g} | "
-                         f"{100 * a['r2']:.2f} % | {', '.join(a['mimicked_by'])} |")
+                         f"{_pct(a['r2'])} | {', '.join(a['mimicked_by'])} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',
               '| trial | position rms [m] | psi rms [deg] | u rms [m/s] | v rms [m/s] | '
               'r rms [deg/s] |', '|---|---|---|---|---|---|']
     for n, t in doc['residuals']['base_model']['per_trial'].items():
-        lines.append(f"| {n} | {t['position_rms_m']:.2f} | {t['psi']['rms']:.2f} | "
+        if 'psi' not in t:  # the simulation failed at once
+            lines.append(f'| {display_name(n)} | diverged | | | | |')
+            continue
+        lines.append(f"| {display_name(n)} | {t['position_rms_m']:.2f} | {t['psi']['rms']:.2f} | "
                      f"{t['u']['rms']:.3f} | {t['v']['rms']:.3f} | {t['r']['rms']:.3f} |")
     lines += ['', 'Correlation of velocity residuals (base model) with:', '',
               '| regressor | u | v | r |', '|---|---|---|---|']
@@ -78,13 +77,20 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
         lines.append(f"| {k} | {c['u']:+.2f} | {c['v']:+.2f} | {c['r']:+.2f} |")
     lines += ['', '## What remains', '']
     for n, t in doc['residuals']['final_model']['per_trial'].items():
-        lines.append(f"- {n}: position rms {t['position_rms_m']:.2f} m, heading rms "
-                     f"{t['psi']['rms']:.2f} deg")
+        if 'psi' not in t:
+            lines.append(f'- {display_name(n)}: the simulation diverged at once')
+            continue
+        lines.append(f"- {display_name(n)}: position rms {t['position_rms_m']:.2f} m, heading "
+                     f"rms {t['psi']['rms']:.2f} deg")
     lines.append('')
     lines.append('The remaining error is what no effect in the library explains: sensor noise, '
                  'the start-state estimate, and the difference between the sampled commands and '
                  'what acted between samples.')
     return '\n'.join(lines) + '\n'
+
+
+def _pct(x: float) -> str:
+    return f'{100 * x:.1f} %' if np.isfinite(x) else ('inf' if x > 0 else '—')
 
 
 def residuals_for(ship: ShipConfig, params: dict[str, float], trials: list[Trial],
@@ -94,18 +100,18 @@ def residuals_for(ship: ShipConfig, params: dict[str, float], trials: list[Trial
     return summarize(trials, sims), sims
 
 
-def plot_residuals(out: Path, trials: list[Trial], sims_base: list[np.ndarray],
-                   sims_final: list[np.ndarray]) -> list[Path]:
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
+                   sims_final: list[np.ndarray]) -> dict[str, bytes]:
+    """Residuals over time and against heading; {file name: PNG bytes}."""
+    from matplotlib.figure import Figure
 
-    paths = []
-    fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True)
-    for tr, sb in zip(trials, sims_base):
+    images = {}
+    fig = Figure(figsize=(10, 9))
+    axes = fig.subplots(4, 1, sharex=True)
+    for tr, label, sb in zip(trials, unique_names(trials), sims_base):
         e = residual_series(tr, sb)
         t = tr.t - tr.t[0]
-        axes[0].plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1, label=tr.name)
+        axes[0].plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1, label=label)
         axes[1].plot(t, np.degrees(e[:, 2]), lw=1)
         axes[2].plot(t, e[:, 4], lw=1)
         axes[3].plot(t, np.degrees(e[:, 5]), lw=1)
@@ -117,11 +123,10 @@ def plot_residuals(out: Path, trials: list[Trial], sims_base: list[np.ndarray],
     axes[0].set_title('Residuals of the tuned base model (simulated - recorded)')
     axes[-1].set_xlabel('t [s]')
     fig.tight_layout()
-    paths.append(out / 'residuals_time.png')
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+    images['residuals_time.png'] = png_bytes(fig)
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig = Figure(figsize=(11, 4))
+    axes = fig.subplots(1, 2)
     for label, sims, c in (('base model', sims_base, 'tab:orange'),
                            ('final model', sims_final, 'tab:blue')):
         hdg, ev, er = [], [], []
@@ -140,8 +145,5 @@ def plot_residuals(out: Path, trials: list[Trial], sims_base: list[np.ndarray],
         a.legend(fontsize=7)
     fig.suptitle('Residuals vs heading (a current or wind shows as a sinusoid)')
     fig.tight_layout()
-    paths.append(out / 'residuals_vs_heading.png')
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
-    return paths
-
+    images['residuals_vs_heading.png'] = png_bytes(fig)
+    return images

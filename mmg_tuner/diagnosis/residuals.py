@@ -8,14 +8,14 @@ import numpy as np
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.tuning.report import simulate_trial, unique_names
 
 
 def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
                     integrator: str = 'rk4') -> list[np.ndarray]:
-    return [simulate(ship, tr.states[0], tr.inputs, tr.dt, integrator, params=params,
-                     check=False).states for tr in trials]
+    """Each trial simulated the way the objective does (same start-state rule)."""
+    return [simulate_trial(ship, tr, params, integrator) for tr in trials]
 
 
 def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
@@ -37,7 +37,7 @@ def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
     of the velocity residuals with each regressor."""
     per_trial = {}
     pooled_e, pooled_x = [], {k: [] for k in regressors(trials[0])}
-    for tr, sim in zip(trials, sims):
+    for tr, label, sim in zip(trials, unique_names(trials), sims):
         e = residual_series(tr, sim)
         ok = np.all(np.isfinite(e), axis=1)
         stats = {}
@@ -51,7 +51,7 @@ def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
                         'max': float(ei[k] * scale), 't_max': float(tr.t[ok][k] - tr.t[0])}
         stats['position_rms_m'] = float(np.sqrt(np.mean(e[ok, 0] ** 2 + e[ok, 1] ** 2))) \
             if ok.any() else float('nan')
-        per_trial[tr.name] = stats
+        per_trial[label] = stats
         pooled_e.append(e[ok][:, 3:])
         for k, v in regressors(tr).items():
             pooled_x[k].append(v[ok])

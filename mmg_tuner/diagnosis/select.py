@@ -20,30 +20,50 @@ Selection rule (stepwise, like forward-backward regression):
   significant effect within the combined uncertainty is reported as indistinguishable;
 * backward step: with two or more named, one whose removal loses no significant gain is
   dropped (a yaw moment bias named first is made redundant by the rudder offset named next);
+  "significant" is the same :func:`acceptance` rule as the forward step, with the model
+  without the effect as the reference;
 * cheap ranking first: each candidate is fitted with the base targets held at their tuned
   values and the named effects free (a few hundred evaluations); only the top `screen`
   candidates are re-tuned fully;
 * single-parameter effects whose standard error at the base optimum (base targets free)
   exceeds half the smallest magnitude worth finding are reported as barely identifiable
   from these trials (e.g. rpm_scale against w_P0 and t_P), so that a miss is explained.
+* checkpoint: every completed tuning is stored (atomically) under a key of what it was
+  given; a resumed search replays the same steps and takes each finished one from the store.
+  An interrupted tuning is never used: the interrupt propagates (KeyboardInterrupt).
 """
 from __future__ import annotations
 
+import hashlib
+import logging
+import math
+import pickle
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
-from mmg_tuner.core.effects import EFFECTS, Effect
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.core.effects import EFFECTS, Effect, describe_values
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.errors import DiagnosisError
+from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.tuner import Tuner
+
+logger = logging.getLogger(__name__)
+
+# evaluations: base tuning, screening per candidate, re-tune per candidate
+BUDGETS = {
+    'quick': (6_000, 300, 3_000),
+    'standard': (20_000, 400, 6_000),
+    'full': (60_000, 800, 15_000),
+}
 
 
 @dataclass
@@ -85,8 +105,41 @@ class Candidate:
 
 
 @dataclass
+class Cause:
+    """A named cause: the effect, its estimated parameters (SI, radians) with Gauss-Newton
+    standard errors, and the held-out gain (1 - J_test(with it) / J_test(without)) with its
+    jackknife standard error over test trials."""
+
+    effect: str
+    parameters: dict[str, float]
+    uncertainty: dict[str, float]
+    heldout_gain: float
+    heldout_gain_se: float
+    indistinguishable_from: list[str] = field(default_factory=list)
+    description: str = ''
+
+    @property
+    def summary(self) -> str:
+        """Human wording, e.g. 'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'."""
+        return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), 'summary': self.summary}
+
+    # dict-style reading, for scripts written when causes were dicts
+    def __getitem__(self, key: str):
+        try:
+            return getattr(self, key)
+        except AttributeError:
+            raise KeyError(key) from None
+
+    def get(self, key: str, default=None):
+        return getattr(self, key, default)
+
+
+@dataclass
 class Diagnosis:
-    causes: list[dict]
+    causes: list[Cause]
     baseline: dict
     final: dict
     rounds: list[list[Candidate]] = field(default_factory=list)
@@ -94,6 +147,111 @@ class Diagnosis:
     base_params: dict[str, float] = field(default_factory=dict)
     wall_s: float = 0.0
     aliased: dict[str, dict] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What :func:`acceptance` decided, and on which numbers."""
+
+    significant: bool
+    gain: float          # pooled held-out gain 1 - sum(J_new) / sum(J_ref)
+    gain_se: float       # its jackknife standard error
+    per_trial_gain: np.ndarray
+    absolute: float      # the reduction as a fraction of the base model's held-out error
+    worst: float         # the largest J_new / J_ref over test trials
+    reason: str          # why not significant ('' when significant)
+
+
+def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
+               s: DiagnosisSettings) -> Verdict:
+    """The one acceptance rule, used by the forward step (ref: the current model re-tuned,
+    new: with the candidate effect) and by the backward step (ref: the model without a named
+    effect, new: the model with it; not significant -> the effect is dropped).
+
+    Significant when the gain exceeds min_gain + param_penalty x n_params and min_gain_z
+    jackknife standard errors, the reduction is at least min_abs_gain of the base model's
+    held-out error, and no test trial gets worse by a factor above 1 + worse_tol. A run that
+    diverges (infinite J) on either side is never significant."""
+    J_ref = np.asarray(J_ref, float)
+    J_new = np.asarray(J_new, float)
+    if not np.all(np.isfinite(J_new)) or not np.all(np.isfinite(J_ref)):
+        side = 'with' if not np.all(np.isfinite(J_new)) else 'without'
+        return Verdict(False, -math.inf, math.inf, np.full(J_new.shape, np.nan), -math.inf,
+                       math.inf, f'the model {side} it diverges on a test trial')
+    ratio = J_new / np.maximum(J_ref, 1e-300)
+    gain = float(1 - J_new.sum() / max(J_ref.sum(), 1e-300))
+    se = jackknife_se(J_ref, J_new)
+    need = s.min_gain + s.param_penalty * n_params
+    absolute = float((J_ref.sum() - J_new.sum()) / max(J_base_test, 1e-300))
+    worst = float(np.max(ratio))
+    reasons = []
+    if not gain > need:
+        reasons.append(f'gain {100 * gain:.1f} % <= {100 * need:.1f} %')
+    if not gain > s.min_gain_z * se:
+        reasons.append(f'gain within {s.min_gain_z:g} standard error(s) ({100 * se:.1f} %)')
+    if not absolute > s.min_abs_gain:
+        reasons.append(f'{100 * absolute:.1f} % of the base error <= '
+                       f'{100 * s.min_abs_gain:.0f} %')
+    if not worst < 1 + s.worse_tol:
+        reasons.append(f'a test trial gets worse ({worst:.2f} x)')
+    return Verdict(not reasons, gain, se, 1 - ratio, absolute, worst, '; '.join(reasons))
+
+
+class SearchCheckpoint:
+    """Completed tunings of one diagnosis, pickled atomically after each: a resumed search
+    replays the same (deterministic) steps and takes every finished tuning from here."""
+
+    VERSION = 1
+
+    def __init__(self, path: str | Path | None, fingerprint: str, resume: bool = False):
+        self.path = Path(path) if path else None
+        self.fingerprint = fingerprint
+        self.done: dict[str, np.ndarray] = {}
+        self.hits = 0
+        if resume and self.path is not None and self.path.is_file():
+            try:
+                doc = pickle.loads(self.path.read_bytes())
+            except Exception as exc:  # a truncated or foreign file: pickle raises many types
+                raise DiagnosisError(f'{self.path}: unreadable checkpoint ({exc})') from None
+            if not isinstance(doc, dict) or doc.get('version') != self.VERSION:
+                raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of this version')
+            if doc.get('fingerprint') != fingerprint:
+                raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
+                                     '(ship, trials or settings differ)')
+            self.done = doc['done']
+
+    @staticmethod
+    def key(*parts) -> str:
+        h = hashlib.sha256()
+        for p in parts:
+            h.update(p.tobytes() if isinstance(p, np.ndarray) else repr(p).encode())
+            h.update(b'|')
+        return h.hexdigest()
+
+    def get(self, key: str) -> np.ndarray | None:
+        theta = self.done.get(key)
+        if theta is not None:
+            self.hits += 1
+            return theta.copy()
+        return None
+
+    def put(self, key: str, theta: np.ndarray) -> None:
+        self.done[key] = np.array(theta, dtype=float)
+        if self.path is not None:
+            doc = {'version': self.VERSION, 'fingerprint': self.fingerprint, 'done': self.done}
+            try:
+                write_atomic(self.path, pickle.dumps(doc))
+            except OSError as exc:
+                raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
+                                  f'({exc.strerror or exc})') from None
+
+
+def fingerprint(ship: ShipConfig, obj: Objective, obj_test: Objective,
+                s: DiagnosisSettings) -> str:
+    """What a checkpoint must match: ship parameters, trials, weights and settings."""
+    return SearchCheckpoint.key(ship.model, ship.params, obj.batch.meas, obj.batch.ctrls,
+                                obj_test.batch.meas, obj_test.batch.ctrls,
+                                repr(sorted(asdict(s).items())))
 
 
 class _Model:
@@ -113,7 +271,15 @@ class _Model:
 
 
 def _tune(ship, model: _Model, obj: Objective, x0: np.ndarray, evals: int, seed: int,
-          fixed_base: bool = False) -> np.ndarray:
+          fixed_base: bool = False, store: SearchCheckpoint | None = None) -> np.ndarray:
+    """One tuning of the search, taken from the checkpoint when it was completed before. An
+    interrupted tuning raises KeyboardInterrupt: its truncated result is never used."""
+    key = SearchCheckpoint.key(model.space.names, np.asarray(x0, float), evals, seed,
+                               fixed_base, obj.batch.names)
+    if store is not None:
+        done = store.get(key)
+        if done is not None:
+            return done
     space = model.space
     if fixed_base:  # screening: the base held, the effect parameters (new and named) move
         n_base = len(x0) - sum(len(e.params) for e in model.effects)
@@ -125,42 +291,52 @@ def _tune(ship, model: _Model, obj: Objective, x0: np.ndarray, evals: int, seed:
                       {0: 'euler', 1: 'rk4'}[obj.method], obj.substeps)
         res = Tuner(sub, o, seed=seed, max_evaluations=evals, max_popsize=24,
                     sigma0=0.3).run()
-        return np.concatenate([base_vals, res.theta])
-    res = Tuner(space, obj, seed=seed, max_evaluations=evals, max_popsize=48, sigma0=0.1,
-                x0=x0).run()
-    return res.theta
+        theta = np.concatenate([base_vals, res.theta])
+    else:
+        res = Tuner(space, obj, seed=seed, max_evaluations=evals, max_popsize=48, sigma0=0.1,
+                    x0=x0).run()
+        theta = res.theta
+    if res.interrupted:
+        raise KeyboardInterrupt
+    if store is not None:
+        store.put(key, theta)
+    return theta
 
 
 def _backward_pass(ship, base: ParameterSpace, model: '_Model', theta, obj: Objective,
-                   obj_test: Objective, causes: list[dict], s: DiagnosisSettings,
-                   J_base_test: float, log):
+                   obj_test: Objective, causes: list[Cause], s: DiagnosisSettings,
+                   J_base_test: float, log, store: SearchCheckpoint | None):
     """Stepwise regression's backward step: a named effect that the later ones made redundant
     (e.g. a yaw moment bias named first, then the rudder offset that explains it better) is
-    dropped when removing it loses no significant held-out gain. Both sides are re-tuned with
-    the same warm start and budget."""
-    theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed)
+    dropped when it fails the same :func:`acceptance` rule as the forward step against the
+    model without it. Both sides are re-tuned with the same warm start and budget."""
+    theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed, store=store)
     J_full = _per_trial_J(obj_test, ship, model.space, theta)
     while len(model.effects) > 1:
-        trials = []
+        checks = []
         for e in model.effects:
             keep = [x for x in model.effects if x is not e]
             m = _Model(ship, base, keep)
             idx = [model.space.names.index(n) for n in m.space.names]
-            th = _tune(ship, m, obj, theta[idx], s.effect_evals, s.seed)
+            th = _tune(ship, m, obj, theta[idx], s.effect_evals, s.seed, store=store)
             Jt = _per_trial_J(obj_test, ship, m.space, th)
-            loss = 1 - J_full.sum() / Jt.sum()   # the gain the effect brings on top of the rest
-            need = s.min_gain + s.param_penalty * len(e.params)
-            absolute = (Jt.sum() - J_full.sum()) / J_base_test
-            trials.append((loss, e, m, th, Jt, loss > need and absolute > s.min_abs_gain))
-        loss, e, m, th, Jt, significant = min(trials, key=lambda x: x[0])
+            v = acceptance(Jt, J_full, len(e.params), J_base_test, s)
+            checks.append((v, e, m, th, Jt))
+        v, e, m, th, Jt = min(checks, key=lambda x: x[0].gain)
         log(f'   backward check: without {e.name} the held-out error is '
-            f'{100 * (Jt.sum() / J_full.sum() - 1):+.1f} % '
-            f'({"keep" if significant else "redundant: dropped"})')
-        if significant:
+            f'{_pct_change(J_full.sum(), Jt.sum())} '
+            f'({"keep" if v.significant else "redundant: dropped (" + v.reason + ")"})')
+        if v.significant:
             break
-        causes[:] = [c for c in causes if c['effect'] != e.name]
+        causes[:] = [c for c in causes if c.effect != e.name]
         model, theta, J_full = m, th, Jt
     return model, theta, J_full
+
+
+def _pct_change(ref: float, new: float) -> str:
+    if not (math.isfinite(ref) and math.isfinite(new)) or ref <= 0:
+        return 'undefined (a run diverges)'
+    return f'{100 * (new / ref - 1):+.1f} %'
 
 
 _PERIODIC = {'current_dir', 'wind_dir'}
@@ -183,9 +359,9 @@ def pinned_on_bound(space: ParameterSpace, theta: np.ndarray, names: Sequence[st
 
 def jackknife_se(J_ref: np.ndarray, J_new: np.ndarray) -> float:
     """Standard error of the pooled gain 1 - sum(J_new)/sum(J_ref), leaving out one test trial
-    at a time (trials weigh as much as their error)."""
+    at a time (trials weigh as much as their error). Infinite with fewer than two trials."""
     n = len(J_ref)
-    if n < 2:
+    if n < 2 or not (np.all(np.isfinite(J_ref)) and np.all(np.isfinite(J_new))):
         return float('inf')
     loo = np.array([1 - (J_new.sum() - J_new[i]) / max(J_ref.sum() - J_ref[i], 1e-300)
                     for i in range(n)])
@@ -197,12 +373,31 @@ def _per_trial_J(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta)
     return J[0]
 
 
-def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial],
-             settings: DiagnosisSettings | None = None,
-             log: Callable[[str], None] = print) -> Diagnosis:
-    s = settings or DiagnosisSettings()
+def check_trial_sets(tune_trials: Sequence[Trial], test_trials: Sequence[Trial]) -> None:
+    """Refuse, before any work, trial sets on which no cause can ever be named."""
     if not tune_trials or not test_trials:
         raise DiagnosisError('the diagnosis needs tuning trials and held-out test trials')
+    if len(test_trials) < 2:
+        raise DiagnosisError(
+            f'only one held-out trial ({test_trials[0].name}): the held-out gain\'s jackknife '
+            'standard error needs at least two, so no cause could ever be named; give two or '
+            'more test trials (or at least four trials without --test)')
+
+
+def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial],
+             settings: DiagnosisSettings | None = None,
+             log: Callable[[str], None] | None = None, *,
+             checkpoint: str | Path | None = None, resume: bool = False) -> Diagnosis:
+    """Tune the base model, search the effects library, name the cause(s).
+
+    checkpoint: a file where every completed tuning is stored; with resume=True the search
+    continues from it (the result equals an uninterrupted run). Ctrl-C (KeyboardInterrupt)
+    propagates after the last completed tuning was stored. Progress goes to ``log`` (default:
+    the ``mmg_tuner.diagnosis.select`` logger at INFO).
+    """
+    s = settings or DiagnosisSettings()
+    log = log or logger.info
+    check_trial_sets(tune_trials, test_trials)
     unknown = [e for e in s.effects if e not in EFFECTS]
     if unknown:
         raise DiagnosisError(f'unknown effects {unknown}; known: {sorted(EFFECTS)}')
@@ -215,10 +410,20 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     obj = Objective(ship, TrialBatch.from_trials(tune_trials), integrator=s.integrator)
     obj_test = Objective(ship, TrialBatch.from_trials(test_trials), integrator=s.integrator)
     base = ParameterSpace.around(ship, s.targets, s.a_r)
+    store = SearchCheckpoint(checkpoint, fingerprint(ship, obj, obj_test, s), resume)
+    if store.done:
+        log(f'   resuming: {len(store.done)} completed tuning(s) in {store.path}')
 
     log(f'1/3 tuning the base model ({base.dim} parameters) on {len(tune_trials)} trial(s)')
     model = _Model(ship, base, [])
-    theta = Tuner(base, obj, seed=s.seed, max_evaluations=s.base_evals).run().theta
+    key = SearchCheckpoint.key('base', base.names, base.lower, base.upper, s.base_evals, s.seed)
+    theta = store.get(key)
+    if theta is None:
+        res = Tuner(base, obj, seed=s.seed, max_evaluations=s.base_evals).run()
+        if res.interrupted:
+            raise KeyboardInterrupt
+        theta = res.theta
+        store.put(key, theta)
     J_test = _per_trial_J(obj_test, ship, model.space, theta)
     baseline = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
                 'J_test': float(J_test.sum()),
@@ -231,10 +436,11 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         log(f"   {name} is barely identifiable here: its standard error {a['se']:.3g} with the "
             f"base targets free is over half the smallest magnitude worth finding "
             f"({a['smallest']:.3g}); {', '.join(a['mimicked_by'])} mimic "
-            f"{100 * a['r2']:.2f} % of its signature")
+            f"{_pct(a['r2'])} of its signature")
 
     log('2/3 searching the effects library')
-    causes, rounds = [], []
+    causes: list[Cause] = []
+    rounds = []
     remaining = effects
     while remaining and len(causes) < s.max_effects:
         cands = []
@@ -244,46 +450,45 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         for name in remaining:
             m = _Model(ship, base, model.effects + [EFFECTS[name]])
             x0 = np.concatenate([theta, m.space.pre[len(theta):]])
-            th = _tune(ship, m, obj, x0, s.screen_evals, s.seed, fixed_base=True)
-            drop = 1 - _per_trial_J(obj, ship, m.space, th).sum() / J_now
+            th = _tune(ship, m, obj, x0, s.screen_evals, s.seed, fixed_base=True, store=store)
+            J_m = _per_trial_J(obj, ship, m.space, th).sum()
+            drop = float(1 - J_m / J_now) if math.isfinite(J_m) and J_now > 0 else -math.inf
             screened.append((drop, name, th))
         screened.sort(key=lambda x: -x[0])
         log('   screen (tuning-J drop, effect alone): ' +
-            ', '.join(f'{n} {100 * d:.0f}%' for d, n, _ in screened))
+            ', '.join(f'{n} {100 * d:.0f}%' if math.isfinite(d) else f'{n} diverges'
+                      for d, n, _ in screened))
         # the null candidate: the current model re-tuned with the same warm start and budget,
         # so that a gain measures the effect, not the extra tuning
-        theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed)
+        theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed, store=store)
         J_test = _per_trial_J(obj_test, ship, model.space, theta)
         for drop, name, th0 in screened[:s.screen]:
             m = _Model(ship, base, model.effects + [EFFECTS[name]])
-            th = _tune(ship, m, obj, th0, s.effect_evals, s.seed)
+            th = _tune(ship, m, obj, th0, s.effect_evals, s.seed, store=store)
             Jt = _per_trial_J(obj_test, ship, m.space, th)
-            g = 1 - Jt / np.maximum(J_test, 1e-300)
-            gain = 1 - Jt.sum() / J_test.sum()
-            se = jackknife_se(J_test, Jt)
-            need = s.min_gain + s.param_penalty * len(EFFECTS[name].params)
-            absolute = (J_test.sum() - Jt.sum()) / baseline['J_test']
-            worst = float(np.max(Jt / np.maximum(J_test, 1e-300)))
-            vals = {p: float(v) for p, v in zip(m.space.names[base.dim:], th[base.dim:])
+            v = acceptance(J_test, Jt, len(EFFECTS[name].params), baseline['J_test'], s)
+            vals = {p: float(x) for p, x in zip(m.space.names[base.dim:], th[base.dim:])
                     if p in EFFECTS[name].params}
             pinned = pinned_on_bound(m.space, th, EFFECTS[name].params, s.bound_tol)
-            significant = bool(gain > need and gain > s.min_gain_z * se
-                               and absolute > s.min_abs_gain and worst < 1 + s.worse_tol)
             tiny = EFFECTS[name].too_small(ship, vals)
-            ok = significant and not pinned and not tiny
-            cands.append((Candidate(name, float(Jt.sum()), g.tolist(), float(gain), se, ok,
-                                    vals, float(drop), pinned), m, th, Jt))
+            ok = v.significant and not pinned and not tiny
+            cands.append((Candidate(name, float(Jt.sum()), v.per_trial_gain.tolist(),
+                                    float(v.gain), v.gain_se, ok, vals, float(drop), pinned),
+                          m, th, Jt))
             verdict = 'significant' if ok else 'not significant'
-            if significant and pinned:
+            if v.significant and pinned:
                 verdict = ('significant but rejected: ' + ', '.join(
                     f'{p} = {vals[p]:.4g} on its bound' for p in pinned)
                     + ' (a likely mis-attribution)')
-            elif significant and tiny:
+            elif v.significant and tiny:
                 verdict = ('significant but rejected: smaller than the smallest magnitude worth '
                            'finding (noise-fitting)')
-            log(f'   {name}: held-out gain {100 * gain:.1f} % ± {100 * se:.1f} '
-                f'({100 * absolute:.1f} % of the base error; per trial '
-                f'{", ".join(f"{100 * x:+.0f}%" for x in g)}) {verdict}')
+            elif not v.significant:
+                verdict += f' ({v.reason})'
+            per = ', '.join(f'{100 * x:+.0f}%' if math.isfinite(x) else 'diverges'
+                            for x in v.per_trial_gain)
+            log(f'   {name}: held-out gain {_pct(v.gain)} ± {_pct(v.gain_se)} '
+                f'({_pct(v.absolute)} of the base error; per trial {per}) {verdict}')
         rounds.append([c[0] for c in cands])
         accepted = [c for c in cands if c[0].accepted]
         if not accepted:
@@ -296,30 +501,45 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                   and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)]
         se_all = standard_errors(obj, model.space, theta)
         errs = {p: float(e) for p, e in zip(model.space.names, se_all) if p in cand.values}
-        causes.append({'effect': cand.effect, 'parameters': cand.values, 'uncertainty': errs,
-                       'heldout_gain': cand.gain, 'heldout_gain_se': cand.gain_se,
-                       'indistinguishable_from': rivals,
-                       'description': EFFECTS[cand.effect].description})
+        causes.append(Cause(cand.effect, cand.values, errs, cand.gain, cand.gain_se, rivals,
+                            EFFECTS[cand.effect].description))
         remaining.remove(cand.effect)
         log(f'   -> named: {cand.effect}' + (f' (but {", ".join(rivals)} explain(s) the trials '
                                              'about as well)' if rivals else ''))
     if len(model.effects) > 1:
         model, theta, J_test = _backward_pass(ship, base, model, theta, obj, obj_test, causes,
-                                              s, baseline['J_test'], log)
+                                              s, baseline['J_test'], log, store)
     if causes:  # report the final model's values (later rounds re-tuned them)
         final_vals = dict(zip(model.space.names, theta))
         se_all = dict(zip(model.space.names, standard_errors(obj, model.space, theta)))
         for c in causes:
-            c['parameters'] = {p: float(final_vals[p]) for p in c['parameters']}
-            c['uncertainty'] = {p: float(se_all[p]) for p in c['parameters']}
+            c.parameters = {p: float(final_vals[p]) for p in c.parameters}
+            c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
+    J_test = np.atleast_1d(J_test)
     final = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
              'J_test': float(J_test.sum()),
-             'J_test_per_trial': dict(zip(obj_test.batch.names, np.atleast_1d(J_test).tolist())),
-             'heldout_gain_total': float(1 - J_test.sum() / baseline['J_test'])}
+             'J_test_per_trial': dict(zip(obj_test.batch.names, J_test.tolist())),
+             'heldout_gain_total': _gain(baseline['J_test'], float(J_test.sum()))}
     return Diagnosis(causes, baseline, final, rounds, dict(zip(model.space.names,
                                                                theta.tolist())),
                      dict(zip(base.names, base_theta.tolist())),
                      time.perf_counter() - t_start, aliased)
+
+
+def _pct(x: float) -> str:
+    """A fraction as a percentage for messages; never 'nan %'."""
+    if math.isnan(x):
+        return 'undefined'
+    return f'{100 * x:.1f} %' if math.isfinite(x) else ('inf' if x > 0 else '-inf')
+
+
+def _gain(ref: float, new: float) -> float:
+    """1 - new/ref; -inf when the new model diverges, nan when the reference does."""
+    if not math.isfinite(new):
+        return -math.inf
+    if not math.isfinite(ref) or ref <= 0:
+        return math.nan
+    return 1 - new / ref
 
 
 def _aliased_effects(ship, base: ParameterSpace, theta, obj: Objective, effects: list[str]

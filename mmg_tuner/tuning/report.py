@@ -1,9 +1,16 @@
-"""Tuning outputs: params.yaml, report.json, report.md and plots (recorded vs pre vs tuned)."""
+"""Tuning outputs: params.yaml, report.json, report.md and plots (recorded vs pre vs tuned),
+and the one way to simulate a recorded trial (:func:`simulate_recorded`).
+
+Text and images are returned as str/bytes; the caller writes them (an OutputDir in the CLI),
+so a failed write can say what was written. Plots use matplotlib's object API (Figure +
+its Agg canvas): no global backend is set here.
+"""
 from __future__ import annotations
 
+import io
 import json
 import math
-from pathlib import Path
+import re
 from typing import Sequence
 
 import numpy as np
@@ -11,20 +18,67 @@ import yaml
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import simulate
+from mmg_tuner.core.simulate import Trajectory, simulate
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.tuning.objective import TrialBatch
 
 
-def write_params_yaml(path: Path, ship: ShipConfig, values: dict[str, float], note: str) -> None:
-    doc = {'ship': ship.name, 'ship_config': ship.source, 'note': note,
+def display_name(name: str) -> str:
+    """A trial name safe in UTF-8 text: undecodable bytes of a file name (surrogate escapes)
+    become \\xNN."""
+    return name.encode('utf-8', 'surrogateescape').decode('utf-8', 'backslashreplace')
+
+
+def file_stem(name: str) -> str:
+    """A trial name safe as a file name part (ASCII letters, digits, ._+- kept)."""
+    return re.sub(r'[^A-Za-z0-9._+-]', '_', display_name(name)).lstrip('.') or 'trial'
+
+
+def unique_names(trials: Sequence[Trial]) -> list[str]:
+    """Display names, with ' (2)', ' (3)' added to repeats: trials of the same name from
+    different folders must not overwrite each other in a report."""
+    seen: dict[str, int] = {}
+    out = []
+    for t in trials:
+        n = display_name(t.name)
+        seen[n] = seen.get(n, 0) + 1
+        out.append(n if seen[n] == 1 else f'{n} ({seen[n]})')
+    return out
+
+
+def params_yaml_text(ship: ShipConfig, values: dict[str, float], note: str) -> str:
+    doc = {'ship': ship.name, 'ship_config': ship.source, 'note': display_name(note),
            'params': {k: float(v) for k, v in values.items()}}
-    write_atomic(path, '# Tuned parameters; load with: simulate --params THIS or the sim_node\n'
-                 '# params_file parameter. Values overlay the ship config.\n'
-                 + yaml.safe_dump(doc, sort_keys=False))
+    return ('# Tuned parameters; load with: simulate --params THIS or the sim_node\n'
+            '# params_file parameter. Values overlay the ship config.\n'
+            + yaml.safe_dump(doc, sort_keys=False))
 
 
-def write_json(path: Path, doc: dict) -> None:
-    write_atomic(path, json.dumps(doc, indent=2, default=_jsonable) + '\n')
+def json_text(doc: dict) -> str:
+    """Strict JSON with NumPy scalars/arrays converted. JSON has no inf or NaN: a non-finite
+    number (a diverged run's J, a gain against it) is written as null; the document says why
+    beside it (e.g. per_trial's *_failed_at_s)."""
+    return json.dumps(_finite(doc), indent=2, default=_jsonable, allow_nan=False) + '\n'
+
+
+def _finite(o):
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _finite(o.tolist())
+    if isinstance(o, (float, np.floating)):
+        return float(o) if math.isfinite(o) else None
+    return o
+
+
+def write_params_yaml(path, ship: ShipConfig, values: dict[str, float], note: str) -> None:
+    write_atomic(path, params_yaml_text(ship, values, note))
+
+
+def write_json(path, doc: dict) -> None:
+    write_atomic(path, json_text(doc))
 
 
 def _jsonable(o):
@@ -35,38 +89,60 @@ def _jsonable(o):
     raise TypeError(type(o))
 
 
+def start_state(trial: Trial) -> np.ndarray:
+    """The state a simulation of a recorded trial starts from: the tuning objective's rule
+    (a quadratic fit over the first seconds, :func:`~mmg_tuner.tuning.objective.initial_state`
+    as TrialBatch packs it), so reports describe the run that was tuned."""
+    return TrialBatch.from_trials([trial]).meas[0, 0].copy()
+
+
+def simulate_recorded(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
+                      integrator: str = 'euler', substeps: int = 1) -> Trajectory:
+    """The one way to simulate a recorded trial: from :func:`start_state`, driven by the
+    recorded controls (and measured wind), zero-order hold; NaN after a failure, with
+    ``status`` and ``fail_time_s`` saying so."""
+    traj = simulate(ship, start_state(trial), trial.inputs, trial.dt, integrator, substeps,
+                    t0=float(trial.t[0]), params=params, check=False)
+    traj.t = trial.t.copy()
+    return traj
+
+
 def simulate_trial(ship: ShipConfig, trial: Trial, params: np.ndarray, integrator: str = 'euler',
                    substeps: int = 1) -> np.ndarray:
-    """States simulated from the trial's first state with its recorded controls (NaN after a
-    failure)."""
-    return simulate(ship, trial.states[0], trial.inputs, trial.dt, integrator, substeps,
-                    params=params, check=False).states
+    """States (T, 6) of :func:`simulate_recorded` (NaN after a failure)."""
+    return simulate_recorded(ship, trial, params, integrator, substeps).states
 
 
-def plot_trials(out_dir: Path, ship: ShipConfig, trials: Sequence[Trial],
-                runs: dict[str, np.ndarray], prefix: str = '', integrator: str = 'euler',
-                substeps: int = 1) -> list[Path]:
-    """Per trial: trajectory (east-north) and psi/u/v/r time series, recorded vs each run."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+def png_bytes(fig) -> bytes:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format='png', dpi=90)
+    return buf.getvalue()
 
-    written = []
-    colors = {'recorded': 'k'}
+
+def plot_trials(ship: ShipConfig, trials: Sequence[Trial], runs: dict[str, np.ndarray],
+                prefix: str = '', integrator: str = 'euler', substeps: int = 1
+                ) -> dict[str, bytes]:
+    """Per trial: trajectory (east-north) and psi/u/v/r time series, recorded vs each run.
+    Returns {file name: PNG bytes}."""
+    from matplotlib.figure import Figure
+
+    images = {}
     palette = ['tab:orange', 'tab:blue', 'tab:green', 'tab:red']
-    for tr in trials:
+    for tr, label in zip(trials, unique_names(trials)):
         sims = {name: simulate_trial(ship, tr, p, integrator, substeps)
                 for name, p in runs.items()}
-        fig = plt.figure(figsize=(12, 6))
+        fig = Figure(figsize=(12, 6))
         ax = fig.add_subplot(1, 2, 1)
-        ax.plot(tr['y'], tr['x'], colors['recorded'], lw=1.5, label='recorded')
+        ax.plot(tr['y'], tr['x'], 'k', lw=1.5, label='recorded')
         for (name, st), c in zip(sims.items(), palette):
             ax.plot(st[:, 1], st[:, 0], color=c, lw=1.2, label=name)
         ax.set_xlabel('y_E east [m]')
         ax.set_ylabel('x_E north [m]')
         ax.set_aspect('equal', adjustable='datalim')
         ax.legend(fontsize=8)
-        ax.set_title(tr.name)
+        ax.set_title(label)
         labels = [(2, 'psi [deg]', math.degrees(1)), (3, 'u [m/s]', 1.0), (4, 'v [m/s]', 1.0),
                   (5, 'r [deg/s]', math.degrees(1))]
         for i, (col, lab, f) in enumerate(labels):
@@ -78,37 +154,50 @@ def plot_trials(out_dir: Path, ship: ShipConfig, trials: Sequence[Trial],
             a.tick_params(labelsize=7)
         a.set_xlabel('t [s]')
         fig.tight_layout()
-        path = out_dir / f'{prefix}{tr.name}.png'
-        fig.savefig(path, dpi=90)
-        plt.close(fig)
-        written.append(path)
-    return written
+        images[f'{prefix}{file_stem(label)}.png'] = png_bytes(fig)
+    return images
+
+
+def fmt_J(x: float | None) -> str:
+    """J for text: '—' when absent, 'inf (diverged)' when a run diverged."""
+    if x is None:
+        return '—'
+    if not math.isfinite(x):
+        return 'inf (diverged)' if x > 0 else str(x)
+    return f'{x:.4g}'
+
+
+def fmt_gain(a: float | None, b: float | None) -> str:
+    """1 - b/a as a percentage; never 'nan %'."""
+    if a is None or b is None:
+        return '—'
+    if not math.isfinite(b):
+        return 'worse (diverged)'
+    if not math.isfinite(a):
+        return 'fixes a divergence'
+    if a == 0:
+        return '—'
+    return f'{100 * (1 - b / a):.1f} %'
 
 
 def markdown_report(doc: dict) -> str:
     J = doc['J']
-
-    def fmt(x):
-        return '—' if x is None else f'{x:.4g}'
-
-    def gain(a, b):
-        return '—' if a is None or b is None or a == 0 else f'{100 * (1 - b / a):.1f} %'
-
     lines = [f"# Tuning report: {doc['ship']}", '',
              f"{doc['evaluations']} evaluations, {doc['restarts']} restarts, "
              f"{doc['wall_s']:.1f} s{' (interrupted: best so far)' if doc['interrupted'] else ''}.",
              '', '| J | tuning trials | test trials |', '|---|---|---|',
-             f"| pre-determined | {fmt(J['pre']['tune'])} | {fmt(J['pre']['test'])} |",
-             f"| tuned | {fmt(J['tuned']['tune'])} | {fmt(J['tuned']['test'])} |",
-             f"| reduction | {gain(J['pre']['tune'], J['tuned']['tune'])} | "
-             f"{gain(J['pre']['test'], J['tuned']['test'])} |", '',
+             f"| pre-determined | {fmt_J(J['pre']['tune'])} | {fmt_J(J['pre']['test'])} |",
+             f"| tuned | {fmt_J(J['tuned']['tune'])} | {fmt_J(J['tuned']['test'])} |",
+             f"| reduction | {fmt_gain(J['pre']['tune'], J['tuned']['tune'])} | "
+             f"{fmt_gain(J['pre']['test'], J['tuned']['test'])} |", '',
              '| parameter | pre | tuned | box | on bound |', '|---|---|---|---|---|']
     for n, p in doc['params'].items():
         lines.append(f"| {n} | {p['pre']:.5g} | {p['tuned']:.5g} | [{p['lower']:.4g}, "
                      f"{p['upper']:.4g}] | {'**yes**' if p['on_bound'] else ''} |")
     lines += ['', '| trial | set | J pre | J tuned |', '|---|---|---|---|']
     for n, t in doc['per_trial'].items():
-        lines.append(f"| {n} | {t['set']} | {t['J_pre']:.4g} | {t['J_tuned']:.4g} |")
+        lines.append(f"| {display_name(n)} | {t['set']} | {fmt_J(t['J_pre'])} | "
+                     f"{fmt_J(t['J_tuned'])} |")
     if doc['bounds_hit']:
         lines += ['', f"{len(doc['bounds_hit'])} parameter(s) ended on a bound of their box: "
                   f"{', '.join(doc['bounds_hit'])}. That is a hint that the model structure is "

@@ -17,7 +17,7 @@ import numpy as np
 from cmaes import CMA
 
 from mmg_tuner._atomic import write_atomic
-from mmg_tuner.errors import TuningError
+from mmg_tuner.errors import OutputError, TuningError
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 
@@ -173,7 +173,11 @@ class Tuner:
 
     def _save(self, state: _State) -> None:
         if self.checkpoint is not None:
-            write_atomic(self.checkpoint, pickle.dumps(state))
+            try:
+                write_atomic(self.checkpoint, pickle.dumps(state))
+            except OSError as exc:
+                raise OutputError(f'writing the checkpoint {self.checkpoint} failed '
+                                  f'({exc.strerror or exc}); the run stopped there') from None
 
     def _load(self) -> _State | None:
         if self.checkpoint is None or not self.checkpoint.is_file():

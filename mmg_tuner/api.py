@@ -1,0 +1,536 @@
+"""The public Python API: everything ``tune`` and ``diagnose`` do, with typed results, for a
+notebook or another package. The commands are thin wrappers: argparse -> a config dataclass ->
+one call here -> ``result.write(out)``.
+
+Example:
+    >>> import mmg_tuner as mt
+    >>> ship = mt.load_ship('suzaku')
+    >>> trials = mt.load_trials(['trials/'], ship=ship)
+    >>> fit = mt.tune(ship, trials[:4], test=trials[4:], max_evals=5000)
+    >>> fit.J.test, fit.bounds_hit
+    >>> dx = mt.diagnose(ship, trials[:4], test=trials[4:], budget='quick')
+    >>> [c.summary for c in dx.causes]
+    >>> run = mt.simulate(ship.with_params(dx.params), trials[5])
+
+Progress and messages go to the ``mmg_tuner`` loggers (silence them with
+``logging.getLogger('mmg_tuner').setLevel(logging.WARNING)``). Errors are
+:class:`~mmg_tuner.errors.MmgTunerError` subclasses naming the option and value.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.core import ship as _ship
+from mmg_tuner.core.effects import EFFECTS
+from mmg_tuner.core.layout import INTEGRATORS
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.data import load as _load
+from mmg_tuner.data.topics import load_topic_map
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
+from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
+from mmg_tuner.diagnosis.residuals import simulate_trials
+from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, DiagnosisSettings,
+                                        check_trial_sets)
+from mmg_tuner.diagnosis.select import diagnose as _diagnose
+from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
+from mmg_tuner.tuning.objective import Objective, TrialBatch, paper_weights
+from mmg_tuner.tuning.parameters import ParameterSpace
+from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
+                                     simulate_recorded, unique_names)
+from mmg_tuner.tuning.tuner import Progress, Tuner
+
+__all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
+           'TuneConfig', 'TuneResult', 'diagnose', 'load_ship', 'load_trials', 'simulate',
+           'tune']
+
+logger = logging.getLogger(__name__)
+
+MAX_SEED = 2**31 - 1
+
+
+# ---------------------------------------------------------------------------------- loading
+def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = None
+              ) -> ShipConfig:
+    """A ship config by name (``'suzaku'``, ``'kvlcc2'``) or YAML path; ``params`` overlays a
+    params.yaml (e.g. a tuned one). Tuned values in memory: ``ship.with_params(fit.params)``."""
+    return _ship.load_ship(name_or_path, params)
+
+
+def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
+                dt: float | None = None, topics: str | Path | None = None,
+                trial_scale: str = 'ship') -> list[Trial]:
+    """Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them),
+    as the commands read them: resampled on ``dt`` [s] (default: the topic map's, 1 s; MARIN
+    files keep their own rate unless dt is given), and with ``trial_scale='full'`` Froude-scaled
+    from full scale to the ship's scale (``ship.scale_ratio``)."""
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    if dt is not None:
+        _check('dt', dt, _finite(dt) and 1e-3 <= dt <= 600, 'a step in [0.001, 600] s')
+    if trial_scale not in ('ship', 'full'):
+        raise ConfigError(f"trial_scale {trial_scale!r}: use 'ship' or 'full'")
+    if trial_scale == 'full' and ship is None:
+        raise ConfigError("trial_scale='full' needs the ship (its scale_ratio)")
+    tm = load_topic_map(topics)
+    if dt:
+        tm = replace(tm, dt=dt)
+    trials: list[Trial] = []
+    for p in paths:
+        trials.extend(_load.load_trials(p, tm))
+    if trial_scale == 'full' and ship.scale_ratio != 1.0:
+        trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
+    if dt:
+        trials = [t if abs(t.dt - dt) < 1e-9 else t.resampled(dt) for t in trials]
+    return trials
+
+
+# ---------------------------------------------------------------------------------- checks
+def _finite(x) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+def _check(name: str, value, ok: bool, what: str, error=ConfigError) -> None:
+    if not ok:
+        raise error(f'{name} = {value!r}: must be {what}')
+
+
+def _check_common(cfg, error) -> None:
+    _check('a_r', cfg.a_r, cfg.a_r is None or (_finite(cfg.a_r) and cfg.a_r > 0),
+           'a finite number > 0 (relative box half-width)', error)
+    _check('integrator', cfg.integrator, cfg.integrator in INTEGRATORS,
+           f'one of {sorted(INTEGRATORS)}', error)
+    _check('seed', cfg.seed, _is_int(cfg.seed) and 0 <= cfg.seed <= MAX_SEED,
+           f'a whole number in [0, {MAX_SEED}]', error)
+    if cfg.targets is not None:
+        _check('targets', cfg.targets, len(cfg.targets) > 0 and all(
+            isinstance(t, str) for t in cfg.targets), 'a non-empty list of parameter names',
+            error)
+
+
+# ---------------------------------------------------------------------------------- tune
+@dataclass(frozen=True)
+class TuneConfig:
+    """Options of :func:`tune` (the ``tune`` command's flags), validated on creation.
+
+    targets: parameter names to tune (default: the ship's); a_r: relative box half-width
+    (default: the ship's, 0.5); bounds: per-parameter a_r or (lower, upper); weights: six
+    non-negative error weights on x, y, psi, u, v, r (default: the paper's L, L, pi/4, 0, 0, 0);
+    shoot_every_s: restart from the recorded state every H s (0: never); popsize / max_popsize /
+    max_evals: IPOP-CMA-ES budget; seed: a whole number.
+    """
+
+    targets: tuple[str, ...] | None = None
+    a_r: float | None = None
+    bounds: Mapping[str, float | tuple[float, float]] = field(default_factory=dict)
+    weights: tuple[float, ...] | None = None
+    shoot_every_s: float = 0.0
+    integrator: str = 'euler'
+    substeps: int = 1
+    popsize: int = 12
+    max_popsize: int = 128
+    max_evals: int = 200_000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        E = TuningError
+        _check_common(self, E)
+        if self.targets is not None:
+            object.__setattr__(self, 'targets', tuple(self.targets))
+        for name, b in dict(self.bounds).items():
+            ok = (_finite(b) and float(b) > 0) if not isinstance(b, tuple) else (
+                len(b) == 2 and all(_finite(x) for x in b) and float(b[0]) < float(b[1]))
+            _check(f'bounds[{name!r}]', b, ok, 'a finite a_r > 0 or (lower, upper) with '
+                   'lower < upper', E)
+        if self.weights is not None:
+            w = tuple(float(x) if _finite(x) else math.nan for x in self.weights)
+            _check('weights', self.weights, len(w) == 6 and all(x >= 0 for x in w),
+                   'six finite numbers >= 0 (x, y, psi, u, v, r)', E)
+            _check('weights', self.weights, any(x > 0 for x in w),
+                   'not all zero (J would be 0 for every candidate)', E)
+            object.__setattr__(self, 'weights', w)
+        _check('shoot_every_s', self.shoot_every_s,
+               _finite(self.shoot_every_s) and self.shoot_every_s >= 0,
+               'a finite number >= 0 [s] (0: never)', E)
+        _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
+               'a whole number in [1, 1000]', E)
+        _check('popsize', self.popsize, _is_int(self.popsize) and 2 <= self.popsize <= 100_000,
+               'a whole number >= 2', E)
+        _check('max_popsize', self.max_popsize, _is_int(self.max_popsize)
+               and self.popsize <= self.max_popsize <= 100_000,
+               f'a whole number >= popsize ({self.popsize})', E)
+        _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 1,
+               'a whole number >= 1', E)
+
+
+@dataclass
+class Fit:
+    """J (Suyama et al. 2023, eq. 43) of one parameter set, per trial and summed over the
+    tuning and the test set. A run that diverged or left the model's range has J = inf and
+    its failure time [s from the trial's start] in ``failed_at_s``."""
+
+    per_trial: dict[str, float]
+    sets: dict[str, str]                       # trial -> 'tune' | 'test'
+    failed_at_s: dict[str, float] = field(default_factory=dict)
+
+    def _sum(self, which: str) -> float | None:
+        vals = [j for n, j in self.per_trial.items() if self.sets[n] == which]
+        return float(sum(vals)) if vals else None
+
+    @property
+    def tune(self) -> float:
+        """Summed over the tuning trials."""
+        return self._sum('tune')
+
+    @property
+    def test(self) -> float | None:
+        """Summed over the test trials (None without any)."""
+        return self._sum('test')
+
+
+def _fit(obj_by_set: dict[str, tuple[Objective, list[str]]], params: np.ndarray) -> Fit:
+    per, sets, failed = {}, {}, {}
+    for which, (obj, names) in obj_by_set.items():
+        J, k_fail = obj.per_trial(params[None])
+        for j, name in enumerate(names):
+            n = int(obj.batch.lengths[j])
+            bad = k_fail[0, j] < n or not math.isfinite(J[0, j])
+            per[name] = math.inf if bad else float(J[0, j])
+            sets[name] = which
+            if bad:
+                failed[name] = float(min(k_fail[0, j], n - 1) * obj.batch.dt)
+    return Fit(per, sets, failed)
+
+
+@dataclass
+class TuneResult:
+    """What :func:`tune` found. ``params``: tuned values of the targets; ``J`` / ``J_pre``:
+    the tuned / pre-determined model's :class:`Fit`; ``bounds_hit``: targets that ended on a
+    bound of their box; ``history``: (evaluations, restart, best J) per generation."""
+
+    params: dict[str, float]
+    J: Fit
+    J_pre: Fit
+    bounds_hit: list[str]
+    history: list[tuple[int, int, float]]
+    evaluations: int
+    restarts: int
+    wall_s: float
+    interrupted: bool
+    ship: ShipConfig = field(repr=False)
+    space: ParameterSpace = field(repr=False)
+    config: TuneConfig = field(repr=False)
+    trials: list[Trial] = field(repr=False, default_factory=list)
+    test: list[Trial] = field(repr=False, default_factory=list)
+    dt: float = 0.0
+
+    @property
+    def tuned_ship(self) -> ShipConfig:
+        return self.ship.with_params(self.params)
+
+    def report(self) -> dict:
+        """report.json's content."""
+        c = self.config
+        per_trial = {n: {'set': self.J.sets[n], 'J_pre': self.J_pre.per_trial[n],
+                         'J_tuned': self.J.per_trial[n]} for n in self.J.per_trial}
+        for n, t in self.J.failed_at_s.items():
+            per_trial[n]['tuned_failed_at_s'] = t
+        for n, t in self.J_pre.failed_at_s.items():
+            per_trial[n]['pre_failed_at_s'] = t
+        sp = self.space
+        return {
+            'ship': self.ship.name,
+            'J': {'pre': {'tune': self.J_pre.tune, 'test': self.J_pre.test},
+                  'tuned': {'tune': self.J.tune, 'test': self.J.test}},
+            'per_trial': per_trial,
+            'params': {n: {'pre': float(p), 'tuned': float(self.params[n]),
+                           'lower': float(lo), 'upper': float(hi),
+                           'on_bound': n in self.bounds_hit}
+                       for n, p, lo, hi in zip(sp.names, sp.pre, sp.lower, sp.upper)},
+            'bounds_hit': list(self.bounds_hit), 'evaluations': int(self.evaluations),
+            'restarts': self.restarts, 'wall_s': float(self.wall_s),
+            'interrupted': self.interrupted,
+            'settings': {'a_r': c.a_r or self.ship.a_r,
+                         'weights': list(c.weights or paper_weights(self.ship.L_pp)),
+                         'shoot_every_s': c.shoot_every_s, 'integrator': c.integrator,
+                         'dt': self.dt, 'seed': c.seed, 'max_evals': c.max_evals,
+                         'popsize': [c.popsize, c.max_popsize]},
+            'finite': bool(math.isfinite(self.J.tune)),
+        }
+
+    def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
+        """params.yaml, report.md, plot_<trial>.png, and report.json last (its presence means
+        the set is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`."""
+        names = ', '.join(unique_names(self.trials)) or 'the tuning trials'
+        docs = [('params.yaml', params_yaml_text(self.ship, self.params,
+                                                 f'tuned by mmg_tuner on {names}')),
+                ('report.md', markdown_report(self.report()))]
+        images = {}
+        if plots:
+            images = plot_trials(self.ship, self.trials + self.test,
+                                 {'pre-determined': self.ship.params,
+                                  'tuned': self.tuned_ship.params},
+                                 'plot_', self.config.integrator, self.config.substeps)
+        return _write_all(out, docs, images, ('report.json', json_text(self.report())))
+
+
+def _write_all(out, docs, images, last) -> list[Path]:
+    own = not isinstance(out, OutputDir)
+    od = OutputDir.open(out) if own else out
+    try:
+        paths = [od.write_text(n, t) for n, t in docs]
+        paths += [od.write_bytes(n, b) for n, b in images.items()]
+        paths.append(od.write_text(*last))
+    finally:
+        if own:
+            od.close()
+    return paths
+
+
+def _as_list(trials) -> list[Trial]:
+    if trials is None:
+        return []
+    if isinstance(trials, Trial):
+        return [trials]
+    return list(trials)
+
+
+def _config(cls, config, options: dict):
+    if config is None:
+        return cls(**options)
+    if not isinstance(config, cls):
+        raise TypeError(f'config must be a {cls.__name__}, got {type(config).__name__}')
+    return replace(config, **options) if options else config
+
+
+def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
+         test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
+         checkpoint: str | Path | None = None, resume: bool = False,
+         progress: Callable[[Progress], None] | None = None, **options) -> TuneResult:
+    """Tune ``ship``'s targets on ``trials`` with IPOP-CMA-ES (the paper's formulation);
+    ``test`` trials are only evaluated. ``options`` are :class:`TuneConfig` fields (e.g.
+    ``max_evals=5000, a_r=0.5``). ``checkpoint``: a file written every generation;
+    ``resume=True`` continues from it. Ctrl-C stops after the current generation and returns
+    the best so far with ``interrupted=True``."""
+    cfg = _config(TuneConfig, config, options)
+    trials, test = _as_list(trials), _as_list(test)
+    if not trials:
+        raise TuningError('no tuning trials given')
+    space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
+    weights = np.array(cfg.weights) if cfg.weights else paper_weights(ship.L_pp)
+    names = unique_names(trials + test)
+    obj = Objective(ship, TrialBatch.from_trials(trials), weights, cfg.shoot_every_s,
+                    cfg.integrator, cfg.substeps)
+    sets = {'tune': (obj, names[:len(trials)])}
+    if test:
+        sets['test'] = (Objective(ship, TrialBatch.from_trials(test), weights,
+                                  cfg.shoot_every_s, cfg.integrator, cfg.substeps),
+                        names[len(trials):])
+    logger.info('tuning %d parameters of %s on %d trial(s)%s; box a_r = %g', space.dim,
+                ship.name, len(trials), f', testing on {len(test)}' if test else '',
+                cfg.a_r or ship.a_r)
+    tuner = Tuner(space, obj, popsize=cfg.popsize, max_popsize=cfg.max_popsize,
+                  max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
+    res = tuner.run(resume=resume, progress=progress)
+    tuned = space.full_params(ship.params, res.theta)[0]
+    return TuneResult(dict(zip(space.names, map(float, res.theta))), _fit(sets, tuned),
+                      _fit(sets, ship.params), space.on_bound(res.theta), list(res.history),
+                      res.evaluations, res.restarts, res.wall_s, res.interrupted, ship, space,
+                      cfg, trials, test, obj.batch.dt)
+
+
+# ---------------------------------------------------------------------------------- diagnose
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    """Options of :func:`diagnose` (the ``diagnose`` command's flags), validated on creation.
+
+    effects: library entries to search (default: all); targets / a_r: the base model's tuning
+    box; budget: 'quick', 'standard' or 'full' (evaluations for the base tuning, the screening
+    and each candidate's re-tuning; base_evals / screen_evals / effect_evals override them);
+    max_effects: how many causes at most.
+    """
+
+    effects: tuple[str, ...] = tuple(EFFECTS)
+    targets: tuple[str, ...] | None = None
+    a_r: float | None = None
+    budget: str = 'standard'
+    max_effects: int = 3
+    integrator: str = 'rk4'
+    seed: int = 0
+    base_evals: int | None = None
+    screen_evals: int | None = None
+    effect_evals: int | None = None
+
+    def __post_init__(self) -> None:
+        E = DiagnosisError
+        _check_common(self, E)
+        object.__setattr__(self, 'effects', tuple(self.effects))
+        if self.targets is not None:
+            object.__setattr__(self, 'targets', tuple(self.targets))
+        unknown = [e for e in self.effects if e not in EFFECTS]
+        _check('effects', list(self.effects), bool(self.effects) and not unknown,
+               f'a non-empty list of {sorted(EFFECTS)}', E)
+        _check('budget', self.budget, self.budget in BUDGETS, f'one of {list(BUDGETS)}', E)
+        _check('max_effects', self.max_effects,
+               _is_int(self.max_effects) and 1 <= self.max_effects <= len(EFFECTS),
+               f'a whole number in [1, {len(EFFECTS)}]', E)
+        for k in ('base_evals', 'screen_evals', 'effect_evals'):
+            v = getattr(self, k)
+            _check(k, v, v is None or (_is_int(v) and v >= 1), 'a whole number >= 1', E)
+
+    def settings(self) -> DiagnosisSettings:
+        base_e, screen_e, eff_e = BUDGETS[self.budget]
+        return DiagnosisSettings(
+            targets=self.targets, a_r=self.a_r, effects=list(self.effects),
+            integrator=self.integrator, base_evals=self.base_evals or base_e,
+            screen_evals=self.screen_evals or screen_e, effect_evals=self.effect_evals or eff_e,
+            max_effects=self.max_effects, seed=self.seed)
+
+
+@dataclass
+class ModelFit:
+    """One model of a diagnosis: J on the tuning and test trials, its parameters."""
+
+    J_tune: float
+    J_test: float
+    J_test_per_trial: dict[str, float]
+    params: dict[str, float]
+    heldout_gain_total: float | None = None   # final model: 1 - J_test / base model's J_test
+
+    def __getitem__(self, key: str):  # dict-style reading, as diagnosis.json has it
+        return getattr(self, key)
+
+
+@dataclass
+class DiagnosisResult:
+    """What :func:`diagnose` found: the named ``causes``, the tuned base model (``baseline``)
+    and the final model with the causes (``final``, its full parameters in ``params``:
+    ``ship.with_params(dx.params)``), every candidate tried per round, effects the trials can
+    barely see, and the residuals of both models on the test trials."""
+
+    causes: list[Cause]
+    baseline: ModelFit
+    final: ModelFit
+    params: dict[str, float]
+    candidates: list[list[Candidate]]
+    barely_identifiable: dict[str, dict]
+    residuals: dict[str, dict]
+    wall_s: float
+    ship: ShipConfig = field(repr=False)
+    test: list[Trial] = field(repr=False, default_factory=list)
+    config: DiagnoseConfig = field(repr=False, default_factory=DiagnoseConfig)
+
+    def to_dict(self) -> dict:
+        """diagnosis.json's content."""
+        base = asdict(self.baseline)
+        base.pop('heldout_gain_total')
+        final = asdict(self.final)
+        final.pop('params')
+        return {'causes': [c.to_dict() for c in self.causes], 'baseline': base, 'final': final,
+                'candidates': [[asdict(c) for c in r] for r in self.candidates],
+                'residuals': self.residuals, 'barely_identifiable': self.barely_identifiable,
+                'params': self.params, 'wall_s': self.wall_s}
+
+    def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
+        """params.yaml first, diagnosis.md, plots, and diagnosis.json last (its presence means
+        the set is complete)."""
+        doc = self.to_dict()
+        names = ', '.join(c.effect for c in self.causes) or 'none'
+        docs = [('params.yaml', params_yaml_text(
+                    self.ship, self.params,
+                    f'tuned and extended by mmg_tuner diagnose (effects: {names})')),
+                ('diagnosis.md', _diagnosis_markdown(doc, self.ship))]
+        images = {}
+        if plots:
+            integ = self.config.integrator
+            base_p = self.ship.with_params(self.baseline.params).params
+            final_p = self.ship.with_params(self.params).params
+            images = plot_residuals(self.test,
+                                    simulate_trials(self.ship, base_p, self.test, integ),
+                                    simulate_trials(self.ship, final_p, self.test, integ))
+            images.update(plot_trials(self.ship, self.test, {'base tuned': base_p,
+                                                             'with effects': final_p},
+                                      'overlay_', integ))
+        return _write_all(out, docs, images, ('diagnosis.json', json_text(doc)))
+
+
+def split_alternate(trials: Sequence[Trial]) -> tuple[list[Trial], list[Trial]]:
+    """Every second trial held out: (tune, test)."""
+    return list(trials[::2]), list(trials[1::2])
+
+
+def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
+             test: Trial | Sequence[Trial] | None = None, config: DiagnoseConfig | None = None,
+             *, checkpoint: str | Path | None = None, resume: bool = False,
+             **options) -> DiagnosisResult:
+    """Tune the base model on ``trials``, search the effects library, name the cause(s) by
+    their gain on the held-out ``test`` trials (default: every second trial of ``trials``
+    is held out; at least two are needed). ``options`` are :class:`DiagnoseConfig` fields
+    (e.g. ``budget='quick'``). ``checkpoint``: a file where every completed tuning is stored;
+    ``resume=True`` continues from it. Ctrl-C raises KeyboardInterrupt after the last
+    completed tuning was stored (never a truncated result)."""
+    cfg = _config(DiagnoseConfig, config, options)
+    trials, test = _as_list(trials), _as_list(test)
+    if not test:
+        if len(trials) < 4:
+            raise DiagnosisError(
+                f'{len(trials)} trial(s) and no test trials: holding out every second one '
+                'needs at least four (two held out, or no cause could ever be named)')
+        trials, test = split_alternate(trials)
+        logger.info('held out (every second trial): %s', ', '.join(unique_names(test)))
+    check_trial_sets(trials, test)
+    d = _diagnose(ship, trials, test, cfg.settings(), checkpoint=checkpoint, resume=resume)
+    logger.info('3/3 reporting')
+    res_base, _ = residuals_for(ship, d.base_params, test, cfg.integrator)
+    res_final, _ = residuals_for(ship, d.params, test, cfg.integrator)
+    b, f = d.baseline, d.final
+    return DiagnosisResult(
+        d.causes,
+        ModelFit(b['J_tune'], b['J_test'], b['J_test_per_trial'], b['params']),
+        ModelFit(f['J_tune'], f['J_test'], f['J_test_per_trial'], dict(d.params),
+                 f['heldout_gain_total']),
+        dict(d.params), d.rounds, d.aliased,
+        {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg)
+
+
+# ---------------------------------------------------------------------------------- simulate
+def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substeps: int = 1
+             ) -> Trial:
+    """The model's prediction of a recorded trial, as a :class:`Trial` on the same time grid
+    (compare ``run.states`` with ``trial.states`` sample by sample). It starts from the state
+    the tuning objective uses (a quadratic fit over the first 10 s) and is driven by the
+    recorded rpm, rudder and measured wind. A run that diverges or leaves the model's range
+    has NaN states from then on and a note saying when and why."""
+    _check('integrator', integrator, integrator in INTEGRATORS, f'one of {sorted(INTEGRATORS)}')
+    _check('substeps', substeps, _is_int(substeps) and 1 <= substeps <= 1000,
+           'a whole number in [1, 1000]')
+    traj = simulate_recorded(ship, trial, None, integrator, substeps)
+    notes = [f'simulated by mmg_tuner ({ship.name}, {integrator}, {substeps} substep(s)) from '
+             'the fitted start state']
+    if not traj.ok:
+        msg = (f'the simulation stopped at t = {traj.fail_time_s:.2f} s: {traj.status}; '
+               'states are NaN from there')
+        notes.append(msg)
+        logger.warning('%s: %s', trial.name, msg)
+    return Trial(trial.t.copy(), traj.states, trial.controls.copy(), trial.name,
+                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
+                 None if trial.wind is None else trial.wind.copy())
+
+
+def config_fields(cls) -> list[str]:
+    """Field names of a config dataclass (for the CLIs)."""
+    return [f.name for f in fields(cls)]
