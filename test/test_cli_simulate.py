@@ -41,7 +41,7 @@ def test_bad_input_gives_error_not_traceback(capsys):
     with pytest.raises(SystemExit) as exc:
         main(['--rpm', '-5'])
     assert exc.value.code == 2
-    assert 'ERROR: rpm = -5.0' in capsys.readouterr().err
+    assert "ERROR: simulate: argument --rpm: '-5' must be > 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(['--ship', 'nonexistent'])
     assert exc.value.code == 2

@@ -1,19 +1,133 @@
-"""Shared CLI plumbing: error reporting."""
+"""Shared CLI plumbing: error reporting, argparse that reports through it, and single output
+files that are checked before the work starts and never replace a file this run did not make."""
 from __future__ import annotations
 
+import argparse
+import errno
+import math
+import os
 import sys
+import tempfile
+from pathlib import Path
 from typing import Callable
 
-from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.cli.args import bounded
+from mmg_tuner.core.limits import FN_TOP, input_limits
+from mmg_tuner.errors import MmgTunerError, OutputError
+
+# the most samples one simulated or generated run may hold: 1e7 x 9 float64 columns is 720 MB
+# in memory and ~1 GB of CSV; more is a mistyped --dt or --duration, not a manoeuvre
+MAX_RUN_SAMPLES = 10_000_000
+SEED = bounded(int, 0, 2**31 - 1, 'seed')
+
+
+class UsageError(MmgTunerError):
+    """A command-line option is malformed or out of range."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose errors become one ``ERROR: ...`` line with exit status 2 (run_command)."""
+
+    def error(self, message: str):
+        raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')
 
 
 def run_command(command: Callable[[list[str] | None], int], argv: list[str] | None) -> int:
     """Call command(argv); a MmgTunerError becomes 'ERROR: ...' and exit status 2."""
+    _never_fail_printing()
     try:
         return command(argv)
-    except MmgTunerError as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+    except MmgTunerError as exc:  # one line, whatever a library put into the message
+        text = ' '.join(ln.strip() for ln in str(exc).splitlines() if ln.strip())
+        print(f'ERROR: {text}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130
+
+
+def _never_fail_printing() -> None:
+    """A file name that is not UTF-8 (kept by Python as surrogate escapes) must not crash a
+    message about it: print it with backslash escapes instead."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors='backslashreplace')
+        except (AttributeError, ValueError, OSError):  # not a TextIOWrapper (e.g. replaced)
+            pass
+
+
+def check_samples(n: float, what: str, limit: int = MAX_RUN_SAMPLES) -> int:
+    """n samples as an int, or a UsageError naming what asked for them when n > limit."""
+    if not n <= limit:
+        raise UsageError(f'{what} gives {n:.4g} samples, more than the {limit:.0e} one run '
+                         'may hold: use a larger step or a shorter duration')
+    return int(n)
+
+
+def check_new_file(path: str | Path, option: str) -> Path:
+    """Check, before the work starts, that ``path`` can be written as a new file: refuses an
+    existing file or folder (nothing is overwritten) and a location that is not writable.
+    Creates missing parent folders."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f'{option} {path} is an existing folder; give a file name')
+    if os.path.lexists(path):
+        raise OutputError(f'{option} {path} exists; nothing is overwritten: choose a new name '
+                          'or remove it first')
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path.parent, prefix='.write_probe.')
+        os.close(fd)
+        os.unlink(probe)  # our own probe file, created just above
+    except OSError as exc:
+        raise OutputError(f'{option} {path}: cannot write there ({exc.strerror or exc})') from None
+    return path
+
+
+def write_new_file(path: str | Path, data: str | bytes, option: str) -> Path:
+    """Write ``data`` as the new file ``path``, atomically and without replacing anything:
+    the text goes to a temporary file that is then hard-linked into place (which fails if
+    the name was taken meanwhile). Failures raise an OutputError saying nothing was written."""
+    path = Path(path)
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.tmp')
+        with os.fdopen(fd, 'wb' if isinstance(data, bytes) else 'w', encoding=None
+                       if isinstance(data, bytes) else 'utf-8') as f:
+            f.write(data)
+        try:
+            os.link(tmp, path)
+        except OSError as exc:  # a file system without hard links: exclusive create instead
+            if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV):
+                raise
+            with open(path, 'xb') as out, open(tmp, 'rb') as src:
+                out.write(src.read())
+    except FileExistsError:
+        raise OutputError(f'{option} {path} appeared while this run worked; nothing is '
+                          'overwritten and nothing was written') from None
+    except OSError as exc:
+        raise OutputError(f'writing {option} {path} failed ({exc.strerror or exc}); nothing '
+                          'was written') from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)  # our own temporary file
+    return path
+
+
+def check_run(ship, rpm: float, speed_ms: float, speed_opt: str,
+              rudders: list[tuple[str, float]]) -> None:
+    """Refuse, before any work, what the ship cannot plausibly do (core/limits.py): an rpm
+    beyond its plausible maximum, a speed beyond its top speed, a rudder beyond its steering
+    limit. rudders: (option as given, rudder angle [deg]) pairs."""
+    lim = input_limits(ship)
+    problem = lim.check_rpm(rpm)
+    if problem:
+        raise UsageError(f'--rpm: {problem} for {ship.name}')
+    if speed_ms > lim.top_speed_ms:
+        raise UsageError(f'{speed_opt}: {speed_ms:g} m/s exceeds the plausible top speed of '
+                         f'{ship.name}, {lim.top_speed_ms:.1f} m/s (Froude number {FN_TOP:g})')
+    limit_deg = math.degrees(ship.max_rudder_rad)
+    for opt, deg in rudders:
+        if abs(deg) > limit_deg + 1e-9:
+            raise UsageError(f'{opt}: rudder {deg:g} deg exceeds the {ship.name} steering '
+                             f'limit of {limit_deg:.1f} deg')

@@ -9,46 +9,58 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+from dataclasses import replace
 
-from mmg_tuner.cli.common import run_command
-from mmg_tuner.data.csv_io import write_trial_csv
-from mmg_tuner.data.summary import format_summary, summarize
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.cli.args import bounded
+from mmg_tuner.cli.common import Parser, run_command
+from mmg_tuner.data.csv_io import csv_text
+from mmg_tuner.data.summary import format_summary, summarize_many
 from mmg_tuner.data.topics import load_topic_map
 
 
+DT = bounded(float, 1e-3, 3600.0, 'resampling step dt [s]')
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog='inspect', description=__doc__.split('\n')[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='inspect', description=__doc__.split('\n')[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('inputs', nargs='+', help='rosbag2 dirs, .mcap, .csv, .dat, or folders')
     ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics)')
-    ap.add_argument('--dt', type=float, help='resampling step [s] (default: topic map, 1.0)')
-    ap.add_argument('--csv', metavar='OUT_DIR', help='write each trial as CSV here')
+    ap.add_argument('--dt', type=DT, help='resampling step [s] (default: topic map, 1.0)')
+    ap.add_argument('--ship', help='ship config name or YAML: samples beyond its plausible '
+                                   'rpm, rudder and speed are dropped with a note (default: '
+                                   'generic limits that fit any ship)')
+    ap.add_argument('--csv', metavar='OUT_DIR',
+                    help='write each trial as CSV into this new (or empty) folder')
     return ap
 
 
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tm = load_topic_map(args.topics)
-    if args.dt:
-        from dataclasses import replace
+    if args.dt is not None:
         tm = replace(tm, dt=args.dt)
-    usable = 0
-    for inp in args.inputs:
-        if not Path(inp).exists():
-            print(f'{inp}\n  PROBLEM: no such file or directory')
-            continue
-        summaries, trials = summarize(inp, tm)
+    limits = None
+    if args.ship:
+        from mmg_tuner.core.limits import input_limits
+        from mmg_tuner.core.ship import load_ship
+        limits = input_limits(load_ship(args.ship))
+    out = OutputDir.open(args.csv, option='--csv') if args.csv else None
+    try:
+        summaries, trials = summarize_many(args.inputs, tm, limits)
         for rs in summaries:
             print(format_summary(rs))
-        usable += len(trials)
-        if args.csv:
+        if out is not None:
             for tr in trials:
-                out = Path(args.csv) / f'{tr.name}.csv'
-                write_trial_csv(tr, out)
-                print(f'  wrote {out}')
-    print(f'{usable} usable trial(s)')
-    return 0 if usable else 1
+                path = out.write_text(f'{tr.name}.csv', csv_text(tr.t, tr.states, tr.controls,
+                                                                 tr.wind))
+                print(f'  wrote {path}')
+    finally:
+        if out is not None:
+            out.close()
+    print(f'{len(trials)} usable trial(s)')
+    return 0 if trials else 1
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -10,39 +10,57 @@ import argparse
 import math
 import sys
 
-from mmg_tuner.cli.common import run_command
+from mmg_tuner.cli.args import bounded, finite_float, nonneg_float, positive_float
+from mmg_tuner.cli.common import (SEED, Parser, UsageError, check_new_file, check_run,
+                                  check_samples, run_command, write_new_file)
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.csv_io import csv_text
-from mmg_tuner._atomic import write_atomic
+
+
+SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
+
+
+def check_angle(s: str) -> float:
+    """A zigzag check angle [deg]: 0 < |angle| <= 90 (its sign is not used)."""
+    v = finite_float(s)
+    if not 0 < abs(v) <= 90:
+        raise argparse.ArgumentTypeError(f'check angle {s!r} must satisfy 0 < |angle| <= 90 deg')
+    return v
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog='simulate', description=__doc__.split('\n')[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='simulate', description=__doc__.split('\n')[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('--ship', default='suzaku', help='ship config name or YAML path')
     ap.add_argument('--params', help='params.yaml with tuned values to overlay')
     ap.add_argument('--maneuver', choices=mv.MANEUVERS, default='turning')
-    ap.add_argument('--rudder-deg', type=float, default=35.0,
-                    help='rudder angle (zigzag amplitude); + = starboard')
-    ap.add_argument('--check-deg', type=float, help='zigzag check angle (default = rudder)')
-    ap.add_argument('--rpm', type=float, default=106.0, help='propeller revolutions [rpm]')
+    ap.add_argument('--rudder-deg', type=finite_float, default=35.0,
+                    help="rudder angle (zigzag amplitude); + = starboard; within the ship's limit")
+    ap.add_argument('--check-deg', type=check_angle,
+                    help='zigzag check angle (default = rudder)')
+    ap.add_argument('--rpm', type=positive_float, default=106.0,
+                    help='propeller revolutions [rpm], up to the ship\'s plausible maximum')
     speed = ap.add_mutually_exclusive_group()
-    speed.add_argument('--speed-kn', type=float, default=6.0, help='approach speed [kn]')
-    speed.add_argument('--speed-ms', type=float, help='approach speed [m/s]')
-    ap.add_argument('--duration', type=float, default=900.0, help='[s]')
-    ap.add_argument('--dt', type=float, default=1.0, help='output sample step [s]')
-    ap.add_argument('--substeps', type=int, default=1, help='integration steps per sample')
+    speed.add_argument('--speed-kn', type=positive_float, default=6.0, help='approach speed [kn]')
+    speed.add_argument('--speed-ms', type=positive_float, help='approach speed [m/s]')
+    ap.add_argument('--duration', type=positive_float, default=900.0, help='[s]')
+    ap.add_argument('--dt', type=positive_float, default=1.0,
+                    help='output sample step [s]; dt / substeps is the integration step')
+    ap.add_argument('--substeps', type=SUBSTEPS, default=1,
+                    help='integration steps per sample (1-1000)')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
-    ap.add_argument('--approach', type=float, default=0.0,
-                    help='straight run before the rudder is executed [s]')
-    ap.add_argument('--pullout-after', type=float, default=300.0,
+    ap.add_argument('--approach', type=nonneg_float, default=0.0,
+                    help='straight run before the rudder is executed [s], < duration')
+    ap.add_argument('--pullout-after', type=positive_float, default=300.0,
                     help='pull-out: time the rudder is held before returning to 0 [s]')
-    ap.add_argument('--rudder-rate', type=float,
+    ap.add_argument('--rudder-rate', type=nonneg_float,
                     help='steering-gear rate [deg/s]; 0 = instantaneous; default: the ship\'s')
-    ap.add_argument('--seed', type=int, default=0, help='random manoeuvre seed')
-    ap.add_argument('--out', help='CSV file to write (t,x,y,psi,u,v,r,rpm,rudder)')
+    ap.add_argument('--seed', type=SEED, default=0, help='random manoeuvre seed')
+    ap.add_argument('--out', help='new CSV file to write (t,x,y,psi,u,v,r,rpm,rudder); an '
+                                  'existing file is never overwritten')
     return ap
 
 
@@ -50,6 +68,19 @@ def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     ship = load_ship(args.ship, args.params)
     speed = args.speed_ms if args.speed_ms is not None else args.speed_kn * mv.KNOT
+    check_run(ship, args.rpm, speed, '--speed-ms' if args.speed_ms is not None else '--speed-kn',
+              [('--rudder-deg', args.rudder_deg)])
+    step = args.dt / args.substeps
+    problem = input_limits(ship).check_dt(step)
+    if problem:
+        raise UsageError(f'--dt {args.dt:g} / --substeps {args.substeps}: integration step '
+                         f'{problem} for {ship.name}')
+    check_samples(args.duration / args.dt + 1, f'--duration {args.duration:g} / --dt {args.dt:g}')
+    if args.approach >= args.duration:
+        raise UsageError(f'--approach {args.approach:g} s must be shorter than --duration '
+                         f'{args.duration:g} s (the rudder would never be executed)')
+    if args.out:
+        check_new_file(args.out, '--out')
     spec = mv.ManeuverSpec(
         maneuver=args.maneuver, rudder_deg=args.rudder_deg, check_deg=args.check_deg,
         rpm=args.rpm, speed_ms=speed, duration_s=args.duration, dt=args.dt,
@@ -58,7 +89,7 @@ def command(argv: list[str] | None = None) -> int:
         substeps=args.substeps, seed=args.seed)
     traj = mv.run(ship, spec)
     if args.out:
-        write_atomic(args.out, csv_text(traj.t, traj.states, traj.controls))
+        write_new_file(args.out, csv_text(traj.t, traj.states, traj.controls), '--out')
         print(f'wrote {args.out} ({traj.t.size} samples)')
     if not traj.ok:
         print(f'WARNING: simulation stopped at t = {traj.fail_time_s:.1f} s: {traj.status}',

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from mmg_tuner.core.limits import RUDDER_HARD_CAP_RAD, InputLimits
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
@@ -18,10 +19,47 @@ from mmg_tuner.errors import TrialDataError
 
 MIN_SAMPLES = 10
 MAX_SAMPLES = 20_000_000  # ~230 days at 1 s: more means corrupt stamps
+MAX_WIND_MS = 100.0  # no anemometer reading beyond it is wind (the strongest gusts ~110 m/s)
 
 
-def clean_series(s: Series, path: str, t0_ns: int) -> Series:
-    """Drop non-finite and duplicate samples, sort unsorted stamps; say what was done."""
+# Without a ship the readers still refuse what no ship can do (a unit error, corrupt data);
+# with one (load_trials(..., limits=input_limits(ship))) the ranges are the ship's own.
+GENERIC_LIMITS = InputLimits(
+    rpm_max=1e5, rudder_max_rad=RUDDER_HARD_CAP_RAD, rudder_plausible_rad=RUDDER_HARD_CAP_RAD,
+    top_speed_ms=50.0, speed_max_ms=100.0, yaw_rate_max_rad_s=2 * math.pi, dt_min_s=1e-3,
+    dt_max_s=60.0, rpm_basis='no ship given: the generic cap of 1e5 rpm')
+
+
+def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[np.ndarray, str]:
+    """(mask of samples no ship of these limits can show, what is wrong with them)."""
+    v = s.values
+    none = np.zeros(len(v), dtype=bool)
+    if role == 'rudder':
+        return (np.abs(v[:, 0] * tm.rudder_to_rad) > lim.rudder_plausible_rad,
+                f'|rudder| > {math.degrees(lim.rudder_plausible_rad):.0f} deg')
+    if role == 'rpm':
+        return (np.abs(v[:, 0] * tm.rpm_factor) > lim.rpm_max,
+                f'|rpm| > {lim.rpm_max:.0f} ({lim.rpm_basis})')
+    if role in ('odom', 'twist'):
+        bad = none.copy()
+        if role == 'odom':
+            bad |= np.any(np.abs(v[:, :2]) > lim.position_max_m, axis=1)
+        vel = v[:, 3:6] if role == 'odom' and v.shape[1] == 6 else v if role == 'twist' else None
+        if vel is not None:
+            bad |= np.hypot(vel[:, 0], vel[:, 1]) > lim.speed_max_ms
+            bad |= np.abs(vel[:, 2]) > lim.yaw_rate_max_rad_s
+        return bad, (f'position beyond {lim.position_max_m:.0e} m, speed > '
+                     f'{lim.speed_max_ms:.1f} m/s or |yaw rate| > '
+                     f'{math.degrees(lim.yaw_rate_max_rad_s):.0f} deg/s')
+    if role == 'wind':
+        return np.hypot(v[:, 0], v[:, 1]) > MAX_WIND_MS, f'wind > {MAX_WIND_MS:g} m/s'
+    return none, ''
+
+
+def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap | None = None,
+                 limits: InputLimits | None = None) -> Series:
+    """Drop non-finite, implausible (outside limits, see core/limits.py) and duplicate
+    samples, sort unsorted stamps; say what was done."""
     def t(ns):
         return (ns - t0_ns) * 1e-9
     ok = np.all(np.isfinite(s.values), axis=1)
@@ -30,6 +68,14 @@ def clean_series(s: Series, path: str, t0_ns: int) -> Series:
         s.notes.append(f'{s.topic}: dropped {bad.size} non-finite sample(s), first at '
                        f't = {t(s.stamps_ns[bad[0]]):.3f} s')
         s.stamps_ns, s.values = s.stamps_ns[ok], s.values[ok]
+    if role and s.values.size:
+        mask, what = _implausible(s, role, tm or TopicMap(), limits or GENERIC_LIMITS)
+        if mask.any():
+            bad = np.nonzero(mask)[0]
+            s.notes.append(f'{s.topic}: dropped {bad.size} implausible sample(s) ({what}), '
+                           f'first at t = {t(s.stamps_ns[bad[0]]):.3f} s, value '
+                           f'{s.values[bad[0]].tolist()}')
+            s.stamps_ns, s.values = s.stamps_ns[~mask], s.values[~mask]
     if s.stamps_ns.size and np.any(np.diff(s.stamps_ns) < 0):
         k = int(np.argmax(np.diff(s.stamps_ns) < 0))
         s.notes.append(f'{s.topic}: stamps not sorted (first at t = {t(s.stamps_ns[k]):.3f} s); '
@@ -43,7 +89,8 @@ def clean_series(s: Series, path: str, t0_ns: int) -> Series:
                            f't = {t(s.stamps_ns[np.argmax(dup)]):.3f} s')
             s.stamps_ns, s.values = s.stamps_ns[~dup], s.values[~dup]
     if s.stamps_ns.size < 2:
-        raise TrialDataError(f'{path}: topic {s.topic} has fewer than 2 usable samples')
+        raise TrialDataError(f'{path}: topic {s.topic} has fewer than 2 usable samples'
+                             + (f' ({"; ".join(s.notes)})' if s.notes else ''))
     return s
 
 
@@ -77,8 +124,10 @@ def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int,
     return segs
 
 
-def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> list[Trial]:
-    """Frame, resample and split one recording into trials (see module docstring)."""
+def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
+                    limits: InputLimits | None = None) -> list[Trial]:
+    """Frame, resample and split one recording into trials (see module docstring).
+    limits: plausibility ranges of the ship (core.limits.input_limits); default generic."""
     needed = ['odom', 'rudder', 'rpm']
     for role in needed:
         if role not in rec.series:
@@ -88,17 +137,18 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial') -> lis
             raise TrialDataError(f'{rec.path}: topic {topic} missing or empty; found: {found}. '
                                  'Use --topics MAP.yaml to map other names.')
     t0_ns = int(min(s.stamps_ns.min() for s in rec.series.values()))
-    series = [clean_series(rec.series[t], rec.path, t0_ns) for t in needed]
+    series = [clean_series(rec.series[t], rec.path, t0_ns, t, tm, limits) for t in needed]
     twist = None
     if 'twist' in rec.series:
-        twist = clean_series(rec.series['twist'], rec.path, t0_ns)
+        twist = clean_series(rec.series['twist'], rec.path, t0_ns, 'twist', tm, limits)
         series.append(twist)
     wind = None
     if 'wind' in rec.series:
-        wind = clean_series(rec.series['wind'], rec.path, t0_ns)
+        wind = clean_series(rec.series['wind'], rec.path, t0_ns, 'wind', tm, limits)
         if not wind.frame:
             wind.frame = tm.wind_frame
-    notes = [n for s in series for n in s.notes] + (wind.notes if wind is not None else [])
+    notes = list(rec.notes) + [n for s in series for n in s.notes] + \
+        (wind.notes if wind is not None else [])
     if any(not np.array_equal(s.stamps_ns, s.receive_ns) for s in series[:1]):
         notes.append(f'{tm.odom_topic}: header stamps used (not receive time)')
     trials = []

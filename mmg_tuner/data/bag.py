@@ -7,15 +7,19 @@ those into validated, framed, resampled trials. No ROS install is needed.
 from __future__ import annotations
 
 import math
+import os
+import sqlite3
+import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from mmg_tuner.data.cdr import decode_columns
+from mmg_tuner.data.files import _why, check_regular_file, display_text
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.errors import TrialDataError
+from mmg_tuner.errors import OutputError, TrialDataError
 
 try:  # rosbags >= 0.10
     from rosbags.typesys import Stores, get_typestore
@@ -44,6 +48,7 @@ class RawRecording:
     topics_found: dict[str, tuple[str, int]]  # topic -> (type, message count)
     start_ns: int = 0
     end_ns: int = 0
+    notes: list[str] = field(default_factory=list)  # about the container (e.g. recovered)
 
 
 def _stamp_ns(header) -> int:
@@ -100,7 +105,7 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
     for raw, ts in zip(raws, recv):
         try:
             msg = TYPESTORE.deserialize_cdr(raw, msgtype)
-        except Exception as exc:  # rosbags raises several types for corrupt CDR
+        except READER_ERRORS as exc:  # corrupt CDR
             raise TrialDataError(f'{path}: topic {topic} at t = {ts * 1e-9:.3f} s: cannot '
                                  f'decode message ({type(exc).__name__})') from None
         st, v = _decode(msg, msgtype, joint, role, topic, path)
@@ -127,56 +132,139 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
     return roles
 
 
-def _iter_rosbag2(path: Path):
-    from rosbags.rosbag2 import Reader
+def _reader_errors() -> tuple[type[BaseException], ...]:
+    """What the readers raise on a corrupt, truncated or unreadable file -- found by fuzzing
+    real bags (test_data_io.py flips and cuts bytes) -- so that only those become
+    TrialDataError and a bug of ours still surfaces as itself."""
+    from mcap.exceptions import McapError
     from rosbags.rosbag2.errors import ReaderError
+    from rosbags.serde import SerdeError
+    errs: list[type[BaseException]] = [
+        ReaderError, McapError, SerdeError, sqlite3.Error, struct.error, OSError, EOFError,
+        UnicodeDecodeError,   # corrupt strings (topic names, YAML, CDR strings)
+        OverflowError, MemoryError,  # corrupt length fields: the readers try to allocate them
+        KeyError, IndexError,  # corrupt ids: a channel or schema that is not there
+        RuntimeError]         # lz4.frame's decompression error
+    try:
+        import apsw  # rosbags' sqlite3 driver
+        errs.append(apsw.Error)
+    except ImportError:  # pragma: no cover
+        pass
+    for mod in ('backports.zstd', 'compression.zstd', 'zstandard'):
+        try:
+            errs.append(__import__(mod, fromlist=['ZstdError']).ZstdError)
+        except (ImportError, AttributeError):
+            pass
+    return tuple(errs)
+
+
+READER_ERRORS = _reader_errors()
+MAX_METADATA_BYTES = 64 << 20  # a rosbag2 metadata.yaml is kilobytes; more is not one
+
+
+def _check_bag_files(bag: Path) -> list[Path]:
+    """The storage files of a rosbag2 folder, every file checked to be regular."""
+    check_regular_file(bag / 'metadata.yaml', 'rosbag2 metadata.yaml', MAX_METADATA_BYTES)
+    files = sorted(p for p in bag.iterdir() if p.suffix in ('.mcap', '.db3', '.zstd'))
+    for f in files:
+        check_regular_file(f, 'rosbag2 storage file')
+    return files
+
+
+def _iter_rosbag2(path: Path):
+    """Items of a rosbag2 folder; one whose MCAP storage rosbags cannot open (a recorder
+    killed before writing the footer) is recovered by a streaming read of its .mcap files."""
+    from rosbags.rosbag2 import Reader
+    files = _check_bag_files(path)
+    started = False
     try:
         with Reader(path) as reader:
             conns = list(reader.connections)
-            yield 'connections', [(c.topic, c.msgtype, c.msgcount) for c in conns]
+            items = [(c.topic, c.msgtype, c.msgcount) for c in conns]
+            started = True
+            yield 'connections', items
             yield from ((c.topic, c.msgtype, ts, raw) for c, ts, raw in reader.messages())
-    except TrialDataError:
-        raise
-    except (ReaderError, Exception) as exc:  # the boundary: corrupt bags raise many types
-        raise TrialDataError(f'{path}: cannot read rosbag2 ({type(exc).__name__}: {exc})') \
-            from None
+    except READER_ERRORS as exc:
+        mcaps = [f for f in files if f.suffix == '.mcap']
+        if started or not mcaps:
+            raise TrialDataError(f'{path}: cannot read rosbag2 ({type(exc).__name__}: '
+                                 f'{exc})') from None
+        yield 'note', (f'{path}: rosbags cannot open it ({type(exc).__name__}: {exc}); read '
+                       'its MCAP file(s) record by record instead')
+        for f in mcaps:
+            yield from _iter_mcap_stream(f)
 
 
 def _iter_bare_mcap(path: Path):
-    """rosbags reads a bare ROS 2 MCAP fastest; other MCAP files go through the mcap library."""
+    """rosbags reads a bare ROS 2 MCAP fastest; other MCAP files (another profile, a missing
+    summary or footer, corruption) are read record by record with the mcap library."""
+    from rosbags.rosbag2 import Reader
     try:
-        from rosbags.rosbag2 import Reader
-        with Reader(path) as reader:
-            conns = [(c.topic, c.msgtype, c.msgcount) for c in reader.connections]
-    except Exception:  # not readable by rosbags (profile, schema encoding, corrupt summary)
-        yield from _iter_mcap(path)
+        reader = Reader(path)
+        reader.open()
+    except READER_ERRORS:
+        yield from _iter_mcap_stream(path)
         return
-    yield 'connections', conns
-    for item in _iter_rosbag2(path):
-        if item[0] != 'connections':
-            yield item
-
-
-def _iter_mcap(path: Path):
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
     try:
-        with open(path, 'rb') as f:
-            reader = make_reader(f)
-            summary = reader.get_summary()
-            if summary is not None:
-                counts = summary.statistics.channel_message_counts if summary.statistics else {}
-                conns = [(ch.topic, summary.schemas[ch.schema_id].name, counts.get(cid, 0))
-                         for cid, ch in summary.channels.items()]
-                yield 'connections', conns
-            else:
-                yield 'connections', None
-            for schema, channel, message in reader.iter_messages():
-                yield channel.topic, schema.name, message.log_time, message.data
-    except TrialDataError:
-        raise
-    except (McapError, Exception) as exc:  # the boundary: corrupt files raise many types
-        raise TrialDataError(f'{path}: cannot read MCAP ({type(exc).__name__}: {exc})') from None
+        yield 'connections', [(c.topic, c.msgtype, c.msgcount) for c in reader.connections]
+        yield from ((c.topic, c.msgtype, ts, raw) for c, ts, raw in reader.messages())
+    except READER_ERRORS as exc:
+        raise TrialDataError(f'{path}: cannot read MCAP ({type(exc).__name__}: {exc})') \
+            from None
+    finally:
+        reader.close()
+
+
+def _iter_mcap_stream(path: Path):
+    """Every intact message of an MCAP file, read front to back without its summary: a file
+    cut short (a recorder killed before writing the footer) or corrupt part-way gives the
+    messages before the break, and a note saying how many and where it broke."""
+    from mcap.records import Channel, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader
+    size = check_regular_file(path, 'MCAP file')
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+    counts: dict[int, int] = {}
+    n = orphans = 0
+    first_ns = last_ns = None
+    complete = False
+    problem = None
+    with open(path, 'rb') as f:
+        try:
+            reader = StreamReader(f, skip_magic=False, record_size_limit=max(size, 1 << 16))
+            for rec in reader.records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec.name
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ''))
+                elif isinstance(rec, Message):
+                    ch = channels.get(rec.channel_id)
+                    if ch is None:
+                        orphans += 1
+                        continue
+                    counts[rec.channel_id] = counts.get(rec.channel_id, 0) + 1
+                    n += 1
+                    first_ns = rec.log_time if first_ns is None else first_ns
+                    last_ns = rec.log_time
+                    yield ch[0], ch[1], rec.log_time, rec.data
+                elif isinstance(rec, Footer):
+                    complete = True
+        except READER_ERRORS as exc:
+            problem = (f'{type(exc).__name__}{": " + str(exc) if str(exc) else ""} near byte '
+                       f'{f.tell()} of {size}')
+    if n == 0:
+        raise TrialDataError(f'{path}: cannot read MCAP: no intact message'
+                             f'{" (" + problem + ")" if problem else ""}')
+    yield 'connections', [(channels[c][0], channels[c][1], k) for c, k in counts.items()]
+    if problem or not complete:
+        ends = problem is None or problem.startswith('EndOfFile')
+        why = ('the file ends before its footer (a recorder stopped without closing it?)'
+               if ends else f'the file is corrupt ({problem})')
+        yield 'note', (f'{display_text(str(path))}: {why}; recovered the {n} intact '
+                       f'message(s) before the break, up to {(last_ns - first_ns) * 1e-9:.1f} s '
+                       'after the first; anything after it is lost'
+                       + (f'; {orphans} message(s) of unknown channels skipped' if orphans
+                          else ''))
 
 
 def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
@@ -188,8 +276,7 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
             raise TrialDataError(f'{bag}: not a rosbag2 directory (no metadata.yaml)')
         it = _iter_rosbag2(bag)
     elif path.suffix == '.mcap':
-        if not path.is_file():
-            raise TrialDataError(f'{path}: no such file')
+        check_regular_file(path, 'MCAP file')
         it = _iter_bare_mcap(path)
     else:
         raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')
@@ -199,7 +286,11 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
     raws: dict[str, list] = {t: [] for t in types}
     found: dict[str, tuple[str, int]] = {}
     first = last = None
+    notes: list[str] = []
     for item in it:
+        if item[0] == 'note':
+            notes.append(item[1])
+            continue
         if item[0] == 'connections':
             for topic, msgtype, count in item[1] or []:
                 found[topic] = (msgtype, int(count))
@@ -233,7 +324,7 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
     for topic in found:
         if topic in raws and not raws[topic]:
             found[topic] = (found[topic][0], 0)
-    return RawRecording(str(path), series, found, first or 0, last or 0)
+    return RawRecording(str(path), series, found, first or 0, last or 0, notes)
 
 
 def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
@@ -278,8 +369,8 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                         vector=ts.types['geometry_msgs/msg/Vector3'](
                             x=float(trial.wind[k, 1]), y=float(trial.wind[k, 0]), z=0.0)),
                         V3S.__msgtype__))
-    except WriterError as exc:
-        raise TrialDataError(f'{path}: cannot write rosbag2 ({exc})') from None
+    except (WriterError, OSError) as exc:
+        raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None
 
 
 def _header(stamp_ns: int, frame_id: str):
@@ -328,9 +419,8 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
     Float64 = ts.types['std_msgs/msg/Float64']
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
     path = Path(path)
-    if path.exists():
-        import shutil
-        shutil.rmtree(path)
+    if os.path.lexists(path):  # never replace what is there (a recording, a user's folder)
+        raise OutputError(f'{path} exists; nothing is overwritten: choose a new path')
     try:
         with Writer(path, version=9, storage_plugin=plugin) as w:
             c_sim = w.add_connection('/odom', Odometry, typestore=ts)
@@ -348,5 +438,5 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
                                                        Float64.__msgtype__))
                 w.write(c_rpm, stamp, ts.serialize_cdr(Float64(data=float(trial.controls[k, 0])),
                                                        Float64.__msgtype__))
-    except WriterError as exc:
-        raise TrialDataError(f'{path}: cannot write rosbag2 ({exc})') from None
+    except (WriterError, OSError) as exc:
+        raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None

@@ -3,11 +3,13 @@ wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]."""
 from __future__ import annotations
 
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.files import check_regular_file, display_text, safe_name
 from mmg_tuner.data.trial import CSV_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
 
@@ -29,28 +31,83 @@ def write_trial_csv(trial: Trial, path: str | Path) -> None:
     write_atomic(path, csv_text(trial.t, trial.states, trial.controls, trial.wind))
 
 
-def read_trial_csv(path: str | Path) -> Trial:
-    """Read a CSV with a header naming at least t,x,y,psi,u,v,r,rpm,rudder (any order)."""
+MAX_CSV_BYTES = 1 << 30  # 1 GiB: a day of 50 Hz samples is ~0.5 GB; more is not one trial
+MAX_CSV_ROWS = 20_000_000
+MAX_TIME_S = 1e10  # ~300 years: a larger time is no trial time (and overflows int64 ns)
+
+
+def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
+    """(lower-case header, data (rows, columns), notes) of a CSV trial file.
+
+    Only a regular file of at most MAX_CSV_BYTES is read; a UTF-8 byte-order mark is skipped;
+    rows with a wrong number of fields are dropped with a note, as are rows whose time (column
+    't') is not a number; other non-numeric fields become NaN (dropped later, with a note)."""
     path = Path(path)
+    check_regular_file(path, 'CSV file', MAX_CSV_BYTES)
     try:
-        with open(path) as f:
-            header = f.readline().strip().split(',')
-            data = np.loadtxt(f, delimiter=',', ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise TrialDataError(f'{path}: cannot read CSV ({exc})') from None
-    header = [h.strip().lower() for h in header]
+        with open(path, 'rb') as f:
+            raw = f.read(MAX_CSV_BYTES + 1)
+        text = raw.decode('utf-8-sig')
+    except OSError as exc:
+        raise TrialDataError(f'{path}: cannot read CSV ({exc.strerror or exc})') from None
+    except UnicodeDecodeError as exc:
+        raise TrialDataError(f'{path}: not UTF-8 text (byte {exc.start}): not a CSV '
+                             'trial') from None
+    if len(raw) > MAX_CSV_BYTES:
+        raise TrialDataError(f'{path}: more than {MAX_CSV_BYTES / 1e6:.0f} MB: not one trial')
+    lines = text.splitlines()
+    if not lines:
+        raise TrialDataError(f'{path}: empty file, no CSV header')
+    header = [h.strip().strip('"').strip().lower() for h in lines[0].split(',')]
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
+    rows = [(k, ln) for k, ln in enumerate(lines[1:], 1) if ln.strip()]
+    if len(rows) > MAX_CSV_ROWS:
+        raise TrialDataError(f'{path}: {len(rows)} rows, more than the {MAX_CSV_ROWS} a trial '
+                             'may have')
+    notes = []
+    good = [(k, ln) for k, ln in rows if ln.count(',') == len(header) - 1]
+    if len(good) < len(rows):
+        bad = [k for k, ln in rows if ln.count(',') != len(header) - 1]
+        notes.append(f'{path.name}: dropped {len(bad)} row(s) without {len(header)} fields, '
+                     f'first data row {bad[0]}')
+    body = [ln for _, ln in good]
+    data = np.empty((0, len(header)))
+    if body:
+        try:
+            data = np.loadtxt(body, delimiter=',', ndmin=2, dtype=float)
+        except ValueError:  # empty or non-numeric fields: NaN there, dropped with a note later
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                data = np.genfromtxt(body, delimiter=',', ndmin=2, dtype=float)
+        data = data.reshape(len(body), len(header))
+    t = data[:, header.index('t')]
+    with np.errstate(invalid='ignore'):
+        bad_t = ~(np.abs(t) <= MAX_TIME_S)
+    if bad_t.any():
+        idx = [good[k][0] for k in np.nonzero(bad_t)[0]]
+        notes.append(f'{path.name}: dropped {len(idx)} row(s) whose time t is not a number '
+                     f'(or beyond {MAX_TIME_S:.0e} s), first data row {idx[0]}')
+        data = data[~bad_t]
     if data.shape[0] < 2:
-        raise TrialDataError(f'{path}: fewer than 2 rows of data')
+        raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns'
+                             + (f' ({"; ".join(notes)})' if notes else ''))
+    return header, data, notes
+
+
+def read_trial_csv(path: str | Path) -> Trial:
+    """Read a CSV with a header naming at least t,x,y,psi,u,v,r,rpm,rudder (any order), as it
+    stands (no resampling or repair beyond read_csv_table's; see csv_recording for that)."""
+    path = Path(path)
+    header, data, notes = read_csv_table(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     wind = None
     if all(c in header for c in WIND_COLUMNS):
         wind = np.column_stack([data[:, header.index(c)] for c in WIND_COLUMNS])
     return Trial(col['t'], np.column_stack([col[c] for c in CSV_COLUMNS[1:7]]),
-                 np.column_stack([col['rpm'], col['rudder']]), name=path.stem, source=str(path),
-                 wind=wind)
+                 np.column_stack([col['rpm'], col['rudder']]), name=safe_name(path.stem),
+                 source=display_text(str(path)), wind=wind, notes=notes)
 
 
 def csv_recording(path: str | Path):
@@ -58,21 +115,8 @@ def csv_recording(path: str | Path):
     same validation, repair and resampling as a bag."""
     from mmg_tuner.data.bag import RawRecording, Series
     path = Path(path)
-    try:
-        with open(path) as f:
-            header = [h.strip().lower() for h in f.readline().strip().split(',')]
-            data = np.genfromtxt(f, delimiter=',', ndmin=2, invalid_raise=False)
-    except (OSError, ValueError) as exc:
-        raise TrialDataError(f'{path}: cannot read CSV ({exc})') from None
-    missing = [c for c in CSV_COLUMNS if c not in header]
-    if missing:
-        raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
-    if data.ndim != 2 or data.shape[0] < 2 or data.shape[1] != len(header):
-        raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns')
+    header, data, notes = read_csv_table(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
-    if not np.all(np.isfinite(col['t'])):
-        k = int(np.argmax(~np.isfinite(col['t'])))
-        raise TrialDataError(f'{path}: non-finite time in data row {k + 1}')
     ns = np.round(col['t'] * 1e9).astype(np.int64)
     odom = np.column_stack([col['y'], col['x'], np.pi / 2 - col['psi'], col['u'], -col['v'],
                             -col['r']])
@@ -89,4 +133,4 @@ def csv_recording(path: str | Path):
                                 frame='true_enu')
     return RawRecording(str(path), series, {v.topic: (v.msgtype, len(ns))
                                             for v in series.values()},
-                        int(ns.min()), int(ns.max()))
+                        int(ns.min()), int(ns.max()), notes)

@@ -9,7 +9,7 @@ import numpy as np
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.errors import SimulationError
+from mmg_tuner.errors import ConfigError, SimulationError
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,11 @@ class SensorNoise:
     rudder_rad: float = math.radians(0.1)    # rudder angle indicator
     rpm: float = 0.2                 # shaft tachometer
     wind_ms: float = 0.5             # anemometer, per velocity component (gusts not modelled)
+
+    def __post_init__(self) -> None:
+        for k, v in self.__dict__.items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f'sensor noise {k} = {v!r}: must be a finite number >= 0')
 
     @staticmethod
     def none() -> 'SensorNoise':
@@ -55,9 +60,21 @@ def parse_maneuver(text: str) -> tuple[str, float, float | None]:
                               'pullout:20, random:30')
     rud, _, chk = (arg or '35').partition('/')
     try:
-        return kind, float(rud), float(chk) if chk else None
+        rud_deg, chk_deg = float(rud), float(chk) if chk else None
     except ValueError:
-        raise SimulationError(f'bad manoeuvre spec {text!r}') from None
+        raise SimulationError(f'bad manoeuvre spec {text!r}; use e.g. turning:35, '
+                              'zigzag:20/10') from None
+    if not math.isfinite(rud_deg) or abs(rud_deg) > 90:
+        raise SimulationError(f'manoeuvre {text!r}: rudder {rud} deg must be finite, |rudder| '
+                              '<= 90')
+    if chk_deg is not None and not (math.isfinite(chk_deg) and 0 < abs(chk_deg) <= 90):
+        raise SimulationError(f'manoeuvre {text!r}: check angle {chk} deg must be finite, '
+                              '0 < |angle| <= 90')
+    if kind == 'zigzag' and rud_deg == 0:
+        raise SimulationError(f'manoeuvre {text!r}: a zigzag needs a non-zero rudder angle')
+    if chk_deg is not None and kind != 'zigzag':
+        raise SimulationError(f'manoeuvre {text!r}: only a zigzag takes a check angle')
+    return kind, rud_deg, chk_deg
 
 
 def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg: float | None,
@@ -66,6 +83,10 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
                    record_wind: bool = False) -> tuple[Trial, Trial]:
     """(truth, measured) for one manoeuvre; truth is integrated with RK4 at <= 0.1 s.
     record_wind: the trial carries the (steady) true wind as a measurement."""
+    for what, v in (('rate_hz', rate_hz), ('duration_s', duration_s), ('rpm', rpm),
+                    ('speed_ms', speed_ms)):
+        if not (math.isfinite(v) and v > 0):
+            raise SimulationError(f'{name}: {what} = {v}: must be a finite number > 0')
     dt = 1.0 / rate_hz
     substeps = max(1, int(math.ceil(dt / 0.1)))
     spec = mv.ManeuverSpec(maneuver, rudder_deg=rudder_deg, check_deg=check_deg, rpm=rpm,

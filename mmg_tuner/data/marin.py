@@ -12,9 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.data.files import check_regular_file
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 
+MAX_DAT_BYTES = 256 << 20  # the SIMMAN files are ~200 kB each
 MARIN_DT_S = 0.13533  # 0.02 s model scale x sqrt(45.714)
 
 
@@ -22,6 +24,7 @@ def read_marin_dat(path: str | Path) -> Trial:
     """Read one MARIN .dat file into a full-scale Trial in the MMG frame (rudder sign flipped,
     earth-fixed velocities turned into body velocities)."""
     path = Path(path)
+    check_regular_file(path, 'MARIN .dat file', MAX_DAT_BYTES)
     try:
         a = np.loadtxt(path, skiprows=3, ndmin=2)
     except (OSError, ValueError) as exc:

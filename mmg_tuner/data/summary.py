@@ -7,9 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
-from mmg_tuner.data.load import find_inputs, load_trials
+from mmg_tuner.data.files import display_text, safe_name, unique_names
+from mmg_tuner.data.load import find_inputs, load_one
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -73,28 +75,64 @@ def summarize_trial(tr: Trial) -> TrialSummary:
         notes)
 
 
-def summarize(path: str | Path, tm: TopicMap) -> tuple[list[RecordingSummary], list[Trial]]:
-    out, trials = [], []
-    for p in find_inputs(Path(path)):
-        rs = RecordingSummary(str(p))
+def summarize(path: str | Path, tm: TopicMap, limits: InputLimits | None = None
+              ) -> tuple[list[RecordingSummary], list[Trial]]:
+    """What each recording in path holds (see summarize_many)."""
+    return summarize_many([path], tm, limits)
+
+
+def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | None = None
+                   ) -> tuple[list[RecordingSummary], list[Trial]]:
+    """What each recording in paths holds (one RecordingSummary each, a problem as its error)
+    and the usable trials, read as load_trials reads them, with names unique across all."""
+    out: list[RecordingSummary] = []
+    per: list[list[Trial]] = []
+    for path in paths:
+        path = Path(path)
+        if not path.exists():
+            out.append(RecordingSummary(display_text(str(path)),
+                                        error='no such file or directory'))
+            per.append([])
+            continue
         try:
-            if p.suffix in ('.csv', '.dat'):
-                found = load_trials(p, tm)
-            else:
-                rec = read_series(p, tm)
-                rs.duration_s = (rec.end_ns - rec.start_ns) * 1e-9
-                for topic, (typ, n) in sorted(rec.topics_found.items()):
-                    rate = (n - 1) / rs.duration_s if rs.duration_s > 0 and n > 1 else 0.0
-                    rs.topics[topic] = (typ, n, rate)
-                found = assemble_trials(rec, tm, name=p.stem if p.is_file() else p.name)
-            if not rs.duration_s and found:
-                rs.duration_s = sum(t.duration_s for t in found)
-            rs.trials = [summarize_trial(t) for t in found]
-            trials.extend(found)
+            inputs = find_inputs(path)
         except TrialDataError as exc:
-            rs.error = str(exc)
-        out.append(rs)
+            out.append(RecordingSummary(display_text(str(path)), error=str(exc)))
+            per.append([])
+            continue
+        for p in inputs:
+            rs, found = _summarize_one(p, tm, limits)
+            out.append(rs)
+            per.append(found)
+    trials = unique_names([t for found in per for t in found])
+    for rs, found in zip(out, per):
+        rs.trials = [summarize_trial(t) for t in found]
     return out, trials
+
+
+def _summarize_one(p: Path, tm: TopicMap, limits: InputLimits | None
+                   ) -> tuple[RecordingSummary, list[Trial]]:
+    rs = RecordingSummary(display_text(str(p)))
+    found: list[Trial] = []
+    try:
+        if p.is_dir() or p.suffix == '.mcap':
+            rec = read_series(p, tm)
+            rs.duration_s = (rec.end_ns - rec.start_ns) * 1e-9
+            for topic, (typ, n) in sorted(rec.topics_found.items()):
+                rate = (n - 1) / rs.duration_s if rs.duration_s > 0 and n > 1 else 0.0
+                rs.topics[display_text(topic)] = (display_text(typ), n, rate)
+            found = assemble_trials(rec, tm, name=safe_name(p.name if p.is_dir() else p.stem),
+                                    limits=limits)
+            for tr in found:
+                tr.source = display_text(tr.source)
+        else:
+            found = load_one(p, tm, limits=limits)
+        if not rs.duration_s and found:
+            rs.duration_s = sum(t.duration_s for t in found)
+    except TrialDataError as exc:
+        rs.error = str(exc)
+        found = []
+    return rs, found
 
 
 def format_summary(rs: RecordingSummary) -> str:

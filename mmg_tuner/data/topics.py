@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import math
+import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -19,6 +21,8 @@ WIND_TYPES = ('geometry_msgs/msg/Vector3Stamped',)
 # apparent_flu: the air's velocity relative to the ship in base_link (FLU, m/s), as an
 # anemometer on the ship measures it (converted to true wind with the recorded motion)
 WIND_FRAMES = ('true_enu', 'apparent_flu')
+SECTIONS = ('odom', 'twist', 'rudder', 'rpm', 'wind', 'resample')
+MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
 
 @dataclass(frozen=True)
@@ -67,25 +71,56 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
         return TopicMap()
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f'topic map {path}: {exc}') from None
-    return topic_map_from_dict(doc, str(path))
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_MAP_BYTES:
+            raise ConfigError(f'topic map {path}: not a regular YAML file of at most '
+                              f'{MAX_MAP_BYTES >> 20} MB')
+        doc = yaml.safe_load(path.read_bytes().decode('utf-8-sig'))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        raise ConfigError(f'topic map {path}: not valid YAML '
+                          f'({getattr(exc, "problem", None) or exc}{where})') from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f'topic map {path}: not UTF-8 text (byte {exc.start})') from None
+    except OSError as exc:
+        raise ConfigError(f'topic map {path}: {exc.strerror or exc}') from None
+    return topic_map_from_dict({} if doc is None else doc, str(path))
+
+
+def _typed(source: str, key: str, v: Any, default: Any) -> Any:
+    """v as the type of the field's default: a string for topics, types, joints, units and
+    frames, a finite number for sign, dt and max_gap_s."""
+    if isinstance(default, str):
+        if not isinstance(v, str):
+            raise ConfigError(f'{source}: {key} = {v!r} must be a string')
+        return v
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ConfigError(f'{source}: {key} = {v!r} must be a finite number')
+    return float(v)
 
 
 def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> TopicMap:
+    if not isinstance(doc, Mapping):
+        raise ConfigError(f'{source}: a topic map is a mapping of sections (odom, rudder, rpm, '
+                          f'...), not {type(doc).__name__}')
+    unknown = sorted(str(k) for k in doc if k not in SECTIONS)
+    if unknown:
+        raise ConfigError(f'{source}: unknown section(s) {unknown}; known: {list(SECTIONS)}')
     kw: dict[str, Any] = {}
-    for sec in ('odom', 'twist', 'rudder', 'rpm', 'wind'):
-        block = doc.get(sec) or {}
+    fields = TopicMap.__dataclass_fields__
+    for sec in SECTIONS:
+        block = doc.get(sec)
+        if block is None:
+            continue
+        if not isinstance(block, Mapping):
+            raise ConfigError(f'{source}: section {sec} must be a mapping of keys, not '
+                              f'{type(block).__name__}')
         for k, v in block.items():
-            key = f'{sec}_{k}'
-            if key not in TopicMap.__dataclass_fields__:
+            key = f'{sec}_{k}' if sec != 'resample' else str(k)
+            if sec == 'resample' and key not in ('dt', 'max_gap_s') or key not in fields:
                 raise ConfigError(f'{source}: unknown key {sec}.{k}')
-            kw[key] = v
-    for k, v in (doc.get('resample') or {}).items():
-        if k not in ('dt', 'max_gap_s'):
-            raise ConfigError(f'{source}: unknown key resample.{k}')
-        kw[k] = float(v)
+            kw[key] = _typed(source, f'{sec}.{k}', v, fields[key].default)
     tm = TopicMap(**kw)
     if tm.odom_type not in POSE_TYPES:
         raise ConfigError(f'{source}: odom.type {tm.odom_type!r} not one of {POSE_TYPES}')
@@ -100,6 +135,7 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
                           f'of {WIND_FRAMES}')
     if tm.rudder_sign not in (1, -1):
         raise ConfigError(f'{source}: rudder.sign must be 1 or -1')
-    if not tm.dt > 0 or not tm.max_gap_s > 0:
-        raise ConfigError(f'{source}: resample.dt and max_gap_s must be positive')
+    if not 1e-3 <= tm.dt <= 3600 or not 0 < tm.max_gap_s <= 1e6:
+        raise ConfigError(f'{source}: resample.dt must be within [0.001, 3600] s and '
+                          f'max_gap_s within (0, 1e6] s (got {tm.dt:g}, {tm.max_gap_s:g})')
     return tm

@@ -1,0 +1,70 @@
+"""Input files and trial names that cannot hurt the reader: only regular files of a bounded
+size are opened (a FIFO blocks, /dev/zero never ends), and every trial name is printable
+UTF-8 text, unique among the trials read together."""
+from __future__ import annotations
+
+import os
+import re
+import stat
+from pathlib import Path
+
+from mmg_tuner.errors import TrialDataError
+
+
+def _why(exc: BaseException) -> str:
+    return getattr(exc, 'strerror', None) or str(exc) or type(exc).__name__
+
+
+def check_regular_file(path: Path, what: str = 'file', max_bytes: int | None = None) -> int:
+    """The size of ``path`` [bytes] if it is a regular file (not a FIFO, device or socket that
+    would block or never end) of at most max_bytes; else a TrialDataError."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise TrialDataError(f'{path}: cannot read {what} ({_why(exc)})') from None
+    if not stat.S_ISREG(st.st_mode):
+        raise TrialDataError(f'{path}: not a regular file (a FIFO, device or socket): '
+                             f'refused as a {what}')
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise TrialDataError(f'{path}: {st.st_size / 1e6:.0f} MB is more than the '
+                             f'{max_bytes / 1e6:.0f} MB a {what} may have')
+    return st.st_size
+
+
+_UNSAFE = re.compile(r'[\x00-\x1f\x7f/\\]')
+
+
+def display_text(text: str) -> str:
+    """``text`` (e.g. a path whose bytes are not UTF-8, which Python keeps as surrogate
+    escapes) as valid UTF-8 text: undecodable bytes become U+FFFD."""
+    return os.fsencode(text).decode('utf-8', 'replace') if isinstance(text, str) else str(text)
+
+
+def safe_name(name: str) -> str:
+    """A trial name fit for reports and file names: valid UTF-8, no control characters or
+    path separators (each becomes '_'), never empty."""
+    return _UNSAFE.sub('_', display_text(name)).strip() or 'trial'
+
+
+def unique_names(trials: list, sources: list[str] | None = None) -> list:
+    """Give trials that share a name (e.g. turning.csv in two folders) distinct names,
+    deterministically: first ``folder/name`` from the folder each came from, then a numeric
+    suffix _2, _3 ... in input order. A renamed trial gets a note. Returns the same list."""
+    seen: dict[str, int] = {}
+    for tr in trials:
+        seen[tr.name] = seen.get(tr.name, 0) + 1
+    taken = set(seen)
+    for tr in trials:
+        if seen[tr.name] < 2:
+            continue
+        folder = safe_name(Path(tr.source).parent.name) if tr.source else ''
+        cand = f'{folder}/{tr.name}' if folder else tr.name
+        base, k = cand, 1
+        while cand in taken:
+            k += 1
+            cand = f'{base}_{k}'
+        taken.add(cand)
+        tr.notes.append(f'renamed from {tr.name!r} to {cand!r}: another trial read with it '
+                        'has the same name')
+        tr.name = cand
+    return trials
