@@ -29,6 +29,7 @@ import numpy as np
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core import ship as _ship
 from mmg_tuner.core.effects import EFFECTS
+from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
@@ -82,9 +83,9 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     tm = load_topic_map(topics)
     if dt:
         tm = replace(tm, dt=dt)
-    trials: list[Trial] = []
-    for p in paths:
-        trials.extend(_load.load_trials(p, tm))
+    # one call: names unique across all paths; samples the ship cannot show dropped with a note
+    limits = input_limits(ship) if ship is not None else None
+    trials: list[Trial] = _load.load_many(list(paths), tm, limits=limits)
     if trial_scale == 'full' and ship.scale_ratio != 1.0:
         trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
     if dt:

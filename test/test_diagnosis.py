@@ -115,13 +115,22 @@ def test_finds_a_hidden_antenna_offset(suzaku):
 def test_two_hidden_effects_are_both_named(suzaku):
     """Each must explain at least min_abs_gain (5 %) of the base model's held-out error: a
     0.2 m/s current and a 3 deg rudder offset both do (a 2 deg offset beside a 0.3 m/s
-    current explains 3 % and goes unnamed: the documented detection limit)."""
+    current explains 3 % and goes unnamed: the documented detection limit).
+
+    Margins measured over five truth draws (seeds 1-5; natively and with
+    NUMBA_CPU_NAME=generic, which agree to 1e-4 rad): speed 0.191-0.199 m/s, rudder offset
+    2.9-3.2 deg, but the direction 20-28 deg off, always to the same side: the offset and
+    the cross-track part of a weak current both bend the track, so at this size the
+    direction carries a systematic bias of about 25 deg (the 25 deg once asserted here sat
+    on it). 40 deg leaves 12 deg to the worst draw and still fails a sign, from/to or
+    north/east convention error (90 deg or more); the speed bound is tightened so that the
+    current vector stays within about 0.15 m/s."""
     d = run(suzaku, {'current_speed': 0.2, 'current_dir': 2.0,
                      'rudder_offset': math.radians(3.0)})
     assert sorted(c['effect'] for c in d.causes) == ['current', 'rudder_offset']
     p = {k: v for c in d.causes for k, v in c['parameters'].items()}
-    assert p['current_speed'] == pytest.approx(0.2, abs=0.07)
-    assert _angle_deg(p['current_dir'], 2.0) < 25
+    assert p['current_speed'] == pytest.approx(0.2, abs=0.05)
+    assert _angle_deg(p['current_dir'], 2.0) < 40
     assert math.degrees(p['rudder_offset']) == pytest.approx(3.0, abs=1.0)
 
 

@@ -38,16 +38,51 @@ def trials(ship, specs, noise, seed0):
     return out
 
 
-def test_noise_free_data_recovers_every_parameter(suzaku):
+def rudder_force_invariants(ship, space, theta) -> np.ndarray:
+    """What the trials can determine of the rudder model's coefficients. Scaling epsilon and
+    gamma_R by c scales u_R and v_R by c (same attack angle, while u_R stays above u_R**), so
+    F_N by c^2: the forces, hence every trajectory, depend only on these five combinations
+    (and the other targets), not on the six coefficients separately: a one-dimensional family
+    of exact optima."""
+    p = dict(zip(space.names, theta))
+    e2 = p['epsilon'] ** 2
+    return np.array([(1 - p['t_R']) * e2, (1 + p['a_H']) * e2,
+                     (ship['x_R'] + p['a_H'] * p['x_H']) * e2,
+                     p['gamma_Rp'] / p['epsilon'], p['gamma_Rn'] / p['epsilon']])
+
+
+def test_noise_free_data_recovers_every_identifiable_parameter(suzaku):
+    """Noise-free trials of a ship with all 12 targets moved: CMA-ES must reach the exact
+    optimum. Where on the family of exact optima it stops (t_R, a_H, x_H, epsilon, gamma_R
+    move together, see rudder_force_invariants) depends on the seeded path and on the CPU's
+    rounding (t_R ended 0.10 to 0.77 of its box from the truth over four seeds, x_H 0.036 on
+    an AMD EPYC where 0.01 was once asserted), so the test
+    asserts what the data determine, each with many orders of magnitude of margin:
+    - J at the optimum < 1e-12 of the pre-determined model's (measured ~1e-25: machine
+      precision, as noise-free data allow); a wrong objective (misaligned samples, a dropped
+      trial, wrong start state) or a tuner that stops early leaves it >= 1e-6;
+    - the six parameters outside the family within 1e-6 of their box (measured ~1e-10), the
+      five invariants within 1e-6 relative (measured ~1e-10): a wrong box mapping or a biased
+      optimum breaks it; (15 000 evaluations: seeds 1-4 had converged by 12 000)
+    - held-out manoeuvres of the truth (other rudder angles, other random orders) reproduced
+      to 1e-12 of J: the recovered model is the same ship, not a fit of these four trials."""
     space = ParameterSpace.around(suzaku)
     truth, theta = truth_ship(suzaku, space, 5)
     obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS, SensorNoise.none(),
                                                           0), x0_window_s=0))
-    res = Tuner(space, obj, seed=1, max_evaluations=25_000).run()
-    assert res.J < 1e-6 * obj(suzaku.params[None])[0]
+    res = Tuner(space, obj, seed=1, max_evaluations=15_000).run()
+    assert res.J < 1e-12 * obj(suzaku.params[None])[0]
     err = np.abs(space.to_unit(res.theta) - space.to_unit(theta))  # fraction of the box
-    weak = [space.names.index(n) for n in ('t_R', 'a_H')]  # a flat valley: X_R is small
-    assert np.delete(err, weak).max() < 0.01 and err[weak].max() < 0.1
+    family = ['t_R', 'a_H', 'x_H', 'epsilon', 'gamma_Rp', 'gamma_Rn']
+    fixed = [i for i, n in enumerate(space.names) if n not in family]
+    assert len(fixed) == 6 and err[fixed].max() < 1e-6, dict(zip(space.names, err))
+    inv = rudder_force_invariants(suzaku, space, res.theta)
+    inv_truth = rudder_force_invariants(suzaku, space, theta)
+    np.testing.assert_allclose(inv, inv_truth, rtol=1e-6)
+    test = Objective(suzaku, TrialBatch.from_trials(trials(truth, TEST_SPECS, SensorNoise.none(),
+                                                           50), x0_window_s=0))
+    tuned = space.full_params(suzaku.params, res.theta)
+    assert test(tuned)[0] < 1e-12 * test(suzaku.params[None])[0]
 
 
 def test_noisy_data_test_set_gain(suzaku):

@@ -72,11 +72,66 @@ def paper_weights(L_pp: float) -> np.ndarray:
     return np.array([L_pp, L_pp, 0.25 * math.pi, 0.0, 0.0, 0.0])
 
 
+@dataclass(frozen=True)
+class TrialFailure:
+    """Where a simulation of one trial stopped: it diverged (non-finite state) or left the
+    model's range (u <= 0, rpm <= 0). Its J is infinite: the samples after it are unexplained,
+    so a partial sum would make a diverging model look better than a working one."""
+
+    trial: str
+    sample: int | None   # first sample the model could not produce (None: not detected,
+    t_s: float | None    # only J overflowed); its time from the trial's start [s]
+
+    def __str__(self) -> str:
+        if self.t_s is None:
+            return f'diverged on trial {self.trial} (non-finite J; failure time not detected)'
+        return f'diverged on trial {self.trial} at t = {self.t_s:.6g} s'
+
+    def to_dict(self) -> dict:
+        return {'trial': self.trial, 'sample': self.sample, 't_s': self.t_s}
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """J of one parameter vector on a batch: per trial (inf where the run failed), the total
+    (inf when any trial failed) and the failures, first by trial order."""
+
+    names: tuple[str, ...]
+    J: np.ndarray                       # (M,) per trial [J units], inf for a failed trial
+    failures: tuple[TrialFailure, ...]
+
+    @property
+    def total(self) -> float:
+        return float(self.J.sum())
+
+    @property
+    def diverged(self) -> bool:
+        return bool(self.failures)
+
+    def describe(self) -> str:
+        """'1.234e+05', or 'diverged on trial X at t = 12 s' (never a partial sum)."""
+        return str(self.failures[0]) if self.failures else f'{self.total:.4g}'
+
+    def total_json(self) -> float | None:
+        """The total for JSON (which has no inf): None when a trial failed."""
+        return None if self.failures else self.total
+
+    def per_trial_json(self) -> dict[str, dict]:
+        """{trial: {'J': float or None, 'diverged': {'sample', 't_s'} or None}}."""
+        failed = {f.trial: f for f in self.failures}
+        return {n: {'J': None if n in failed else float(j),
+                    'diverged': ({'sample': failed[n].sample, 't_s': failed[n].t_s}
+                                 if n in failed else None)}
+                for n, j in zip(self.names, self.J)}
+
+
 class Objective:
     """J(params) summed over a batch of trials; one compiled call per population.
 
-    A candidate whose simulation diverges or leaves the model's range gets a penalty larger
-    than any finite J of its population, growing with how early it failed, never a crash.
+    ``per_trial`` and ``evaluate`` give a failed run (diverged or out of the model's range) an
+    infinite J and say where it failed. The call used by the optimiser ranks such a candidate
+    with a finite penalty larger than any finite J of its population, growing with how early
+    it failed (CMA-ES needs an order among failures too), never a crash.
     """
 
     def __init__(self, ship: ShipConfig, batch: TrialBatch, weights: np.ndarray | None = None,
@@ -91,8 +146,9 @@ class Objective:
         self.substeps = int(substeps)
         self.evaluations = 0
 
-    def per_trial(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw J (N, M) and failure sample (N, M; == length when the run completed)."""
+    def _raw(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The kernel's J (N, M), summed over the samples before a failure, and the failure
+        sample (N, M; == length when the run completed)."""
         params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
         N, M = params.shape[0], self.batch.meas.shape[0]
         J = np.empty((N, M))
@@ -103,12 +159,34 @@ class Objective:
         self.evaluations += N
         return J, k_fail
 
+    def per_trial(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """J (N, M), inf where the run failed, and the failure sample (N, M; == the trial's
+        length when the run completed)."""
+        J, k_fail = self._raw(params)
+        return np.where((k_fail < self.batch.lengths[None, :]) | ~np.isfinite(J), math.inf, J), \
+            k_fail
+
+    def failures(self, k_fail: np.ndarray, J: np.ndarray | None = None
+                 ) -> tuple[TrialFailure, ...]:
+        """The failures in one candidate's rows of failure samples and J (M,), in trial
+        order; a non-finite J of a run that completed counts too (time unknown)."""
+        J = np.zeros(len(k_fail)) if J is None else J
+        return tuple(TrialFailure(n, int(k), float(k * self.batch.dt)) if k < T
+                     else TrialFailure(n, None, None)
+                     for n, k, T, j in zip(self.batch.names, k_fail, self.batch.lengths, J)
+                     if k < T or not math.isfinite(j))
+
+    def evaluate(self, params: np.ndarray) -> Evaluation:
+        """J of one parameter vector (N_PARAMS,) per trial, with where any run failed."""
+        J, k_fail = self.per_trial(np.asarray(params, dtype=float).reshape(1, -1))
+        return Evaluation(tuple(self.batch.names), J[0], self.failures(k_fail[0], J[0]))
+
     def __call__(self, params: np.ndarray) -> np.ndarray:
-        """Penalised total J per candidate (N,)."""
-        J, k_fail = self.per_trial(params)
+        """Penalised total J per candidate (N,): finite, for ranking (see the class)."""
+        J, k_fail = self._raw(params)
         failed = k_fail < self.batch.lengths[None, :]
         total = J.sum(axis=1)
-        bad = failed.any(axis=1)
+        bad = failed.any(axis=1) | ~np.isfinite(total)  # (an overflow to inf counts as failed)
         if bad.any():
             ok = total[~bad]
             ceiling = 10.0 * (ok.max() if ok.size else 1.0) + 1.0
