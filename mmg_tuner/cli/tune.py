@@ -18,28 +18,15 @@ from pathlib import Path
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, nonneg_float, positive_float, positive_int
-from mmg_tuner.cli.common import run_command
-from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.cli.common import SEED, Parser, UsageError, run_command
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
 ARGS_FILE = 'args.json'
 ARGS_VERSION = 2
-SEED = bounded(int, 0, api.MAX_SEED, 'seed')
 DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
 SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
 POPSIZE = bounded(int, 2, 100_000, 'population size')
-
-
-class UsageError(MmgTunerError):
-    """A command-line option is malformed or out of range."""
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse whose errors become ``ERROR: ...`` with exit status 2 (via run_command)."""
-
-    def error(self, message: str):
-        raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')
 
 
 def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
