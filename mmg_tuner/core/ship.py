@@ -16,18 +16,10 @@ import yaml
 
 from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX,
                                    PARAM_NAMES)
+from mmg_tuner.core.models import Family, family
 from mmg_tuner.errors import ConfigError
 
 _SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'windage')
-_REQUIRED = {
-    'container': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
-                  'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'C_w', 'l_P', 'KT_0', 't_R', 'a_H', 'x_H',
-                  'epsilon', 'kappa', 'u_R0', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
-    'standard': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
-                 'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'k_0', 'C_1', 'C_2p', 'C_2n', 'x_P', 't_R',
-                 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
-}
-_DEFAULTS = {'flap_ratio': 1.0, **EFFECT_NEUTRAL}
 
 
 def config_dirs() -> list[Path]:
@@ -85,7 +77,13 @@ class ShipConfig:
 
     @property
     def kind(self) -> int:
+        """The family's integer code: what the compiled kernels take first."""
         return MODEL_KINDS[self.model]
+
+    @property
+    def family(self) -> Family:
+        """The model family: its inputs and capabilities (astern rpm, u <= 0)."""
+        return family(self.model)
 
     @property
     def L_pp(self) -> float:
@@ -149,7 +147,8 @@ def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig
     if model not in MODEL_KINDS:
         raise ConfigError(f'{source}: key "model" must be one of {sorted(MODEL_KINDS)}, '
                           f'got {model!r}')
-    values: dict[str, Any] = dict(_DEFAULTS)
+    fam = family(model)
+    values: dict[str, Any] = {**fam.defaults, **EFFECT_NEUTRAL}
     for sec in _SECTIONS:
         block = doc.get(sec) or {}
         if not isinstance(block, Mapping):
@@ -161,7 +160,7 @@ def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig
             if k not in PARAM_INDEX:
                 raise ConfigError(f'{source}: {sec}.{k} is not a known parameter')
             values[k] = v
-    missing = [k for k in _REQUIRED[model] if k not in values]
+    missing = [k for k in fam.required if k not in values]
     if missing:
         raise ConfigError(f'{source}: missing required keys {missing}')
     _derive_mass(values, source)
