@@ -1,141 +1,186 @@
-"""Effects: small physical model extensions with named parameters, bounds and units.
+"""Effects: small physical model extensions, each declared once, here.
 
-Each effect's parameters are slots of the flat parameter vector (layout.py) that the compiled
-kernels already honour; at their neutral values the effect vanishes. Rules for a new effect:
-1. its parameters get slots in layout._EFFECTS with a neutral value in EFFECT_NEUTRAL;
-2. the kernels (mmg.advance / accelerations / observe / start_state) implement it;
-3. it is registered here with bounds that cover realistic magnitudes;
-4. generation applies it (core/maneuvers.py via the kernels, data/generate.py for recording
-   effects such as time_offset), and a test hides it and requires the diagnosis to find it.
+An effect is one :class:`Effect` entry in :data:`EFFECTS`. It declares, for each of its
+parameters, the neutral value at which it vanishes, the search box, whether the parameter is a
+direction (periodic over 2 pi), the smallest magnitude worth finding, the unit, and a
+description of the physics. Everything else derives from this table: the parameter layout
+(``layout.EFFECT_NEUTRAL`` and the effect slots of the flat vector), the defaults a ship file
+may omit, the diagnosis' search boxes, and the contract test (test/test_effects_contract.py)
+that checks every entry (neutral values make the simulation equal the plain model, neutral and
+smallest magnitudes lie inside the box, the description formats).
+
+Boxes and smallest magnitudes are written at full scale and Froude-scaled to the ship
+(``ShipConfig.scale_ratio``): lengths by 1/ratio, times and speeds by 1/sqrt(ratio);
+dimensionless values and angles are unchanged. A box that depends on the ship's size (an
+antenna within the hull) is a function of the ship instead.
+
+Adding an effect: an entry here, and its hook in the kernels (``core/dynamics.py`` for forces
+and the current/wind kinematics, ``core/integrate.py`` for inputs and observations); the
+generator and the diagnosis pick it up from this table. Keep this module free of kernel
+imports: ``layout`` reads it.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, Union
 
-from mmg_tuner.core.layout import EFFECT_NEUTRAL
-from mmg_tuner.core.ship import ShipConfig
+if TYPE_CHECKING:
+    from mmg_tuner.core.ship import ShipConfig
+
+# A box: (lo, hi) at full scale (Froude-scaled by unit), or a function of the ship.
+Box = Union[tuple[float, float], Callable[['ShipConfig'], tuple[float, float]]]
+
+_FROUDE_EXPONENT = {'m': 1.0, 's': 0.5, 'm/s': 0.5}  # value_model = value_full / ratio**exp
+
+
+def froude_factor(unit: str, ratio: float) -> float:
+    """Factor taking a full-scale value in this unit to a model of scale 1:ratio."""
+    return ratio ** -_FROUDE_EXPONENT.get(unit, 0.0)
 
 
 @dataclass(frozen=True)
 class Effect:
+    """One effect. Per-parameter tuples run parallel to ``params``.
+
+    Attributes:
+        name: effect name (what ``diagnose --effects`` takes).
+        params: names of its slots in the flat parameter vector.
+        units: unit of each parameter ('m', 's', 'm/s' are Froude-scaled; 'rad', '-' are not).
+        description: the physics, in one sentence.
+        smallest: smallest magnitude worth finding, full scale, measured from neutral (0 for
+            directions: they have no size).
+        neutral: values at which the effect vanishes.
+        boxes: search box of each parameter (see :data:`Box`).
+        periodic: whether the parameter is a direction (wraps at +-pi).
+        words: formats values (and optional standard errors) for people.
+    """
+
     name: str
     params: tuple[str, ...]
     units: tuple[str, ...]
     description: str
-    # the smallest magnitude of each parameter worth finding (a realistic small error) at full
-    # scale, measured from the neutral value; 0 for directions
-    smallest: tuple[float, ...] = ()
+    smallest: tuple[float, ...]
+    neutral: tuple[float, ...]
+    boxes: tuple[Box, ...]
+    periodic: tuple[bool, ...]
+    words: Callable[[dict, dict], str]
 
-    def bounds(self, ship: ShipConfig) -> list[tuple[float, float]]:
-        return [_BOUNDS[p](ship) for p in self.params]
+    def __post_init__(self) -> None:
+        n = len(self.params)
+        for what in ('units', 'smallest', 'neutral', 'boxes', 'periodic'):
+            if len(getattr(self, what)) != n:
+                raise ValueError(f'effect {self.name}: {what} needs {n} entries')
 
-    def smallest_for(self, ship: ShipConfig) -> tuple[float, ...]:
+    def bounds(self, ship: 'ShipConfig') -> list[tuple[float, float]]:
+        """The search box of each parameter at the ship's scale."""
+        out = []
+        for box, unit in zip(self.boxes, self.units):
+            if callable(box):
+                out.append(tuple(float(b) for b in box(ship)))
+            else:
+                f = froude_factor(unit, ship.scale_ratio)
+                out.append((box[0] * f, box[1] * f))
+        return out
+
+    def smallest_for(self, ship: 'ShipConfig') -> tuple[float, ...]:
         """The smallest magnitudes Froude-scaled to the ship's scale (times and speeds by
         1/sqrt(ratio), lengths by 1/ratio)."""
-        r = ship.scale_ratio
-        scale = {'s': 1 / math.sqrt(r), 'm/s': 1 / math.sqrt(r), 'm': 1 / r}
-        return tuple(v * scale.get(u, 1.0) for v, u in zip(self.smallest, self.units))
+        return tuple(v * froude_factor(u, ship.scale_ratio)
+                     for v, u in zip(self.smallest, self.units))
 
-    def too_small(self, ship: ShipConfig, values: dict[str, float]) -> bool:
+    def too_small(self, ship: 'ShipConfig', values: dict[str, float]) -> bool:
         """Whether every sized parameter is below the smallest magnitude worth finding (an
         effect that small is noise-fitting, not a cause)."""
-        sized = [(p, s) for p, s in zip(self.params, self.smallest_for(ship)) if s > 0]
-        return bool(sized) and all(abs(values[p] - EFFECT_NEUTRAL[p]) < s for p, s in sized)
+        sized = [(p, s, n) for p, s, n in zip(self.params, self.smallest_for(ship), self.neutral)
+                 if s > 0]
+        return bool(sized) and all(abs(values[p] - n) < s for p, s, n in sized)
+
+    @property
+    def neutral_values(self) -> dict[str, float]:
+        return dict(zip(self.params, self.neutral))
 
 
-_BOUNDS = {
-    'current_speed': lambda s: (0.0, 1.5),                      # m/s
-    'current_dir': lambda s: (-math.pi, math.pi),               # rad, toward, clockwise from N
-    'rudder_offset': lambda s: (-math.radians(5), math.radians(5)),
-    'rudder_lag_tau': lambda s: (0.0, 20.0),                    # s
-    'rpm_scale': lambda s: (0.85, 1.15),
-    'yaw_moment_bias': lambda s: (-0.005, 0.005),               # N'_0
-    'antenna_x': lambda s: (-0.5 * s.L_pp, 0.5 * s.L_pp),       # m, forward of midship
-    'antenna_y': lambda s: (-0.5 * s['B'], 0.5 * s['B']),       # m, to starboard
-    'time_offset': lambda s: (-3.0, 3.0),                       # s, commands lag the state
-    # up to Beaufort 7 at full scale (Froude-scaled for a model)
-    'wind_speed': lambda s: (0.0, 17.0 / math.sqrt(s.scale_ratio)),  # m/s
-    'wind_dir': lambda s: (-math.pi, math.pi),                  # rad, from, clockwise from N
-    'prop_side_force': lambda s: (-0.03, 0.03),                 # C_YPS, ~15 % of K_T at most
-}
+def _pm(values: dict, errors: dict, name: str, scale: float = 1.0, fmt: str = '.3g') -> str:
+    v = values[name] * scale
+    e = errors.get(name)
+    return f'{v:{fmt}}' + (f' ± {abs(e * scale):.2g}' if e is not None else '')
+
+
+def _direction(values: dict, errors: dict, name: str) -> str:
+    e = errors.get(name)
+    return (f'{math.degrees(values[name]) % 360.0:.0f}'
+            + (f' ± {math.degrees(abs(e)):.2g}' if e is not None else '') + ' deg')
+
+
+_PI = (-math.pi, math.pi)
 
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect('current', ('current_speed', 'current_dir'), ('m/s', 'rad'),
            'uniform steady current; hull, propeller and rudder see the velocity through the '
            'water, positions move with the water',
-           smallest=(0.1, 0.0)),
+           smallest=(0.1, 0.0), neutral=(0.0, 0.0), boxes=((0.0, 1.5), _PI),
+           periodic=(False, True),
+           words=lambda v, e: (f"current {_pm(v, e, 'current_speed', fmt='.2f')} m/s toward "
+                               + _direction(v, e, 'current_dir'))),
     Effect('rudder_offset', ('rudder_offset',), ('rad',),
            'constant error between indicated and actual rudder angle (actual = indicated + '
            'offset)',
-           smallest=(math.radians(1.0),)),
+           smallest=(math.radians(1.0),), neutral=(0.0,),
+           boxes=((-math.radians(5), math.radians(5)),), periodic=(False,),
+           words=lambda v, e: f"rudder offset {_pm(v, e, 'rudder_offset', math.degrees(1), '.2f')}"
+                              ' deg'),
     Effect('rudder_lag', ('rudder_lag_tau',), ('s',),
            'first-order steering-gear lag between the recorded rudder and the actual angle',
-           smallest=(2.0,)),
+           smallest=(2.0,), neutral=(0.0,), boxes=((0.0, 20.0),), periodic=(False,),
+           words=lambda v, e: f"steering-gear lag {_pm(v, e, 'rudder_lag_tau', fmt='.1f')} s"),
     Effect('rpm_scale', ('rpm_scale',), ('-',),
            'shaft-speed measurement scale error (actual = scale x recorded)',
-           smallest=(0.03,)),
+           smallest=(0.03,), neutral=(1.0,), boxes=((0.85, 1.15),), periodic=(False,),
+           words=lambda v, e: f"rpm scale {_pm(v, e, 'rpm_scale', fmt='.3f')}"),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "
            'propeller side force',
-           smallest=(0.0005,)),
+           smallest=(0.0005,), neutral=(0.0,), boxes=((-0.005, 0.005),), periodic=(False,),
+           words=lambda v, e: f"yaw moment bias N'_0 = {_pm(v, e, 'yaw_moment_bias', fmt='.2e')}"),
     Effect('antenna_offset', ('antenna_x', 'antenna_y'), ('m', 'm'),
            'positions recorded at a GNSS antenna away from midship and not moved there',
-           smallest=(5.0, 1.0)),
+           smallest=(5.0, 1.0), neutral=(0.0, 0.0),
+           boxes=(lambda s: (-0.5 * s.L_pp, 0.5 * s.L_pp),      # forward of midship
+                  lambda s: (-0.5 * s['B'], 0.5 * s['B'])),     # to starboard
+           periodic=(False, False),
+           words=lambda v, e: (f"GNSS antenna {_pm(v, e, 'antenna_x', fmt='.1f')} m forward, "
+                               f"{_pm(v, e, 'antenna_y', fmt='.1f')} m to starboard of midship")),
     Effect('time_offset', ('time_offset',), ('s',),
            'delay between the command topics and the state topic (commands act time_offset '
            'seconds after their stamps)',
-           smallest=(0.5,)),
+           smallest=(0.5,), neutral=(0.0,), boxes=((-3.0, 3.0),), periodic=(False,),
+           words=lambda v, e: f"commands lag the state by {_pm(v, e, 'time_offset', fmt='.2f')} s"),
     Effect('prop_side_force', ('prop_side_force',), ('-',),
            'propeller side force (paddle-wheel effect) Y = C_YPS rho n^2 D_P^4 at the stern: '
            'a turning asymmetry that grows with the propeller load, not with speed',
-           smallest=(0.003,)),
+           smallest=(0.003,), neutral=(0.0,),
+           boxes=((-0.03, 0.03),),                              # ~15 % of K_T at most
+           periodic=(False,),
+           words=lambda v, e: (f"propeller side force C_YPS = "
+                               f"{_pm(v, e, 'prop_side_force', fmt='.2e')} "
+                               '(+: stern pushed to starboard)')),
     Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
            'steady true wind on the above-water ship; loads from the windage areas with '
            "Blendermann's (1994) coefficients",
-           smallest=(5.0, 0.0)),
+           smallest=(5.0, 0.0), neutral=(0.0, 0.0),
+           boxes=((0.0, 17.0), _PI),                            # up to Beaufort 7
+           periodic=(False, True),
+           words=lambda v, e: (f"wind {_pm(v, e, 'wind_speed', fmt='.1f')} m/s from "
+                               + _direction(v, e, 'wind_dir'))),
 )}
+
+PARAM_NEUTRAL: dict[str, float] = {p: n for e in EFFECTS.values()
+                                   for p, n in zip(e.params, e.neutral)}
+"""Every effect parameter and its neutral value, in registry order (the layout's effect slots)."""
 
 
 def describe_values(effect: Effect, values: dict[str, float],
                     errors: dict[str, float] | None = None) -> str:
-    """Human wording, e.g. 'current 0.34 +- 0.03 m/s toward 112 +- 4 deg'."""
-    errors = errors or {}
-
-    def pm(name, scale=1.0, fmt='.3g'):
-        v = values[name] * scale
-        e = errors.get(name)
-        return f'{v:{fmt}}' + (f' ± {abs(e * scale):.2g}' if e is not None else '')
-
-    n = effect.name
-    if n == 'current':
-        d = dict(values)
-        d['current_dir'] = math.degrees(values['current_dir']) % 360.0
-        e = dict(errors)
-        if 'current_dir' in e:
-            e['current_dir'] = math.degrees(e['current_dir'])
-        return (f"current {pm('current_speed', fmt='.2f')} m/s toward "
-                f"{d['current_dir']:.0f}" + (f" ± {abs(e['current_dir']):.2g}" if 'current_dir' in e
-                                              else '') + ' deg')
-    if n == 'rudder_offset':
-        return f"rudder offset {pm('rudder_offset', math.degrees(1), '.2f')} deg"
-    if n == 'rudder_lag':
-        return f"steering-gear lag {pm('rudder_lag_tau', fmt='.1f')} s"
-    if n == 'rpm_scale':
-        return f"rpm scale {pm('rpm_scale', fmt='.3f')}"
-    if n == 'yaw_moment_bias':
-        return f"yaw moment bias N'_0 = {pm('yaw_moment_bias', fmt='.2e')}"
-    if n == 'antenna_offset':
-        return (f"GNSS antenna {pm('antenna_x', fmt='.1f')} m forward, "
-                f"{pm('antenna_y', fmt='.1f')} m to starboard of midship")
-    if n == 'prop_side_force':
-        return (f"propeller side force C_YPS = {pm('prop_side_force', fmt='.2e')} "
-                f"(+: stern pushed to starboard)")
-    if n == 'wind':
-        e = errors.get('wind_dir')
-        return (f"wind {pm('wind_speed', fmt='.1f')} m/s from "
-                f"{math.degrees(values['wind_dir']) % 360.0:.0f}"
-                + (f' ± {math.degrees(abs(e)):.2g}' if e is not None else '') + ' deg')
-    if n == 'time_offset':
-        return f"commands lag the state by {pm('time_offset', fmt='.2f')} s"
-    return n
+    """Human wording, e.g. 'current 0.34 ± 0.03 m/s toward 112 ± 4 deg'."""
+    return effect.words(values, errors or {})

@@ -1,6 +1,6 @@
 """Manoeuvre programmes with a steering gear in the loop: turning circle, IMO zigzag, pull-out
 and random rudder/rpm sequences (the most informative input for identification according to
-Wakita et al. 2022). Each returns a :class:`~mmg_tuner.core.simulate.Trajectory` whose rudder
+Wakita et al. 2022). Each returns a :class:`~mmg_tuner.core.trial.Trial` whose rudder
 column is the actual (rate-limited) rudder angle, as a rudder-angle sensor would record it.
 """
 from __future__ import annotations
@@ -11,9 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from mmg_tuner.core.layout import OK, STATUS_TEXT
-from mmg_tuner.core.mmg import run_maneuver
+from mmg_tuner.core.models import family
+from mmg_tuner.core.integrate import run_maneuver
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import Trajectory, integrator_code
+from mmg_tuner.core.simulate import integrator_code
+from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import SimulationError
 
 KNOT = 1852.0 / 3600.0  # m/s
@@ -49,24 +51,14 @@ class ManeuverSpec:
     random_rpm_frac: float = 0.0
 
 
-def rate_limit(orders_rad: np.ndarray, dt: float, rate_rad_s: float) -> np.ndarray:
-    """The angle a steering gear with a rate limit reaches following sampled orders."""
-    out = np.empty_like(orders_rad)
-    delta = orders_rad[0]
-    step = rate_rad_s * dt if rate_rad_s > 0 else np.inf
-    for k, cmd in enumerate(orders_rad):
-        delta += np.clip(cmd - delta, -step, step)
-        out[k] = delta
-    return out
-
-
-def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trajectory:
+def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trial:
     """Run one manoeuvre from a straight run at spec.speed_ms (or from x0)."""
     if spec.maneuver not in MANEUVERS:
         raise SimulationError(f'unknown manoeuvre {spec.maneuver!r}; one of {MANEUVERS}')
     if spec.dt <= 0 or spec.duration_s <= 0:
         raise SimulationError('dt and duration must be positive')
-    if spec.rpm <= 0:
+    fam = family(ship.model)
+    if spec.rpm <= 0 and not fam.astern_rpm:
         raise SimulationError(f'rpm = {spec.rpm}: the MMG model covers forward propeller '
                               'revolutions only')
     if abs(spec.rudder_deg) > math.degrees(ship.max_rudder_rad) + 1e-9:
@@ -96,7 +88,7 @@ def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trajectory:
         else math.radians(spec.rudder_rate_deg_s)
     x0 = np.array([0.0, 0.0, 0.0, spec.speed_ms, 0.0, 0.0]) if x0 is None \
         else np.asarray(x0, dtype=float)
-    if x0[3] <= 0:
+    if x0[3] <= 0 and not fam.astern_surge:
         raise SimulationError(f'approach speed {x0[3]} m/s: the MMG model covers u > 0 only')
     out = np.empty((T, 6))
     rudder = np.empty(T)
@@ -105,8 +97,9 @@ def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trajectory:
                                   integrator_code(spec.integrator), out, rudder)
     controls = np.column_stack([rpm, rudder])
     if status != OK:
-        return Trajectory(t, out, controls, STATUS_TEXT[status], float(t[min(k_fail, T - 1)]))
-    return Trajectory(t, out, controls)
+        return Trial(t, out, controls, name=spec.maneuver, status=STATUS_TEXT[status],
+                     fail_time_s=float(t[min(k_fail, T - 1)]))
+    return Trial(t, out, controls, name=spec.maneuver)
 
 
 def _random_orders(t: np.ndarray, spec: ManeuverSpec) -> tuple[np.ndarray, np.ndarray]:

@@ -16,18 +16,10 @@ import yaml
 
 from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX,
                                    PARAM_NAMES)
+from mmg_tuner.core.models import Family, family
 from mmg_tuner.errors import ConfigError
 
 _SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'windage')
-_REQUIRED = {
-    'container': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
-                  'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'C_w', 'l_P', 'KT_0', 't_R', 'a_H', 'x_H',
-                  'epsilon', 'kappa', 'u_R0', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
-    'standard': ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', 'm_y', 'J_z',
-                 'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'k_0', 'C_1', 'C_2p', 'C_2n', 'x_P', 't_R',
-                 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha'),
-}
-_DEFAULTS = {'flap_ratio': 1.0, **EFFECT_NEUTRAL}
 
 
 def config_dirs() -> list[Path]:
@@ -85,7 +77,13 @@ class ShipConfig:
 
     @property
     def kind(self) -> int:
+        """The family's integer code: what the compiled kernels take first."""
         return MODEL_KINDS[self.model]
+
+    @property
+    def family(self) -> Family:
+        """The model family: its inputs and capabilities (astern rpm, u <= 0)."""
+        return family(self.model)
 
     @property
     def L_pp(self) -> float:
@@ -102,17 +100,55 @@ class ShipConfig:
     def as_dict(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(PARAM_NAMES, self.params)}
 
-    def with_params(self, values: Mapping[str, float]) -> 'ShipConfig':
-        """A copy with some parameters replaced (e.g. tuned values)."""
+    def with_params(self, values: Mapping[str, float], source: str = '') -> 'ShipConfig':
+        """A copy with some parameters replaced (e.g. tuned values), validated like a ship
+        file; ``source`` names where the values came from in errors."""
+        where = source or 'parameters'
         p = self.params.copy()
         for k, v in values.items():
-            v = float(v)
-            if not math.isfinite(v):
-                raise ConfigError(f'parameter {k} = {v} is not finite')
-            p[_index(k, self.source)] = v
+            p[_index(k, where)] = _number(v, k, where)
+        _check_physical(p, where, set(values))
         p.setflags(write=False)
         return ShipConfig(self.name, self.model, p, self.rudder_rate_rad_s, self.max_rudder_rad,
                           self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra)
+
+
+# Physical plausibility, checked for ship files and overlays alike.
+_POSITIVE = ('rho', 'L_pp', 'B', 'd', 'm', 'I_zG', 'D_P', 'H_R', 'A_R')
+_NON_NEGATIVE = ('m_x', 'm_y', 'J_z', 'rho_air', 'A_F', 'A_L', 'L_OA', 'current_speed',
+                 'wind_speed', 'rudder_lag_tau', 'rpm_scale')
+MAX_MAGNITUDE = 1e15
+"""No parameter of a ship is this large in SI units or as a coefficient (a 500 000 t ship of
+400 m has m = 5e8 kg, I_zG ~ 5e12 kg m^2): larger values are typing errors or divergent fits
+(R_0: 1e300)."""
+
+
+def _number(v: Any, key: str, source: str) -> float:
+    """A finite float from a YAML value, or a ConfigError naming the key and value."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        raise ConfigError(f'{source}: {key} = {v!r} is not a number')
+    try:
+        x = float(v)
+    except ValueError:
+        raise ConfigError(f'{source}: {key} = {v!r} is not a number') from None
+    if not math.isfinite(x):
+        raise ConfigError(f'{source}: {key} = {v!r} is not finite')
+    if abs(x) > MAX_MAGNITUDE:
+        raise ConfigError(f'{source}: {key} = {v!r} is absurdly large (|value| > '
+                          f'{MAX_MAGNITUDE:g})')
+    return x
+
+
+def _check_physical(p: np.ndarray, source: str, keys=None) -> None:
+    """Refuse physically impossible values (keys: only report these, e.g. an overlay's)."""
+    for k in _POSITIVE:
+        if not p[PARAM_INDEX[k]] > 0 and (keys is None or k in keys):
+            raise ConfigError(f'{source}: {k} must be positive, got {k} = '
+                              f'{p[PARAM_INDEX[k]]:g}')
+    for k in _NON_NEGATIVE:
+        if p[PARAM_INDEX[k]] < 0 and (keys is None or k in keys):
+            raise ConfigError(f'{source}: {k} must not be negative, got {k} = '
+                              f'{p[PARAM_INDEX[k]]:g}')
 
 
 def _index(name: str, source: str) -> int:
@@ -132,28 +168,45 @@ def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | Non
         0.08
     """
     path = resolve_config_path(name_or_path)
+    ship = ship_from_dict(_read_yaml(path, 'ship config'), str(path))
+    if params_file is not None:
+        ship = ship.with_params(load_params_file(params_file), source=str(params_file))
+    return ship
+
+
+def _read_yaml(path: Path, what: str) -> Any:
+    """A YAML document from a text file, or a ConfigError saying why not."""
+    if not path.is_file():
+        raise ConfigError(f'{what} {path} is not a file')
     try:
-        doc = yaml.safe_load(path.read_text())
+        with open(path, 'rb') as f:
+            raw = f.read(10_000_001)
+    except OSError as exc:
+        raise ConfigError(f'{path}: cannot read {what} ({exc.strerror})') from None
+    if len(raw) > 10_000_000:
+        raise ConfigError(f'{path}: over 10 MB, not a {what}')
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f'{path}: not UTF-8 text (byte {exc.start}); a {what} is a YAML '
+                          'file') from None
+    try:
+        return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f'{path}: not valid YAML ({exc})') from None
-    ship = ship_from_dict(doc, str(path))
-    if params_file is not None:
-        ship = ship.with_params(load_params_file(params_file))
-    return ship
 
 
 def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig:
     if not isinstance(doc, Mapping):
         raise ConfigError(f'{source}: a ship config must be a mapping')
     model = doc.get('model')
-    if model not in MODEL_KINDS:
+    if not isinstance(model, str) or model not in MODEL_KINDS:
         raise ConfigError(f'{source}: key "model" must be one of {sorted(MODEL_KINDS)}, '
                           f'got {model!r}')
-    values: dict[str, Any] = dict(_DEFAULTS)
+    fam = family(model)
+    values: dict[str, Any] = {**fam.defaults, **EFFECT_NEUTRAL}
     for sec in _SECTIONS:
-        block = doc.get(sec) or {}
-        if not isinstance(block, Mapping):
-            raise ConfigError(f'{source}: section {sec!r} must be a mapping')
+        block = _section(doc, sec, source)
         for k, v in block.items():
             if k in ('C_b', 'displacement'):
                 values[k] = v
@@ -161,36 +214,52 @@ def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig
             if k not in PARAM_INDEX:
                 raise ConfigError(f'{source}: {sec}.{k} is not a known parameter')
             values[k] = v
-    missing = [k for k in _REQUIRED[model] if k not in values]
+    missing = [k for k in fam.required if k not in values]
     if missing:
         raise ConfigError(f'{source}: missing required keys {missing}')
+    for k, v in values.items():
+        if not (v == 'derived' and k in ('m', 'I_zG')):
+            values[k] = _number(v, k, source)
     _derive_mass(values, source)
     p = np.zeros(N_PARAMS)
     for k, v in values.items():
         if k in ('C_b', 'displacement'):
             continue
-        try:
-            p[PARAM_INDEX[k]] = float(v)
-        except (TypeError, ValueError):
-            raise ConfigError(f'{source}: {k} = {v!r} is not a number') from None
-    if not np.all(np.isfinite(p)):
-        raise ConfigError(f'{source}: non-finite values')
-    for k in ('L_pp', 'B', 'd', 'm', 'I_zG', 'D_P', 'H_R', 'A_R', 'rho'):
-        if p[PARAM_INDEX[k]] <= 0:
-            raise ConfigError(f'{source}: {k} must be positive, got {p[PARAM_INDEX[k]]}')
+        p[PARAM_INDEX[k]] = _number(v, k, source)
+    _check_physical(p, source)
     p.setflags(write=False)
-    steering = doc.get('steering') or {}
-    tuning = doc.get('tuning') or {}
-    targets = tuple(tuning.get('targets', ()))
+    steering = _section(doc, 'steering', source)
+    tuning = _section(doc, 'tuning', source)
+    targets = tuning.get('targets', ())
+    if not isinstance(targets, (list, tuple)) or not all(isinstance(t, str) for t in targets):
+        raise ConfigError(f'{source}: tuning.targets = {targets!r} must be a list of names')
+    targets = tuple(targets)
     for t in targets:
         _index(t, source)
+    rate = _number(steering.get('rate_deg_s', 2.32), 'steering.rate_deg_s', source)
+    max_rudder = _number(steering.get('max_rudder_deg', 35.0), 'steering.max_rudder_deg', source)
+    a_r = _number(tuning.get('a_r', 0.5), 'tuning.a_r', source)
+    scale = _number(doc.get('scale_ratio', 1.0), 'scale_ratio', source)
+    for key, v, ok in (('steering.rate_deg_s', rate, rate > 0),
+                       ('steering.max_rudder_deg', max_rudder, 0 < max_rudder <= 90),
+                       ('tuning.a_r', a_r, 0 < a_r <= 10), ('scale_ratio', scale, scale > 0)):
+        if not ok:
+            raise ConfigError(f'{source}: {key} = {v:g} is out of range')
     return ShipConfig(
         name=str(doc.get('name', Path(source).stem)), model=model, params=p,
-        rudder_rate_rad_s=math.radians(float(steering.get('rate_deg_s', 2.32))),
-        max_rudder_rad=math.radians(float(steering.get('max_rudder_deg', 35.0))),
-        tuning_targets=targets, a_r=float(tuning.get('a_r', 0.5)),
-        scale_ratio=float(doc.get('scale_ratio', 1.0)), source=source,
+        rudder_rate_rad_s=math.radians(rate), max_rudder_rad=math.radians(max_rudder),
+        tuning_targets=targets, a_r=a_r, scale_ratio=scale, source=source,
         extra={k: v for k, v in doc.items() if k not in _SECTIONS})
+
+
+def _section(doc: Mapping[str, Any], sec: str, source: str) -> Mapping[str, Any]:
+    block = doc.get(sec)
+    if block is None:
+        return {}
+    if not isinstance(block, Mapping):
+        raise ConfigError(f'{source}: section {sec!r} must be a mapping of key: value, got '
+                          f'{type(block).__name__} {block!r:.60}')
+    return block
 
 
 def _derive_mass(values: dict[str, Any], source: str) -> None:
@@ -210,21 +279,15 @@ def _derive_mass(values: dict[str, Any], source: str) -> None:
 def load_params_file(path: str | Path) -> dict[str, float]:
     """Read a params.yaml written by ``tune``/``diagnose``: ``{params: {name: value}}``."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ConfigError(f'params file {path} does not exist')
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'{path}: not valid YAML ({exc})') from None
+    doc = _read_yaml(path, 'params file')
     params = doc.get('params') if isinstance(doc, Mapping) else None
     if not isinstance(params, Mapping):
         raise ConfigError(f'{path}: expected a mapping under key "params"')
     out = {}
     for k, v in params.items():
-        if k not in PARAM_INDEX:
+        if not isinstance(k, str) or k not in PARAM_INDEX:
             raise ConfigError(f'{path}: unknown parameter {k!r}')
-        try:
-            out[k] = float(v)
-        except (TypeError, ValueError):
-            raise ConfigError(f'{path}: params.{k} = {v!r} is not a number') from None
+        out[k] = _number(v, f'params.{k}', str(path))
     return out

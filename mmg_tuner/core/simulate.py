@@ -2,44 +2,15 @@
 candidates x trials in one compiled call (:func:`simulate_batch`)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from mmg_tuner.core.layout import INTEGRATORS, N_PARAMS, OK, STATE_NAMES, STATUS_TEXT
-from mmg_tuner.core.mmg import simulate_many, simulate_one
+from mmg_tuner.core.channels import CHANNELS, N_ACT
+from mmg_tuner.core.integrate import simulate_many, simulate_one
+from mmg_tuner.core.layout import INTEGRATORS, N_PARAMS, OK, STATUS_TEXT
+from mmg_tuner.core.models import Family, family
 from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.trial import Trajectory, Trial  # noqa: F401  (Trajectory: former name)
 from mmg_tuner.errors import SimulationError
-
-
-@dataclass
-class Trajectory:
-    """A simulated or recorded time history in the model frame.
-
-    t [s] (T,), states (T, 6) = x, y, psi, u, v, r (SI, rad), controls (T, 2) = rpm, rudder [rad].
-    status is 'ok' or why the simulation stopped; fail_time_s is when.
-    """
-
-    t: np.ndarray
-    states: np.ndarray
-    controls: np.ndarray
-    status: str = 'ok'
-    fail_time_s: float | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.status == 'ok'
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        if name in STATE_NAMES:
-            return self.states[:, STATE_NAMES.index(name)]
-        if name == 'rpm':
-            return self.controls[:, 0]
-        if name == 'rudder':
-            return self.controls[:, 1]
-        if name == 't':
-            return self.t
-        raise KeyError(name)
 
 
 def integrator_code(name: str) -> int:
@@ -51,24 +22,30 @@ def integrator_code(name: str) -> int:
 
 
 def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.0,
-                 what: str = 'simulation') -> None:
-    """Refuse, with a message naming the sample time, inputs outside the model's range."""
+                 what: str = 'simulation', fam: Family | None = None) -> None:
+    """Refuse, with a message naming the sample time, inputs outside the model's range (the
+    family's: astern rpm and u <= 0 only where it covers them; default: neither)."""
+    astern_rpm = fam is not None and fam.astern_rpm
+    astern_surge = fam is not None and fam.astern_surge
     if not dt > 0:
         raise SimulationError(f'{what}: time step dt must be positive, got {dt}')
     if x0.shape != (6,) or not np.all(np.isfinite(x0)):
         raise SimulationError(f'{what}: initial state must be 6 finite numbers, got {x0}')
-    if x0[3] <= 0:
+    if x0[3] <= 0 and not astern_surge:
         raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
                               'covers u > 0 only')
-    if controls.ndim != 2 or controls.shape[1] not in (2, 4):
-        raise SimulationError(f'{what}: controls must be (T, 2) rpm, rudder or (T, 4) with the '
-                              f'wind north/east components, got shape {controls.shape}')
-    bad = ~np.all(np.isfinite(controls[:, :2]), axis=1)
+    if controls.ndim != 2 or controls.shape[1] not in (2, 4, len(CHANNELS)):
+        raise SimulationError(f'{what}: controls must be (T, 2) rpm, rudder, (T, 4) with the '
+                              f'wind north/east components or (T, {len(CHANNELS)}) with the '
+                              f'thrusters too ({", ".join(CHANNELS)}), got shape '
+                              f'{controls.shape}')
+    cols = [0, 1] + list(range(4, controls.shape[1]))  # wind may be NaN: not measured
+    bad = ~np.all(np.isfinite(controls[:, cols]), axis=1)
     if bad.any():
         k = int(np.argmax(bad))
         raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s')
     neg = controls[:, 0] <= 0
-    if neg[:-1].any():
+    if neg[:-1].any() and not astern_rpm:
         k = int(np.argmax(neg))
         raise SimulationError(f'{what}: rpm = {controls[k, 0]:.2f} at t = {t0 + k * dt:.2f} s;'
                               ' the MMG model covers forward propeller revolutions only')
@@ -76,20 +53,23 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
 
 def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',
              substeps: int = 1, t0: float = 0.0, params: np.ndarray | None = None,
-             check: bool = True) -> Trajectory:
+             check: bool = True) -> Trial:
     """Simulate one trajectory driven by recorded/planned controls (zero-order hold).
 
     Args:
         ship: the ship config (its parameter vector is used unless ``params`` is given).
         x0: first observed state (x, y, psi, u, v, r), velocities over ground.
-        controls: (T, 2) rpm and rudder [rad] at each sample; sample k is held until k+1.
-            Two more columns, if given, are the measured true wind's north/east components
-            [m/s] (the air's velocity); they replace the wind parameters (NaN: not measured).
+        controls: (T, n) input channels (``core/channels.CHANNELS`` order) at each sample;
+            sample k is held until k+1. (T, 2): rpm and rudder [rad]; two more columns are the
+            measured true wind's north/east components [m/s] (the air's velocity), which
+            replace the wind parameters (NaN: not measured); two more the bow and stern
+            thrusters [rev/s].
         dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
         integrator: 'euler' (the paper's) or 'rk4'.
 
-    A run that leaves the model's range or diverges is returned with ``status`` saying so and
-    NaN after ``fail_time_s``; it never returns NaN silently.
+    Returns a :class:`~mmg_tuner.core.trial.Trial` (inputs as given). A run that leaves the
+    model's range or diverges is returned with ``status`` saying so and NaN after
+    ``fail_time_s``; it never returns NaN silently.
 
     Example:
         >>> ship = load_ship('suzaku')
@@ -99,7 +79,7 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
     x0 = np.asarray(x0, dtype=float)
     controls = np.ascontiguousarray(controls, dtype=float)
     if check:
-        check_inputs(x0, controls, dt, t0)
+        check_inputs(x0, controls, dt, t0, fam=family(ship.model))
     T = controls.shape[0]
     out = np.empty((T, 6))
     p = ship.params if params is None else np.asarray(params, dtype=float)
@@ -107,8 +87,10 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
                                   integrator_code(integrator), out)
     t = t0 + dt * np.arange(T)
     if status != OK:
-        return Trajectory(t, out, controls, STATUS_TEXT[status], float(t[min(k_fail, T - 1)]))
-    return Trajectory(t, out, controls)
+        return Trial.from_inputs(t, out, controls, name='simulation',
+                                 status=STATUS_TEXT[status],
+                                 fail_time_s=float(t[min(k_fail, T - 1)]))
+    return Trial.from_inputs(t, out, controls, name='simulation')
 
 
 def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.ndarray,
@@ -119,7 +101,8 @@ def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.
     Args:
         kind: model structure code (``ShipConfig.kind``).
         params: (N, N_PARAMS) parameter vectors.
-        x0s: (M, 6) first states; controls: (M, T, 2), padded to the longest trial;
+        x0s: (M, 6) first states; controls: (M, T, n) input channels (see
+            ``core/channels.py``), padded to the longest trial;
         lengths: (M,) samples per trial (default all T).
 
     Returns:
@@ -145,10 +128,11 @@ def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
                         hi: float = 1e5) -> float:
     """Propeller rpm at which a straight run (rudder 0) holds speed_ms: the surge force
     balance X_H + X_P + X_R = 0, solved by bisection."""
-    from mmg_tuner.core.mmg import accelerations
+    from mmg_tuner.core.dynamics import accelerations
 
     def du(rpm: float) -> float:
-        return accelerations(ship.kind, ship.params, speed_ms, 0.0, 0.0, rpm / 60.0, 0.0)[0]
+        act = (rpm / 60.0, 0.0) + (0.0,) * (N_ACT - 2)
+        return accelerations(ship.kind, ship.params, speed_ms, 0.0, 0.0, act)[0]
 
     if du(lo) > 0 or du(hi) < 0:
         raise SimulationError(f'{ship.name}: no rpm in [{lo}, {hi}] holds {speed_ms} m/s')
