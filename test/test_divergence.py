@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning.objective import Objective, TrialBatch
@@ -60,7 +61,8 @@ def test_a_diverging_run_has_infinite_J_and_says_where(suzaku):
 
     # the optimiser's ranking is unchanged: a failure ranks below every finite candidate
     # (finite penalty, larger for an earlier failure), so CMA-ES keeps an order among them
-    worse = suzaku.with_params({'R_0': 1e300}).params        # fails at the first sample
+    worse = suzaku.params.copy()                             # fails at the first sample
+    worse[PARAM_INDEX['R_0']] = 1e300                        # (with_params refuses it)
     pen = obj(np.stack([suzaku.params, bad, worse]))
     assert np.all(np.isfinite(pen)) and pen[0] < pen[1] < pen[2]
     assert obj.evaluate(worse).failures[0].t_s == pytest.approx(trials[0].dt)
@@ -95,3 +97,21 @@ def test_tune_reports_where_the_start_model_diverges(tmp_path, capsys):
     md = (out / 'report.md').read_text()
     assert 'diverge' in md and 'turning_p35' in md
     assert 'turning_p35' in text and 'diverge' in text
+
+
+def test_a_nan_state_is_reported_as_divergence_not_ok(suzaku):
+    """Under the kernels' fast-math flags a single isfinite() over the sum of the state was
+    folded to True, so a run that went NaN came back 'ok' (with m'_x < 0 it does at ~82 s)."""
+    import math
+
+    import numpy as np
+
+    from mmg_tuner.core.layout import PARAM_INDEX
+    from mmg_tuner.core.simulate import simulate
+    p = suzaku.params.copy()
+    p[PARAM_INDEX['m_x']] = -0.3
+    ctrl = np.tile([106.0, math.radians(35)], (200, 1))
+    tr = simulate(suzaku, [0, 0, 0, 3.0, 0, 0], ctrl, dt=1.0, params=p, check=False)
+    assert tr.status.startswith('diverged')
+    first_bad = int(np.argmax(~np.isfinite(tr.states).all(axis=1)))
+    assert tr.fail_time_s == pytest.approx(tr.t[first_bad])

@@ -109,13 +109,12 @@ def rpm_status(kind, n_rps):
     return RPM_NOT_POSITIVE
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True)  # no fastmath: with nsz + reassoc LLVM may fold isfinite(a + b) to True
 def state_status(kind, s):
     """OK, DIVERGED (non-finite) or SURGE_NOT_POSITIVE (u <= 0 in a family without astern)."""
-    # one test for all six: NaN/inf propagate through the sum (an overflowing sum is a
-    # divergence too)
-    if not math.isfinite(s[0] + s[1] + s[2] + s[3] + s[4] + s[5]):
-        return DIVERGED
+    for i in range(6):
+        if not math.isfinite(s[i]):
+            return DIVERGED
     if s[3] <= 0.0 and not ASTERN_SURGE[kind]:
         return SURGE_NOT_POSITIVE
     return OK
