@@ -15,6 +15,8 @@ if [ ! -x .venv/bin/python ] || [ requirements.txt -nt .venv/.installed ]; then
     || { grep -v 'is ignored' log/pip.log; exit 1; }
   touch .venv/.installed
 fi
+# tf2_msgs (TF for sim_node) has no wheel: generate and compile it with the rosidl wheels
+.venv/bin/python scripts/build_tf2_msgs.py 2>log/tf2_msgs.err || { cat log/tf2_msgs.err; exit 1; }
 # shellcheck disable=SC1091
 source .venv/bin/activate
 export ROS_LOG_DIR=${ROS_LOG_DIR:-$PWD/log/ros}

@@ -178,7 +178,9 @@ def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
 # refused at start (exit 2, one ERROR line) and at run time (a reason)
 BAD_PARAMS = [('initial_speed', math.nan), ('initial_rudder', 1000.0), ('initial_x', math.inf),
               ('initial_rpm', -50.0), ('initial_rpm', 1e308), ('dt', math.inf),
-              ('dt', 1e-7), ('real_time_factor', 1e9), ('rate_hz', 0.0), ('integrator', 'rk9')]
+              ('dt', 1e-7), ('real_time_factor', 1e9), ('rate_hz', 0.0), ('integrator', 'rk9'),
+              ('datum_lat_deg', 91.0), ('imu_accel_noise_m_s2', -1.0),
+              ('frame_prefix', 'a b')]
 
 
 def set_param(node, ex, client, name, value):

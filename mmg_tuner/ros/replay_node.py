@@ -1,8 +1,10 @@
 """``replay_node``: plays a recorded trial through the model beside the recording.
 
-Publishes /clock (trial time), the recorded commands, the recorded odometry on
-/recorded/odom and the model's odometry on /odom, at ``speed`` x real time; logs the error
-summary at the end; optionally writes everything to an MCAP that Foxglove opens.
+Publishes /clock (trial time), the recorded commands on the topic map's topics in its message
+types, units and rudder sign (as the recording had them), the recorded odometry on
+``recorded/odom`` and the model's odometry on ``odom`` (relative names), at ``speed`` x real
+time; logs the error summary at the end; optionally writes everything to an MCAP that Foxglove
+opens.
 
     ros2 run mmg_tuner replay_node --ros-args -p trial:=trials/zigzag_p20 -p speed:=10.0
 """
@@ -18,14 +20,15 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Float64
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32, Float64
 from nav_msgs.msg import Odometry
 
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import load_topic_map
+from mmg_tuner.data.topics import TopicMap, load_topic_map
 from mmg_tuner.errors import MmgTunerError, OutputError
 from mmg_tuner.ros.run import Param, declare_parameters, spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
@@ -92,6 +95,46 @@ def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)  # our own temporary folder, created above
 
 
+class CommandPublisher:
+    """The recorded rudder [rad, MMG sign] and rpm, published as the topic map describes the
+    recording: topic, message type (Float64, Float32 or JointState with its joint: rudder as
+    position, propeller as velocity, one message when both share a topic), unit and sign."""
+
+    SCALARS = {'std_msgs/msg/Float64': Float64, 'std_msgs/msg/Float32': Float32}
+
+    def __init__(self, node: Node, tm: TopicMap) -> None:
+        self.tm = tm
+        self.rudder_scale = 1.0 / tm.rudder_to_rad  # rad -> the map's unit and sign
+        self.rpm_scale = 1.0 / tm.rpm_factor        # rpm -> the map's unit
+        types = {tm.rudder_topic: tm.rudder_type, tm.rpm_topic: tm.rpm_type}
+        if tm.rudder_topic == tm.rpm_topic and tm.rudder_type != tm.rpm_type:
+            raise MmgTunerError(f'topic map: rudder and rpm share topic {tm.rudder_topic} with '
+                                f'different types {tm.rudder_type} and {tm.rpm_type}')
+        self.pubs = {topic: node.create_publisher(
+            JointState if typ == 'sensor_msgs/msg/JointState' else self.SCALARS[typ], topic, 10)
+            for topic, typ in types.items()}
+
+    def publish(self, rpm: float, rudder_rad: float, stamp) -> None:
+        tm = self.tm
+        values = {'rudder': rudder_rad * self.rudder_scale, 'rpm': rpm * self.rpm_scale}
+        joints: dict[str, JointState] = {}
+        for role, topic, typ, joint in (('rudder', tm.rudder_topic, tm.rudder_type,
+                                         tm.rudder_joint),
+                                        ('rpm', tm.rpm_topic, tm.rpm_type, tm.rpm_joint)):
+            v = float(values[role])
+            if typ != 'sensor_msgs/msg/JointState':
+                self.pubs[topic].publish(self.SCALARS[typ](data=v))
+                continue
+            msg = joints.setdefault(topic, JointState())
+            msg.header.stamp = stamp
+            msg.name.append(joint)
+            # the rudder's angle is the joint position, the shaft speed its velocity
+            msg.position.append(v if role == 'rudder' else float('nan'))
+            msg.velocity.append(v if role == 'rpm' else float('nan'))
+        for topic, msg in joints.items():
+            self.pubs[topic].publish(msg)
+
+
 class ReplayNode(Node):
     def __init__(self) -> None:
         super().__init__('replay_node')
@@ -118,10 +161,9 @@ class ReplayNode(Node):
             self.get_logger().info(f'wrote {out} (open it in Foxglove)')
         self.speed = float(p['speed'])
         self.exit_at_end = bool(p['exit_at_end'])
-        self.pub_odom = self.create_publisher(Odometry, '/odom', 10)
-        self.pub_rec = self.create_publisher(Odometry, '/recorded/odom', 10)
-        self.pub_rud = self.create_publisher(Float64, tm.rudder_topic, 10)
-        self.pub_rpm = self.create_publisher(Float64, tm.rpm_topic, 10)
+        self.pub_odom = self.create_publisher(Odometry, 'odom', 10)
+        self.pub_rec = self.create_publisher(Odometry, 'recorded/odom', 10)
+        self.pub_cmd = CommandPublisher(self, tm)
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.wall0 = self.steady.now().nanoseconds * 1e-9
@@ -137,9 +179,10 @@ class ReplayNode(Node):
         tr = self.trial
         while self.k < len(tr) and tr.t[self.k] - tr.t[0] <= elapsed:
             t = float(tr.t[self.k] - tr.t[0])
-            self.pub_clock.publish(ClockMsg(clock=stamp_from_seconds(t)))
-            self.pub_rud.publish(Float64(data=float(tr.controls[self.k, 1])))
-            self.pub_rpm.publish(Float64(data=float(tr.controls[self.k, 0])))
+            stamp = stamp_from_seconds(t)
+            self.pub_clock.publish(ClockMsg(clock=stamp))
+            self.pub_cmd.publish(float(tr.controls[self.k, 0]), float(tr.controls[self.k, 1]),
+                                 stamp)
             self.pub_rec.publish(odometry_from_state(tr.states[self.k], t))
             if np.all(np.isfinite(self.sim_states[self.k])):
                 self.pub_odom.publish(odometry_from_state(self.sim_states[self.k], t))
