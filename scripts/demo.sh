@@ -5,8 +5,17 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
 OUT=${1:-demo_out}
-rm -rf "$OUT"
+# Start afresh, but delete only a folder an earlier demo made (it carries our marker file).
+if [ -e "$OUT" ]; then
+  if [ -f "$OUT/.mmg_tuner_demo" ]; then
+    rm -rf "$OUT"
+  else
+    echo "ERROR: $OUT exists and was not made by this demo; give another folder: $0 DIR" >&2
+    exit 2
+  fi
+fi
 mkdir -p "$OUT"
+touch "$OUT/.mmg_tuner_demo"
 echo "== 1/4 generate: SUZAKU sea trials (turns, zigzags, random manoeuvres) with sensor noise;"
 echo "       the 'real' ship differs from the pre-determined model and a current is hidden"
 generate --ship suzaku --params config/demo_truth.yaml --out "$OUT/trials" --duration 300 \
