@@ -1,6 +1,8 @@
-"""``inspect``: what a recording holds as a ship trial — like `ros2 bag info`, plus detected
-manoeuvres, speed/rpm/rudder ranges and every problem found; ``--csv DIR`` writes each trial
-resampled in the model frame. Exit status 1 when nothing usable is in the input.
+"""``inspect``: what a recording holds as a ship trial — like `ros2 bag info`, plus how it is
+read (the pose source: Odometry or NavSatFix + heading, the datum, frames, time bases, topics
+found by type), a suspected command/state time offset, detected manoeuvres, speed/rpm/rudder
+ranges and every problem found; ``--csv DIR`` writes each trial resampled in the model frame.
+Exit status 1 when nothing usable is in the input.
 
 Example:
     inspect trials/turning_p35 trials/zigzag_p20 --csv out/
@@ -26,7 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='inspect', description=__doc__.split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('inputs', nargs='+', help='rosbag2 dirs, .mcap, .csv, .dat, or folders')
-    ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics)')
+    ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics; a topic '
+                                     'left open is found by type when unambiguous)')
     ap.add_argument('--dt', type=DT, help='resampling step [s] (default: topic map, 1.0)')
     ap.add_argument('--ship', help='ship config name or YAML: samples beyond its plausible '
                                    'rpm, rudder and speed are dropped with a note (default: '

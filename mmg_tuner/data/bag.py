@@ -10,14 +10,14 @@ import math
 import os
 import sqlite3
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.files import _why, check_regular_file, display_text
-from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
 
@@ -39,6 +39,11 @@ class Series:
     receive_ns: np.ndarray
     notes: list[str] = field(default_factory=list)
     frame: str = ''  # for wind: 'true_enu' or 'apparent_flu' (empty: the topic map's)
+    # frame_ids the messages carried: {'frame_id': {id: count}, 'child_frame_id': {...}};
+    # empty when not known (a CSV, a series built in code): then nothing is checked
+    frame_ids: dict[str, dict[str, int]] = field(default_factory=dict)
+    base: str = ''  # time base: 'header' (header.stamp) or 'receive'; '' = not known
+    lag_s: float | None = None  # median receive time - header stamp [s] (header base only)
 
 
 @dataclass
@@ -49,14 +54,25 @@ class RawRecording:
     start_ns: int = 0
     end_ns: int = 0
     notes: list[str] = field(default_factory=list)  # about the container (e.g. recovered)
+    topic_map: TopicMap | None = None  # the map as resolved against this recording
+    reading: list[str] = field(default_factory=list)  # how it was read (for inspect)
+
+
+NS = 1_000_000_000
 
 
 def _stamp_ns(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    return int(header.stamp.sec) * NS + int(header.stamp.nanosec)
 
 
 def _yaw_from_quat(q) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _quat_ok(q) -> float:
+    """1.0 for a unit quaternion (within 10 %), 0.0 for none (all zeros) or garbage."""
+    n = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w
+    return 1.0 if 0.81 <= n <= 1.21 else 0.0
 
 
 def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
@@ -73,10 +89,23 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
     if msgtype == 'geometry_msgs/msg/TwistStamped':
         tw = msg.twist
         return _stamp_ns(msg.header), (tw.linear.x, tw.linear.y, tw.angular.z)
+    if msgtype == NAVSATFIX:  # WGS84 deg, ellipsoidal height m; status -1 = no fix
+        return _stamp_ns(msg.header), (msg.latitude, msg.longitude, msg.altitude,
+                                       float(msg.status.status))
+    if msgtype == IMU:  # ENU yaw, angular_velocity.z (FLU, counter-clockwise), orientation valid
+        ok = _quat_ok(msg.orientation) if msg.orientation_covariance[0] != -1.0 else 0.0
+        # (an invalid orientation reads as yaw 0 flagged 0: its yaw rate stays usable)
+        return _stamp_ns(msg.header), (_yaw_from_quat(msg.orientation) if ok else 0.0,
+                                       msg.angular_velocity.z, ok)
+    if msgtype == 'geometry_msgs/msg/QuaternionStamped':
+        ok = _quat_ok(msg.quaternion)
+        return _stamp_ns(msg.header), (_yaw_from_quat(msg.quaternion) if ok else 0.0, ok)
     if msgtype == 'geometry_msgs/msg/Vector3Stamped':
         return _stamp_ns(msg.header), (msg.vector.x, msg.vector.y)
     if msgtype in ('std_msgs/msg/Float64', 'std_msgs/msg/Float32'):
         return None, (float(msg.data),)
+    if msgtype == CLOCK:
+        return None, (float(int(msg.clock.sec) * NS + int(msg.clock.nanosec)),)
     if msgtype == 'sensor_msgs/msg/JointState':
         names = list(msg.name)
         if joint not in names:
@@ -92,16 +121,16 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
 
 
 def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, role: str,
-                  topic: str, path: str) -> tuple[list | np.ndarray, list | np.ndarray]:
-    """(stamps [ns], values) of one topic: column-wise when the layout allows, else one by one.
-    Header stamps are preferred; a zero stamp falls back to the receive time."""
+                  topic: str, path: str
+                  ) -> tuple[np.ndarray | None, np.ndarray, dict[str, dict[str, int]]]:
+    """(header stamps [ns] or None for a type without header, values, frame_ids) of one topic:
+    column-wise when the layout allows, else one by one."""
     cols = decode_columns(raws, msgtype)
     if cols is not None:
-        st, values = cols
-        rec = np.asarray(recv, dtype=np.int64)
-        stamps = rec if st is None else np.where(st == 0, rec, st)
-        return stamps, values
+        st, values, frames = cols
+        return st, values, {k: {v: len(raws)} for k, v in frames.items()}
     stamps, values = [], []
+    frames: dict[str, dict[str, int]] = {}
     for raw, ts in zip(raws, recv):
         try:
             msg = TYPESTORE.deserialize_cdr(raw, msgtype)
@@ -109,19 +138,30 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
             raise TrialDataError(f'{path}: topic {topic} at t = {ts * 1e-9:.3f} s: cannot '
                                  f'decode message ({type(exc).__name__})') from None
         st, v = _decode(msg, msgtype, joint, role, topic, path)
-        stamps.append(ts if st is None or st == 0 else st)
+        stamps.append(st)
         values.append(v)
-    return stamps, values
+        for key, obj in (('frame_id', getattr(msg, 'header', None)), ('child_frame_id', msg)):
+            fid = getattr(obj, key if key == 'child_frame_id' else 'frame_id', None)
+            if isinstance(fid, str):
+                d = frames.setdefault(key, {})
+                d[fid] = d.get(fid, 0) + 1
+    return (None if stamps and stamps[0] is None else np.asarray(stamps, dtype=np.int64),
+            values, frames)
 
 
 def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
-    """role (odom, twist, rudder, rpm, wind) -> (topic, expected type, joint). One topic may serve
-    several roles (a JointState carrying rudder and propeller)."""
+    """role (odom, twist, heading, imu, rudder, rpm, wind) -> (topic, expected type, joint).
+    One topic may serve several roles (a JointState carrying rudder and propeller, an Imu
+    giving heading and yaw rate)."""
     roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
              'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint),
              'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint)}
-    if tm.odom_type == 'geometry_msgs/msg/PoseStamped' and tm.twist_topic:
+    if tm.odom_type != 'nav_msgs/msg/Odometry' and tm.twist_topic:
         roles['twist'] = (tm.twist_topic, tm.twist_type, '')
+    if tm.imu_topic:
+        roles['imu'] = (tm.imu_topic, tm.imu_type, '')
+    if tm.odom_type == NAVSATFIX and tm.heading_topic:
+        roles['heading'] = (tm.heading_topic, tm.heading_type, '')
     if tm.wind_topic:
         roles['wind'] = (tm.wind_topic, tm.wind_type, '')
     types: dict[str, str] = {}
@@ -130,6 +170,62 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
             raise TrialDataError(f'topic map: {topic} is mapped with two types '
                                  f'({types[topic]}, {typ})')
     return roles
+
+
+def _is_auto(tm: TopicMap, key: str) -> bool:
+    """A key the user's map did not set and that still holds its default: found by type."""
+    return key not in tm.given and getattr(tm, key) == getattr(TopicMap, key)
+
+
+def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
+                      ) -> tuple[TopicMap, list[str]]:
+    """The topic map with the topics it leaves open found by message type, where that is
+    unambiguous: the pose source (/odom, else the one Odometry or NavSatFix topic), and for a
+    NavSatFix the one Imu (yaw rate, and heading), the one QuaternionStamped (heading, before
+    the Imu's orientation) and the one TwistStamped. Ambiguity is an
+    error listing the candidates; a topic the user's map names is never replaced."""
+    by_type: dict[str, list[str]] = {}
+    for topic, (typ, n) in sorted(found.items()):
+        if n > 0:
+            by_type.setdefault(typ, []).append(topic)
+    notes: list[str] = []
+    kw: dict[str, str] = {}
+
+    def pick(what: str, key: str, types: tuple[str, ...], hint: str) -> str | None:
+        cands = [(t, ty) for ty in types for t in by_type.get(ty, [])]
+        if len(cands) > 1:
+            listed = ', '.join(f'{t} ({ty})' for t, ty in cands)
+            raise TrialDataError(f'{path}: {what} is ambiguous: {len(cands)} candidate topics '
+                                 f'{listed}; choose one with {hint} in a topic map (--topics)')
+        if not cands:
+            return None
+        kw[key] = cands[0][0]
+        notes.append(f'{what}: {cands[0][0]} ({cands[0][1]}), the only one of its type '
+                     '(no topic map entry)')
+        return cands[0][1]
+
+    pose_type = tm.odom_type
+    if _is_auto(tm, 'odom_topic') and found.get(tm.odom_topic, ('', 0))[0] not in POSE_TYPES:
+        types = (tm.odom_type,) if 'odom_type' in tm.given else \
+            ('nav_msgs/msg/Odometry', NAVSATFIX)
+        typ = pick('pose source', 'odom_topic', types, 'odom.topic and odom.type')
+        if typ is not None:
+            kw['odom_type'] = pose_type = typ
+    elif _is_auto(tm, 'odom_type') and found.get(tm.odom_topic, ('', 0))[0] in POSE_TYPES:
+        pose_type = kw['odom_type'] = found[tm.odom_topic][0]  # /odom as recorded
+    if pose_type == NAVSATFIX:
+        if _is_auto(tm, 'imu_topic'):
+            pick('IMU (heading and yaw rate)', 'imu_topic', (IMU,), 'imu.topic')
+        if _is_auto(tm, 'heading_topic') and _is_auto(tm, 'heading_type'):
+            # a dedicated heading (a GNSS compass) before the Imu's orientation
+            typ = pick('heading', 'heading_topic', ('geometry_msgs/msg/QuaternionStamped',),
+                       'heading.topic and heading.type')
+            if typ is not None:
+                kw['heading_type'] = typ
+        if _is_auto(tm, 'twist_topic'):
+            pick('velocity (TwistStamped)', 'twist_topic', ('geometry_msgs/msg/TwistStamped',),
+                 "twist.topic (or twist.topic: '' to derive velocities from the fixes)")
+    return (replace(tm, **kw) if kw else tm), notes
 
 
 def _reader_errors() -> tuple[type[BaseException], ...]:
@@ -267,8 +363,22 @@ def _iter_mcap_stream(path: Path):
                           else ''))
 
 
+# every type a topic map may map (and /clock): their messages are kept until the topics are
+# resolved; anything else (images, point clouds) is skipped unread
+READ_TYPES = frozenset(POSE_TYPES + ('geometry_msgs/msg/TwistStamped', IMU,
+                                     'geometry_msgs/msg/QuaternionStamped',
+                                     'geometry_msgs/msg/Vector3Stamped', 'std_msgs/msg/Float64',
+                                     'std_msgs/msg/Float32', 'sensor_msgs/msg/JointState', CLOCK))
+SIM_TIME_MAX_NS = 100_000_000 * NS  # header stamps before 1973: a simulation's clock from 0
+WALL_TIME_MIN_NS = 1_000_000_000 * NS  # receive times after 2001: the wall clock
+
+
 def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
-    """Raw series of the mapped topics from a rosbag2 directory or a bare .mcap file."""
+    """Raw series of the mapped topics from a rosbag2 directory or a bare .mcap file.
+
+    Topics the map leaves open are found by type (:func:`resolve_topic_map`); each series is
+    timed as the map says (header stamp or receive time, plus offset_s), receive times on
+    another clock than the header stamps (a simulation on /clock) mapped onto it."""
     path = Path(path)
     if path.is_dir() or path.name == 'metadata.yaml':
         bag = path if path.is_dir() else path.parent
@@ -280,13 +390,18 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
         it = _iter_bare_mcap(path)
     else:
         raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')
-    roles = _roles(tm)
-    types = {topic: typ for topic, typ, _ in roles.values()}
-    recv: dict[str, list] = {t: [] for t in types}
-    raws: dict[str, list] = {t: [] for t in types}
+    given_types = {topic: typ for role, (topic, typ, _) in _roles(tm).items()
+                   if f'{role}_topic' in tm.given}
+    recv: dict[str, list] = {}
+    raws: dict[str, list] = {}
     found: dict[str, tuple[str, int]] = {}
     first = last = None
     notes: list[str] = []
+
+    def check_type(topic: str, msgtype: str) -> None:
+        if topic in given_types and msgtype != given_types[topic]:
+            raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic map '
+                                 f'expects {given_types[topic]}')
     for item in it:
         if item[0] == 'note':
             notes.append(item[1])
@@ -294,37 +409,115 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
         if item[0] == 'connections':
             for topic, msgtype, count in item[1] or []:
                 found[topic] = (msgtype, int(count))
-                if topic in types and msgtype != types[topic]:
-                    raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic '
-                                         f'map expects {types[topic]}')
+                check_type(topic, msgtype)
             continue
         topic, msgtype, ts, raw = item
         first = ts if first is None else min(first, ts)
         last = ts if last is None else max(last, ts)
-        if topic not in types:
+        if msgtype not in READ_TYPES:
             continue
-        if msgtype != types[topic]:
-            raise TrialDataError(f'{path}: topic {topic} has type {msgtype}, the topic map '
-                                 f'expects {types[topic]}')
-        recv[topic].append(ts)
-        raws[topic].append(bytes(raw))
+        check_type(topic, msgtype)
+        recv.setdefault(topic, []).append(ts)
+        raws.setdefault(topic, []).append(bytes(raw))
+    for topic in found:
+        if not raws.get(topic) and found[topic][0] in READ_TYPES:
+            found[topic] = (found[topic][0], 0)
+    tm, reading = resolve_topic_map(tm, found, str(path))
+    roles = _roles(tm)
+    for role, (topic, msgtype, _) in roles.items():
+        if topic in found and found[topic][0] != msgtype:
+            raise TrialDataError(f'{path}: topic {topic} has type {found[topic][0]}, the topic '
+                                 f'map expects {msgtype}')
     series = {}
+    headers: dict[str, np.ndarray | None] = {}
     for role, (topic, msgtype, joint) in roles.items():
-        if not raws[topic]:
+        if not raws.get(topic):
             continue
         try:
-            stamps, values = _decode_topic(raws[topic], recv[topic], msgtype, joint, role,
-                                           topic, str(path))
-            series[role] = Series(topic, msgtype, np.asarray(stamps, dtype=np.int64),
-                                  np.asarray(values, dtype=float),
-                                  np.asarray(recv[topic], dtype=np.int64))
+            hdr, values, frames = _decode_topic(raws[topic], recv[topic], msgtype, joint, role,
+                                                topic, str(path))
+            rec_ns = np.asarray(recv[topic], dtype=np.int64)
+            series[role] = Series(topic, msgtype, rec_ns, np.asarray(values, dtype=float),
+                                  rec_ns, frame_ids=frames, base='receive')
+            headers[role] = hdr
         except (OverflowError, ValueError) as exc:
             raise TrialDataError(f'{path}: topic {topic}: corrupt stamps or values '
                                  f'({exc})') from None
-    for topic in found:
-        if topic in raws and not raws[topic]:
-            found[topic] = (found[topic][0], 0)
-    return RawRecording(str(path), series, found, first or 0, last or 0, notes)
+    clock = None
+    for topic, (typ, _) in found.items():
+        if typ == CLOCK and raws.get(topic):
+            _, vals, _ = _decode_topic(raws[topic], recv[topic], CLOCK, '', 'clock', topic,
+                                       str(path))
+            clock = (topic, np.asarray(recv[topic], dtype=np.int64),
+                     np.asarray(vals, dtype=float)[:, 0])
+    reading += _time_bases(series, headers, tm, clock)
+    return RawRecording(str(path), series, found, first or 0, last or 0, notes, tm, reading)
+
+
+def _identity(ns: np.ndarray) -> np.ndarray:
+    return ns
+
+
+def _through_clock(c_recv: np.ndarray, c_val: np.ndarray):
+    """Receive time [ns] -> simulated time by the /clock messages' (receive, value) pairs."""
+    def to_sim(ns: np.ndarray) -> np.ndarray:
+        return np.interp(ns.astype(float), c_recv, c_val).astype(np.int64)
+    return to_sim
+
+
+def _linear_map(r0: int, h0: int, a: float, b: float):
+    """Receive time [ns] -> header clock: h0 + a + b (t - r0), a and b in seconds."""
+    def to_hdr(ns: np.ndarray) -> np.ndarray:
+        return h0 + np.round((a + b * (ns - r0) * 1e-9) * 1e9).astype(np.int64)
+    return to_hdr
+
+
+def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None], tm: TopicMap,
+                clock: tuple[str, np.ndarray, np.ndarray] | None) -> list[str]:
+    """Time each series as the map says: header.stamp (a zero stamp falls back to the receive
+    time) or receive time, plus the role's offset_s. Receive times on another clock than the
+    header stamps (a simulation: stamps from /clock near 0, the recorder on the wall clock)
+    are mapped onto the header clock through /clock, else by a linear fit to the stamps.
+    Sets each header-timed series' lag_s (median receive - stamp) for the clock check."""
+    notes: list[str] = []
+    for role, s in series.items():
+        hdr = headers.get(role)
+        if getattr(tm, f'{role}_stamp', 'header') == 'header' and hdr is not None \
+                and np.any(hdr != 0):
+            # a zero stamp among wall-clock ones was never set: its receive time stands in;
+            # on a simulated clock 0 is the first instant
+            unset = (hdr == 0) & (np.median(hdr[hdr != 0]) > SIM_TIME_MAX_NS)
+            s.stamps_ns = np.where(unset, s.receive_ns, hdr)
+            s.base = 'header'
+    hdr_series = [s for s in series.values() if s.base == 'header']
+
+    to_hdr = _identity
+    if hdr_series:
+        ref = max(hdr_series, key=lambda s: s.stamps_ns.size)
+        sim = (np.median(ref.stamps_ns) < SIM_TIME_MAX_NS
+               and np.median(ref.receive_ns) > WALL_TIME_MIN_NS)
+        if clock is not None and clock[1].size >= 2 and \
+                abs(np.median(clock[1] - clock[2])) > NS:
+            to_hdr = _through_clock(clock[1].astype(float), clock[2])
+            notes.append(f'time: receive times mapped onto simulated time through {clock[0]} '
+                         f'({clock[1].size} messages; the recorder ran on the wall clock)')
+        elif sim:
+            rx = (ref.receive_ns - ref.receive_ns[0]).astype(float) * 1e-9
+            b, a = np.polyfit(rx, (ref.stamps_ns - ref.stamps_ns[0]) * 1e-9, 1)
+            to_hdr = _linear_map(int(ref.receive_ns[0]), int(ref.stamps_ns[0]), a, b)
+            notes.append(f'time: header stamps of {ref.topic} are on a simulated clock (near 0) '
+                         'and there is no /clock: receive times mapped onto it by a linear fit '
+                         f'to its stamps (rate {b:.4f} of the wall clock)')
+    for role, s in series.items():
+        if s.base == 'receive':
+            s.stamps_ns = to_hdr(s.receive_ns)
+        off = getattr(tm, f'{role}_offset_s', 0.0)
+        if off:
+            s.stamps_ns = s.stamps_ns + int(round(off * 1e9))
+            s.notes.append(f'{s.topic}: {off:+g} s added to its times ({role}.offset_s)')
+        if s.base == 'header':
+            s.lag_s = float(np.median(to_hdr(s.receive_ns) - s.stamps_ns)) * 1e-9
+    return notes
 
 
 def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
@@ -438,5 +631,110 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
                                                        Float64.__msgtype__))
                 w.write(c_rpm, stamp, ts.serialize_cdr(Float64(data=float(trial.controls[k, 0])),
                                                        Float64.__msgtype__))
+    except (WriterError, OSError) as exc:
+        raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None
+
+
+def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
+                     lever_arm_m: tuple[float, float] = (0.0, 0.0), heading: str = 'imu',
+                     twist_frame: str = '', gnss_frame: str = 'gps', imu_frame: str = 'imu_link',
+                     state_stamp_offset_s: float = 0.0, sim_time: bool = False,
+                     write_clock: bool = True, storage: str = 'mcap', start_ns: int = 1_700_000_000_000_000_000) -> None:
+    """Write a trial as a ship's sensors record it: sensor_msgs/NavSatFix on /fix (the antenna
+    at lever_arm_m (forward, left) in base_link, about ``datum``, a core.geodesy.Datum),
+    sensor_msgs/Imu on /imu/data (ENU yaw, angular_velocity.z = -r), and Float64 commands.
+
+    heading: 'imu' (the Imu's orientation), 'quaternion' (geometry_msgs/QuaternionStamped on
+    /heading in ``map``; the Imu then has no orientation), 'north_deg' (Float64 compass
+    heading, degrees clockwise from north, on /heading). twist_frame: '' = no velocity topic;
+    an earth frame ('map') = the antenna's ENU velocity over ground on /vel, as
+    nmea_navsat_driver publishes it; a body frame ('base_link') = body velocities (FLU).
+    state_stamp_offset_s: header stamps of /fix, /imu/data, /heading and /vel run this much
+    ahead of their receive times (a GPS-time clock). sim_time: header stamps count from 0
+    (a simulation's /clock, recorded on /clock unless write_clock is False) while receive
+    times stay on the wall clock. Test and demonstration tool: the samples are the trial's own."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2.errors import WriterError
+
+    from mmg_tuner.core.geodesy import Datum, enu_to_geodetic
+    datum = datum or Datum(35.0, 139.0, 0.0)
+    if heading not in ('imu', 'quaternion', 'north_deg'):
+        raise ValueError(f'heading {heading!r}: one of imu, quaternion, north_deg')
+    ts = TYPESTORE.types
+    path = Path(path)
+    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    x, y, psi, u, v, r = trial.states.T
+    yaw = np.pi / 2 - psi
+    lx, ly = lever_arm_m
+    east = y + lx * np.cos(yaw) - ly * np.sin(yaw)
+    north = x + lx * np.sin(yaw) + ly * np.cos(yaw)
+    lat, lon, alt = enu_to_geodetic(east, north, np.zeros_like(east), datum)
+    wz = -r
+    # the antenna's velocity: base velocity (FLU) + omega x lever, then turned into ENU
+    ua, va = u - wz * ly, -v + wz * lx
+    ve, vn = ua * np.cos(yaw) - va * np.sin(yaw), ua * np.sin(yaw) + va * np.cos(yaw)
+    Q, V3 = ts['geometry_msgs/msg/Quaternion'], ts['geometry_msgs/msg/Vector3']
+    names = {'fix': NAVSATFIX, 'imu': IMU, 'cmd': 'std_msgs/msg/Float64',
+             'tw': 'geometry_msgs/msg/TwistStamped', 'q': 'geometry_msgs/msg/QuaternionStamped',
+             'clock': CLOCK}
+    hdr_off = int(round(state_stamp_offset_s * 1e9))
+    try:
+        with Writer(path, version=9, storage_plugin=plugin) as w:
+            def conn(topic, key):
+                return w.add_connection(topic, names[key], typestore=TYPESTORE)
+            c = {'fix': conn('/fix', 'fix'), 'imu': conn('/imu/data', 'imu'),
+                 'rud': conn('/rudder_angle', 'cmd'), 'rpm': conn('/propeller_rpm', 'cmd')}
+            if twist_frame:
+                c['tw'] = conn('/vel', 'tw')
+            if heading == 'quaternion':
+                c['hd'] = conn('/heading', 'q')
+            elif heading == 'north_deg':
+                c['hd'] = conn('/heading', 'cmd')
+            if sim_time and write_clock:
+                c['clock'] = conn('/clock', 'clock')
+
+            def put(key, stamp, msg):
+                w.write(c[key], stamp, TYPESTORE.serialize_cdr(msg, msg.__msgtype__))
+            for k in range(len(trial)):
+                t_ns = int(round(trial.t[k] * 1e9))
+                recv = start_ns + t_ns
+                st = (t_ns if sim_time else recv) + hdr_off
+                q = Q(x=0.0, y=0.0, z=math.sin(yaw[k] / 2), w=math.cos(yaw[k] / 2))
+                if 'clock' in c:
+                    put('clock', recv, ts[CLOCK](clock=ts['builtin_interfaces/msg/Time'](
+                        sec=t_ns // NS, nanosec=t_ns % NS)))
+                cov = np.zeros(9)
+                put('fix', recv, ts[NAVSATFIX](
+                    header=_header(st, gnss_frame),
+                    status=ts['sensor_msgs/msg/NavSatStatus'](status=0, service=1),
+                    latitude=float(lat[k]), longitude=float(lon[k]), altitude=float(alt[k]),
+                    position_covariance=cov, position_covariance_type=0))
+                ocov = np.zeros(9)
+                if heading != 'imu':
+                    ocov[0] = -1.0  # REP-145: no orientation
+                put('imu', recv, ts[IMU](
+                    header=_header(st, imu_frame),
+                    orientation=q if heading == 'imu' else Q(x=0.0, y=0.0, z=0.0, w=0.0),
+                    orientation_covariance=ocov,
+                    angular_velocity=V3(x=0.0, y=0.0, z=float(wz[k])),
+                    angular_velocity_covariance=np.zeros(9),
+                    linear_acceleration=V3(x=0.0, y=0.0, z=9.81),
+                    linear_acceleration_covariance=np.zeros(9)))
+                if heading == 'quaternion':
+                    put('hd', recv, ts[names['q']](header=_header(st, 'map'), quaternion=q))
+                elif heading == 'north_deg':
+                    put('hd', recv, ts['std_msgs/msg/Float64'](
+                        data=float(np.degrees(psi[k]) % 360.0)))
+                if twist_frame:
+                    earth = twist_frame.rsplit('/', 1)[-1] in ('map', 'odom', 'world', 'enu')
+                    lin = V3(x=float(ve[k]), y=float(vn[k]), z=0.0) if earth else \
+                        V3(x=float(u[k]), y=float(-v[k]), z=0.0)
+                    put('tw', recv, ts[names['tw']](
+                        header=_header(st, twist_frame),
+                        twist=ts['geometry_msgs/msg/Twist'](
+                            linear=lin, angular=V3(x=0.0, y=0.0,
+                                                   z=0.0 if earth else float(wz[k])))))
+                put('rud', recv, ts['std_msgs/msg/Float64'](data=float(trial.controls[k, 1])))
+                put('rpm', recv, ts['std_msgs/msg/Float64'](data=float(trial.controls[k, 0])))
     except (WriterError, OSError) as exc:
         raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None

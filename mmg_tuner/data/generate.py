@@ -99,7 +99,7 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
                               f'{traj.status}')
     controls = traj.controls
     toff = ship['time_offset']
-    if toff != 0.0:  # the command topics are stamped toff seconds early: recorded(t) = actual(t + toff)
+    if toff != 0.0:  # commands stamped toff seconds early: recorded(t) = actual(t + toff)
         controls = np.column_stack([np.interp(traj.t + toff, traj.t, traj.controls[:, i])
                                     for i in range(2)])
     wind = None

@@ -59,6 +59,8 @@ class RecordingSummary:
     topics: dict[str, tuple[str, int, float]] = field(default_factory=dict)  # type, count, Hz
     trials: list[TrialSummary] = field(default_factory=list)
     error: str = ''
+    # how it was read: topics found by type, pose source, datum, frames, time bases
+    reading: list[str] = field(default_factory=list)
 
 
 def summarize_trial(tr: Trial) -> TrialSummary:
@@ -121,8 +123,10 @@ def _summarize_one(p: Path, tm: TopicMap, limits: InputLimits | None
             for topic, (typ, n) in sorted(rec.topics_found.items()):
                 rate = (n - 1) / rs.duration_s if rs.duration_s > 0 and n > 1 else 0.0
                 rs.topics[display_text(topic)] = (display_text(typ), n, rate)
+            rs.reading = rec.reading
             found = assemble_trials(rec, tm, name=safe_name(p.name if p.is_dir() else p.stem),
                                     limits=limits)
+            rs.reading = [display_text(r) for r in rec.reading]
             for tr in found:
                 tr.source = display_text(tr.source)
         else:
@@ -141,6 +145,9 @@ def format_summary(rs: RecordingSummary) -> str:
         lines.append('  topics:')
         for topic, (typ, n, hz) in rs.topics.items():
             lines.append(f'    {topic:28s} {typ:34s} {n:8d} msgs {hz:8.2f} Hz')
+    if rs.reading:
+        lines.append('  read as:')
+        lines.extend(f'    {r}' for r in rs.reading)
     if rs.error:
         lines.append(f'  PROBLEM: {rs.error}')
     for ts in rs.trials:
@@ -149,5 +156,6 @@ def format_summary(rs: RecordingSummary) -> str:
                      f'{ts.rpm_range[0]:.1f}..{ts.rpm_range[1]:.1f}, rudder '
                      f'{ts.rudder_range_deg[0]:+.1f}..{ts.rudder_range_deg[1]:+.1f} deg')
         for n in ts.notes:
-            lines.append(f'    - {n}')
+            if n not in rs.reading:  # said once for the recording above
+                lines.append(f'    - {n}')
     return '\n'.join(lines)
