@@ -41,6 +41,7 @@ setup(
             'inspect = mmg_tuner.cli.inspect:main',
             'tune = mmg_tuner.cli.tune:main',
             'diagnose = mmg_tuner.cli.diagnose:main',
+            'evaluate = mmg_tuner.cli.evaluate:main',
             'fleet = mmg_tuner.cli.fleet:main',
             'sim_node = mmg_tuner.ros.sim_node:main',
             'replay_node = mmg_tuner.ros.replay_node:main',

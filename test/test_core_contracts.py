@@ -77,7 +77,30 @@ def test_family_contract(fam):
     assert all(k in PARAM_INDEX for k in fam.required)
     assert not set(fam.params) & set(SHARED_PARAMS)
     assert isinstance(fam.astern_rpm, bool) and isinstance(fam.astern_surge, bool)
+    assert isinstance(fam.air_drag, bool) and (fam.wind is None or callable(fam.wind))
     assert fam.description
+    # a ship config of the family loads and runs through the generic kernels, batched ==
+    # single to the bit, with the inputs the family reads (thrusters left out = 0 rev/s)
+    from mmg_tuner.core.ship import config_dirs, load_ship
+    from mmg_tuner.core.simulate import simulate_batch
+    import yaml
+    cfgs = sorted(p for d in config_dirs() for p in d.glob('*.yaml')
+                  if (yaml.safe_load(p.read_text()) or {}).get('model') == fam.name)
+    assert cfgs, f'no ship config with model: {fam.name}'
+    ship = load_ship(cfgs[0])
+    lim_u = 0.5 * math.sqrt(9.81 * ship.L_pp) * 0.3
+    T = 100
+    ctrl = np.column_stack([np.full(T, 60.0 * 10 if fam.name == 'lowspeed' else 0.0),
+                            np.radians(20 * np.sin(np.arange(T) / 15))])
+    if fam.name != 'lowspeed':
+        from mmg_tuner.core.simulate import self_propulsion_rpm
+        ctrl[:, 0] = self_propulsion_rpm(ship, lim_u)
+    x0 = np.array([0, 0, 0, lim_u, 0, 0])
+    one = simulate(ship, x0, ctrl, 0.2 * ship.L_pp / lim_u, 'rk4')
+    assert one.ok
+    many, status, _ = simulate_batch(ship.kind, ship.params[None], x0[None], ctrl[None],
+                                     0.2 * ship.L_pp / lim_u, integrator='rk4')
+    assert np.array_equal(many[0, 0], one.states) and status[0, 0] == 0
 
 
 def test_status_checks_follow_the_family(suzaku):

@@ -178,3 +178,23 @@ def test_cut_from_event_starts_before_the_helm_order():
     be = esso.read_esso_csv(BERTHING, keep_astern=True)[0]
     cut = esso.cut_from_event(be, event='propeller_first_astern', before_s=2.0)
     assert cut['rpm'][0] >= 0 and cut['rpm'].min() < 0
+
+
+def test_every_run_simulates_with_the_lowspeed_family():
+    """All 33 runs, astern and u <= 0 kept, through the lowspeed family with the measured wind
+    (api.load_trials' keep_astern pass-through): no failure, a finite index for each; the
+    standard-model ships refuse the astern parts with a status, not NaN."""
+    import mmg_tuner as mt
+    ship = mt.load_ship('esso_osaka_3m')
+    trials = mt.load_trials([DATA / k for k in ('turning', 'zigzag', 'random', 'berthing')],
+                            keep_astern=True)
+    assert len(trials) == 33 and all(t.wind is not None for t in trials)
+    res = mt.evaluate(ship, trials, restart_every_s=100)
+    # predicting every state's pooled mean scores 6; the published model ~1.1
+    assert res.index_all is not None and res.index_all < 3.0
+    for name, s in res.trials.items():
+        assert s.failed_at_s is None and math.isfinite(s.index), name
+    be = [t for t in trials if t.name == BERTHING.stem]
+    kv = mt.evaluate(mt.load_ship('kvlcc2'), be, restart_every_s=0)
+    s = kv.trials[BERTHING.stem]
+    assert s.index is None and s.failed_at_s is not None and '<= 0' in s.failure

@@ -1,54 +1,55 @@
 """The low-speed four-quadrant MMG (core/models/lowspeed.py) against the sanity numbers of
-shared/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with
-the lab's Fortran to 2e-10), with config/esso_osaka_3m.yaml."""
+docs/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with
+the lab's Fortran to 2e-10), with config/esso_osaka_3m.yaml; and the family through the
+generic kernels (core/dynamics.py, core/integrate.py) against the standalone form."""
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
+from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.core.models import family
 from mmg_tuner.core.models import lowspeed as ls
+from mmg_tuner.core.ship import load_ship, ship_from_dict
 from mmg_tuner.errors import ConfigError
 
-CFG = Path(__file__).resolve().parents[1] / 'config' / 'esso_osaka_3m.yaml'
+
+@pytest.fixture(scope='module')
+def ship():
+    return load_ship('esso_osaka_3m')
 
 
 @pytest.fixture(scope='module')
-def doc():
-    return yaml.safe_load(CFG.read_text())
+def p(ship):
+    return ship.params
 
 
-@pytest.fixture(scope='module')
-def p(doc):
-    return ls.params_from_dict(doc, str(CFG))
+def test_config_names_the_family_and_every_parameter(ship, p):
+    assert ship.model == 'lowspeed' and ship.family.astern_rpm and ship.family.astern_surge
+    assert np.all(np.isfinite(p))
+    for t in ship.tuning_targets:
+        lo, hi = ship.tuning_bounds[t]
+        assert lo < ship[t] < hi, t  # the published value inside its box
 
 
-def test_config_names_the_family_and_every_parameter(doc, p):
-    assert doc['model'] == 'lowspeed'
-    assert p.shape == (len(ls.PARAM_NAMES),) and np.all(np.isfinite(p))
-    for t in doc['tuning']['targets']:
-        assert t in ls.PARAM_NAMES
-        lo, hi = doc['tuning']['bounds'][t]
-        assert lo < p[ls.PARAM_NAMES.index(t)] < hi, t  # the published value inside its box
-
-
-def test_params_from_dict_refuses_missing_unknown_and_nonfinite(doc):
+def test_config_refuses_missing_unknown_and_bad_bounds(ship):
+    import yaml
+    doc = yaml.safe_load(open(ship.source).read())
     bad = {k: dict(v) if isinstance(v, dict) else v for k, v in doc.items()}
     del bad['hull']['N_r']
-    with pytest.raises(ConfigError, match=r'x.yaml: missing hull.N_r'):
-        ls.params_from_dict(bad, 'x.yaml')
+    with pytest.raises(ConfigError, match=r"x.yaml: missing required keys \['N_r'\]"):
+        ship_from_dict(bad, 'x.yaml')
     bad['hull']['N_r'] = float('nan')
-    with pytest.raises(ConfigError, match=r'hull.N_r = nan is not finite'):
-        ls.params_from_dict(bad, 'x.yaml')
+    with pytest.raises(ConfigError, match=r'N_r = nan is not finite'):
+        ship_from_dict(bad, 'x.yaml')
     bad['hull']['N_r'] = -0.04849
     bad['hull']['N_rr'] = 0.1
-    with pytest.raises(ConfigError, match=r'unknown key hull.N_rr'):
-        ls.params_from_dict(bad, 'x.yaml')
+    with pytest.raises(ConfigError, match=r'hull.N_rr is not a known parameter'):
+        ship_from_dict(bad, 'x.yaml')
     del bad['hull']['N_rr']
-    bad['rudder']['Y_v'] = bad['hull'].pop('Y_v')
-    with pytest.raises(ConfigError, match=r'rudder.Y_v belongs in section hull'):
-        ls.params_from_dict(bad, 'x.yaml')
+    bad['tuning'] = {**doc['tuning'], 'bounds': {'C_D': [1.5, 0.5]}}
+    with pytest.raises(ConfigError, match=r'tuning.bounds.C_D = \[1.5, 0.5\]: lower'):
+        ship_from_dict(bad, 'x.yaml')
 
 
 def test_derived_masses(p):
@@ -82,7 +83,7 @@ TOL = 1.5e-4
 @pytest.mark.parametrize('state,n,delta_deg,expected', FORCE_TABLE)
 def test_single_evaluation_forces_term_by_term(p, state, n, delta_deg, expected):
     u, v, r = state
-    F = ls.forces(p, u, v, r, float(n), math.radians(delta_deg), 0.0, 0.0, 0.0, 0.0)
+    F = ls.force_terms(p, u, v, r, float(n), math.radians(delta_deg), 0.0, 0.0, 0.0, 0.0)
     got = [F[0, 0], F[0, 1], F[0, 2], F[1, 0], F[1, 1], F[1, 2], F[2, 0], F[2, 1], F[2, 2]]
     xp, _, _, omw = ls.propeller_forces(p, u, v, r, float(n))
     ur, _ = ls.rudder_inflow(p, u, v, r, float(n), xp, omw)
@@ -95,7 +96,7 @@ def test_single_evaluation_forces_term_by_term(p, state, n, delta_deg, expected)
     (0, 20, 0.0, 0.4242, -0.5514), (0, -20, 0.0, -0.5240, 0.6811),
     (20, 0, 0.20, 0.7051, 1.0588), (20, 0, 0.25, 0.0, 0.0)])
 def test_thrusters(p, n_bt, n_st, u, Y, N):
-    F = ls.forces(p, u, 0.0, 0.0, 0.0, 0.0, float(n_bt), float(n_st), 0.0, 0.0)
+    F = ls.force_terms(p, u, 0.0, 0.0, 0.0, 0.0, float(n_bt), float(n_st), 0.0, 0.0)
     assert F[3, 1] + F[4, 1] == pytest.approx(Y, abs=TOL)
     assert F[3, 2] + F[4, 2] == pytest.approx(N, abs=TOL)
     assert F[3, 0] == F[4, 0] == 0.0
@@ -131,7 +132,7 @@ def test_guards_finite_at_rest_and_zero_propeller(p):
     for u, v, r, n, d in cases:
         for wind in ((0.0, 0.0), (2.0, 1.0)):
             ua, ga = ls.apparent_wind(wind[0], wind[1], 0.3, u, v)
-            F = ls.forces(p, u, v, r, n, d, 15.0, -15.0, ua, ga)
+            F = ls.force_terms(p, u, v, r, n, d, 15.0, -15.0, ua, ga)
             acc = ls.accelerations(p, u, v, r, n, d, 15.0, -15.0, ua, ga)
             assert np.all(np.isfinite(F)) and np.all(np.isfinite(acc)), (u, v, r, n, d)
     # at rest with nothing acting there is no force at all
@@ -163,13 +164,13 @@ def test_four_quadrants_continuous_where_the_model_is(p):
         assert abs(ls.propeller_forces(p, 0.0, 0.0, 0.0, n)[0]) < 1e-10
     # moving, n -> 0+ leaves the K_T polynomial's windmilling drag (1 - t_P) k_2 rho u_P^2 D^2
     # (a jump of 0.005 N at 0.2 m/s, against ~1 N of thrust at 10 rps); n -> 0- tends to 0
-    D, t_p, k2 = (p[ls.PARAM_NAMES.index(k)] for k in ('D_P', 't_P', 'k_2'))
+    D, t_p, k2 = (p[PARAM_INDEX[k]] for k in ('D_P', 't_P', 'k_2'))
     xp, _, _, omw = ls.propeller_forces(p, 0.2, 0.0, 0.0, h)
     assert xp == pytest.approx((1 - t_p) * k2 * 998.0 * (0.2 * omw) ** 2 * D ** 2, rel=1e-5)
     assert abs(ls.propeller_forces(p, 0.2, 0.0, 0.0, -h)[0]) < 1e-7
     # Q3/Q4 side force at the breakpoints J_s = J_syn, J_syn0 (u = J_s n D with n = -10): the
     # published pieces meet to their 3 digits (0.1 %)
-    D = p[ls.PARAM_NAMES.index('D_P')]
+    D = p[PARAM_INDEX['D_P']]
     for js in (-0.35, -0.06):
         u = js * -10.0 * D
         np.testing.assert_allclose(_side(p, u * (1 + 1e-9), -10.0)[1:],
@@ -244,7 +245,7 @@ def test_turn_35_from_rest(p):
 def test_swapped_yr_nv_nearly_kills_the_turn(p):
     """Reference §13.1: the Y_r/N_v label swap of a third-party copy cuts the turn tenfold."""
     q = p.copy()
-    iy, inv = ls.PARAM_NAMES.index('Y_r'), ls.PARAM_NAMES.index('N_v')
+    iy, inv = PARAM_INDEX['Y_r'], PARAM_INDEX['N_v']
     q[iy], q[inv] = p[inv], p[iy]
     t, s = simulate(q, 10.0, math.radians(35), 300.0, (0, 0, 0, 0.3831, 0, 0), dt=0.1)
     assert math.degrees(_steady(t, s, 5)) == pytest.approx(0.234, abs=0.02)
@@ -285,3 +286,99 @@ def test_actuator_rate():
     assert ls.actuator_rate(20.0, 0.0, 0.1, 20.0) == 20.0      # rate-limited
     assert ls.actuator_rate(1.0, 0.0, 0.1, 20.0) == pytest.approx(10.0)
     assert ls.actuator_rate(-30.0, 0.0, 0.1, 20.0) == -20.0
+
+
+# --- the family through the generic kernels ------------------------------------------------
+
+def test_family_capabilities_and_inputs(ship):
+    fam = family('lowspeed')
+    assert fam.astern_rpm and fam.astern_surge and fam.air_drag and fam.wind is not None
+    assert {'bow_thruster', 'stern_thruster', 'wind_n', 'wind_e'} <= set(fam.inputs)
+    from mmg_tuner.core.integrate import rpm_status, state_status
+    from mmg_tuner.core.layout import OK, RPM_NOT_POSITIVE
+    assert rpm_status(ship.kind, -10.0) == OK and rpm_status(ship.kind, 0.0) == OK
+    assert rpm_status(ship.kind, float('nan')) == RPM_NOT_POSITIVE
+    assert state_status(ship.kind, np.array([0, 0, 0, -0.1, 0, 0.0])) == OK
+
+
+def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
+    """dynamics.derivative (family forces + shared equations of motion + the family's wind on
+    the apparent wind) equals lowspeed.accelerations to 1e-12 on random states and inputs, in
+    all four quadrants, with and without true wind (the ship's own air drag)."""
+    from mmg_tuner.core.dynamics import derivative
+    rng = np.random.default_rng(12)
+    out = np.empty(6)
+    q = p.copy()
+    worst = 0.0
+    for k in range(2000):
+        u, v, r = rng.uniform([-0.3, -0.2, -0.1], [0.8, 0.2, 0.1])
+        if k % 10 == 0:
+            u = 0.0
+        psi = rng.uniform(-4, 4)
+        n, d = rng.uniform(-20, 20), rng.uniform(-0.7, 0.7)
+        bt, st = rng.uniform(-25, 25, 2) if k % 3 else (0.0, 0.0)
+        Vw, zeta = (rng.uniform(0, 5), rng.uniform(-4, 4)) if k % 4 else (0.0, 0.0)
+        q[PARAM_INDEX['wind_speed']], q[PARAM_INDEX['wind_dir']] = Vw, zeta
+        derivative(ship.kind, q, np.array([1.0, 2.0, psi, u, v, r]), (n, d, bt, st), out)
+        ref = ls.accelerations(p, u, v, r, n, d, bt, st, *ls.apparent_wind(Vw, zeta, psi, u, v))
+        np.testing.assert_allclose(out[3:], ref, rtol=1e-12, atol=1e-14)
+        worst = max(worst, float(np.max(np.abs(out[3:] - np.array(ref)))))
+    assert worst < 1e-13
+
+
+def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
+    """simulate() with the measured wind and thruster channels, RK4, equals an RK4 loop over
+    the standalone model driven by the same held inputs; batched == single to the bit."""
+    from mmg_tuner.core.simulate import simulate, simulate_batch
+    rng = np.random.default_rng(5)
+    T, dt = 800, 0.1   # ahead, then astern: through u = 0
+    rpm = 60 * np.where(np.arange(T) < 200, 12.0, -18.0) + rng.uniform(-30, 30, T)
+    ctrl = np.column_stack([rpm, np.repeat(rng.uniform(-0.6, 0.6, 40), 20),
+                            rng.uniform(-2, 2, T), rng.uniform(-2, 2, T),
+                            np.repeat(rng.uniform(-20, 20, 20), 40), np.zeros(T)])
+    x0 = np.array([0, 0, 0.3, 0.05, 0.0, 0.0])
+    got = simulate(ship, x0, ctrl, dt, 'rk4')
+    assert got.ok
+
+    def f(s, c):
+        ua, ga = ls.apparent_wind_ne(c[2], c[3], s[2], s[3], s[4])
+        du, dv, dr = ls.accelerations(p, s[3], s[4], s[5], c[0] / 60, c[1], c[4], c[5], ua, ga)
+        cs, sn = math.cos(s[2]), math.sin(s[2])
+        return np.array([s[3] * cs - s[4] * sn, s[3] * sn + s[4] * cs, s[5], du, dv, dr])
+    s = x0.copy()
+    for k in range(T - 1):
+        k1 = f(s, ctrl[k])
+        k2 = f(s + 0.5 * dt * k1, ctrl[k])
+        k3 = f(s + 0.5 * dt * k2, ctrl[k])
+        k4 = f(s + dt * k3, ctrl[k])
+        s = s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    np.testing.assert_allclose(got.states[-1], s, rtol=1e-9, atol=1e-10)
+    assert got.states[:, 3].min() < 0 < got.states[:, 3].max()   # went through u = 0
+    for method in ('euler', 'rk4'):
+        one = simulate(ship, x0, ctrl, dt, method).states
+        many, status, _ = simulate_batch(ship.kind, np.stack([p, p]), np.stack([x0, x0]),
+                                         np.stack([ctrl, ctrl]), dt, integrator=method)
+        assert np.array_equal(many[1, 0], one) and np.all(status == 0)
+    # thruster channels left out mean 0 rev/s
+    no_thr = ctrl.copy()
+    no_thr[:, 4:] = 0.0
+    assert np.array_equal(simulate(ship, x0, no_thr, dt).states,
+                          simulate(ship, x0, no_thr[:, :4], dt).states)
+
+
+def test_generic_kernel_reproduces_the_reference_manoeuvres(ship):
+    """§14.3 through simulate(): the 35 deg turn from the approach speed and the crash astern
+    (astern rpm and u < 0), RK4 0.05 s, no true wind (own air drag acting)."""
+    from mmg_tuner.core.simulate import simulate
+    T = 6001
+    ctrl = np.tile([600.0, math.radians(35)], (T, 1))
+    tr = simulate(ship, [0, 0, 0, 0.3831, 0, 0], ctrl, 0.05, 'rk4')
+    t, s = tr.t, tr.states
+    assert math.degrees(_steady(t, s, 5)) == pytest.approx(2.324, abs=0.005)
+    k = int(np.argmax(s[:, 2] >= math.pi / 2))
+    assert t[k] == pytest.approx(38.9, abs=0.1) and s[k, 0] == pytest.approx(10.17, abs=0.03)
+    tr = simulate(ship, [0, 0, 0, 0.3831, 0, 0], np.tile([-600.0, 0.0], (4001, 1)), 0.05, 'rk4')
+    s = tr.states
+    k = int(np.argmax(s[:, 3] <= 0.0))
+    assert tr.ok and tr.t[k] == pytest.approx(69.6, abs=0.1)
+    assert s[-1, 3] == pytest.approx(-0.191, abs=0.002)

@@ -1,6 +1,7 @@
 """Family-blind dynamics: dispatch to the model family's forces, the effects that act as
-forces, wind loads, and the equations of motion (paper eq. 7 / Yasukawa & Yoshimura 2015
-eq. 4) solved for the accelerations; ds/dt with the current's kinematics.
+forces, wind loads (the family's own wind model, or Blendermann's), and the equations of
+motion (paper eq. 7 / Yasukawa & Yoshimura 2015 eq. 4) solved for the accelerations; ds/dt
+with the current's kinematics.
 
 The model state is (x_E, y_E, psi, u, v_m, r) with u, v_m relative to the water; with a
 current, kinematics add the current and outputs report velocities over ground.
@@ -27,6 +28,7 @@ _FAMILIES = families()
 _FORCES = tuple(f.forces for f in _FAMILIES)
 ASTERN_RPM = tuple(f.astern_rpm for f in _FAMILIES)
 ASTERN_SURGE = tuple(f.astern_surge for f in _FAMILIES)
+AIR_DRAG = tuple(f.air_drag for f in _FAMILIES)
 
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
@@ -119,6 +121,16 @@ def wind_loads(p, psi, u_g, v_g):
 
     A steady true wind of p[wind_speed] m/s blows *from* p[wind_dir] (rad, clockwise from north,
     the meteorological convention); u_g, v_g is the ship's velocity over ground (body axes).
+    """
+    rel = p[_dirw] - psi
+    return blendermann(p, -p[_Vw] * math.cos(rel) - u_g, -p[_Vw] * math.sin(rel) - v_g)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def blendermann(p, ua, va):
+    """Blendermann (1994) wind loads (X [N], Y [N], N [N m]) from the apparent wind (ua, va):
+    the air's velocity relative to the ship in body axes [m/s].
+
     gamma is the apparent wind's angle *from* the bow, + from starboard, so the formulas read
     (Blendermann 1994 eqs. for C_X, C_Y, C_N as given in Fossen 2011 sec. 8.1, with that
     book's gamma_rw = -gamma and |gamma| in the moment arm so port and starboard are mirror
@@ -128,9 +140,6 @@ def wind_loads(p, psi, u_g, v_g):
       C_N = C_Y (s_L/L_OA - 0.18 (|gamma| - pi/2)),
     X = C_X q A_F, Y = C_Y q A_L, N = C_N q A_L L_OA, q = 1/2 rho_air V_A^2.
     """
-    rel = p[_dirw] - psi
-    ua = -p[_Vw] * math.cos(rel) - u_g        # apparent wind (air relative to the ship)
-    va = -p[_Vw] * math.sin(rel) - v_g
     VA2 = ua * ua + va * va
     if VA2 == 0.0:
         return 0.0, 0.0, 0.0
@@ -144,6 +153,25 @@ def wind_loads(p, psi, u_g, v_g):
     Y = CY * q * p[_AL]
     X = -CDlAF * math.cos(gamma) / D * q * p[_AF]
     N = CY * (p[_sL] / p[_LOA] - 0.18 * (abs(gamma) - 0.5 * math.pi)) * q * p[_AL] * p[_LOA]
+    return X, Y, N
+
+
+_WINDS = tuple(blendermann if f.wind is None else f.wind for f in _FAMILIES)
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def family_wind(kind, p, ua, va):
+    """Wind loads (X [N], Y [N], N [N m]) of family ``kind``'s wind model (its own, else
+    Blendermann's) from the apparent wind (ua, va), the air's velocity relative to the ship in
+    body axes [m/s]."""
+    X = 0.0
+    Y = 0.0
+    N = 0.0
+    i = 0
+    for f in literal_unroll(_WINDS):
+        if i == kind:
+            X, Y, N = f(p, ua, va)
+        i += 1
     return X, Y, N
 
 
@@ -176,13 +204,15 @@ def derivative(kind, p, s, act, out):
     if Vc != 0.0:
         out[0] += Vc * math.cos(p[_dirc])
         out[1] += Vc * math.sin(p[_dirc])
-    if p[_Vw] != 0.0:
+    Vw = p[_Vw]
+    if Vw != 0.0 or AIR_DRAG[kind]:  # a family with AIR_DRAG feels its own motion's air drag
         ug = u
         vg = v
         if Vc != 0.0:
             ug += Vc * math.cos(p[_dirc] - psi)
             vg += Vc * math.sin(p[_dirc] - psi)
-        Xw, Yw, Nw = wind_loads(p, psi, ug, vg)
+        rel = p[_dirw] - psi
+        Xw, Yw, Nw = family_wind(kind, p, -Vw * math.cos(rel) - ug, -Vw * math.sin(rel) - vg)
         au, av, ar = external_accelerations(p, Xw, Yw, Nw)
         du += au
         dv += av

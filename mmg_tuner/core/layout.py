@@ -46,6 +46,7 @@ N_PARAMS = len(PARAM_NAMES)
 MODEL_KINDS = {name: code for code, name in enumerate(REGISTRY)}
 MODEL_CONTAINER = MODEL_KINDS['container']
 MODEL_STANDARD = MODEL_KINDS['standard']
+MODEL_LOWSPEED = MODEL_KINDS['lowspeed']
 
 # Integrators.
 EULER = 0

@@ -19,7 +19,7 @@ from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_
 from mmg_tuner.core.models import Family, family
 from mmg_tuner.errors import ConfigError
 
-_SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'windage')
+_SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'thrusters', 'windage')
 
 
 def config_dirs() -> list[Path]:
@@ -54,7 +54,8 @@ class ShipConfig:
 
     Attributes:
         name: ship name.
-        model: ``'container'`` (fine-tuning paper) or ``'standard'`` (MMG standard method).
+        model: the model family (``core/models``): ``'container'`` (fine-tuning paper),
+            ``'standard'`` (MMG standard method) or ``'lowspeed'`` (four-quadrant, low speed).
         params: float64 vector in :data:`~mmg_tuner.core.layout.PARAM_NAMES` order.
         rudder_rate_rad_s: steering-gear rate limit.
         max_rudder_rad: rudder angle limit.
@@ -62,6 +63,8 @@ class ShipConfig:
         a_r: default relative half-width of the tuning box.
         scale_ratio: Froude scale ratio to full scale (1 for a real ship).
         source: the YAML file this came from.
+        tuning_bounds: absolute search boxes {name: (lower, upper)} from the YAML's
+            ``tuning.bounds`` (they replace +-a_r for those names).
     """
 
     name: str
@@ -74,6 +77,7 @@ class ShipConfig:
     scale_ratio: float = 1.0
     source: str = ''
     extra: Mapping[str, Any] = field(default_factory=dict)
+    tuning_bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def kind(self) -> int:
@@ -91,8 +95,11 @@ class ShipConfig:
 
     @property
     def has_windage(self) -> bool:
-        """Whether the config describes the above-water ship (needed by the wind effect)."""
-        return all(self[k] > 0 for k in ('rho_air', 'A_F', 'A_L', 'L_OA', 'CD_t'))
+        """Whether the config describes the above-water ship (needed by the wind effect):
+        Blendermann's areas and coefficients, or those a family's own wind model reads."""
+        keys = ('rho_air', 'A_F', 'A_L') if self.family.wind is not None else (
+            'rho_air', 'A_F', 'A_L', 'L_OA', 'CD_t')
+        return all(self[k] > 0 for k in keys)
 
     def __getitem__(self, name: str) -> float:
         return float(self.params[_index(name, self.source)])
@@ -110,7 +117,8 @@ class ShipConfig:
         _check_physical(p, where, set(values))
         p.setflags(write=False)
         return ShipConfig(self.name, self.model, p, self.rudder_rate_rad_s, self.max_rudder_rad,
-                          self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra)
+                          self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra,
+                          self.tuning_bounds)
 
 
 # Physical plausibility, checked for ship files and overlays alike.
@@ -249,7 +257,29 @@ def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig
         name=str(doc.get('name', Path(source).stem)), model=model, params=p,
         rudder_rate_rad_s=math.radians(rate), max_rudder_rad=math.radians(max_rudder),
         tuning_targets=targets, a_r=a_r, scale_ratio=scale, source=source,
-        extra={k: v for k, v in doc.items() if k not in _SECTIONS})
+        extra={k: v for k, v in doc.items() if k not in _SECTIONS},
+        tuning_bounds=_tuning_bounds(tuning, source))
+
+
+def _tuning_bounds(tuning: Mapping[str, Any], source: str) -> dict[str, tuple[float, float]]:
+    """``tuning.bounds``: {name: [lower, upper]} with known names and finite lower < upper."""
+    block = tuning.get('bounds')
+    if block is None:
+        return {}
+    if not isinstance(block, Mapping):
+        raise ConfigError(f'{source}: tuning.bounds must be a mapping name: [lower, upper]')
+    out = {}
+    for k, v in block.items():
+        key = f'tuning.bounds.{k}'
+        if not isinstance(k, str) or k not in PARAM_INDEX:
+            raise ConfigError(f'{source}: {key}: unknown parameter {k!r}')
+        if not isinstance(v, (list, tuple)) or len(v) != 2:
+            raise ConfigError(f'{source}: {key} = {v!r} must be [lower, upper]')
+        lo, hi = _number(v[0], key, source), _number(v[1], key, source)
+        if not lo < hi:
+            raise ConfigError(f'{source}: {key} = [{lo:g}, {hi:g}]: lower must be < upper')
+        out[k] = (lo, hi)
+    return out
 
 
 def _section(doc: Mapping[str, Any], sec: str, source: str) -> Mapping[str, Any]:

@@ -39,13 +39,17 @@ class TrialBatch:
         M = len(trials)
         meas = np.zeros((M, T, 6))
         # measured wind: two more input channels, NaN for trials without (they use the wind
-        # parameters)
-        n_in = 4 if any(t.wind is not None for t in trials) else 2
+        # parameters); thrusters: two more, 0 rev/s for trials without
+        n_in = (6 if any(t.thrusters is not None for t in trials) else
+                4 if any(t.wind is not None for t in trials) else 2)
         ctrls = np.full((M, T, n_in), np.nan)
+        ctrls[:, :, 4:] = 0.0
         for j, tr in enumerate(trials):
             n = len(tr)
             inputs = tr.inputs
-            if not np.all(np.isfinite(tr.states)) or not np.all(np.isfinite(inputs)):
+            measured = (inputs if tr.wind is not None else  # wind NaN = not measured
+                        inputs[:, [0, 1] + list(range(4, inputs.shape[1]))])
+            if not np.all(np.isfinite(tr.states)) or not np.all(np.isfinite(measured)):
                 raise TuningError(f'trial {tr.name}: non-finite values')
             meas[j, :n] = tr.states
             meas[j, 0] = initial_state(tr, x0_window_s)

@@ -27,8 +27,11 @@ class ParameterSpace:
     def around(cls, ship: ShipConfig, names: Sequence[str] | None = None, a_r: float | None = None,
                overrides: Mapping[str, float | tuple[float, float]] | None = None
                ) -> 'ParameterSpace':
-        """Box theta_pre +- a_r |theta_pre| per parameter (paper section 4). overrides maps a
-        name to its own a_r, or to explicit (lower, upper) bounds."""
+        """Box theta_pre +- a_r |theta_pre| per parameter (paper section 4), or the ship's own
+        absolute box where its YAML gives one (``tuning.bounds``, ``ship.tuning_bounds``: it
+        keeps a coefficient's physical sign, which +-a_r around a small value may not).
+        overrides maps a name to its own a_r, or to explicit (lower, upper) bounds; they win
+        over both."""
         names = tuple(names or ship.tuning_targets)
         if not names:
             raise TuningError(f'{ship.name}: no tuning targets given or configured')
@@ -44,6 +47,8 @@ class ParameterSpace:
             o = overrides.pop(n, None)
             if isinstance(o, tuple):
                 low, up = float(o[0]), float(o[1])
+            elif o is None and n in ship.tuning_bounds:
+                low, up = (float(b) for b in ship.tuning_bounds[n])
             else:
                 a = a_r if o is None else float(o)
                 low, up = v - a * abs(v), v + a * abs(v)

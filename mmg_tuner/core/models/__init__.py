@@ -31,6 +31,10 @@ How to add a family ``myship`` (look at ``standard.py``, the shortest, as the te
      module level, so numba folds the index in) and the actuator tuple ``act`` indexed by
      ``channels.ACT_*`` (n_P [rev/s], actual rudder [rad], thrusters [rev/s]). No inertia
      terms (the shared equations of motion add them) and no effects (shared hooks add them).
+   * optionally its own wind model: ``wind(p, wx, wy) -> (X, Y, N)``, an njit function of the
+     apparent wind given as the air's velocity relative to the ship in body axes [m/s]
+     (without one the shared Blendermann loads act), and ``AIR_DRAG`` (bool, default False):
+     whether wind loads act even when the true wind is zero (the ship's own air drag).
 2. Append ``'myship'`` to :data:`REGISTRY` (its position is its integer code ``ship.kind``).
 3. A ship YAML with ``model: myship``.
 
@@ -48,7 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-REGISTRY: tuple[str, ...] = ('container', 'standard')
+REGISTRY: tuple[str, ...] = ('container', 'standard', 'lowspeed')
 """Registered families, by module name in this package; the position is the family's code."""
 
 
@@ -66,6 +70,8 @@ class Family:
     astern_surge: bool
     description: str
     forces: Callable[..., Any] = field(repr=False)
+    wind: Callable[..., Any] | None = field(default=None, repr=False)  # None: Blendermann
+    air_drag: bool = False
 
 
 def declared_params(name: str) -> tuple[str, ...]:
@@ -91,7 +97,8 @@ def family(name: str) -> Family:
         _CACHE[name] = Family(name, code, tuple(mod.PARAMS), tuple(mod.REQUIRED),
                               dict(getattr(mod, 'DEFAULTS', {})), tuple(mod.INPUTS),
                               bool(mod.ASTERN_RPM), bool(mod.ASTERN_SURGE), mod.DESCRIPTION,
-                              mod.forces)
+                              mod.forces, getattr(mod, 'wind', None),
+                              bool(getattr(mod, 'AIR_DRAG', False)))
     return _CACHE[name]
 
 

@@ -1,9 +1,11 @@
-"""Low-speed, four-quadrant MMG model of the Osaka Univ. NAOE 5th lab (Esso Osaka 3 m):
-Yoshimura's hull forces (valid through U -> 0 and u < 0), four-quadrant propeller, rudder
-with the reverse-propeller inflow, bow/stern thrusters, Fujiwara wind loads.
+"""Family ``lowspeed``: the low-speed, four-quadrant MMG model of the Osaka Univ. NAOE 5th lab
+(Esso Osaka 3 m): Yoshimura's hull forces (valid through U -> 0 and u < 0), four-quadrant
+propeller, rudder with the reverse-propeller inflow, bow/stern thrusters, and its own wind
+model, Fujiwara's regression on the apparent wind (acting even without true wind: the air drag
+of the ship's own motion is part of the model).
 
-Written from the reference restatement ``shared/reference/esso_osaka_lowspeed_mmg.md``
-(section numbers below are its own); parameter values and sources in config/esso_osaka_3m.yaml.
+Written from the reference restatement docs/reference/esso_osaka_lowspeed_mmg.md (section
+numbers below are its own); parameter values and sources in config/esso_osaka_3m.yaml.
 
 Frames, units and signs (reference §2):
 - body axes at **midship**: x forward, y to starboard; u, v = midship velocity through the
@@ -11,123 +13,82 @@ Frames, units and signs (reference §2):
   [N, N m], moments about midship.
 - n_rps: propeller speed [rev/s], signed (< 0 astern). delta [rad], > 0 starboard helm.
 - n_bt, n_st: bow/stern thruster speeds [rev/s], signed, > 0 pushes to starboard. They are
-  the *actual* thruster speeds: the actuator lag (§7: first order, T = 0.1 s, at most
-  20 rps/s) is a separate state, see :func:`actuator_rate`.
+  the *actual* thruster speeds (the input channels): the lab's actuator lag (§7: first order,
+  T = 0.1 s, at most 20 rps/s) is not part of the model, see :func:`actuator_rate`.
 - wind_speed_rel [m/s], wind_angle_rel [rad]: apparent wind at midship, the direction it
-  blows FROM, clockwise from the bow (0 = head wind, pi/2 = from starboard). Give the apparent
-  wind even with no true wind: the air drag of the ship's own motion is part of the model
-  (§8); :func:`apparent_wind` computes it from the true wind.
+  blows FROM, clockwise from the bow (0 = head wind, pi/2 = from starboard).
 
-Everything is in SI with rho = 998 kg/m^3 (the lab codes in kgf; accelerations are the same).
+Parameters live in the package's flat vector (``core/layout.PARAM_INDEX``): the shared slots
+(rho, L_pp, d, m [kg], x_G [m], I_zG [kg m^2], m_x, m_y, J_z primes, D_P, H_R, A_R, x_R = x'_R,
+rho_air, A_F = the transverse area A_T, A_L) and this family's own :data:`PARAMS`. Primes are
+non-dimensional on 1/2 rho L d (forces), 1/2 rho L^2 d (moments, masses), 1/2 rho L^4 d
+(inertia), L (x_P, x_H, l_R, x_R). x_BT, x_ST are in metres (the lab's files).
+
+Two ways in: the family interface the generic kernels call (:func:`forces` on the actuator
+tuple, :func:`wind` on the apparent wind vector; the shared equations of motion in
+``core/dynamics.py``), and the reference's standalone form (:func:`force_terms`,
+:func:`accelerations` with the apparent wind as speed and angle), which test/test_lowspeed_model.py
+checks against the reference's sanity numbers. Both use the same component functions.
 The model is discontinuous at u = 0, n = 0 and at a few branch points (§9): use fixed steps.
-
-Parameters: a flat float64 vector in :data:`PARAM_NAMES` order (build it with
-:func:`params_from_dict` from the YAML); primes are non-dimensional on 1/2 rho L d (forces),
-1/2 rho L^2 d (moments, masses), 1/2 rho L^4 d (inertia), L (lengths, names ending ``_nd``).
 """
 from __future__ import annotations
 
-import math
-from typing import Any, Mapping
+PARAMS = ('g', 'X_0F', 'X_0A', 'X_vr', 'Y_v', 'Y_r', 'N_v', 'N_r', 'C_D', 'C_rY', 'C_rN',
+          'pitch_ratio', 'x_P', 'w_P0', 'tau_P', 'C_P', 't_P', 'k_0', 'k_1', 'k_2',
+          'A_1', 'A_2', 'A_3', 'A_4', 'A_5', 'A_6', 'A_7', 'A_8',
+          'B_1', 'B_2', 'B_3', 'B_4', 'B_5', 'B_6', 'B_7', 'B_8',
+          'C_3', 'C_6', 'C_7', 'C_10', 'J_syn', 'J_syn0',
+          'aspect_R', 't_R', 'a_H', 'x_H', 'l_R', 'k_x', 'k_x_rev', 'epsilon', 'c_PR',
+          'gamma_N', 'gamma_P',
+          'D_BT', 'D_ST', 'x_BT', 'x_ST', 'u_T_max', 'K_BF', 'K_BR', 'a_YB', 'a_NB', 'K_SF',
+          'K_SR', 'a_YS', 'a_NS',
+          'XX0', 'XX1', 'XX3', 'XX5', 'YY1', 'YY3', 'YY5', 'NN1', 'NN2', 'NN3')
+REQUIRED = ('L_pp', 'B', 'd', 'rho', 'm', 'x_G', 'I_zG', 'm_x', 'm_y', 'J_z', 'D_P', 'H_R',
+            'A_R', 'x_R', 'rho_air', 'A_F', 'A_L') + PARAMS
+DEFAULTS: dict[str, float] = {}
+INPUTS = ('rpm', 'rudder', 'wind_n', 'wind_e', 'bow_thruster', 'stern_thruster')
+ASTERN_RPM = True
+ASTERN_SURGE = True
+AIR_DRAG = True   # its wind loads act on the apparent wind even when the true wind is zero
+DESCRIPTION = ('low-speed four-quadrant MMG with thrusters and Fujiwara wind, Osaka Univ. '
+               'NAOE 5th lab (Yoshimura 2009 hull; Esso Osaka 3 m)')
 
-import numpy as np
-from numba import njit
+import math  # noqa: E402  (below the declarations the layout reads)
 
-from mmg_tuner.errors import ConfigError
+import numpy as np  # noqa: E402
+from numba import njit  # noqa: E402
 
-# (name, section of the YAML) in vector order; units in config/esso_osaka_3m.yaml
-_LAYOUT = (
-    # particulars (SI unless _nd)
-    ('L', 'particulars'), ('B', 'particulars'), ('d', 'particulars'), ('rho', 'particulars'),
-    ('rho_air', 'particulars'), ('g', 'particulars'),
-    ('m_nd', 'particulars'), ('x_G_nd', 'particulars'),
-    ('m_x_nd', 'added_mass'), ('m_y_nd', 'added_mass'), ('I_zJ_nd', 'added_mass'),
-    # hull (§4)
-    ('X_0F', 'hull'), ('X_0A', 'hull'), ('X_vr', 'hull'), ('Y_v', 'hull'), ('Y_r', 'hull'),
-    ('N_v', 'hull'), ('N_r', 'hull'), ('C_D', 'hull'), ('C_rY', 'hull'), ('C_rN', 'hull'),
-    # propeller (§5)
-    ('D_P', 'propeller'), ('pitch_ratio', 'propeller'), ('x_P_nd', 'propeller'),
-    ('w_P0', 'propeller'), ('tau_P', 'propeller'), ('C_P', 'propeller'), ('t_P', 'propeller'),
-    ('k_0', 'propeller'), ('k_1', 'propeller'), ('k_2', 'propeller'),
-    ('A_1', 'propeller'), ('A_2', 'propeller'), ('A_3', 'propeller'), ('A_4', 'propeller'),
-    ('A_5', 'propeller'), ('A_6', 'propeller'), ('A_7', 'propeller'), ('A_8', 'propeller'),
-    ('B_1', 'propeller'), ('B_2', 'propeller'), ('B_3', 'propeller'), ('B_4', 'propeller'),
-    ('B_5', 'propeller'), ('B_6', 'propeller'), ('B_7', 'propeller'), ('B_8', 'propeller'),
-    ('C_3', 'propeller'), ('C_6', 'propeller'), ('C_7', 'propeller'), ('C_10', 'propeller'),
-    ('J_syn', 'propeller'), ('J_syn0', 'propeller'),
-    # rudder (§6)
-    ('A_R', 'rudder'), ('aspect_R', 'rudder'), ('x_R', 'rudder'), ('t_R', 'rudder'),
-    ('a_H', 'rudder'), ('x_H_nd', 'rudder'), ('l_R_nd', 'rudder'), ('k_x', 'rudder'),
-    ('k_x_rev', 'rudder'), ('epsilon', 'rudder'), ('c_PR', 'rudder'), ('gamma_N', 'rudder'),
-    ('gamma_P', 'rudder'),
-    # thrusters (§7)
-    ('D_BT', 'thrusters'), ('D_ST', 'thrusters'), ('x_BT', 'thrusters'), ('x_ST', 'thrusters'),
-    ('u_T_max', 'thrusters'), ('K_BF', 'thrusters'), ('K_BR', 'thrusters'),
-    ('a_YB', 'thrusters'), ('a_NB', 'thrusters'), ('K_SF', 'thrusters'), ('K_SR', 'thrusters'),
-    ('a_YS', 'thrusters'), ('a_NS', 'thrusters'),
-    ('T_thruster', 'thrusters'), ('rate_thruster', 'thrusters'),
-    # wind (§8)
-    ('A_T', 'wind'), ('A_L', 'wind'), ('XX0', 'wind'), ('XX1', 'wind'), ('XX3', 'wind'),
-    ('XX5', 'wind'), ('YY1', 'wind'), ('YY3', 'wind'), ('YY5', 'wind'), ('NN1', 'wind'),
-    ('NN2', 'wind'), ('NN3', 'wind'),
-)
-PARAM_NAMES: tuple[str, ...] = tuple(n for n, _ in _LAYOUT)
-PARAM_SECTIONS: dict[str, str] = dict(_LAYOUT)
-N_PARAMS = len(PARAM_NAMES)
-#: rows of :func:`forces`
+from mmg_tuner.core.channels import ACT_BOW, ACT_DELTA, ACT_N, ACT_STERN  # noqa: E402
+from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
+
+# indices into the flat vector (module-level ints: numba folds them in as constants)
+I_L, I_D, I_RHO, I_RHOA, I_G = (PARAM_INDEX[k] for k in ('L_pp', 'd', 'rho', 'rho_air', 'g'))
+I_M, I_XG, I_MX, I_MY, I_IZG, I_JZ = (PARAM_INDEX[k] for k in
+                                      ('m', 'x_G', 'm_x', 'm_y', 'I_zG', 'J_z'))
+(I_X0F, I_X0A, I_XVR, I_YV, I_YR, I_NV, I_NR, I_CD, I_CRY, I_CRN) = (
+    PARAM_INDEX[k] for k in ('X_0F', 'X_0A', 'X_vr', 'Y_v', 'Y_r', 'N_v', 'N_r', 'C_D',
+                             'C_rY', 'C_rN'))
+(I_DP, I_PR, I_XP, I_WP0, I_TAU, I_CP, I_TP, I_K0, I_K1, I_K2) = (
+    PARAM_INDEX[k] for k in ('D_P', 'pitch_ratio', 'x_P', 'w_P0', 'tau_P', 'C_P', 't_P',
+                             'k_0', 'k_1', 'k_2'))
+I_A1, I_A2, I_A3, I_A4, I_A5, I_A6, I_A7, I_A8 = (PARAM_INDEX[f'A_{i}'] for i in range(1, 9))
+I_B1, I_B2, I_B3, I_B4, I_B5, I_B6, I_B7, I_B8 = (PARAM_INDEX[f'B_{i}'] for i in range(1, 9))
+I_C3, I_C6, I_C7, I_C10, I_JSYN, I_JSYN0 = (PARAM_INDEX[k] for k in
+                                           ('C_3', 'C_6', 'C_7', 'C_10', 'J_syn', 'J_syn0'))
+(I_AR, I_HR, I_LAM, I_XR, I_TR, I_AH, I_XH, I_LR, I_KX, I_KXREV, I_EPS, I_CPR, I_GN,
+ I_GP) = (PARAM_INDEX[k] for k in ('A_R', 'H_R', 'aspect_R', 'x_R', 't_R', 'a_H', 'x_H', 'l_R',
+                                   'k_x', 'k_x_rev', 'epsilon', 'c_PR', 'gamma_N', 'gamma_P'))
+(I_DBT, I_DST, I_XBT, I_XST, I_UTMAX, I_KBF, I_KBR, I_AYB, I_ANB, I_KSF, I_KSR, I_AYS,
+ I_ANS) = (PARAM_INDEX[k] for k in ('D_BT', 'D_ST', 'x_BT', 'x_ST', 'u_T_max', 'K_BF', 'K_BR',
+                                    'a_YB', 'a_NB', 'K_SF', 'K_SR', 'a_YS', 'a_NS'))
+(I_AT, I_AL, I_XX0, I_XX1, I_XX3, I_XX5, I_YY1, I_YY3, I_YY5, I_NN1, I_NN2, I_NN3) = (
+    PARAM_INDEX[k] for k in ('A_F', 'A_L', 'XX0', 'XX1', 'XX3', 'XX5', 'YY1', 'YY3', 'YY5',
+                             'NN1', 'NN2', 'NN3'))
+#: rows of :func:`force_terms`
 FORCE_TERMS = ('hull', 'propeller', 'rudder', 'bow_thruster', 'stern_thruster', 'wind')
-
-# indices (numba freezes module-level ints as constants)
-(I_L, I_B, I_D, I_RHO, I_RHOA, I_G, I_M, I_XG, I_MX, I_MY, I_IZ,
- I_X0F, I_X0A, I_XVR, I_YV, I_YR, I_NV, I_NR, I_CD, I_CRY, I_CRN,
- I_DP, I_PR, I_XP, I_WP0, I_TAU, I_CP, I_TP, I_K0, I_K1, I_K2,
- I_A1, I_A2, I_A3, I_A4, I_A5, I_A6, I_A7, I_A8,
- I_B1, I_B2, I_B3, I_B4, I_B5, I_B6, I_B7, I_B8,
- I_C3, I_C6, I_C7, I_C10, I_JSYN, I_JSYN0,
- I_AR, I_LAM, I_XR, I_TR, I_AH, I_XH, I_LR, I_KX, I_KXREV, I_EPS, I_CPR, I_GN, I_GP,
- I_DBT, I_DST, I_XBT, I_XST, I_UTMAX, I_KBF, I_KBR, I_AYB, I_ANB, I_KSF, I_KSR, I_AYS, I_ANS,
- I_TTH, I_RTH,
- I_AT, I_AL, I_XX0, I_XX1, I_XX3, I_XX5, I_YY1, I_YY3, I_YY5, I_NN1, I_NN2, I_NN3,
- ) = range(N_PARAMS)
 
 EPS = 2.220446049250313e-16   # the lab's machine-epsilon guards (§9)
 U_MIN = 1e-5                  # below this total speed the lab sets U, v', r' to 1e-7 (§9)
-
-
-def params_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> np.ndarray:
-    """The parameter vector from a ship YAML's sections (particulars, added_mass, hull,
-    propeller, rudder, thrusters, wind) or from a flat {name: value} mapping. Every name of
-    :data:`PARAM_NAMES` is required; unknown keys in those sections and non-finite values are
-    refused (ConfigError naming the source, section and key)."""
-    flat: dict[str, Any] = {}
-    sections = set(PARAM_SECTIONS.values())
-    for key, val in doc.items():
-        if key in sections and isinstance(val, Mapping):
-            for k, v in val.items():
-                if k not in PARAM_SECTIONS:
-                    raise ConfigError(f'{source}: unknown key {key}.{k} for model lowspeed')
-                if PARAM_SECTIONS[k] != key:
-                    raise ConfigError(f'{source}: {key}.{k} belongs in section '
-                                      f'{PARAM_SECTIONS[k]}')
-                flat[k] = v
-        elif key in PARAM_SECTIONS:
-            flat[key] = val
-    p = np.empty(N_PARAMS)
-    for i, name in enumerate(PARAM_NAMES):
-        if name not in flat:
-            raise ConfigError(f'{source}: missing {PARAM_SECTIONS[name]}.{name} '
-                              '(model lowspeed)')
-        try:
-            p[i] = float(flat[name])
-        except (TypeError, ValueError):
-            raise ConfigError(f'{source}: {PARAM_SECTIONS[name]}.{name} = {flat[name]!r} '
-                              'is not a number') from None
-        if not math.isfinite(p[i]):
-            raise ConfigError(f'{source}: {PARAM_SECTIONS[name]}.{name} = {p[i]} is not finite')
-    for name in ('L', 'd', 'rho', 'm_nd', 'D_P', 'A_R', 'aspect_R', 'epsilon', 'T_thruster'):
-        if not p[PARAM_NAMES.index(name)] > 0:
-            raise ConfigError(f'{source}: {PARAM_SECTIONS[name]}.{name} must be > 0')
-    return p
 
 
 # --- components -------------------------------------------------------------------------
@@ -227,8 +188,7 @@ def propeller_forces(p, u, v, r, n):
 def rudder_inflow(p, u, v, r, n, x_p, omw):
     """(u_R, v_R) [m/s] (§6) from the propeller thrust x_p [N] and its clipped 1 - w_P."""
     rho, D, eps = p[I_RHO], p[I_DP], p[I_EPS]
-    H_R = math.sqrt(p[I_AR] * p[I_LAM])
-    eta = D / H_R
+    eta = D / p[I_HR]   # H_R = sqrt(A_R Lambda) in the lab's code (the YAML gives it so)
     kappa = p[I_KX] / eps
     if n > EPS:
         kt = x_p / ((1.0 - p[I_TP]) * rho * n * n * D ** 4)
@@ -247,7 +207,7 @@ def rudder_inflow(p, u, v, r, n, x_p, omw):
         a2 = eps * omw * u
         s = eta * _sgn(a1) * a1 * a1 + (1.0 - eta) * a2 * a2 + p[I_CPR] * u * u
         ur = _sgn(s) * math.sqrt(abs(s))
-    gamma = p[I_GP] if v + p[I_XR] * r >= 0.0 else p[I_GN]
+    gamma = p[I_GP] if v + p[I_XR] * p[I_L] * r >= 0.0 else p[I_GN]
     vr = -gamma * (v + p[I_LR] * p[I_L] * r)
     return ur, vr
 
@@ -261,7 +221,7 @@ def rudder_forces(p, ur, vr, delta):
     fn = 0.5 * p[I_RHO] * p[I_AR] * f_alpha * (ur * ur + vr * vr) * math.sin(alpha)
     X = -(1.0 - p[I_TR]) * fn * math.sin(delta)
     Y = -(1.0 + p[I_AH]) * fn * math.cos(delta)
-    N = -(p[I_XR] + p[I_AH] * p[I_XH] * p[I_L]) * fn * math.cos(delta)
+    N = -(p[I_XR] + p[I_AH] * p[I_XH]) * p[I_L] * fn * math.cos(delta)
     return X, Y, N
 
 
@@ -326,7 +286,7 @@ def actuator_rate(cmd, actual, time_const_s, max_rate):
 # --- totals -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def forces(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
+def force_terms(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
     """Every contribution as a (6, 3) array: rows :data:`FORCE_TERMS` (hull, propeller, rudder,
     bow thruster, stern thruster, wind), columns X [N], Y [N], N [N m] about midship."""
     out = np.zeros((6, 3))
@@ -355,10 +315,11 @@ def total_forces(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angl
 
 @njit(cache=True)
 def mass_terms(p):
-    """(m, m_x, m_y, I_zG + J_z [kg m^2], x_G [m]) from the primes (§3)."""
+    """(m [kg], m_x, m_y [kg], I_zG + J_z [kg m^2], x_G [m]); added masses from the primes
+    (§3)."""
     L, d, rho = p[I_L], p[I_D], p[I_RHO]
     q = 0.5 * rho * L * L * d
-    return p[I_M] * q, p[I_MX] * q, p[I_MY] * q, p[I_IZ] * q * L * L, p[I_XG] * L
+    return p[I_M], p[I_MX] * q, p[I_MY] * q, p[I_IZG] + p[I_JZ] * q * L * L, p[I_XG]
 
 
 @njit(cache=True)
@@ -383,3 +344,27 @@ def accelerations(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_ang
     b2 = N - xg * m * u * r
     det = a11 * a22 - a12 * a12
     return du, (b1 * a22 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det
+
+
+# --- the family interface (core/models/__init__.py) ----------------------------------------
+
+@njit(cache=True)
+def forces(p, u, v, r, act):
+    """Hull + propeller + rudder + thrusters (X [N], Y [N], N [N m]) about midship, for the
+    generic kernels: act = (n_P [rev/s, signed], rudder [rad], bow, stern thruster [rev/s]).
+    No wind here: the kernels add :func:`wind` on the apparent wind."""
+    n = act[ACT_N]
+    xh, yh, nh = hull_forces(p, u, v, r)
+    xp, yp, np_, omw = propeller_forces(p, u, v, r, n)
+    ur, vr = rudder_inflow(p, u, v, r, n, xp, omw)
+    xr, yr, nr = rudder_forces(p, ur, vr, act[ACT_DELTA])
+    yb, nb, ys, ns = thruster_forces(p, u, act[ACT_BOW], act[ACT_STERN])
+    return xh + xp + xr, yh + yp + yr + yb + ys, nh + np_ + nr + nb + ns
+
+
+@njit(cache=True)
+def wind(p, wx, wy):
+    """Fujiwara wind loads (X [N], Y [N], N [N m]) from the apparent wind given as the air's
+    velocity relative to the ship in body axes (wx forward, wy starboard) [m/s]."""
+    ga = math.atan2(-wy, -wx)   # the direction it blows FROM, clockwise from the bow
+    return wind_forces(p, math.sqrt(wx * wx + wy * wy), ga)

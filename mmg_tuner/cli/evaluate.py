@@ -1,0 +1,76 @@
+"""``evaluate``: how good is a model on recorded trials (per-state RMS and the eq. 26 index)?
+
+Simulates each trial driven by its recorded inputs (and measured wind), restarting from the
+measured state every N s, and writes the RMS error of each state and the index of Wakita et al.
+(2022, eq. 26) per trial: evaluate.json, evaluate.md and overlay plots.
+
+Example:
+    evaluate data/esso_osaka_frt/berthing --ship esso_osaka_3m --restart-every 100 --out ev
+    evaluate trials/ --ship suzaku --params tuned/params.yaml --out ev_tuned
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from mmg_tuner import api
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.cli.args import bounded, nonneg_float
+from mmg_tuner.cli.common import Parser, UsageError, run_command
+from mmg_tuner.cli.tune import show_log
+
+DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
+SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = Parser(prog='evaluate', description=__doc__.split('\n')[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument('trials', nargs='+', help='recorded trials: bags, .mcap, .csv, .dat, folders')
+    ap.add_argument('--ship', default='suzaku')
+    ap.add_argument('--params', help='params.yaml overlay (e.g. a tuned one)')
+    ap.add_argument('--out', required=True, help='output directory (new or empty)')
+    ap.add_argument('--restart-every', type=nonneg_float, default=100.0, metavar='S',
+                    help='restart from the measured state every S seconds (0: never)')
+    ap.add_argument('--topics', help='topic map YAML for bags')
+    ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
+    ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
+                    help="'full': trials are full scale, Froude-scale them to the ship config")
+    ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
+    ap.add_argument('--substeps', type=SUBSTEPS, default=1)
+    ap.add_argument('--no-plots', action='store_true')
+    ap.add_argument('--quiet', action='store_true', help='no progress messages')
+    return ap
+
+
+def command(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    config = api.EvaluateConfig(args.restart_every, args.integrator, args.substeps)
+    with show_log(args.quiet), OutputDir.open(args.out) as out:
+        ship = api.load_ship(args.ship, args.params)
+        fam = ship.family
+        trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,
+                                 trial_scale=args.trial_scale,
+                                 keep_astern=fam.astern_rpm and fam.astern_surge)
+        if not trials:
+            raise UsageError(f'no usable trial in {" ".join(args.trials)}')
+        result = api.evaluate(ship, trials, config)
+        result.write(out, plots=not args.no_plots)
+        width = max(len(n) for n in result.trials)
+        for name, s in result.trials.items():
+            idx = (f'failed at t = {s.failed_at_s:.1f} s ({s.failure})' if s.index is None
+                   else f'{s.index:.4g}')
+            print(f'{name:<{width}}  index {idx}')
+        if result.index_all is not None:
+            print(f'{"all trials":<{width}}  index {result.index_all:.4g}')
+        print(f'wrote {out.path}/evaluate.json, evaluate.md'
+              + ('' if args.no_plots else ', evaluate_*.png'))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> None:
+    sys.exit(run_command(command, argv))
+
+
+if __name__ == '__main__':
+    main()
