@@ -8,10 +8,14 @@ direction (or none: the clean control). The diagnosis runs with the command's bu
 A case is correct when exactly the hidden effect is named (nothing, for clean data).
 
     python bench/bench_diagnosis.py [--cases 5] [--budget standard] [--effects ...]
+                                    [--retune lsq|cmaes]
 
-Results are appended per case to bench/out/diagnosis_cases.jsonl (an interrupted run resumes
-where it stopped; --fresh starts over) and summarised in bench/out/diagnosis_summary.md.
-Targets: >= 95 % correct names, no false positive on clean data, <= 5 min per diagnosis.
+Results are appended per case to bench/out/diagnosis_cases_<retune>.jsonl (an interrupted run
+resumes where it stopped; --fresh starts over) and summarised in
+bench/out/diagnosis_summary_<retune>.md, with the median wall time per stage (base tune,
+screen, re-tunes, backward step, identifiability, report).
+Targets: >= 95 % correct names, no false positive on clean data, median <= 30 s per diagnosis
+of 10 trials (issue 15).
 """
 from __future__ import annotations
 
@@ -97,7 +101,8 @@ def _param_error(name: str, truth: dict, est: dict) -> dict[str, float]:
     return err
 
 
-def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float) -> dict:
+def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float,
+             retune: str = 'lsq') -> dict:
     rng = np.random.default_rng(10_000 + seed)
     space = ParameterSpace.around(ship)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
@@ -108,7 +113,7 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
     t0 = time.perf_counter()
     d = diagnose(ship, trials[::2], trials[1::2],
                  DiagnosisSettings(base_evals=base_e, screen_evals=screen_e, effect_evals=eff_e,
-                                   seed=seed), log=lambda m: None)
+                                   seed=seed, retune=retune), log=lambda m: None)
     wall = time.perf_counter() - t0
     named = [c['effect'] for c in d.causes]
     est = {p: v for c in d.causes for p, v in c['parameters'].items()}
@@ -118,7 +123,8 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
             'param_error': _param_error(cls, effect, est) if cls in named else {},
             'rivals': {c['effect']: c.get('indistinguishable_from', []) for c in d.causes},
             'barely_identifiable': sorted(d.aliased),
-            'heldout_gain': d.final['heldout_gain_total'], 'wall_s': wall}
+            'heldout_gain': d.final['heldout_gain_total'], 'wall_s': wall,
+            'timings_s': d.timings_s, 'retune': retune}
 
 
 def summarise(rows: list[dict]) -> str:
@@ -162,6 +168,11 @@ def summarise(rows: list[dict]) -> str:
     if walls:
         lines += ['', f'Run time per diagnosis: median {np.median(walls):.0f} s, max '
                       f'{np.max(walls):.0f} s over {len(walls)} cases']
+        stages = sorted({k for r in rows for k in r.get('timings_s', {})})
+        if stages:
+            lines.append('Median per stage: ' + ', '.join(
+                f"{k} {np.median([r.get('timings_s', {}).get(k, 0.0) for r in rows]):.1f} s"
+                for k in stages))
     return '\n'.join(lines)
 
 
@@ -173,9 +184,11 @@ def main() -> None:
     ap.add_argument('--trials', type=int, default=10)
     ap.add_argument('--duration', type=float, default=400.0, help='trial length [s]')
     ap.add_argument('--fresh', action='store_true')
+    ap.add_argument('--retune', choices=('lsq', 'cmaes'), default='lsq',
+                    help="the candidates' re-tunes (lsq: local least squares; cmaes: as before)")
     args = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / 'diagnosis_cases.jsonl'
+    path = OUT / f'diagnosis_cases_{args.retune}.jsonl'
     if args.fresh and path.exists():
         path.unlink()
     rows = [json.loads(x) for x in path.read_text().splitlines()] if path.exists() else []
@@ -185,15 +198,16 @@ def main() -> None:
         for cls in args.effects:
             if (cls, seed) in done:
                 continue
-            r = run_case(ship, cls, seed, args.budget, args.trials, args.duration)
+            r = run_case(ship, cls, seed, args.budget, args.trials, args.duration, args.retune)
             rows.append(r)
             with path.open('a') as f:
                 f.write(json.dumps(r) + '\n')
             print(f"{cls:16s} seed {seed}: named {r['named'] or 'nothing'} "
                   f"{'ok' if r['correct'] else 'WRONG'}  {r['wall_s']:.0f} s  "
-                  f"truth {r['truth']}  est {r['estimates']}", flush=True)
+                  f"truth {r['truth']}  est {r['estimates']}  stages "
+                  + ', '.join(f'{k} {v:.1f}' for k, v in r['timings_s'].items()), flush=True)
     text = summarise(rows)
-    (OUT / 'diagnosis_summary.md').write_text(text + '\n')
+    (OUT / f'diagnosis_summary_{args.retune}.md').write_text(text + '\n')
     print()
     print(text)
 

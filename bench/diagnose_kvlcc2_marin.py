@@ -7,10 +7,13 @@ error). Two runs:
      gamma_R+ / gamma_R- (they can bend to make port and starboard turns differ);
   B. the same without gamma_R+ / gamma_R- (held at their captive-model values), so that an
      asymmetry must come from an effect.
-For each it prints what is named, and the starboard/port tactical-diameter ratio of the
-resulting model against MARIN's (1.087).
+For each it prints what is named, what would fit but is impossible in a towing tank (wind,
+current; an antenna offset: MARIN's positions are of the model's reference point), the advised
+trials, the time per stage, and the starboard/port tactical-diameter ratio of the resulting
+model against MARIN's (1.087). The setting is declared (--setting tank,reference), as the
+MARIN reader's notes also say.
 
-    python bench/diagnose_kvlcc2_marin.py [--budget quick|standard]
+    python bench/diagnose_kvlcc2_marin.py [--budget quick|standard] [--runs A B] [--dt 0.1]
 """
 from __future__ import annotations
 
@@ -41,6 +44,9 @@ def td_ratio(ship) -> tuple[float, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--budget', default='quick')
+    ap.add_argument('--runs', nargs='+', default=['A', 'B'], choices=['A', 'B'])
+    ap.add_argument('--dt', default='0.1', help='resampling step [s] (full scale)')
+    ap.add_argument('--retune', default='lsq', choices=['lsq', 'cmaes'])
     args = ap.parse_args()
     d = marin_data_dir()
     tune = [str(d / MARIN_FILES[k]) for k in MARIN_FILES
@@ -53,16 +59,28 @@ def main() -> None:
     m, s0 = td_ratio(ship)
     print(f'starboard/port tactical diameter: MARIN {m:.3f}; pre-determined model {s0:.3f}')
     for name, targets in runs.items():
+        if name[0] not in args.runs:
+            continue
         out = OUT / name
+        t0 = time.perf_counter()
         rc = diagnose(tune + ['--test'] + test + [
-            '--ship', 'kvlcc2', '--trial-scale', 'full', '--dt', '0.1', '--budget', args.budget,
-            '--targets', *targets, '--out', str(out), '--no-plots'])
+            '--ship', 'kvlcc2', '--trial-scale', 'full', '--dt', args.dt, '--budget',
+            args.budget, '--targets', *targets, '--out', str(out), '--no-plots',
+            '--setting', 'tank,reference', '--retune', args.retune])
         if rc:
             sys.exit(rc)
         doc = json.loads((out / 'diagnosis.json').read_text())
         tuned = load_ship('kvlcc2', out / 'params.yaml')
         base = ship.with_params(doc['baseline']['params'])
-        print(f'\n== {name}: named {[c["summary"] for c in doc["causes"]] or "nothing"}')
+        print(f'\n== {name}: named {[c["summary"] for c in doc["causes"]] or "nothing"} '
+              f'({time.perf_counter() - t0:.0f} s; stages {doc["timings_s"]})')
+        for x in doc['would_fit_but_impossible']:
+            print(f"   would fit, but impossible here: {x['effect']} (gain "
+                  f"{100 * x['gain']:.1f} %): {x['reason']}")
+        for a in doc['advice']:
+            print(f"   advice ({a['about']}): {a['instruction']} (separation "
+                  f"{a['separation']:.3g} vs recorded {a['separation_recorded']}; "
+                  f"{'settles it' if a['settles'] else 'degenerate for these manoeuvres'})")
         print(f"   held-out J {doc['baseline']['J_test']:.4g} -> {doc['final']['J_test']:.4g}")
         print(f'   starboard/port TD ratio: tuned base {td_ratio(base)[1]:.3f}, final model '
               f'{td_ratio(tuned)[1]:.3f} (MARIN {m:.3f})')

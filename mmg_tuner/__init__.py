@@ -19,7 +19,8 @@ from mmg_tuner.errors import (ConfigError, DiagnosisError, MmgTunerError, Output
                               SimulationError, TrialDataError, TuningError)
 
 _API = ('load_ship', 'load_trials', 'tune', 'diagnose', 'simulate', 'TuneConfig', 'TuneResult',
-        'Fit', 'DiagnoseConfig', 'DiagnosisResult', 'ModelFit', 'Cause', 'BUDGETS')
+        'Fit', 'DiagnoseConfig', 'DiagnosisResult', 'ModelFit', 'Cause', 'BUDGETS',
+        'evaluate', 'EvaluateConfig', 'EvaluateResult')
 
 __all__ = ['ConfigError', 'DiagnosisError', 'MmgTunerError', 'OutputError', 'SimulationError',
            'TrialDataError', 'TuningError', *_API]

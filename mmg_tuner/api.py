@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -38,8 +39,9 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
-from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, DiagnosisSettings,
-                                        check_trial_sets)
+from mmg_tuner.diagnosis.context import Setting
+from mmg_tuner.diagnosis.select import (BUDGETS, RETUNE_METHODS, Candidate, Cause,
+                                        DiagnosisSettings, MapFn, check_trial_sets)
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
 from mmg_tuner.tuning.objective import Objective, TrialBatch, paper_weights
@@ -47,10 +49,12 @@ from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
 from mmg_tuner.tuning.tuner import Progress, Tuner
+from mmg_tuner.tuning.evaluate import EvaluateResult
+from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
            'TuneConfig', 'TuneResult', 'diagnose', 'load_ship', 'load_trials', 'simulate',
-           'tune']
+           'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate']
 
 logger = logging.getLogger(__name__)
 
@@ -67,11 +71,13 @@ def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = N
 
 def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
                 dt: float | None = None, topics: str | Path | None = None,
-                trial_scale: str = 'ship') -> list[Trial]:
+                trial_scale: str = 'ship', keep_astern: bool = False) -> list[Trial]:
     """Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them),
     as the commands read them: resampled on ``dt`` [s] (default: the topic map's, 1 s; MARIN
     files keep their own rate unless dt is given), and with ``trial_scale='full'`` Froude-scaled
-    from full scale to the ship's scale (``ship.scale_ratio``)."""
+    from full scale to the ship's scale (``ship.scale_ratio``). ``keep_astern=True`` keeps
+    astern propeller and u <= 0 samples, for a family that covers them
+    (``ship.family.astern_rpm``; default: they are left out with a note)."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
     if dt is not None:
@@ -85,7 +91,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
         tm = replace(tm, dt=dt)
     # one call: names unique across all paths; samples the ship cannot show dropped with a note
     limits = input_limits(ship) if ship is not None else None
-    trials: list[Trial] = _load.load_many(list(paths), tm, limits=limits)
+    trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
+                                          limits=limits)
     if trial_scale == 'full' and ship.scale_ratio != 1.0:
         trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
     if dt:
@@ -362,7 +369,12 @@ class DiagnoseConfig:
     effects: library entries to search (default: all); targets / a_r: the base model's tuning
     box; budget: 'quick', 'standard' or 'full' (evaluations for the base tuning, the screening
     and each candidate's re-tuning; base_evals / screen_evals / effect_evals override them);
-    max_effects: how many causes at most.
+    max_effects: how many causes at most. setting: where the trials were recorded, a
+    :class:`~mmg_tuner.diagnosis.context.Setting`, 'tank', 'sea,antenna' or a mapping
+    {venue, position} (default: the ship YAML's ``setting:``, else what the trial files say);
+    effects impossible there are fitted but never named. retune: 'lsq' (local least squares,
+    warm-started; default) or 'cmaes' for the candidates' re-tunes. measured_signals: a
+    measured wind is a candidate cause (True) or always drives the model (False).
     """
 
     effects: tuple[str, ...] = tuple(EFFECTS)
@@ -375,11 +387,19 @@ class DiagnoseConfig:
     base_evals: int | None = None
     screen_evals: int | None = None
     effect_evals: int | None = None
+    setting: Setting | str | Mapping | None = None
+    retune: str = 'lsq'
+    measured_signals: bool = True
 
     def __post_init__(self) -> None:
         E = DiagnosisError
         _check_common(self, E)
         object.__setattr__(self, 'effects', tuple(self.effects))
+        object.__setattr__(self, 'setting', Setting.parse(self.setting, 'the caller'))
+        _check('retune', self.retune, self.retune in RETUNE_METHODS,
+               f'one of {list(RETUNE_METHODS)}', E)
+        _check('measured_signals', self.measured_signals,
+               isinstance(self.measured_signals, bool), 'True or False', E)
         if self.targets is not None:
             object.__setattr__(self, 'targets', tuple(self.targets))
         unknown = [e for e in self.effects if e not in EFFECTS]
@@ -399,7 +419,8 @@ class DiagnoseConfig:
             targets=self.targets, a_r=self.a_r, effects=list(self.effects),
             integrator=self.integrator, base_evals=self.base_evals or base_e,
             screen_evals=self.screen_evals or screen_e, effect_evals=self.effect_evals or eff_e,
-            max_effects=self.max_effects, seed=self.seed)
+            max_effects=self.max_effects, seed=self.seed, retune=self.retune,
+            setting=self.setting, measured_signals=self.measured_signals)
 
 
 @dataclass
@@ -434,6 +455,16 @@ class DiagnosisResult:
     ship: ShipConfig = field(repr=False)
     test: list[Trial] = field(repr=False, default_factory=list)
     config: DiagnoseConfig = field(repr=False, default_factory=DiagnoseConfig)
+    setting: Setting = field(default_factory=Setting)
+    impossible: dict[str, str] = field(default_factory=dict)
+    impossible_fits: list[dict] = field(default_factory=list)
+    measured: list[dict] = field(default_factory=list)
+    timings_s: dict[str, float] = field(default_factory=dict)
+    # the test trials as each model sees them (without / with the measured wind)
+    test_base: list[Trial] = field(repr=False, default_factory=list)
+    test_final: list[Trial] = field(repr=False, default_factory=list)
+    # the trial that would settle each barely identifiable effect / rival pair (advice.py)
+    advice: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -444,7 +475,11 @@ class DiagnosisResult:
         return {'causes': [c.to_dict() for c in self.causes], 'baseline': base, 'final': final,
                 'candidates': [[asdict(c) for c in r] for r in self.candidates],
                 'residuals': self.residuals, 'barely_identifiable': self.barely_identifiable,
-                'params': self.params, 'wall_s': self.wall_s}
+                'setting': {**asdict(self.setting), 'description': self.setting.describe()},
+                'impossible_here': self.impossible,
+                'would_fit_but_impossible': self.impossible_fits,
+                'measured_signals': self.measured, 'advice': self.advice,
+                'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
         """params.yaml first, diagnosis.md, plots, and diagnosis.json last (its presence means
@@ -461,8 +496,10 @@ class DiagnosisResult:
             base_p = self.ship.with_params(self.baseline.params).params
             final_p = self.ship.with_params(self.params).params
             images = plot_residuals(self.test,
-                                    simulate_trials(self.ship, base_p, self.test, integ),
-                                    simulate_trials(self.ship, final_p, self.test, integ))
+                                    simulate_trials(self.ship, base_p,
+                                                    self.test_base or self.test, integ),
+                                    simulate_trials(self.ship, final_p,
+                                                    self.test_final or self.test, integ))
             images.update(plot_trials(self.ship, self.test, {'base tuned': base_p,
                                                              'with effects': final_p},
                                       'overlay_', integ))
@@ -477,13 +514,15 @@ def split_alternate(trials: Sequence[Trial]) -> tuple[list[Trial], list[Trial]]:
 def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
              test: Trial | Sequence[Trial] | None = None, config: DiagnoseConfig | None = None,
              *, checkpoint: str | Path | None = None, resume: bool = False,
-             **options) -> DiagnosisResult:
+             map_fn: MapFn | None = None, **options) -> DiagnosisResult:
     """Tune the base model on ``trials``, search the effects library, name the cause(s) by
     their gain on the held-out ``test`` trials (default: every second trial of ``trials``
     is held out; at least two are needed). ``options`` are :class:`DiagnoseConfig` fields
     (e.g. ``budget='quick'``). ``checkpoint``: a file where every completed tuning is stored;
     ``resume=True`` continues from it. Ctrl-C raises KeyboardInterrupt after the last
-    completed tuning was stored (never a truncated result)."""
+    completed tuning was stored (never a truncated result). ``map_fn(fn, items) -> list``
+    runs the independent tunings of each step (default: plain map; e.g. a Dask client's map
+    for a fleet), results in input order; fn touches neither the checkpoint nor the log."""
     cfg = _config(DiagnoseConfig, config, options)
     trials, test = _as_list(trials), _as_list(test)
     if not test:
@@ -494,10 +533,18 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         trials, test = split_alternate(trials)
         logger.info('held out (every second trial): %s', ', '.join(unique_names(test)))
     check_trial_sets(trials, test)
-    d = _diagnose(ship, trials, test, cfg.settings(), checkpoint=checkpoint, resume=resume)
+    d = _diagnose(ship, trials, test, cfg.settings(), checkpoint=checkpoint, resume=resume,
+                  map_fn=map_fn)
     logger.info('3/3 reporting')
-    res_base, _ = residuals_for(ship, d.base_params, test, cfg.integrator)
-    res_final, _ = residuals_for(ship, d.params, test, cfg.integrator)
+    t_report = time.perf_counter()
+    # the base model is tuned without a measured wind when it is a candidate
+    no_wind = [replace(t, wind=None) if t.wind is not None else t for t in test]
+    test_base = no_wind if cfg.measured_signals else test
+    test_final = test if (d.measured_wind_used or not cfg.measured_signals) else no_wind
+    res_base, _ = residuals_for(ship, d.base_params, test_base, cfg.integrator)
+    res_final, _ = residuals_for(ship, d.params, test_final, cfg.integrator)
+    timings = {**d.timings_s, 'report': round(time.perf_counter() - t_report, 3)}
+    logger.info('   reporting took %.1f s', timings['report'])
     b, f = d.baseline, d.final
     return DiagnosisResult(
         d.causes,
@@ -505,7 +552,9 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         ModelFit(f['J_tune'], f['J_test'], f['J_test_per_trial'], dict(d.params),
                  f['heldout_gain_total']),
         dict(d.params), d.rounds, d.aliased,
-        {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg)
+        {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg,
+        d.setting, d.impossible, d.impossible_fits, d.measured, timings, test_base, test_final,
+        d.advice)
 
 
 # ---------------------------------------------------------------------------------- simulate
@@ -535,3 +584,45 @@ def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substep
 def config_fields(cls) -> list[str]:
     """Field names of a config dataclass (for the CLIs)."""
     return [f.name for f in fields(cls)]
+
+
+# ---------------------------------------------------------------------------------- evaluate
+@dataclass(frozen=True)
+class EvaluateConfig:
+    """Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
+
+    restart_every_s: restart each simulation from the measured state every N s (Wakita et al.
+    2022 use 100 s; 0: never); integrator, substeps: as for simulate.
+    """
+
+    restart_every_s: float = 100.0
+    integrator: str = 'rk4'
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        _check('restart_every_s', self.restart_every_s,
+               _finite(self.restart_every_s) and self.restart_every_s >= 0,
+               'a finite number >= 0 [s] (0: never)')
+        _check('integrator', self.integrator, self.integrator in INTEGRATORS,
+               f'one of {sorted(INTEGRATORS)}')
+        _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
+               'a whole number in [1, 1000]')
+
+
+def evaluate(ship: ShipConfig, trials: Trial | Sequence[Trial],
+             config: EvaluateConfig | None = None, **options) -> 'EvaluateResult':
+    """How good ``ship``'s model is on recorded ``trials``: each is simulated with its recorded
+    inputs (and measured wind), restarting from the measured state every
+    ``restart_every_s`` s, and scored per trial by the RMS error of each state and the index of
+    Wakita et al. (2022) eq. 26 (standardised by deviations pooled over all the trials).
+    ``options`` are :class:`EvaluateConfig` fields. ``result.write(out)`` writes
+    evaluate.json, evaluate.md and the plots.
+
+    Example:
+        >>> ship = mt.load_ship('esso_osaka_3m')
+        >>> trials = mt.load_trials(['data/esso_osaka_frt/berthing'], keep_astern=True)
+        >>> res = mt.evaluate(ship, trials, restart_every_s=100)
+        >>> {n: s.index for n, s in res.trials.items()}
+    """
+    cfg = _config(EvaluateConfig, config, options)
+    return _evaluate(ship, _as_list(trials), cfg.restart_every_s, cfg.integrator, cfg.substeps)

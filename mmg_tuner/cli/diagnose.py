@@ -47,6 +47,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
+    ap.add_argument('--setting', metavar='VENUE[,POSITION]',
+                    help='where the trials were recorded: sea, pond, basin or tank, optionally '
+                    'with antenna or reference (positions at a GNSS antenna or of the reference '
+                    'point), e.g. tank,reference; effects impossible there are fitted but never '
+                    "named (default: the ship YAML's setting:, else what the trial files say)")
+    ap.add_argument('--retune', choices=('lsq', 'cmaes'), default='lsq',
+                    help="the candidates' warm-started re-tunes: local least squares or CMA-ES")
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress messages')
     return ap
@@ -55,7 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
 def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
     return api.DiagnoseConfig(effects=tuple(args.effects), targets=args.targets, a_r=args.ar,
                               budget=args.budget, max_effects=args.max_effects,
-                              integrator=args.integrator, seed=args.seed)
+                              integrator=args.integrator, seed=args.seed,
+                              setting=getattr(args, 'setting', None),   # (older resumed runs
+                              retune=getattr(args, 'retune', 'lsq'))     # stored neither)
 
 
 def command(argv: list[str] | None = None) -> int:
@@ -109,8 +118,12 @@ def command(argv: list[str] | None = None) -> int:
     else:
         print('CAUSE: none found -- no effect in the library explains the errors significantly')
     b, f = dx.baseline.J_test, dx.final.J_test
+    for x in dx.impossible_fits:
+        print(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "
+              f"{100 * x['gain']:.1f} %), but {x['reason']}: a structural gap of the model")
     print(f'held-out J: tuned base model {fmt_J(b)} -> final model {fmt_J(f)} '
-          f'({fmt_gain(b, f)} lower); {dx.wall_s:.0f} s')
+          f'({fmt_gain(b, f)} lower); {dx.wall_s:.0f} s ('
+          + ', '.join(f'{k} {v:.0f} s' for k, v in dx.timings_s.items()) + ')')
     print(f'wrote {out.path}/params.yaml, diagnosis.md, diagnosis.json'
           + ('' if args.no_plots else ', residuals_*.png, overlay_*.png'))
     return 0

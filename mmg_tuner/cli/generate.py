@@ -78,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='also record the (steady) true wind on /wind, as an anemometer would')
     ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     ap.add_argument('--seed', type=SEED, default=0)
+    ap.add_argument('--from-advice', metavar='DIAGNOSIS_JSON',
+                    help="the trials a diagnosis advised (its diagnosis.json or folder), in "
+                    "place of --maneuvers (each spec sets its own rpm, speed and duration)")
     return ap
 
 
@@ -107,6 +110,8 @@ def command(argv: list[str] | None = None) -> int:
             ship = ship.with_params(dict(args.effect))
         except ConfigError as exc:
             raise UsageError(f'--effect: {exc}') from None
+    if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)
+        return _from_advice(args, ship)
     n = check_samples(args.duration * args.rate_hz + 1,
                       f'--duration {args.duration:g} x --rate-hz {args.rate_hz:g}',
                       MAX_TRIAL_SAMPLES)
@@ -154,6 +159,25 @@ def _write(out: OutputDir, trial, name: str, storage: str) -> None:
                           ) from None
     out.write_text(Path('csv') / f'{name}.csv',
                    csv_text(trial.t, trial.states, trial.controls, trial.wind))
+
+
+def _from_advice(args, ship) -> int:
+    from mmg_tuner.diagnosis.advice import load_advice, trial_from_spec
+    specs = load_advice(args.from_advice)
+    noise = SensorNoise.none() if args.no_noise else SensorNoise()
+    out = OutputDir.open(args.out, resume=True)
+    written: list[str] = []
+    try:
+        for i, spec in enumerate(specs):
+            name = free_name(out.path, spec.name, set(written))
+            _, measured = trial_from_spec(ship, spec, args.rate_hz, noise, args.seed + 100 * i,
+                                          name)
+            _write(out, measured, name, args.storage)
+            written.append(name)
+            print(f'{name}: {spec.instruction()} -> {out.path / name}/ and csv/{name}.csv')
+    finally:
+        out.close()
+    return 0
 
 
 def main(argv: list[str] | None = None) -> None:

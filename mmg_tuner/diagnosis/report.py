@@ -24,12 +24,17 @@ def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
 def markdown(doc: dict, ship: ShipConfig) -> str:
     b, f = doc['baseline'], doc['final']
     lines = [f'# Diagnosis: {ship.name}', '']
+    if doc.get('setting'):
+        lines += [f"Setting: {doc['setting']['description']}." + (
+            ' Impossible here: ' + '; '.join(f'{e} ({w})' for e, w in
+                                            doc.get('impossible_here', {}).items()) + '.'
+            if doc.get('impossible_here') else ''), '']
     if doc['causes']:
         lines.append('**What was wrong, and why:**')
         lines.append('')
         for c in doc['causes']:
             lines.append(f"- **{c['effect']}** — {c['summary']}. Held-out gain "
-                         f"{100 * c['heldout_gain']:.1f} % ± {100 * c['heldout_gain_se']:.1f} "
+                         f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])} "
                          f"(jackknife over test trials). {c['description'].capitalize()}."
                          + (f" These trials cannot tell it apart from "
                             f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
@@ -38,18 +43,41 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
+    fits = doc.get('would_fit_but_impossible') or []
+    if fits:
+        lines += ['', '**Would fit, but impossible here.** These effects explain the held-out '
+                  'trials significantly, yet cannot exist where they were recorded. A good fit '
+                  'by an impossible effect is evidence of a structural gap of the model (a '
+                  'force or moment it lacks, which the effect mimics), not of that effect:', '']
+        for x in fits:
+            lines.append(f"- {x['effect']}: held-out gain {_pct(x['gain'])} ± "
+                         f"{_pct(x['gain_se'])} (round {x['round']}) — {x['reason']}")
     lines += ['', '| held-out J (test trials) | value |', '|---|---|',
-              f"| base model, tuned | {fmt_J(b['J_test'])} |",
-              f"| final model | {fmt_J(f['J_test'])} |",
-              f"| gain | {fmt_gain(b['J_test'], f['J_test'])} |", '',
-              '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
+              f"| base model, tuned | {_J(b)} |",
+              f"| final model | {_J(f)} |",
+              f"| gain | {fmt_gain(b['J_test'], f['J_test'])} |"]
+    for m in doc.get('measured_signals') or []:
+        lines += ['', f"## Measured signal: {m['signal'].replace('_', ' ')} (round {m['round']})",
+                  '', '| model | held-out J |', '|---|---|',
+                  f"| without it | {_fmt_J(m['J_test_without'])} |",
+                  f"| with it | {_fmt_J(m['J_test_with'])} |",
+                  f"| held-out gain | {_pct(m['heldout_gain'])} ± {_pct(m['heldout_gain_se'])} "
+                  f"({'named' if m['named'] else 'not named: ' + (m['note'] or '—')}) |"]
+    lines += ['', '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
               '|---|---|---|---|---|---|']
     for i, r in enumerate(doc['candidates'], 1):
         for c in r:
-            note = ', '.join(f'{p} on its bound' for p in c.get('on_bound', []))
-            lines.append(f"| {i} | {c['effect']} | {_pct(c['gain'])} | "
+            note = [f'{p} on its bound' for p in c.get('on_bound', [])]
+            if c.get('impossible'):
+                note.append(('would fit, but ' if c.get('significant') else '')
+                            + 'impossible here: ' + c['impossible'])
+            if c.get('diverged'):
+                note.append(c['diverged'])
+            gain = _pct(c['gain']) if np.isfinite(c['gain'] if c['gain'] is not None
+                                                  else np.nan) else 'diverged'
+            lines.append(f"| {i} | {c['effect']} | {gain} | "
                          f"{_pct(c['gain_se'])} | {'yes' if c['accepted'] else ''} | "
-                         f"{note} |")
+                         f"{'; '.join(note)} |")
     if doc.get('barely_identifiable'):
         lines += ['', '## Effects these trials can barely see', '',
                   'With the base targets tuned, these effects have a standard error over half '
@@ -62,6 +90,23 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
         for n, a in doc['barely_identifiable'].items():
             lines.append(f"| {n} | {a['se']:.3g} | {a['smallest']:.3g} | "
                          f"{_pct(a['r2'])} | {', '.join(a['mimicked_by'])} |")
+    if doc.get('advice'):
+        lines += ['', '## The trial that would settle it', '',
+                  'For each effect these trials barely see, and each pair of causes they cannot '
+                  'tell apart, the feasible trial (zigzags, turning circles, pull-outs at several '
+                  'rpm, an rpm step, a slower rudder; within the rudder limit and gear rate) '
+                  "whose predicted outputs differ most between the rival models, against the "
+                  'sensor noise (a ranking: residuals along a trajectory are correlated). '
+                  '`generate --from-advice diagnosis.json` runs them.', '',
+                  '| about | trial | separation (x unexplained error) | best recorded trial |',
+                  '|---|---|---|---|']
+        for a in doc['advice']:
+            rec = a.get('separation_recorded')
+            lines.append(f"| {a['about']} ({a['kind']}) | {a['instruction']}"
+                         + ('' if a.get('settles', True) else ' — *no trial separates them '
+                            'clearly better than the recorded ones: degenerate for these '
+                            'manoeuvres*') + f" | {a['separation']:.3g} | "
+                         f"{'—' if rec is None else f'{rec:.3g}'} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',
               '| trial | position rms [m] | psi rms [deg] | u rms [m/s] | v rms [m/s] | '
               'r rms [deg/s] |', '|---|---|---|---|---|---|']
@@ -86,11 +131,28 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     lines.append('The remaining error is what no effect in the library explains: sensor noise, '
                  'the start-state estimate, and the difference between the sampled commands and '
                  'what acted between samples.')
+    if doc.get('timings_s'):
+        lines += ['', 'Time per stage: ' + ', '.join(f'{k} {v:.1f} s'
+                                                     for k, v in doc['timings_s'].items())
+                  + f" (total {doc.get('wall_s', 0.0):.0f} s)."]
     return '\n'.join(lines) + '\n'
 
 
-def _pct(x: float) -> str:
-    return f'{100 * x:.1f} %' if np.isfinite(x) else ('inf' if x > 0 else '—')
+def _pct(x: float | None) -> str:
+    """A fraction as a percentage; never 'nan %' (None and NaN: '—')."""
+    if x is None or not np.isfinite(x):
+        return 'inf' if x is not None and x > 0 else '—'
+    return f'{100 * x:.1f} %'
+
+
+def _J(m: dict) -> str:
+    """A model's held-out J, or where it diverged."""
+    return m['diverged'] if m.get('diverged') else _fmt_J(m['J_test'])
+
+
+def _fmt_J(x: float | None) -> str:
+    """J for text; never 'nan'."""
+    return '—' if x is None or np.isnan(x) else fmt_J(x)
 
 
 def residuals_for(ship: ShipConfig, params: dict[str, float], trials: list[Trial],

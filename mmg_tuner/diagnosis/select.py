@@ -31,6 +31,18 @@ Selection rule (stepwise, like forward-backward regression):
 * checkpoint: every completed tuning is stored (atomically) under a key of what it was
   given; a resumed search replays the same steps and takes each finished one from the store.
   An interrupted tuning is never used: the interrupt propagates (KeyboardInterrupt).
+* plausibility (diagnosis/context.py): an effect impossible where the trials were recorded
+  (wind indoors, current in a tank, an antenna offset when positions are of the reference
+  point) is screened and fitted like any other but never named; a significant fit by one is
+  reported as "would fit, but impossible here": evidence of a structural gap of the model.
+* measured signals: when trials carry a measured wind, "the measured wind is used" is itself
+  a candidate (no parameters): the base model is tuned without it, and the model with it must
+  pass the same acceptance rule (the steady-wind effect is then not searched: the recording
+  says what the wind was).
+* re-tunes start next to an optimum, so they use a local bounded least-squares method
+  (scipy.optimize.least_squares, 'trf', in the unit box) on the weighted residuals, with a
+  forward-difference Jacobian computed in one batched multi-core simulation call; CMA-ES tunes
+  the base model (the paper's method) and screens the effects (directions are multimodal).
 """
 from __future__ import annotations
 
@@ -39,9 +51,9 @@ import logging
 import math
 import pickle
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -50,6 +62,8 @@ from mmg_tuner.core.effects import EFFECTS, Effect, describe_values
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.context import Setting, impossible_effects, resolve
+from mmg_tuner.diagnosis.lsq import local_least_squares
 from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.objective import Objective, TrialBatch
@@ -58,12 +72,20 @@ from mmg_tuner.tuning.tuner import Tuner
 
 logger = logging.getLogger(__name__)
 
+T = TypeVar('T')
+R = TypeVar('R')
+MapFn = Callable[[Callable[[T], R], Sequence[T]], list[R]]
+
 # evaluations: base tuning, screening per candidate, re-tune per candidate
 BUDGETS = {
     'quick': (6_000, 300, 3_000),
     'standard': (20_000, 400, 6_000),
     'full': (60_000, 800, 15_000),
 }
+RETUNE_METHODS = ('lsq', 'cmaes')
+# measured signals that can drive the model, as candidates: {name: (effect it measures, text)}
+MEASURED = {'measured_wind': ('wind', 'the measured wind drives the model (Blendermann loads '
+                                      'from the recorded true wind, sample by sample)')}
 
 
 @dataclass
@@ -89,6 +111,14 @@ class DiagnosisSettings:
     # an effect parameter this close to a bound (fraction of the box width) is suspect
     bound_tol: float = 0.01
     seed: int = 0
+    # re-tunes: 'lsq' (local bounded least squares, warm-started) or 'cmaes' (as the base)
+    retune: str = 'lsq'
+    # where the trials were recorded (None: the ship YAML's setting:, else the trial files')
+    setting: Setting | None = None
+    # a measured wind is a candidate (True) or always drives the model (False)
+    measured_signals: bool = True
+    # advise the trial that would separate each barely identifiable effect and rival pair
+    advice: bool = True
 
 
 @dataclass
@@ -102,13 +132,19 @@ class Candidate:
     values: dict[str, float]
     screen_drop: float = 0.0
     on_bound: list[str] = field(default_factory=list)
+    J_ref: float = math.nan          # held-out J of the model it is compared with
+    impossible: str = ''             # why it cannot exist in this setting ('' if it can)
+    diverged: str = ''               # 'diverged on trial X at t = ...' ('' if it did not)
+    significant: bool = False        # passed the acceptance rule (named only if also possible,
+    #                                  not on a bound and not too small)
 
 
 @dataclass
 class Cause:
     """A named cause: the effect, its estimated parameters (SI, radians) with Gauss-Newton
     standard errors, and the held-out gain (1 - J_test(with it) / J_test(without)) with its
-    jackknife standard error over test trials."""
+    jackknife standard error over test trials. A measured signal used as a cause (e.g.
+    ``measured_wind``) has no parameters."""
 
     effect: str
     parameters: dict[str, float]
@@ -121,6 +157,8 @@ class Cause:
     @property
     def summary(self) -> str:
         """Human wording, e.g. 'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'."""
+        if self.effect in MEASURED:
+            return self.effect.replace('_', ' ') + ' used'
         return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
 
     def to_dict(self) -> dict:
@@ -147,6 +185,13 @@ class Diagnosis:
     base_params: dict[str, float] = field(default_factory=dict)
     wall_s: float = 0.0
     aliased: dict[str, dict] = field(default_factory=dict)
+    setting: Setting = field(default_factory=Setting)
+    impossible: dict[str, str] = field(default_factory=dict)   # effect -> why, this setting
+    impossible_fits: list[dict] = field(default_factory=list)  # significant but impossible
+    measured: list[dict] = field(default_factory=list)         # measured signals: with/without
+    timings_s: dict[str, float] = field(default_factory=dict)  # wall time per stage
+    measured_wind_used: bool = False     # the final model is driven by the measured wind
+    advice: list[dict] = field(default_factory=list)           # see diagnosis/advice.py
 
 
 @dataclass(frozen=True)
@@ -219,6 +264,13 @@ class SearchCheckpoint:
                 raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
                                      '(ship, trials or settings differ)')
             self.done = doc['done']
+        if self.path is not None and not self.done:
+            self._write()   # exists from the start: an interrupt at once still leaves one
+
+    @property
+    def base_tune_path(self) -> Path | None:
+        """Where the base tuning (the longest single run) checkpoints every generation."""
+        return None if self.path is None else self.path.with_name(self.path.name + '.base')
 
     @staticmethod
     def key(*parts) -> str:
@@ -238,12 +290,15 @@ class SearchCheckpoint:
     def put(self, key: str, theta: np.ndarray) -> None:
         self.done[key] = np.array(theta, dtype=float)
         if self.path is not None:
-            doc = {'version': self.VERSION, 'fingerprint': self.fingerprint, 'done': self.done}
-            try:
-                write_atomic(self.path, pickle.dumps(doc))
-            except OSError as exc:
-                raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
-                                  f'({exc.strerror or exc})') from None
+            self._write()
+
+    def _write(self) -> None:
+        doc = {'version': self.VERSION, 'fingerprint': self.fingerprint, 'done': self.done}
+        try:
+            write_atomic(self.path, pickle.dumps(doc))
+        except OSError as exc:
+            raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
+                              f'({exc.strerror or exc})') from None
 
 
 def fingerprint(ship: ShipConfig, obj: Objective, obj_test: Objective,
@@ -255,9 +310,11 @@ def fingerprint(ship: ShipConfig, obj: Objective, obj_test: Objective,
 
 
 class _Model:
-    """A model structure under test: base targets + effect parameters with their boxes."""
+    """A model structure under test: base targets + effect parameters with their boxes, and
+    whether the measured wind drives it."""
 
-    def __init__(self, ship: ShipConfig, base: ParameterSpace, effects: list[Effect]):
+    def __init__(self, ship: ShipConfig, base: ParameterSpace, effects: list[Effect],
+                 measured_wind: bool = False):
         names = list(base.names)
         lo, hi, pre = list(base.lower), list(base.upper), list(base.pre)
         for e in effects:
@@ -267,70 +324,106 @@ class _Model:
                 hi.append(b)
                 pre.append(min(max(EFFECT_NEUTRAL[p], a), b))
         self.effects = effects
+        self.measured_wind = measured_wind
         self.space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
 
 
-def _tune(ship, model: _Model, obj: Objective, x0: np.ndarray, evals: int, seed: int,
-          fixed_base: bool = False, store: SearchCheckpoint | None = None) -> np.ndarray:
-    """One tuning of the search, taken from the checkpoint when it was completed before. An
-    interrupted tuning raises KeyboardInterrupt: its truncated result is never used."""
-    key = SearchCheckpoint.key(model.space.names, np.asarray(x0, float), evals, seed,
-                               fixed_base, obj.batch.names)
-    if store is not None:
-        done = store.get(key)
-        if done is not None:
-            return done
-    space = model.space
-    if fixed_base:  # screening: the base held, the effect parameters (new and named) move
-        n_base = len(x0) - sum(len(e.params) for e in model.effects)
+@dataclass(frozen=True, eq=False)
+class _Objectives:
+    """The tuning and test objectives without and (when trials carry one) with the measured
+    wind driving the model."""
+
+    plain: tuple[Objective, Objective]
+    wind: tuple[Objective, Objective] | None
+
+    def of(self, model: _Model) -> tuple[Objective, Objective]:
+        return self.wind if model.measured_wind else self.plain
+
+
+@dataclass(frozen=True, eq=False)
+class _Fit:
+    """One tuning of the search, self-contained so that a ``map_fn`` may run it in another
+    process: it touches neither the checkpoint nor the log."""
+
+    ship: ShipConfig
+    space: ParameterSpace
+    n_effect: int            # effect parameters at the end of space (screening moves only them)
+    obj: Objective
+    x0: np.ndarray
+    evals: int
+    seed: int
+    fixed_base: bool
+    method: str              # 'cmaes', 'lsq' or 'cmaes+lsq' (a CMA-ES search, then polished)
+
+    def key(self) -> str:
+        parts = [self.space.names, np.asarray(self.x0, float), self.evals, self.seed,
+                 self.fixed_base, self.obj.batch.names]
+        if self.method != 'cmaes' and not self.fixed_base:
+            parts.append(self.method)
+        if self.obj.batch.ctrls.shape[2] > 2:
+            parts.append('measured wind')
+        return SearchCheckpoint.key(*parts)
+
+
+def _run_fit(f: _Fit) -> np.ndarray:
+    """Run one tuning; an interrupted CMA-ES run raises KeyboardInterrupt (never a truncated
+    result)."""
+    space = f.space
+    x0 = np.asarray(f.x0, float)
+    if f.fixed_base:  # screening: the base held, the effect parameters (new and named) move
+        n_base = len(x0) - f.n_effect
         base_vals = x0[:n_base]
         sub = ParameterSpace(space.names[n_base:], space.pre[n_base:], space.lower[n_base:],
                              space.upper[n_base:])
-        shipb = ship.with_params(dict(zip(space.names[:n_base], base_vals)))
-        o = Objective(shipb, obj.batch, obj.weights, 0.0,
-                      {0: 'euler', 1: 'rk4'}[obj.method], obj.substeps)
-        res = Tuner(sub, o, seed=seed, max_evaluations=evals, max_popsize=24,
+        shipb = f.ship.with_params(dict(zip(space.names[:n_base], base_vals)))
+        o = Objective(shipb, f.obj.batch, f.obj.weights, 0.0,
+                      {0: 'euler', 1: 'rk4'}[f.obj.method], f.obj.substeps)
+        if sub.dim == 0:
+            return x0.copy()
+        res = Tuner(sub, o, seed=f.seed, max_evaluations=f.evals, max_popsize=24,
                     sigma0=0.3).run()
-        theta = np.concatenate([base_vals, res.theta])
-    else:
-        res = Tuner(space, obj, seed=seed, max_evaluations=evals, max_popsize=48, sigma0=0.1,
-                    x0=x0).run()
-        theta = res.theta
+        if res.interrupted:
+            raise KeyboardInterrupt
+        return np.concatenate([base_vals, res.theta])
+    if f.method == 'lsq':
+        return local_least_squares(space, f.obj, x0, f.evals)
+    res = Tuner(space, f.obj, seed=f.seed, max_evaluations=f.evals, max_popsize=48,
+                sigma0=0.3 if f.method == 'cmaes+lsq' else 0.1, x0=x0).run()
     if res.interrupted:
         raise KeyboardInterrupt
-    if store is not None:
-        store.put(key, theta)
-    return theta
+    if f.method == 'cmaes+lsq':   # a global search, then the local polish the others get
+        return local_least_squares(space, f.obj, res.theta, f.evals)
+    return res.theta
 
 
-def _backward_pass(ship, base: ParameterSpace, model: '_Model', theta, obj: Objective,
-                   obj_test: Objective, causes: list[Cause], s: DiagnosisSettings,
-                   J_base_test: float, log, store: SearchCheckpoint | None):
-    """Stepwise regression's backward step: a named effect that the later ones made redundant
-    (e.g. a yaw moment bias named first, then the rudder offset that explains it better) is
-    dropped when it fails the same :func:`acceptance` rule as the forward step against the
-    model without it. Both sides are re-tuned with the same warm start and budget."""
-    theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed, store=store)
-    J_full = _per_trial_J(obj_test, ship, model.space, theta)
-    while len(model.effects) > 1:
-        checks = []
-        for e in model.effects:
-            keep = [x for x in model.effects if x is not e]
-            m = _Model(ship, base, keep)
-            idx = [model.space.names.index(n) for n in m.space.names]
-            th = _tune(ship, m, obj, theta[idx], s.effect_evals, s.seed, store=store)
-            Jt = _per_trial_J(obj_test, ship, m.space, th)
-            v = acceptance(Jt, J_full, len(e.params), J_base_test, s)
-            checks.append((v, e, m, th, Jt))
-        v, e, m, th, Jt = min(checks, key=lambda x: x[0].gain)
-        log(f'   backward check: without {e.name} the held-out error is '
-            f'{_pct_change(J_full.sum(), Jt.sum())} '
-            f'({"keep" if v.significant else "redundant: dropped (" + v.reason + ")"})')
-        if v.significant:
-            break
-        causes[:] = [c for c in causes if c.effect != e.name]
-        model, theta, J_full = m, th, Jt
-    return model, theta, J_full
+def _plain_map(fn, items):
+    return [fn(x) for x in items]
+
+
+def _tune_many(fits: Sequence[_Fit], store: SearchCheckpoint | None,
+               map_fn: MapFn | None) -> list[np.ndarray]:
+    """Every tuning, in input order: finished ones from the checkpoint, the rest through
+    map_fn (plain map by default: each stored as soon as it is done). The checkpoint is read
+    before and written after the mapping, here in the calling process."""
+    keys = [f.key() for f in fits]
+    out: list[np.ndarray | None] = [store.get(k) if store is not None else None for k in keys]
+    todo = [i for i, th in enumerate(out) if th is None]
+    if not todo:
+        return out
+    if map_fn is None:
+        for i in todo:
+            out[i] = _run_fit(fits[i])
+            if store is not None:
+                store.put(keys[i], out[i])
+        return out
+    got = list(map_fn(_run_fit, [fits[i] for i in todo]))
+    if len(got) != len(todo):
+        raise DiagnosisError(f'map_fn returned {len(got)} results for {len(todo)} tasks')
+    for i, th in zip(todo, got):
+        out[i] = np.asarray(th, float)
+        if store is not None:
+            store.put(keys[i], out[i])
+    return out
 
 
 def _pct_change(ref: float, new: float) -> str:
@@ -373,6 +466,12 @@ def _per_trial_J(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta)
     return J[0]
 
 
+def _failure_text(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta) -> str:
+    """'diverged on trial X at t = ... s' for the first failing trial ('' if none)."""
+    ev = obj.evaluate(space.full_params(ship.params, theta)[0])
+    return str(ev.failures[0]) if ev.failures else ''
+
+
 def check_trial_sets(tune_trials: Sequence[Trial], test_trials: Sequence[Trial]) -> None:
     """Refuse, before any work, trial sets on which no cause can ever be named."""
     if not tune_trials or not test_trials:
@@ -384,16 +483,39 @@ def check_trial_sets(tune_trials: Sequence[Trial], test_trials: Sequence[Trial])
             'more test trials (or at least four trials without --test)')
 
 
+def _without_wind(trials: Sequence[Trial]) -> list[Trial]:
+    return [replace(t, wind=None) if t.wind is not None else t for t in trials]
+
+
+class _Clock:
+    """Wall time per stage (seconds, summed over visits)."""
+
+    def __init__(self):
+        self.t = {}
+        self._stage, self._t0 = None, 0.0
+
+    def __call__(self, stage: str | None) -> None:
+        now = time.perf_counter()
+        if self._stage is not None:
+            self.t[self._stage] = self.t.get(self._stage, 0.0) + now - self._t0
+        self._stage, self._t0 = stage, now
+
+
 def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial],
              settings: DiagnosisSettings | None = None,
              log: Callable[[str], None] | None = None, *,
-             checkpoint: str | Path | None = None, resume: bool = False) -> Diagnosis:
+             checkpoint: str | Path | None = None, resume: bool = False,
+             map_fn: MapFn | None = None) -> Diagnosis:
     """Tune the base model, search the effects library, name the cause(s).
 
     checkpoint: a file where every completed tuning is stored; with resume=True the search
     continues from it (the result equals an uninterrupted run). Ctrl-C (KeyboardInterrupt)
     propagates after the last completed tuning was stored. Progress goes to ``log`` (default:
-    the ``mmg_tuner.diagnosis.select`` logger at INFO).
+    the ``mmg_tuner.diagnosis.select`` logger at INFO). map_fn(fn, items) -> list: how the
+    independent tunings of a step (the screening of every candidate; the null re-tune with
+    the top candidates' re-tunes; the removals of the backward step) are run, results in input
+    order (default: plain map, here). The mapped function touches neither the checkpoint nor
+    the log.
     """
     s = settings or DiagnosisSettings()
     log = log or logger.info
@@ -401,36 +523,79 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     unknown = [e for e in s.effects if e not in EFFECTS]
     if unknown:
         raise DiagnosisError(f'unknown effects {unknown}; known: {sorted(EFFECTS)}')
+    if s.retune not in RETUNE_METHODS:
+        raise DiagnosisError(f'retune = {s.retune!r}: must be one of {list(RETUNE_METHODS)}')
+    clock = _Clock()
+    clock('setup')
     effects = list(s.effects)
     if 'wind' in effects and not ship.has_windage:
         effects.remove('wind')
         log(f'   wind left out: {ship.source or ship.name} has no windage section (A_F, A_L, '
             'L_OA, CD_t, rho_air)')
+    setting = resolve(ship, list(tune_trials) + list(test_trials), s.setting)
+    impossible = impossible_effects(setting)
+    for m, (eff, _) in MEASURED.items():
+        if eff in impossible:
+            impossible[m] = impossible[eff]
+    ruled_out = [f'{e} ({why})' for e, why in impossible.items() if e in effects]
+    log(f'   setting: {setting.describe()}'
+        + ('; impossible here: ' + ', '.join(ruled_out) if ruled_out else ''))
     t_start = time.perf_counter()
-    obj = Objective(ship, TrialBatch.from_trials(tune_trials), integrator=s.integrator)
-    obj_test = Objective(ship, TrialBatch.from_trials(test_trials), integrator=s.integrator)
+    has_wind = any(t.wind is not None for t in list(tune_trials) + list(test_trials))
+
+    def mk(trials: Sequence[Trial]) -> Objective:
+        return Objective(ship, TrialBatch.from_trials(trials), integrator=s.integrator)
+
+    wind_pair = (mk(tune_trials), mk(test_trials)) if has_wind else None
+    if has_wind and s.measured_signals:
+        objs = _Objectives((mk(_without_wind(tune_trials)), mk(_without_wind(test_trials))),
+                           wind_pair)
+        if 'wind' in effects and ship.has_windage:
+            effects.remove('wind')
+        measured = ['measured_wind'] if ship.has_windage else []
+        log('   the trials carry a measured wind: "measured wind used" is a candidate (the '
+            'base model is tuned without it; a steady wind is not searched)'
+            if measured else '   the trials carry a measured wind, but the ship has no '
+            'windage section: it cannot be used')
+    else:
+        objs = _Objectives(wind_pair or (mk(tune_trials), mk(test_trials)), None)
+        measured = []
+    obj, obj_test = objs.plain
     base = ParameterSpace.around(ship, s.targets, s.a_r)
-    store = SearchCheckpoint(checkpoint, fingerprint(ship, obj, obj_test, s), resume)
+    fp_obj = objs.wind or objs.plain
+    store = SearchCheckpoint(checkpoint, fingerprint(ship, fp_obj[0], fp_obj[1], s), resume)
     if store.done:
         log(f'   resuming: {len(store.done)} completed tuning(s) in {store.path}')
 
+    clock('base_tune')
     log(f'1/3 tuning the base model ({base.dim} parameters) on {len(tune_trials)} trial(s)')
     model = _Model(ship, base, [])
     key = SearchCheckpoint.key('base', base.names, base.lower, base.upper, s.base_evals, s.seed)
     theta = store.get(key)
     if theta is None:
-        res = Tuner(base, obj, seed=s.seed, max_evaluations=s.base_evals).run()
+        # checkpointed every generation beside the search's checkpoint: an interrupted base
+        # tuning resumes where it stopped (removed once the result is stored)
+        side = store.base_tune_path
+        res = Tuner(base, obj, seed=s.seed, max_evaluations=s.base_evals, checkpoint=side
+                    ).run(resume=bool(side is not None and resume and side.is_file()))
         if res.interrupted:
             raise KeyboardInterrupt
         theta = res.theta
         store.put(key, theta)
+        if side is not None:
+            side.unlink(missing_ok=True)   # ours, written by this diagnosis
     J_test = _per_trial_J(obj_test, ship, model.space, theta)
     baseline = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
                 'J_test': float(J_test.sum()),
                 'J_test_per_trial': dict(zip(obj_test.batch.names, J_test.tolist())),
                 'params': dict(zip(base.names, theta.tolist()))}
+    base_fail = _failure_text(obj_test, ship, model.space, theta) \
+        if not np.all(np.isfinite(J_test)) else ''
+    if base_fail:
+        baseline['diverged'] = base_fail
     base_theta = theta.copy()
-    log(f'   base model: J_test = {J_test.sum():.4g}')
+    log('   base model: J_test = ' + (f'{J_test.sum():.4g}' if not base_fail else base_fail))
+    clock('identifiability')
     aliased = _aliased_effects(ship, base, theta, obj, effects)
     for name, a in aliased.items():
         log(f"   {name} is barely identifiable here: its standard error {a['se']:.3g} with the "
@@ -441,42 +606,91 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     log('2/3 searching the effects library')
     causes: list[Cause] = []
     rounds = []
-    remaining = effects
+    impossible_fits: list[dict] = []
+    measured_doc: list[dict] = []
+    rival_pairs: list[dict] = []
+    remaining = effects + measured
     while remaining and len(causes) < s.max_effects:
+        clock('screen')
         cands = []
+        o_now, ot_now = objs.of(model)
+        J_now = _per_trial_J(o_now, ship, model.space, theta).sum()
         # cheap screen: the effect alone, base held at its tuned values
-        screened = []
-        J_now = _per_trial_J(obj, ship, model.space, theta).sum()
+        fits, order = [], []
         for name in remaining:
-            m = _Model(ship, base, model.effects + [EFFECTS[name]])
+            if name in MEASURED:
+                continue
+            m = _Model(ship, base, model.effects + [EFFECTS[name]], model.measured_wind)
             x0 = np.concatenate([theta, m.space.pre[len(theta):]])
-            th = _tune(ship, m, obj, x0, s.screen_evals, s.seed, fixed_base=True, store=store)
-            J_m = _per_trial_J(obj, ship, m.space, th).sum()
+            fits.append(_Fit(ship, m.space, m.space.dim - base.dim, objs.of(m)[0], x0,
+                             s.screen_evals, s.seed, True, 'cmaes'))
+            order.append(name)
+        screened = []
+        for name, th in zip(order, _tune_many(fits, store, map_fn)):
+            m = _Model(ship, base, model.effects + [EFFECTS[name]], model.measured_wind)
+            J_m = _per_trial_J(objs.of(m)[0], ship, m.space, th).sum()
             drop = float(1 - J_m / J_now) if math.isfinite(J_m) and J_now > 0 else -math.inf
             screened.append((drop, name, th))
+        for name in remaining:   # a measured signal has nothing to fit: its J with the base
+            if name in MEASURED:
+                J_m = _per_trial_J(objs.wind[0], ship, model.space, theta).sum()
+                drop = float(1 - J_m / J_now) if math.isfinite(J_m) and J_now > 0 \
+                    else -math.inf
+                screened.append((drop, name, theta.copy()))
         screened.sort(key=lambda x: -x[0])
         log('   screen (tuning-J drop, effect alone): ' +
             ', '.join(f'{n} {100 * d:.0f}%' if math.isfinite(d) else f'{n} diverges'
                       for d, n, _ in screened))
-        # the null candidate: the current model re-tuned with the same warm start and budget,
-        # so that a gain measures the effect, not the extra tuning
-        theta = _tune(ship, model, obj, theta, s.effect_evals, s.seed, store=store)
-        J_test = _per_trial_J(obj_test, ship, model.space, theta)
-        for drop, name, th0 in screened[:s.screen]:
-            m = _Model(ship, base, model.effects + [EFFECTS[name]])
-            th = _tune(ship, m, obj, th0, s.effect_evals, s.seed, store=store)
-            Jt = _per_trial_J(obj_test, ship, m.space, th)
-            v = acceptance(J_test, Jt, len(EFFECTS[name].params), baseline['J_test'], s)
+        # the null candidate (the current model re-tuned with the same warm start and budget,
+        # so that a gain measures the effect, not the extra tuning) and the top candidates'
+        # re-tunes (a measured signal always: it costs no screening), in one mapping
+        clock('retune')
+        top = screened[:s.screen] + [x for x in screened[s.screen:] if x[1] in MEASURED]
+        models = []
+        fits = [_Fit(ship, model.space, 0, o_now, theta, s.effect_evals, s.seed, False,
+                     s.retune)]
+        for drop, name, th0 in top:
+            if name in MEASURED:
+                m = _Model(ship, base, model.effects, True)
+            else:
+                m = _Model(ship, base, model.effects + [EFFECTS[name]], model.measured_wind)
+            models.append(m)
+            # a measured wind changes the whole balance of forces (at low speed it dominates):
+            # its optimum may lie far from the one without it, beyond a local method's reach
+            how = 'cmaes+lsq' if name in MEASURED and s.retune == 'lsq' else s.retune
+            fits.append(_Fit(ship, m.space, 0, objs.of(m)[0], th0, s.effect_evals, s.seed,
+                             False, how))
+        thetas = _tune_many(fits, store, map_fn)
+        theta = thetas[0]
+        J_test = _per_trial_J(ot_now, ship, model.space, theta)
+        null_fail = _failure_text(ot_now, ship, model.space, theta) \
+            if not np.all(np.isfinite(J_test)) else ''
+        for (drop, name, _), m, th in zip(top, models, thetas[1:]):
+            o_m, ot_m = objs.of(m)
+            Jt = _per_trial_J(ot_m, ship, m.space, th)
+            params = EFFECTS[name].params if name in EFFECTS else ()
+            v = acceptance(J_test, Jt, len(params), baseline['J_test'], s)
+            fail = _failure_text(ot_m, ship, m.space, th) if not np.all(np.isfinite(Jt)) else ''
             vals = {p: float(x) for p, x in zip(m.space.names[base.dim:], th[base.dim:])
-                    if p in EFFECTS[name].params}
-            pinned = pinned_on_bound(m.space, th, EFFECTS[name].params, s.bound_tol)
-            tiny = EFFECTS[name].too_small(ship, vals)
-            ok = v.significant and not pinned and not tiny
-            cands.append((Candidate(name, float(Jt.sum()), v.per_trial_gain.tolist(),
-                                    float(v.gain), v.gain_se, ok, vals, float(drop), pinned),
-                          m, th, Jt))
+                    if p in params}
+            pinned = pinned_on_bound(m.space, th, params, s.bound_tol)
+            tiny = EFFECTS[name].too_small(ship, vals) if name in EFFECTS else False
+            why_not = impossible.get(name, '')
+            ok = v.significant and not pinned and not tiny and not why_not
+            cand = Candidate(name, float(Jt.sum()), v.per_trial_gain.tolist(), float(v.gain),
+                             v.gain_se, ok, vals, float(drop), pinned, float(J_test.sum()),
+                             why_not, fail or (('reference ' + null_fail) if null_fail else ''),
+                             bool(v.significant))
+            cands.append((cand, m, th, Jt))
             verdict = 'significant' if ok else 'not significant'
-            if v.significant and pinned:
+            if v.significant and why_not:
+                verdict = f'would fit, but impossible here: {why_not}'
+                if not tiny:
+                    impossible_fits.append({'effect': name, 'gain': float(v.gain),
+                                            'gain_se': float(v.gain_se), 'reason': why_not,
+                                            'values': vals, 'on_bound': pinned,
+                                            'round': len(rounds) + 1})
+            elif v.significant and pinned:
                 verdict = ('significant but rejected: ' + ', '.join(
                     f'{p} = {vals[p]:.4g} on its bound' for p in pinned)
                     + ' (a likely mis-attribution)')
@@ -484,11 +698,17 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 verdict = ('significant but rejected: smaller than the smallest magnitude worth '
                            'finding (noise-fitting)')
             elif not v.significant:
-                verdict += f' ({v.reason})'
+                verdict += f' ({fail or null_fail or v.reason})'
             per = ', '.join(f'{100 * x:+.0f}%' if math.isfinite(x) else 'diverges'
                             for x in v.per_trial_gain)
             log(f'   {name}: held-out gain {_pct(v.gain)} ± {_pct(v.gain_se)} '
                 f'({_pct(v.absolute)} of the base error; per trial {per}) {verdict}')
+            if name in MEASURED:
+                measured_doc.append({
+                    'signal': name, 'round': len(rounds) + 1,
+                    'J_test_without': float(J_test.sum()), 'J_test_with': float(Jt.sum()),
+                    'heldout_gain': float(v.gain), 'heldout_gain_se': float(v.gain_se),
+                    'named': ok, 'note': '' if ok else (why_not or fail or v.reason)})
         rounds.append([c[0] for c in cands])
         accepted = [c for c in cands if c[0].accepted]
         if not accepted:
@@ -499,31 +719,115 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # these trials about as well: say so rather than pretend to know
         rivals = [c[0].effect for c in accepted if c[0] is not cand
                   and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)]
-        se_all = standard_errors(obj, model.space, theta)
+        clock('identifiability')
+        se_all = standard_errors(objs.of(model)[0], model.space, theta)
         errs = {p: float(e) for p, e in zip(model.space.names, se_all) if p in cand.values}
+        full_c = model.space.full_params(ship.params, theta)[0]
+        for c in accepted:   # the rival models, for advice on the trial that separates them
+            if c[0].effect in rivals and not model.measured_wind and not c[1].measured_wind:
+                rival_pairs.append({'about': f'{cand.effect} vs {c[0].effect}',
+                                    'kind': 'indistinguishable', 'params_a': full_c,
+                                    'params_b': c[1].space.full_params(ship.params, c[2])[0]})
+        desc = MEASURED[cand.effect][1] if cand.effect in MEASURED \
+            else EFFECTS[cand.effect].description
         causes.append(Cause(cand.effect, cand.values, errs, cand.gain, cand.gain_se, rivals,
-                            EFFECTS[cand.effect].description))
+                            desc))
         remaining.remove(cand.effect)
         log(f'   -> named: {cand.effect}' + (f' (but {", ".join(rivals)} explain(s) the trials '
                                              'about as well)' if rivals else ''))
-    if len(model.effects) > 1:
-        model, theta, J_test = _backward_pass(ship, base, model, theta, obj, obj_test, causes,
-                                              s, baseline['J_test'], log, store)
+    if len(model.effects) + model.measured_wind > 1:
+        clock('backward')
+        model, theta, J_test = _backward_pass(ship, base, model, theta, objs, causes, s,
+                                              baseline['J_test'], log, store, map_fn)
+    clock('identifiability')
+    o_fin, ot_fin = objs.of(model)
     if causes:  # report the final model's values (later rounds re-tuned them)
         final_vals = dict(zip(model.space.names, theta))
-        se_all = dict(zip(model.space.names, standard_errors(obj, model.space, theta)))
+        se_all = dict(zip(model.space.names, standard_errors(o_fin, model.space, theta)))
         for c in causes:
             c.parameters = {p: float(final_vals[p]) for p in c.parameters}
             c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
+    advice = []
+    if s.advice and (aliased or rival_pairs):
+        clock('advice')
+        advice = _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs,
+                         list(tune_trials) + list(test_trials), log)
+    clock(None)
     J_test = np.atleast_1d(J_test)
-    final = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
+    final = {'J_tune': float(_per_trial_J(o_fin, ship, model.space, theta).sum()),
              'J_test': float(J_test.sum()),
-             'J_test_per_trial': dict(zip(obj_test.batch.names, J_test.tolist())),
+             'J_test_per_trial': dict(zip(ot_fin.batch.names, J_test.tolist())),
              'heldout_gain_total': _gain(baseline['J_test'], float(J_test.sum()))}
+    if not np.all(np.isfinite(J_test)):
+        final['diverged'] = _failure_text(ot_fin, ship, model.space, theta)
+    timings = {k: round(v, 3) for k, v in clock.t.items()}
+    log('   time per stage: ' + ', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))
     return Diagnosis(causes, baseline, final, rounds, dict(zip(model.space.names,
                                                                theta.tolist())),
                      dict(zip(base.names, base_theta.tolist())),
-                     time.perf_counter() - t_start, aliased)
+                     time.perf_counter() - t_start, aliased, setting,
+                     {e: w for e, w in impossible.items() if e in effects or e in measured},
+                     impossible_fits, measured_doc, timings, model.measured_wind, advice)
+
+
+def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trials, log
+            ) -> list[dict]:
+    """The trial that would settle each barely identifiable effect and rival pair."""
+    from mmg_tuner.diagnosis.advice import advise, aliased_rival, residual_scale
+
+    rivals = [aliased_rival(ship, base, base_theta, obj, e) for e in aliased
+              if e not in impossible]
+    tuned = base.full_params(ship.params, base_theta)[0]
+    out = advise(ship, rivals + rival_pairs, trials, residual_scale(ship, tuned, trials))
+    for a in out:
+        rec = a['separation_recorded']
+        log(f"   advice ({a['kind']}: {a['about']}): " + (
+            f"{a['instruction']} -- predicted separation {a['separation']:.3g} x the "
+            'unexplained error' + (f' (best recorded trial {rec:.3g})' if rec is not None
+                                    else '') if a['settles'] else
+            f"no trial of the repertoire separates them clearly better than the recorded ones "
+            f"(best: {a['instruction']}, {a['separation']:.3g} vs {rec:.3g}): degenerate for "
+            'these manoeuvres; fix one from another source'))
+    return out
+
+
+def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives,
+                   causes: list[Cause], s: DiagnosisSettings, J_base_test: float, log,
+                   store: SearchCheckpoint | None, map_fn: MapFn | None):
+    """Stepwise regression's backward step: a named effect that the later ones made redundant
+    (e.g. a yaw moment bias named first, then the rudder offset that explains it better) is
+    dropped when it fails the same :func:`acceptance` rule as the forward step against the
+    model without it. Both sides are re-tuned with the same warm start and budget; the
+    removals of one pass are independent tunings, mapped together."""
+    theta = _tune_many([_Fit(ship, model.space, 0, objs.of(model)[0], theta, s.effect_evals,
+                             s.seed, False, s.retune)], store, map_fn)[0]
+    J_full = _per_trial_J(objs.of(model)[1], ship, model.space, theta)
+    while len(model.effects) + model.measured_wind > 1:
+        # what can be removed: each named effect, and the measured wind when it was named
+        options = [(e.name, _Model(ship, base, [x for x in model.effects if x is not e],
+                                   model.measured_wind), len(e.params))
+                   for e in model.effects]
+        if model.measured_wind:
+            options.append(('measured_wind', _Model(ship, base, model.effects, False), 0))
+        fits = []
+        for _, m, _ in options:
+            idx = [model.space.names.index(n) for n in m.space.names]
+            fits.append(_Fit(ship, m.space, 0, objs.of(m)[0], theta[idx], s.effect_evals,
+                             s.seed, False, s.retune))
+        checks = []
+        for (name, m, n_par), th in zip(options, _tune_many(fits, store, map_fn)):
+            Jt = _per_trial_J(objs.of(m)[1], ship, m.space, th)
+            v = acceptance(Jt, J_full, n_par, J_base_test, s)
+            checks.append((v, name, m, th, Jt))
+        v, name, m, th, Jt = min(checks, key=lambda x: x[0].gain)
+        log(f'   backward check: without {name} the held-out error is '
+            f'{_pct_change(J_full.sum(), Jt.sum())} '
+            f'({"keep" if v.significant else "redundant: dropped (" + v.reason + ")"})')
+        if v.significant:
+            break
+        causes[:] = [c for c in causes if c.effect != name]
+        model, theta, J_full = m, th, Jt
+    return model, theta, J_full
 
 
 def _pct(x: float) -> str:
