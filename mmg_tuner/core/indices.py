@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mmg_tuner.core.frames import unwrap
+
 
 @dataclass(frozen=True)
 class TurningIndices:
@@ -60,7 +62,7 @@ def turning_indices(x: np.ndarray, y: np.ndarray, psi: np.ndarray, k_exec: int =
                     ) -> TurningIndices:
     """Advance and transfer at 90 deg, tactical diameter at 180 deg heading change (NaN if the
     turn does not get that far)."""
-    psi = np.unwrap(psi)
+    psi = unwrap(psi)
     dpsi = psi[k_exec:] - psi[k_exec]
     sign = 1.0 if dpsi[np.argmax(np.abs(dpsi))] >= 0 else -1.0
     dpsi = sign * dpsi
@@ -87,7 +89,7 @@ def zigzag_indices(psi: np.ndarray, rudder_rad: np.ndarray, check_rad: float,
     """
     if k_exec is None:
         k_exec = execution_index(rudder_rad)
-    psi = np.unwrap(psi)
+    psi = unwrap(psi)
     dpsi = psi[k_exec:] - psi[k_exec]
     after = rudder_rad[k_exec:] - rudder_rad[0]
     first = after[np.argmax(np.abs(after) > math.radians(1.0))] if after.size else 1.0

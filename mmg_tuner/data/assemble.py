@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
 from mmg_tuner.core.limits import RUDDER_HARD_CAP_RAD, InputLimits
 from mmg_tuner.data.bag import RawRecording, Series
@@ -448,7 +449,7 @@ def _heading(s: Series, role: str, tm: TopicMap, path: str, notes: list[str]
         return ok, s.values[:, 0]
     val = s.values[:, 0] * tm.heading_to_rad
     if tm.heading_convention == 'north_cw':
-        val = math.pi / 2 - val
+        val = frames.psi_to_enu_yaw(val)  # clockwise from north -> ENU yaw
     return np.ones(len(val), dtype=bool), val
 
 
@@ -461,7 +462,7 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
     od = ser['odom']
     t_od = _t(od, t0_ns)
     how: list[str] = []
-    frames = ', '.join(f'{s.topic} ' + ' -> '.join(next(iter(s.frame_ids[k]))
+    frame_text = ', '.join(f'{s.topic} ' + ' -> '.join(next(iter(s.frame_ids[k]))
                                                     for k in ('frame_id', 'child_frame_id')
                                                     if s.frame_ids.get(k))
                        for s in ser.values() if s.frame_ids.get('frame_id'))
@@ -469,7 +470,7 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
     imu = ser.get('imu')
     vel_src = rate_src = None
     if od.msgtype == 'nav_msgs/msg/Odometry':
-        k = Kinematics(t_od, od.values[:, 0], od.values[:, 1], t_od, np.unwrap(od.values[:, 2]),
+        k = Kinematics(t_od, od.values[:, 0], od.values[:, 1], t_od, frames.unwrap(od.values[:, 2]),
                        t_od, od.values[:, 3], od.values[:, 4], t_od, od.values[:, 5])
         how.append(f'pose source: {od.topic} (Odometry: pose, body twist)')
     else:
@@ -489,7 +490,7 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
                     'heading source: map imu.topic (sensor_msgs/Imu orientation) or '
                     'heading.topic (QuaternionStamped, or Float64 with unit and convention)')
             keep, yaw = _heading(hs, 'heading', tm, path, how)
-            t_yaw, yaw = _t(hs, t0_ns)[keep], np.unwrap(yaw[keep])
+            t_yaw, yaw = _t(hs, t0_ns)[keep], frames.unwrap(yaw[keep])
             conv = ('' if hs.msgtype in (IMU, 'geometry_msgs/msg/QuaternionStamped') else
                     f' [{tm.heading_unit}, {tm.heading_convention}]')
             how.append(f'pose source: {od.topic} (NavSatFix) on the local ENU plane at datum '
@@ -505,7 +506,7 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
                            'with the heading')
         else:
             east, north = od.values[:, 0], od.values[:, 1]
-            t_yaw, yaw = t_od, np.unwrap(od.values[:, 2])
+            t_yaw, yaw = t_od, frames.unwrap(od.values[:, 2])
             how.append(f'pose source: {od.topic} (PoseStamped)')
         k = Kinematics(t_od, east, north, t_yaw, yaw, t_od, None, None, None, None)
         tw = ser.get('twist')
@@ -547,8 +548,8 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
             k.t_rate = t_yaw
             rate_src = f'derived from the heading ({win})'
         how.append(f'velocities: {vel_src}; yaw rate: {rate_src}')
-    if frames:
-        how.append(f'frames: {frames}')
+    if frame_text:
+        how.append(f'frames: {frame_text}')
     return k, how
 
 
@@ -557,7 +558,7 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
     # ENU map / FLU base_link (REP-103/105) -> MMG: x_E = y_map, y_E = x_map, psi = pi/2 - yaw
     x = np.interp(grid, kin.t_pos, kin.north)
     y = np.interp(grid, kin.t_pos, kin.east)
-    psi = np.pi / 2 - np.interp(grid, kin.t_yaw, kin.yaw)
+    psi = frames.enu_yaw_to_psi(np.interp(grid, kin.t_yaw, kin.yaw))
     u = np.interp(grid, kin.t_vel, kin.u_flu)
     v = -np.interp(grid, kin.t_vel, kin.v_flu)
     r = -np.interp(grid, kin.t_rate, kin.wz)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.files import _why, check_regular_file, display_text
 from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, TopicMap
@@ -66,7 +67,7 @@ def _stamp_ns(header) -> int:
 
 
 def _yaw_from_quat(q) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return float(frames.yaw_from_quaternion(q.x, q.y, q.z, q.w))
 
 
 def _quat_ok(q) -> float:
@@ -578,7 +579,7 @@ def odometry_msg(state: np.ndarray, stamp_ns: int):
     """nav_msgs/Odometry (rosbags type) of a model-frame state: ENU pose, FLU twist."""
     ts = TYPESTORE.types
     x, y, psi, u, v, r = (float(s) for s in state)
-    yaw = math.pi / 2 - psi
+    yaw = frames.psi_to_enu_yaw(psi)
     Header = ts['std_msgs/msg/Header']
     Time = ts['builtin_interfaces/msg/Time']
     P = ts['geometry_msgs/msg/Point']
@@ -664,7 +665,7 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
     path = Path(path)
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
     x, y, psi, u, v, r = trial.states.T
-    yaw = np.pi / 2 - psi
+    yaw = frames.psi_to_enu_yaw(psi)
     lx, ly = lever_arm_m
     east = y + lx * np.cos(yaw) - ly * np.sin(yaw)
     north = x + lx * np.sin(yaw) + ly * np.cos(yaw)

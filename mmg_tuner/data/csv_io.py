@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name
 from mmg_tuner.data.trial import CSV_COLUMNS, Trial
@@ -118,7 +119,7 @@ def csv_recording(path: str | Path):
     header, data, notes = read_csv_table(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     ns = np.round(col['t'] * 1e9).astype(np.int64)
-    odom = np.column_stack([col['y'], col['x'], np.pi / 2 - col['psi'], col['u'], -col['v'],
+    odom = np.column_stack([col['y'], col['x'], frames.psi_to_enu_yaw(col['psi']), col['u'], -col['v'],
                             -col['r']])
     series = {
         'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns, odom, ns),

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 
@@ -208,7 +209,7 @@ def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float 
     if not step > 0 or not math.isfinite(step):
         raise TrialDataError(f'{path}: cannot resample with dt = {step}')
     raw = {k: cols[ESSO_COLUMNS[k]] for k in ESSO_COLUMNS}
-    raw['psi'] = np.unwrap(raw['psi'])
+    raw['psi'] = frames.unwrap(raw['psi'])
     wind = _wind_from_table(cols, raw['psi'], raw['u'], raw['v'], notes, name)
     notes.append(f'{name}: FRT-DS-ESSO CSV, pond frame = MMG earth frame, n_prop [rps] x 60 '
                  '-> rpm')

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner.data.files import check_regular_file
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -32,7 +33,7 @@ def read_marin_dat(path: str | Path) -> Trial:
     if a.shape[1] != 11 or a.shape[0] < 2:
         raise TrialDataError(f'{path}: expected 11 columns and at least 2 rows, got {a.shape}')
     t = np.arange(a.shape[0]) * MARIN_DT_S
-    psi = np.unwrap(np.radians(a[:, 4]))
+    psi = frames.unwrap(np.radians(a[:, 4]))
     ue, ve = a[:, 5], a[:, 6]
     c, s = np.cos(psi), np.sin(psi)
     states = np.column_stack([a[:, 1], a[:, 2], psi, ue * c + ve * s, -ue * s + ve * c,

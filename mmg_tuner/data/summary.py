@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mmg_tuner.core import frames
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
@@ -21,7 +22,7 @@ def detect_maneuver(trial: Trial) -> str:
     """'straight', 'turning', 'pull-out', 'zigzag' or 'mixed' (e.g. random manoeuvres), from
     the rudder history and the heading change."""
     rud = np.degrees(trial['rudder'])
-    psi = np.degrees(np.unwrap(trial['psi']))
+    psi = np.degrees(frames.unwrap(trial['psi']))
     if np.abs(rud).max() < 3.0:
         return 'straight'
     on = np.abs(rud) >= 3.0

@@ -129,16 +129,6 @@ class TopicMap:
         return RPM_UNITS[self.rpm_unit]
 
 
-def default_topic_map_path() -> Path | None:
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        for cand in (parent / 'config' / 'topics.yaml',
-                     parent / 'share' / 'mmg_tuner' / 'config' / 'topics.yaml'):
-            if cand.is_file():
-                return cand
-    return None
-
-
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
     """Read a topic map YAML; keys left out keep the defaults of conventions.md."""
     if path is None:

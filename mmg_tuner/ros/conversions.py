@@ -14,6 +14,9 @@ from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
+from mmg_tuner.core import frames
+from mmg_tuner.core.frames import enu_yaw_to_psi, psi_to_enu_yaw
+
 G_MS2 = 9.80665  # [m/s^2] standard gravity: a level accelerometer at rest reads +G on z
 
 
@@ -32,7 +35,7 @@ def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'map',
     """Odometry of a model-frame state; pass msg to refill a preallocated message (cheaper
     than building one per tick in a 50 Hz loop)."""
     x, y, psi, u, v, r = (float(a) for a in state)
-    yaw = math.pi / 2 - psi
+    yaw = psi_to_enu_yaw(psi)
     if msg is None:
         msg = Odometry()
         msg.header.frame_id = frame_id
@@ -50,9 +53,9 @@ def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'map',
 
 def state_from_odometry(msg: Odometry) -> np.ndarray:
     q = msg.pose.pose.orientation
-    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    yaw = yaw_from_quaternion(q)
     p, tw = msg.pose.pose.position, msg.twist.twist
-    return np.array([p.y, p.x, math.pi / 2 - yaw, tw.linear.x, -tw.linear.y, -tw.angular.z])
+    return np.array([p.y, p.x, enu_yaw_to_psi(yaw), tw.linear.x, -tw.linear.y, -tw.angular.z])
 
 
 def _stamp(header, t: float) -> None:
@@ -67,7 +70,7 @@ def transform_from_state(state: np.ndarray, t: float, parent: str = 'odom',
     """The transform parent (ENU) -> child (FLU) of a model-frame state: the same pose as
     :func:`odometry_from_state` (TF's odom -> base_link)."""
     x, y, psi = float(state[0]), float(state[1]), float(state[2])
-    yaw = math.pi / 2 - psi
+    yaw = psi_to_enu_yaw(psi)
     if msg is None:
         msg = TransformStamped()
         msg.header.frame_id = parent
@@ -119,7 +122,7 @@ def imu_from_state(state: np.ndarray, accel_flu: tuple[float, float] | None, t: 
     acceleration [m/s^2] for the covariances.
     """
     psi, r = float(state[2]), float(state[5])
-    yaw = math.pi / 2 - psi + yaw_noise_rad
+    yaw = psi_to_enu_yaw(psi) + yaw_noise_rad
     if msg is None:
         msg = Imu()
     msg.header.frame_id = frame_id
@@ -148,5 +151,5 @@ def imu_from_state(state: np.ndarray, accel_flu: tuple[float, float] | None, t: 
 
 
 def yaw_from_quaternion(q) -> float:
-    """ENU yaw [rad] of a quaternion (x, y, z, w attributes)."""
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    """ENU yaw [rad] of a quaternion message (x, y, z, w attributes)."""
+    return float(frames.yaw_from_quaternion(q.x, q.y, q.z, q.w))

@@ -28,6 +28,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry
 
+from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import ShipSimulator
@@ -196,7 +197,7 @@ class SimNode(Node):
     def _build(p: dict) -> ShipSimulator:
         """The simulator for parameters p; a SimulationError/ConfigError says what is wrong."""
         ship = load_ship(p['ship'], p['params_file'] or None)
-        psi = math.pi / 2 - p['initial_yaw']
+        psi = enu_yaw_to_psi(p['initial_yaw'])
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]
         return ShipSimulator(ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
                              p['integrator'])
