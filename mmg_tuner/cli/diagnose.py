@@ -16,7 +16,7 @@ from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import run_command
-from mmg_tuner.cli.tune import (DT, SEED, Parser, UsageError, resumed_args, show_log,
+from mmg_tuner.cli.tune import (DT, SEED, Parser, UsageError, parse_or_resume, show_log,
                                 sigterm_as_interrupt, store_args)
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
@@ -68,14 +68,7 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
 
 
 def command(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    notes: list[str] = []
-    resume = bool(args.resume)
-    if resume:
-        args, notes = resumed_args(parser, argv, 'diagnose', ('quiet', 'no_plots'))
-    elif not args.trials or not args.out:
-        raise UsageError('give trials and --out DIR (or --resume DIR)')
+    args, notes, resume = parse_or_resume(build_parser(), argv, 'diagnose', 'trials')
     config = diagnose_config(args)        # every option checked before any work
     log = logging.getLogger(__name__)
     with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:

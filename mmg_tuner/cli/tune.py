@@ -134,6 +134,19 @@ def option_name(parser: argparse.ArgumentParser, dest: str) -> str:
     return dest
 
 
+def parse_or_resume(parser: argparse.ArgumentParser, argv: list[str] | None, command: str,
+                    what: str) -> tuple[argparse.Namespace, list[str], bool]:
+    """Parse argv; with --resume DIR the stored run's options (and notes on what was applied
+    or refused), else require trials and --out. Returns (args, notes, resume)."""
+    args = parser.parse_args(argv)
+    if args.resume:
+        args, notes = resumed_args(parser, argv, command, ('quiet', 'no_plots'))
+        return args, notes, True
+    if not args.trials or not args.out:
+        raise UsageError(f'give {what} and --out DIR (or --resume DIR)')
+    return args, [], False
+
+
 def resumed_args(parser: argparse.ArgumentParser, argv: list[str] | None, command: str,
                  applicable: tuple[str, ...]) -> tuple[argparse.Namespace, list[str]]:
     """The stored options of the run in --resume DIR. Options given with --resume must equal
@@ -233,14 +246,7 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
 
 
 def command(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    notes: list[str] = []
-    resume = bool(args.resume)
-    if resume:
-        args, notes = resumed_args(parser, argv, 'tune', ('quiet', 'no_plots'))
-    elif not args.trials or not args.out:
-        raise UsageError('give tuning trials and --out DIR (or --resume DIR)')
+    args, notes, resume = parse_or_resume(build_parser(), argv, 'tune', 'tuning trials')
     config = tune_config(args)             # every option checked before any work
     with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
         for n in notes:
