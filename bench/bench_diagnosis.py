@@ -1,26 +1,36 @@
-"""Diagnosis benchmark: many random cases per effect, the confusion matrix, parameter errors and
-run time.
+"""Diagnosis benchmark: many random cases per effect, the confusion matrix with and without one
+advised trial, parameter errors and run time per stage.
 
 Each case: SUZAKU with its 12 tuning targets moved inside the box (up to 0.3 x half-width),
 10 trials of 400 s at 1 Hz (turning, zigzag and random manoeuvres with random angles; 5 tune,
 5 held out), realistic sensor noise, and one effect hidden at a random realistic magnitude and
-direction (or none: the clean control). The diagnosis runs with the command's budget.
-A case is correct when exactly the hidden effect is named (nothing, for clean data).
+direction (or none: the clean control). The diagnosis runs with the command's budget through
+the public API (mt.diagnose). A case is correct when exactly the hidden effect is named
+(nothing, for clean data).
 
-    python bench/bench_diagnosis.py [--cases 5] [--budget standard] [--effects ...]
-                                    [--retune lsq|cmaes]
+The advice loop: for every case the plain diagnosis misses (and every clean case, to check
+that an added trial raises no false alarm), the advised trial (diagnosis.json's advice: the
+one whose predicted separation beats the recorded trials' by the largest factor) is sailed by
+the hidden truth as ``generate --from-advice`` does (trial_from_spec, sensor noise), added to
+the tuning trials, and the case is diagnosed again.
 
-Results are appended per case to bench/out/diagnosis_cases_<retune>.jsonl (an interrupted run
-resumes where it stopped; --fresh starts over) and summarised in
-bench/out/diagnosis_summary_<retune>.md, with the median wall time per stage (base tune,
-screen, re-tunes, backward step, identifiability, report).
-Targets: >= 95 % correct names, no false positive on clean data, median <= 30 s per diagnosis
-of 10 trials (issue 15).
+    python bench/bench_diagnosis.py [--cases 5] [--seed0 0] [--budget standard]
+                                    [--effects ...] [--retune lsq|cmaes] [--no-advice]
+                                    [--quick] [--fresh]
+
+--quick: one case per class of the classes given (default all), quick budget: a few minutes.
+Results are appended per case to bench/out/diagnosis_cases_<retune>[_quick].jsonl (an
+interrupted run resumes where it stopped; --fresh starts over) and summarised in
+bench/out/diagnosis_summary_<retune>[_quick].md, with the median wall time per stage (base
+tune, screen, re-tunes, backward step, identifiability, advice, residual model, report).
+Targets: >= 95 % correct names with one advised trial, no false positive on clean data,
+median <= 30 s per diagnosis of 10 trials (issue 15).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import time
 from collections import Counter, defaultdict
@@ -29,15 +39,19 @@ from pathlib import Path
 import numpy as np
 import common  # noqa: F401  (puts the repository on sys.path)
 
+import mmg_tuner as mt
 from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.generate import SensorNoise, generate_trial
-from mmg_tuner.diagnosis import DiagnosisSettings, diagnose
+from mmg_tuner.diagnosis.advice import TrialSpec, trial_from_spec
 from mmg_tuner.tuning import ParameterSpace
 
 OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
            'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force')
+# the stages of a diagnosis, in the order they run (timings_s keys; others are appended)
+STAGES = ('setup', 'base_tune', 'identifiability', 'screen', 'retune', 'backward', 'advice',
+          'residual_model', 'report')
 
 
 def _sign(rng) -> float:
@@ -101,39 +115,78 @@ def _param_error(name: str, truth: dict, est: dict) -> dict[str, float]:
     return err
 
 
-def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float,
-             retune: str = 'lsq') -> dict:
+def make_case(ship, cls: str, seed: int, n_trials: int, duration_s: float):
+    """(truth ship, hidden effect, trials) of one case; the same for a class and seed."""
     rng = np.random.default_rng(10_000 + seed)
     space = ParameterSpace.around(ship)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
     effect = random_effect(cls, rng)
     truth = ship.with_params({**dict(zip(space.names, theta)), **effect})
-    trials = random_trials(truth, rng, n_trials, duration_s, seed)
-    base_e, screen_e, eff_e = BUDGETS[budget]
+    return truth, effect, random_trials(truth, rng, n_trials, duration_s, seed)
+
+
+def _diagnose(ship, tune, test, budget: str, seed: int, retune: str) -> tuple:
     t0 = time.perf_counter()
-    d = diagnose(ship, trials[::2], trials[1::2],
-                 DiagnosisSettings(base_evals=base_e, screen_evals=screen_e, effect_evals=eff_e,
-                                   seed=seed, retune=retune), log=lambda m: None)
-    wall = time.perf_counter() - t0
-    named = [c['effect'] for c in d.causes]
-    est = {p: v for c in d.causes for p, v in c['parameters'].items()}
-    return {'class': cls, 'seed': seed, 'truth': effect, 'named': named,
-            'correct': named == ([] if cls == 'clean' else [cls]),
+    d = mt.diagnose(ship, tune, test, budget=budget, seed=seed, retune=retune)
+    return d, time.perf_counter() - t0
+
+
+def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
+    named = [c.effect for c in d.causes]
+    est = {p: v for c in d.causes for p, v in c.parameters.items()}
+    return {'named': named, 'correct': named == ([] if cls == 'clean' else [cls]),
             'estimates': est,
             'param_error': _param_error(cls, effect, est) if cls in named else {},
-            'rivals': {c['effect']: c.get('indistinguishable_from', []) for c in d.causes},
-            'barely_identifiable': sorted(d.aliased),
-            'heldout_gain': d.final['heldout_gain_total'], 'wall_s': wall,
-            'timings_s': d.timings_s, 'retune': retune}
+            'rivals': {c.effect: list(c.indistinguishable_from) for c in d.causes},
+            'barely_identifiable': sorted(d.barely_identifiable),
+            'heldout_gain': d.final.heldout_gain_total, 'wall_s': wall,
+            'timings_s': dict(d.timings_s)}
 
 
-def summarise(rows: list[dict]) -> str:
+def best_advice(advice: list[dict]) -> dict | None:
+    """The advised trial a crew would sail first: the diagnosis lists its advice most pressing
+    first (rival causes, then barely identifiable effects by how much each explained alone);
+    the first that settles something (else the first). Chosen without knowing the truth."""
+    if not advice:
+        return None
+    return next((a for a in advice if a['settles']), advice[0])
+
+
+def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float,
+             retune: str = 'lsq', advice: bool = True) -> dict:
+    truth, effect, trials = make_case(ship, cls, seed, n_trials, duration_s)
+    tune, test = trials[::2], trials[1::2]
+    d, wall = _diagnose(ship, tune, test, budget, seed, retune)
+    row = {'class': cls, 'seed': seed, 'truth': effect, **_outcome(cls, effect, d, wall),
+           'retune': retune, 'budget': budget}
+    pick = best_advice(d.advice)
+    if advice and pick is not None and (not row['correct'] or cls == 'clean'):
+        spec = TrialSpec.from_dict(pick['spec'])
+        # sailed by the hidden truth, recorded at the trials' rate with sensor noise
+        _, extra = trial_from_spec(truth, spec, 1.0, SensorNoise(), seed * 100 + 99)
+        d2, wall2 = _diagnose(ship, tune + [extra], test, budget, seed, retune)
+        row['advice'] = {'about': pick['about'], 'instruction': pick['instruction'],
+                         'all': [(a['about'], a['instruction'], a['separation'],
+                                  a['separation_recorded'], a['settles']) for a in d.advice],
+                         'settles': pick['settles'], 'separation': pick['separation'],
+                         'separation_recorded': pick['separation_recorded'],
+                         **_outcome(cls, effect, d2, wall2)}
+    return row
+
+
+def _with_advice(r: dict) -> dict:
+    """The case's outcome once the advised trial was added (the plain one if none was)."""
+    return {**r, **{k: v for k, v in r['advice'].items() if k in (
+        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
+        if 'advice' in r else r
+
+
+def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
     by = defaultdict(list)
     for r in rows:
         by[r['class']].append(r)
     cols = list(CLASSES) + ['other']
-    lines = ['Confusion matrix (rows: hidden effect; columns: first effect named; "clean" = '
-             'nothing named; a case is correct only when exactly the hidden effect is named)', '',
+    lines = [title, '',
              '| hidden \\ named | ' + ' | '.join(c.replace('_', ' ') for c in cols)
              + ' | correct | 2nd effect named | flagged barely identifiable |',
              '|' + '---|' * (len(cols) + 4)]
@@ -152,11 +205,35 @@ def summarise(rows: list[dict]) -> str:
         lines.append(f'| {cls} | ' + ' | '.join(str(cnt.get(c, '')) if c != 'other'
                                                 else str(other or '') for c in cols)
                      + f' | {ok}/{len(rs)} | {second} | '
-                     + (f'{flagged}/{len(rs)}' if cls != 'clean' and all(
-                         'barely_identifiable' in r for r in rs) else '') + ' |')
-    lines += ['', f'Correct: {correct}/{total} = {100 * correct / max(total, 1):.0f} %', '',
-              '| hidden effect | parameter | median abs error | max abs error | cases |',
+                     + (f'{flagged}/{len(rs)}' if cls != 'clean' else '') + ' |')
+    lines += ['', f'Correct: {correct}/{total} = {100 * correct / max(total, 1):.0f} %', '']
+    return lines, correct, total
+
+
+def summarise(rows: list[dict]) -> str:
+    lines, _, _ = confusion(rows, 'Confusion matrix, plain diagnosis (rows: hidden effect; '
+                            'columns: first effect named; "clean" = nothing named; a case is '
+                            'correct only when exactly the hidden effect is named)')
+    adv = [_with_advice(r) for r in rows]
+    more, _, _ = confusion(adv, 'Confusion matrix with one advised trial (added to the tuning '
+                           'trials of every missed case and every clean case)')
+    lines += more
+    tried = [r for r in rows if 'advice' in r]
+    for r in tried:
+        a = r['advice']
+        lines.append(f"- {r['class']} seed {r['seed']}: plain {r['named'] or 'nothing'} -> "
+                     f"{a['named'] or 'nothing'} with '{a['instruction']}' (for {a['about']}; "
+                     f"separation {a['separation']:.3g} vs recorded "
+                     f"{a['separation_recorded'] or 0:.3g}"
+                     f"{'' if a['settles'] else ', degenerate'})")
+    missed_no_advice = [r for r in rows if not r['correct'] and 'advice' not in r]
+    for r in missed_no_advice:
+        lines.append(f"- {r['class']} seed {r['seed']}: missed, no advice given")
+    lines += ['', '| hidden effect | parameter | median abs error | max abs error | cases |',
               '|---|---|---|---|---|']
+    by = defaultdict(list)
+    for r in adv:
+        by[r['class']].append(r)
     for cls in CLASSES:
         errs = defaultdict(list)
         for r in by.get(cls, []):
@@ -166,19 +243,25 @@ def summarise(rows: list[dict]) -> str:
             lines.append(f'| {cls} | {k} | {np.median(v):.3g} | {np.max(v):.3g} | {len(v)} |')
     walls = [r['wall_s'] for r in rows]
     if walls:
-        lines += ['', f'Run time per diagnosis: median {np.median(walls):.0f} s, max '
-                      f'{np.max(walls):.0f} s over {len(walls)} cases']
-        stages = sorted({k for r in rows for k in r.get('timings_s', {})})
-        if stages:
-            lines.append('Median per stage: ' + ', '.join(
-                f"{k} {np.median([r.get('timings_s', {}).get(k, 0.0) for r in rows]):.1f} s"
-                for k in stages))
+        lines += ['', 'Run time per plain diagnosis of 10 trials: median '
+                      f'{np.median(walls):.1f} s, max {np.max(walls):.1f} s over {len(walls)} '
+                      'cases']
+        found = {k for r in rows for k in r.get('timings_s', {})}
+        stages = [k for k in STAGES if k in found] + sorted(found - set(STAGES))
+        lines.append('Median per stage: ' + ', '.join(
+            f"{k} {np.median([r.get('timings_s', {}).get(k, 0.0) for r in rows]):.1f} s"
+            for k in stages))
+        if tried:
+            lines.append(f"Re-diagnosis with the advised trial: median "
+                         f"{np.median([r['advice']['wall_s'] for r in tried]):.1f} s over "
+                         f'{len(tried)} cases')
     return '\n'.join(lines)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--cases', type=int, default=5, help='random cases per class')
+    ap.add_argument('--seed0', type=int, default=0, help='first case seed')
     ap.add_argument('--budget', choices=list(BUDGETS), default='standard')
     ap.add_argument('--effects', nargs='+', default=list(CLASSES), choices=CLASSES)
     ap.add_argument('--trials', type=int, default=10)
@@ -186,28 +269,42 @@ def main() -> None:
     ap.add_argument('--fresh', action='store_true')
     ap.add_argument('--retune', choices=('lsq', 'cmaes'), default='lsq',
                     help="the candidates' re-tunes (lsq: local least squares; cmaes: as before)")
+    ap.add_argument('--no-advice', action='store_true', help='skip the advice loop')
+    ap.add_argument('--quick', action='store_true',
+                    help='one case per class, quick budget (a development check)')
     args = ap.parse_args()
+    if args.quick:
+        args.cases, args.budget = 1, 'quick'
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f'diagnosis_cases_{args.retune}.jsonl'
+    tag = args.retune + ('_quick' if args.quick else '')
+    path = OUT / f'diagnosis_cases_{tag}.jsonl'
     if args.fresh and path.exists():
         path.unlink()
     rows = [json.loads(x) for x in path.read_text().splitlines()] if path.exists() else []
     done = {(r['class'], r['seed']) for r in rows}
     ship = load_ship('suzaku')
-    for seed in range(args.cases):
+    logging.getLogger('mmg_tuner').setLevel(logging.WARNING)
+    for seed in range(args.seed0, args.seed0 + args.cases):
         for cls in args.effects:
             if (cls, seed) in done:
                 continue
-            r = run_case(ship, cls, seed, args.budget, args.trials, args.duration, args.retune)
+            r = run_case(ship, cls, seed, args.budget, args.trials, args.duration, args.retune,
+                         not args.no_advice)
             rows.append(r)
             with path.open('a') as f:
                 f.write(json.dumps(r) + '\n')
+            adv = r.get('advice')
             print(f"{cls:16s} seed {seed}: named {r['named'] or 'nothing'} "
                   f"{'ok' if r['correct'] else 'WRONG'}  {r['wall_s']:.0f} s  "
                   f"truth {r['truth']}  est {r['estimates']}  stages "
-                  + ', '.join(f'{k} {v:.1f}' for k, v in r['timings_s'].items()), flush=True)
-    text = summarise(rows)
-    (OUT / f'diagnosis_summary_{args.retune}.md').write_text(text + '\n')
+                  + ', '.join(f'{k} {v:.1f}' for k, v in r['timings_s'].items())
+                  + (f"\n{'':16s} with advice ({adv['instruction']}): named "
+                     f"{adv['named'] or 'nothing'} {'ok' if adv['correct'] else 'WRONG'} "
+                     f"{adv['wall_s']:.0f} s" if adv else ''), flush=True)
+    sel = [r for r in rows if r['class'] in args.effects
+           and args.seed0 <= r['seed'] < args.seed0 + args.cases]
+    text = summarise(sel)
+    (OUT / f'diagnosis_summary_{tag}.md').write_text(text + '\n')
     print()
     print(text)
 

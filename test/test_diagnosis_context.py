@@ -227,3 +227,13 @@ def test_marin_towing_tank_names_no_physically_impossible_cause(kvlcc2):
     assert not {c.effect for c in dx.causes} & set(dx.impossible)
     doc = dx.to_dict()
     assert doc['setting']['venue'] == 'tank' and 'advice' in doc
+    # what the data cannot settle, and which trial would (or that none of the repertoire can)
+    from mmg_tuner.diagnosis.report import markdown
+    assert dx.barely_identifiable and doc['advice']
+    md = markdown(doc, kvlcc2)
+    assert '## Effects these trials can barely see' in md
+    assert '## The trial that would settle it' in md
+    for a in doc['advice']:
+        assert a['instruction'] in md and a['spec']['rpm'] > 0
+        assert a['settles'] == (a['separation'] >= 1.0 and (
+            a['separation_recorded'] is None or a['separation'] > 1.5 * a['separation_recorded']))

@@ -18,7 +18,8 @@ trial says how much the advised one adds. Residuals along a trajectory are corre
 it as a ranking, not a probability. The trial with the largest separation is advised, as an
 instruction a crew can follow and as a :class:`TrialSpec` that
 ``generate --from-advice DIR/diagnosis.json`` runs. When no trial of the repertoire separates
-the rivals clearly better than the recorded ones (less than SETTLES x), the advice says so:
+the rivals clearly better than the recorded ones (by SETTLES x) and by at least the error
+the model already leaves (separation >= MIN_SEPARATION), the advice says so:
 the two are then degenerate for every manoeuvre (an rpm scale against wake fraction and thrust
 deduction is, exactly), and only fixing one of them from another source separates them.
 
@@ -47,6 +48,8 @@ from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 
 SPEC_VERSION = 1
+MIN_SEPARATION = 1.0   # ... and by at least the unexplained error: below it the rivals'
+#                        difference drowns in what the model misses anyway
 SETTLES = 1.5   # an advised trial must separate the rivals this many times better than the
 #                 best recorded one to be worth sailing
 
@@ -294,7 +297,8 @@ def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
     separates them best, against sigma = (position [m], heading [rad]) (see
     :func:`residual_scale`): {'about', 'kind', 'instruction', 'spec', 'separation',
     'separation_recorded' (the best recorded trial's), 'settles' (whether the trial separates
-    them SETTLES x better than the recorded ones), 'runner_up', 'version'}."""
+    them SETTLES x better than the recorded ones and by at least MIN_SEPARATION), 'runner_up',
+    'version'}."""
     rpm0, u0, dur, dt = operating_point(trials)
     sig_pos, sig_psi = sigma
     specs = repertoire(ship, rpm0, u0, dur)
@@ -310,7 +314,8 @@ def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
         recorded = max((_replay_separation(ship, pa, pb, t.states, t.controls, t.dt, sig_pos,
                                            sig_psi) for t in trials if abs(t.dt - dt) < 1e-9),
                        default=0.0)
-        settles = not math.isfinite(recorded) or best > SETTLES * recorded
+        better = not math.isfinite(recorded) or best > SETTLES * recorded
+        settles = best >= MIN_SEPARATION and better
         out.append({'about': r['about'], 'kind': r['kind'], 'instruction': spec.instruction(),
                     'spec': spec.to_dict(), 'separation': best,
                     'separation_recorded': recorded if math.isfinite(recorded) else None,
