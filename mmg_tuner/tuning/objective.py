@@ -77,6 +77,27 @@ def paper_weights(L_pp: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Prior:
+    """
+    A quadratic pull toward reference values (e.g. captive-test ones), added to J.
+
+    penalty = weight * sum(((theta - centre) / scale)^2) over the parameter slots ``indices``;
+    weight in J units. Parameters the trials do not excite then stay at their reference values
+    instead of drifting to wherever they compensate something else.
+    """
+
+    indices: np.ndarray   # (d,) slots in the flat parameter vector
+    centre: np.ndarray    # (d,) reference values
+    scale: np.ndarray     # (d,) > 0, e.g. the width of each parameter's box
+    weight: float         # [J units] per unit squared scaled distance
+
+    def __call__(self, params: np.ndarray) -> np.ndarray:
+        """The penalty (N,) of parameter vectors (N, N_PARAMS)."""
+        z = (np.atleast_2d(params)[:, self.indices] - self.centre) / self.scale
+        return self.weight * np.sum(z * z, axis=1)
+
+
+@dataclass(frozen=True)
 class TrialFailure:
     """Where a simulation of one trial stopped: it diverged (non-finite state) or left the
     model's range (u <= 0, rpm <= 0). Its J is infinite: the samples after it are unexplained,
@@ -139,8 +160,19 @@ class Objective:
     """
 
     def __init__(self, ship: ShipConfig, batch: TrialBatch, weights: np.ndarray | None = None,
-                 shoot_every_s: float = 0.0, integrator: str = 'euler', substeps: int = 1):
+                 shoot_every_s: float = 0.0, integrator: str = 'euler', substeps: int = 1,
+                 trial_weights: np.ndarray | None = None, prior: Prior | None = None):
         self.ship = ship
+        # per-trial factors on J in the optimiser's total (tuning/segments.py balances
+        # segments with them); the per-trial J and evaluate() stay unweighted
+        self.trial_weights = (None if trial_weights is None
+                              else np.asarray(trial_weights, dtype=float))
+        if self.trial_weights is not None and (
+                self.trial_weights.shape != (batch.meas.shape[0],)
+                or not np.all(np.isfinite(self.trial_weights)) or np.any(self.trial_weights < 0)):
+            raise TuningError(f'trial_weights must be {batch.meas.shape[0]} finite numbers >= 0 '
+                              '(one per trial)')
+        self.prior = prior
         self.batch = batch
         self.weights = paper_weights(ship.L_pp) if weights is None else np.asarray(weights, float)
         if self.weights.shape != (6,) or np.any(self.weights < 0):
@@ -189,7 +221,9 @@ class Objective:
         """Penalised total J per candidate (N,): finite, for ranking (see the class)."""
         J, k_fail = self._raw(params)
         failed = k_fail < self.batch.lengths[None, :]
-        total = J.sum(axis=1)
+        total = (J if self.trial_weights is None else J * self.trial_weights).sum(axis=1)
+        if self.prior is not None:
+            total = total + self.prior(params)
         bad = failed.any(axis=1) | ~np.isfinite(total)  # (an overflow to inf counts as failed)
         if bad.any():
             ok = total[~bad]

@@ -64,6 +64,18 @@ class _State:
     done: bool = False
 
 
+def _rounded(a: np.ndarray | None) -> list | None:
+    return None if a is None else np.round(np.asarray(a, dtype=float), 12).tolist()
+
+
+def _prior_key(prior) -> tuple | None:
+    """What identifies a prior in a checkpoint's fingerprint (None: no prior)."""
+    if prior is None:
+        return None
+    return (_rounded(prior.indices), _rounded(prior.centre), _rounded(prior.scale),
+            round(float(prior.weight), 12))
+
+
 class Tuner:
     """Minimise an :class:`Objective` over a :class:`ParameterSpace`.
 
@@ -94,7 +106,9 @@ class Tuner:
         return repr((self.space.names, self.space.lower.round(12).tolist(),
                      self.space.upper.round(12).tolist(), b.names, b.meas.shape,
                      float(np.round(b.meas.sum(), 6)), self.objective.weights.tolist(),
-                     self.objective.shoot_every, self.popsize0, self.max_popsize))
+                     self.objective.shoot_every, self.popsize0, self.max_popsize,
+                     _rounded(getattr(self.objective, 'trial_weights', None)),
+                     _prior_key(getattr(self.objective, 'prior', None))))
 
     def _new_optimizer(self, restart: int, popsize: int, rng: np.random.Generator) -> CMA:
         d = self.space.dim
