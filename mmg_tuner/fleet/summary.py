@@ -110,7 +110,8 @@ def figure(doc: dict) -> bytes:
     ax.set_xticks(range(len(effects)), effects, rotation=30, ha='right')
     ax.set_xlim(-0.5, max(len(effects), 1) - 0.5)
     ax.set_ylim(len(names) - 0.5, -0.5)
-    ax.set_title('named causes')
+    ax.set_xlabel('effect named by diagnose')
+    ax.set_title('named causes (a square: named for that ship)')
     ax = fig.add_subplot(1, ncol, 2)
     for k, (key, label) in enumerate((('tune', 'tuned'), ('diagnose', 'diagnosed'))):
         vals = [(doc['ships'][n].get('heldout_gain') or {}).get(key) for n in names]
@@ -118,10 +119,10 @@ def figure(doc: dict) -> bytes:
         ax.barh([i + 0.2 * (2 * k - 1) for i in y], vals, height=0.4, label=label)
     ax.set_yticks(list(y), names)
     ax.set_ylim(len(names) - 0.5, -0.5)
-    ax.set_xlabel('held-out gain [%] (J lower than before the step)')
+    ax.set_xlabel('held-out gain [%, + = J on held-out trials lower than before]')
     ax.axvline(0, color='k', lw=0.5)
     ax.legend(loc='lower right')
-    ax.set_title('held-out gains')
+    ax.set_title('held-out gains (tuned vs pre-determined; diagnosed vs tuned)')
     if trends:
         import datetime as _dt
         ax = fig.add_subplot(1, ncol, 3)
@@ -129,7 +130,9 @@ def figure(doc: dict) -> bytes:
             d = [_dt.date.fromisoformat(g['date']) for g in tr['groups']]
             ax.plot(d, [g['value'] for g in tr['groups']], 'o-',
                     label=n + (' (drifts)' if tr['drifts'] else ''))
-        ax.set_ylabel(', '.join(sorted({tr['parameter'] for tr in trends.values()})))
+        ax.set_ylabel(', '.join(sorted({tr['parameter'] for tr in trends.values()}))
+                      + ' (fitted, model units)')
+        ax.set_xlabel('trial date')
         ax.set_title('fitted per trial date')
         ax.legend()
         fig.autofmt_xdate()

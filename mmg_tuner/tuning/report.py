@@ -7,11 +7,10 @@ its Agg canvas): no global backend is set here.
 """
 from __future__ import annotations
 
-import io
 import json
 import math
 import re
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import yaml
@@ -20,6 +19,7 @@ from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import Trajectory, simulate
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.tuning import plots
 from mmg_tuner.tuning.objective import TrialBatch
 
 
@@ -114,47 +114,29 @@ def simulate_trial(ship: ShipConfig, trial: Trial, params: np.ndarray, integrato
 
 
 def png_bytes(fig) -> bytes:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format='png', dpi=90)
-    return buf.getvalue()
+    """Render a Figure to PNG bytes (kept here for callers; see :mod:`mmg_tuner.tuning.plots`)."""
+    return plots.png_bytes(fig)
 
 
 def plot_trials(ship: ShipConfig, trials: Sequence[Trial], runs: dict[str, np.ndarray],
-                prefix: str = '', integrator: str = 'euler', substeps: int = 1
-                ) -> dict[str, bytes]:
-    """Per trial: trajectory (east-north) and psi/u/v/r time series, recorded vs each run.
-    Returns {file name: PNG bytes}."""
-    from matplotlib.figure import Figure
+                prefix: str = '', integrator: str = 'euler', substeps: int = 1,
+                sets: Mapping[str, str] | None = None,
+                J: Mapping[str, Mapping[str, float]] | None = None) -> dict[str, bytes]:
+    """
+    Plot each trial: track, states and inputs, measured vs each simulated run.
 
+    ``runs``: model name -> parameter vector. ``sets``: trial name (as :func:`unique_names`
+    gives it) -> 'tune' or 'test', named in the title; ``J``: model name -> {trial name: J},
+    shown in the title. Returns {file name: PNG bytes}.
+    """
     images = {}
-    palette = ['tab:orange', 'tab:blue', 'tab:green', 'tab:red']
     for tr, label in zip(trials, unique_names(trials)):
         sims = {name: simulate_trial(ship, tr, p, integrator, substeps)
                 for name, p in runs.items()}
-        fig = Figure(figsize=(12, 6))
-        ax = fig.add_subplot(1, 2, 1)
-        ax.plot(tr['y'], tr['x'], 'k', lw=1.5, label='recorded')
-        for (name, st), c in zip(sims.items(), palette):
-            ax.plot(st[:, 1], st[:, 0], color=c, lw=1.2, label=name)
-        ax.set_xlabel('y_E east [m]')
-        ax.set_ylabel('x_E north [m]')
-        ax.set_aspect('equal', adjustable='datalim')
-        ax.legend(fontsize=8)
-        ax.set_title(label)
-        labels = [(2, 'psi [deg]', math.degrees(1)), (3, 'u [m/s]', 1.0), (4, 'v [m/s]', 1.0),
-                  (5, 'r [deg/s]', math.degrees(1))]
-        for i, (col, lab, f) in enumerate(labels):
-            a = fig.add_subplot(4, 2, 2 * i + 2)
-            a.plot(tr.t, tr.states[:, col] * f, 'k', lw=1.0)
-            for (name, st), c in zip(sims.items(), palette):
-                a.plot(tr.t, st[:, col] * f, color=c, lw=0.9)
-            a.set_ylabel(lab, fontsize=8)
-            a.tick_params(labelsize=7)
-        a.set_xlabel('t [s]')
-        fig.tight_layout()
-        images[f'{prefix}{file_stem(label)}.png'] = png_bytes(fig)
+        errs = {m: per.get(label, per.get(tr.name)) for m, per in (J or {}).items()}
+        which = (sets or {}).get(label, (sets or {}).get(tr.name))
+        fig = plots.trial_figure(tr, sims, plots.trial_title(label, which, errs))
+        images[f'{prefix}{file_stem(label)}.png'] = plots.png_bytes(fig)
     return images
 
 
