@@ -5,14 +5,21 @@ with the current's kinematics.
 
 The model state is (x_E, y_E, psi, u, v_m, r) with u, v_m relative to the water; with a
 current, kinematics add the current and outputs report velocities over ground.
+
+Every kernel's ``kind`` is either the family code (an int: one compiled kernel that branches
+on it at run time, for callers that only know the code at run time) or the family's tag
+``FAMILY_TAGS[code]`` (a tuple whose length is the code + 1, so that the family is part of the
+argument's numba type: each family gets its own kernel with only its forces inlined and no
+branch; the entry points of ``core/integrate.py`` pass tags).
 """
 from __future__ import annotations
 
 import math
 import warnings
 
-from numba import literal_unroll, njit
+from numba import literal_unroll, njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.extending import overload
 
 from mmg_tuner.core._jit import FASTMATH, U_MIN
 from mmg_tuner.core.channels import ACT_N
@@ -29,6 +36,73 @@ _FORCES = tuple(f.forces for f in _FAMILIES)
 ASTERN_RPM = tuple(f.astern_rpm for f in _FAMILIES)
 ASTERN_SURGE = tuple(f.astern_surge for f in _FAMILIES)
 AIR_DRAG = tuple(f.air_drag for f in _FAMILIES)
+
+FAMILY_TAGS = tuple((0,) * (f.code + 1) for f in _FAMILIES)
+"""The compile-time form of each family code (see the module docstring)."""
+
+
+def family_tag(kind: int) -> tuple:
+    """Return the tag of family code ``kind`` (ValueError if no family has that code)."""
+    if not 0 <= kind < len(FAMILY_TAGS):
+        raise ValueError(f'no model family with code {kind!r}; codes are 0..'
+                         f'{len(FAMILY_TAGS) - 1} (core/models REGISTRY)')
+    return FAMILY_TAGS[kind]
+
+
+def _tag_code(kind):
+    """Return the family code a tag's numba type fixes (at compile time); None for an int."""
+    if isinstance(kind, types.UniTuple):
+        return kind.count - 1
+    if isinstance(kind, types.Integer):
+        return None
+    raise TypeError(f'kind must be a family code (int) or a FAMILY_TAGS entry, got {kind}')
+
+
+def _family_flag(flags):
+    """Make an njit-callable ``flag(kind)``: ``flags[code]``, a constant when kind is a tag."""
+    def flag(kind):
+        raise NotImplementedError('compiled only (numba overload)')
+
+    @overload(flag, inline='always')
+    def _flag(kind):
+        code = _tag_code(kind)
+        if code is None:
+            return lambda kind: flags[kind]
+        value = flags[code]
+        return lambda kind: value
+    return flag
+
+
+astern_rpm = _family_flag(ASTERN_RPM)
+astern_surge = _family_flag(ASTERN_SURGE)
+air_drag = _family_flag(AIR_DRAG)
+
+
+# The family hooks, dispatched on kind: a direct, inlined call when kind is a tag, else a
+# branch over the families (literal_unroll: one static call per family).
+def _forces_of(kind, p, u, v, r, act):
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(_forces_of, inline='always', jit_options={'fastmath': FASTMATH})
+def _forces_of_impl(kind, p, u, v, r, act):
+    code = _tag_code(kind)
+    if code is not None:
+        forces = _FORCES[code]
+        return lambda kind, p, u, v, r, act: forces(p, u, v, r, act)
+
+    def branch(kind, p, u, v, r, act):
+        X = 0.0
+        Y = 0.0
+        N = 0.0
+        i = 0
+        for f in literal_unroll(_FORCES):
+            if i == kind:
+                X, Y, N = f(p, u, v, r, act)
+            i += 1
+        return X, Y, N
+    return branch
+
 
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
@@ -60,16 +134,8 @@ _wdel = PARAM_INDEX['wind_delta']
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def family_forces(kind, p, u, v, r, act):
-    """The forces of family ``kind`` (its registry position): (X [N], Y [N], N [N m])."""
-    X = 0.0
-    Y = 0.0
-    N = 0.0
-    i = 0
-    for f in literal_unroll(_FORCES):
-        if i == kind:
-            X, Y, N = f(p, u, v, r, act)
-        i += 1
-    return X, Y, N
+    """The forces of family ``kind`` (code or tag): (X [N], Y [N], N [N m])."""
+    return _forces_of(kind, p, u, v, r, act)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -159,20 +225,36 @@ def blendermann(p, ua, va):
 _WINDS = tuple(blendermann if f.wind is None else f.wind for f in _FAMILIES)
 
 
+def _wind_of(kind, p, ua, va):
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(_wind_of, inline='always', jit_options={'fastmath': FASTMATH})
+def _wind_of_impl(kind, p, ua, va):
+    code = _tag_code(kind)
+    if code is not None:
+        wind = _WINDS[code]
+        return lambda kind, p, ua, va: wind(p, ua, va)
+
+    def branch(kind, p, ua, va):
+        X = 0.0
+        Y = 0.0
+        N = 0.0
+        i = 0
+        for f in literal_unroll(_WINDS):
+            if i == kind:
+                X, Y, N = f(p, ua, va)
+            i += 1
+        return X, Y, N
+    return branch
+
+
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def family_wind(kind, p, ua, va):
     """Wind loads (X [N], Y [N], N [N m]) of family ``kind``'s wind model (its own, else
     Blendermann's) from the apparent wind (ua, va), the air's velocity relative to the ship in
     body axes [m/s]."""
-    X = 0.0
-    Y = 0.0
-    N = 0.0
-    i = 0
-    for f in literal_unroll(_WINDS):
-        if i == kind:
-            X, Y, N = f(p, ua, va)
-        i += 1
-    return X, Y, N
+    return _wind_of(kind, p, ua, va)
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -205,7 +287,7 @@ def derivative(kind, p, s, act, out):
         out[0] += Vc * math.cos(p[_dirc])
         out[1] += Vc * math.sin(p[_dirc])
     Vw = p[_Vw]
-    if Vw != 0.0 or AIR_DRAG[kind]:  # a family with AIR_DRAG feels its own motion's air drag
+    if Vw != 0.0 or air_drag(kind):  # a family with AIR_DRAG feels its own motion's air drag
         ug = u
         vg = v
         if Vc != 0.0:

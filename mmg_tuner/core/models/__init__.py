@@ -38,11 +38,13 @@ How to add a family ``myship`` (look at ``standard.py``, the shortest, as the te
 2. Append ``'myship'`` to :data:`REGISTRY` (its position is its integer code ``ship.kind``).
 3. A ship YAML with ``model: myship``.
 
-Nothing else changes. The kernels dispatch on the code with one ``literal_unroll`` over the
-registered families' ``forces`` (``core/dynamics.py``), which numba compiles into a branch over
-statically inlined calls: measured as fast as a hand-written ``if kind == ...`` (see
-bench/bench_core.py). The on-disk kernel cache is keyed by a hash of the core sources
-(``core/_numba_cache.py``), so a new or edited family never runs stale compiled code.
+Nothing else changes. The whole-run kernels (simulation, tuning cost, manoeuvres) are compiled
+once per family: their entry points pass the family's tag (``dynamics.FAMILY_TAGS``, a type
+numba specialises on), so only that family's ``forces`` and ``wind`` are inlined, without a
+branch. Kernels called with the plain code (``derivative(ship.kind, ...)`` from other compiled
+code) branch over the registered families with one ``literal_unroll``. The on-disk kernel cache
+is keyed by a hash of the core sources (``core/_numba_cache.py``), so a new or edited family
+never runs stale compiled code.
 """
 from __future__ import annotations
 

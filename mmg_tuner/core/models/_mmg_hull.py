@@ -1,6 +1,9 @@
-"""Pieces the container and standard families share (not a family: not in the registry):
-the polynomial hull model in v'_m, r' (paper eqs. 14-15; standard method eq. 8 with
-X_vvvr = 0) and the rudder angle of attack."""
+"""Pieces the container and standard families share (not a family: not in the registry).
+
+The polynomial hull model in v'_m, r' (paper eqs. 14-15; standard method eq. 8 with
+X_vvvr = 0), the propeller slipstream's speed-up, the rudder angle of attack and the rudder
+forces from its normal force.
+"""
 from __future__ import annotations
 
 import math
@@ -13,6 +16,11 @@ from mmg_tuner.core.layout import PARAM_INDEX
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
 _d = PARAM_INDEX['d']
+_AR = PARAM_INDEX['A_R']
+_xR = PARAM_INDEX['x_R']
+_tR = PARAM_INDEX['t_R']
+_aH = PARAM_INDEX['a_H']
+_xH = PARAM_INDEX['x_H']
 _R0 = PARAM_INDEX['R_0']
 _Xvv = PARAM_INDEX['X_vv']
 _Xvr = PARAM_INDEX['X_vr']
@@ -31,7 +39,6 @@ _Nvvv = PARAM_INDEX['N_vvv']
 _Nvvr = PARAM_INDEX['N_vvr']
 _Nvrr = PARAM_INDEX['N_vrr']
 _Nrrr = PARAM_INDEX['N_rrr']
-
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -64,3 +71,27 @@ def sin_attack(delta, uR, vR):
     if UR == 0.0:
         return math.sin(delta)
     return (math.sin(delta) * uR - math.cos(delta) * vR) / UR
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def slipstream(KT, JP):
+    """Return sqrt(1 + 8 K_T / (pi J_P^2)) - 1, the propeller race's speed-up (root >= 0)."""
+    root = 1.0 + 8.0 * KT / (math.pi * JP * JP)
+    if root < 0.0:
+        root = 0.0
+    return math.sqrt(root) - 1.0
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def rudder_forces(p, delta, uR, vR, coef):
+    """
+    Return the rudder force and moment [N, N, N m] (paper eqs. 25-28; standard eqs. 17-20).
+
+    From the normal force F_N = 1/2 rho A_R (u_R^2 + v_R^2) coef.
+    """
+    FN = 0.5 * p[_rho] * p[_AR] * (uR * uR + vR * vR) * coef
+    sd = math.sin(delta)
+    cd = math.cos(delta)
+    aH = p[_aH]
+    return (-(1.0 - p[_tR]) * FN * sd, -(1.0 + aH) * FN * cd,
+            -(p[_xR] + aH * p[_xH]) * p[_L] * FN * cd)

@@ -29,14 +29,13 @@ DESCRIPTION = 'container ship with flapped rudder, Suyama et al. 2023 (SUZAKU)'
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402  (below the declarations the layout reads)
 from mmg_tuner.core.channels import ACT_DELTA, ACT_N  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
-from mmg_tuner.core.models._mmg_hull import hull, sin_attack  # noqa: E402
+from mmg_tuner.core.models._mmg_hull import hull, rudder_forces  # noqa: E402
+from mmg_tuner.core.models._mmg_hull import sin_attack, slipstream  # noqa: E402
 
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
 _DP = PARAM_INDEX['D_P']
 _HR = PARAM_INDEX['H_R']
-_AR = PARAM_INDEX['A_R']
-_xR = PARAM_INDEX['x_R']
 _tP = PARAM_INDEX['t_P']
 _wP0 = PARAM_INDEX['w_P0']
 _Cw = PARAM_INDEX['C_w']
@@ -53,9 +52,6 @@ _CPNl1 = PARAM_INDEX['CPN_lo_1']
 _CPNh0 = PARAM_INDEX['CPN_hi_0']
 _CPNh1 = PARAM_INDEX['CPN_hi_1']
 _phisw = PARAM_INDEX['phi_switch']
-_tR = PARAM_INDEX['t_R']
-_aH = PARAM_INDEX['a_H']
-_xH = PARAM_INDEX['x_H']
 _eps = PARAM_INDEX['epsilon']
 _kap = PARAM_INDEX['kappa']
 _uR0 = PARAM_INDEX['u_R0']
@@ -97,10 +93,7 @@ def forces(p, u, v, r, act):
     N += qP * L * CPN
     # Rudder inflow (eqs. 29-33): u_R = max(u_R*, u_R**)
     JP = uP / (n_rps * DP)
-    root = 1.0 + 8.0 * KT / (math.pi * JP * JP)
-    if root < 0.0:
-        root = 0.0
-    uR = uP * p[_eps] * (eta * p[_kap] * (math.sqrt(root) - 1.0) + 1.0)
+    uR = uP * p[_eps] * (eta * p[_kap] * slipstream(KT, JP) + 1.0)
     uRss = vt * p[_uR0]
     if uRss > uR:
         uR = uRss
@@ -111,11 +104,5 @@ def forces(p, u, v, r, act):
     coef = (p[_fa] + p[_fa2] * df * df) * sin_attack(delta, uR, vR) \
         + df * (p[_Cl01] + p[_Cl03] * df * df)
     # Rudder forces (paper eqs. 25-28)
-    FN = 0.5 * rho * p[_AR] * (uR * uR + vR * vR) * coef
-    sd = math.sin(delta)
-    cd = math.cos(delta)
-    aH = p[_aH]
-    X += -(1.0 - p[_tR]) * FN * sd
-    Y += -(1.0 + aH) * FN * cd
-    N += -(p[_xR] + aH * p[_xH]) * L * FN * cd
-    return X, Y, N
+    XR, YR, NR = rudder_forces(p, delta, uR, vR, coef)
+    return X + XR, Y + YR, N + NR

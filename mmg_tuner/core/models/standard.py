@@ -27,14 +27,12 @@ DESCRIPTION = 'MMG standard method, Yasukawa & Yoshimura 2015 (KVLCC2)'
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402  (below the declarations the layout reads)
 from mmg_tuner.core.channels import ACT_DELTA, ACT_N  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
-from mmg_tuner.core.models._mmg_hull import hull, sin_attack  # noqa: E402
+from mmg_tuner.core.models._mmg_hull import hull, rudder_forces  # noqa: E402
+from mmg_tuner.core.models._mmg_hull import sin_attack, slipstream  # noqa: E402
 
 _rho = PARAM_INDEX['rho']
-_L = PARAM_INDEX['L_pp']
 _DP = PARAM_INDEX['D_P']
 _HR = PARAM_INDEX['H_R']
-_AR = PARAM_INDEX['A_R']
-_xR = PARAM_INDEX['x_R']
 _tP = PARAM_INDEX['t_P']
 _wP0 = PARAM_INDEX['w_P0']
 _k0 = PARAM_INDEX['k_0']
@@ -44,9 +42,6 @@ _C1 = PARAM_INDEX['C_1']
 _C2p = PARAM_INDEX['C_2p']
 _C2n = PARAM_INDEX['C_2n']
 _xP = PARAM_INDEX['x_P']
-_tR = PARAM_INDEX['t_R']
-_aH = PARAM_INDEX['a_H']
-_xH = PARAM_INDEX['x_H']
 _eps = PARAM_INDEX['epsilon']
 _kap = PARAM_INDEX['kappa']
 _lR = PARAM_INDEX['l_R']
@@ -61,7 +56,6 @@ def forces(p, u, v, r, act):
     n_rps = act[ACT_N]
     delta = act[ACT_DELTA]
     rho = p[_rho]
-    L = p[_L]
     X, Y, N, U, vp, rp, beta = hull(p, u, v, r)
     DP = p[_DP]
     eta = DP / p[_HR]
@@ -75,21 +69,12 @@ def forces(p, u, v, r, act):
     KT = p[_k0] + JP * (p[_k1] + JP * p[_k2])
     X += (1.0 - p[_tP]) * rho * n_rps * n_rps * DP ** 4 * KT
     # Rudder inflow (eqs. 23-26)
-    root = 1.0 + 8.0 * KT / (math.pi * JP * JP)
-    if root < 0.0:
-        root = 0.0
-    a = 1.0 + p[_kap] * (math.sqrt(root) - 1.0)
+    a = 1.0 + p[_kap] * slipstream(KT, JP)
     uR = p[_eps] * uP * math.sqrt(eta * a * a + (1.0 - eta))
     beta_R = beta - p[_lR] * rp
     gam = p[_gRp] if beta_R > 0.0 else p[_gRn]
     vR = U * gam * beta_R
     coef = p[_fa] * sin_attack(delta, uR, vR)
     # Rudder forces (standard eqs. 17-20)
-    FN = 0.5 * rho * p[_AR] * (uR * uR + vR * vR) * coef
-    sd = math.sin(delta)
-    cd = math.cos(delta)
-    aH = p[_aH]
-    X += -(1.0 - p[_tR]) * FN * sd
-    Y += -(1.0 + aH) * FN * cd
-    N += -(p[_xR] + aH * p[_xH]) * L * FN * cd
-    return X, Y, N
+    XR, YR, NR = rudder_forces(p, delta, uR, vR, coef)
+    return X + XR, Y + YR, N + NR
