@@ -285,3 +285,25 @@ def test_measured_wind_round_trips_and_apparent_wind_becomes_true(tmp_path, suza
     assert topic_map_from_dict({'wind': {'topic': ''}}).wind_topic == ''
     with pytest.raises(ConfigError, match='wind.frame'):
         topic_map_from_dict({'wind': {'frame': 'from_north'}})
+
+
+def test_folders_are_searched_recursively(tmp_path, zigzag_trial):
+    root = tmp_path / 'set'
+    (root / 'a' / 'deep').mkdir(parents=True)
+    (root / 'b' / 'csv').mkdir(parents=True)
+    (root / '.cache').mkdir()
+    write_trial_csv(zigzag_trial, root / 'a' / 'deep' / 'one.csv')
+    write_trial_bag(zigzag_trial, root / 'b' / 'two')
+    write_trial_csv(zigzag_trial, root / 'b' / 'csv' / 'two.csv')   # generate's copy of 'two'
+    write_trial_csv(zigzag_trial, root / '.cache' / 'three.csv')    # hidden: skipped
+    (root / 'README.md').write_text('# runs\n')
+    (root / 'LICENSE').write_text('CC BY 4.0\n')
+    trials = load_trials(root)
+    assert [t.name for t in trials] == ['one', 'two']                # sorted walk, each once
+    assert [t.name for t in load_trials(root / 'b' / 'csv')] == ['two']  # asked for directly
+    (root / 'b' / 'notes.csv').write_text('hello,world\n1,2\n')      # not a trial: an error
+    with pytest.raises(TrialDataError, match='notes.csv'):
+        load_trials(root)
+    (tmp_path / 'empty' / 'sub').mkdir(parents=True)
+    with pytest.raises(TrialDataError, match='subfolders'):
+        load_trials(tmp_path / 'empty')

@@ -198,3 +198,69 @@ def test_every_run_simulates_with_the_lowspeed_family():
     kv = mt.evaluate(mt.load_ship('kvlcc2'), be, restart_every_s=0)
     s = kv.trials[BERTHING.stem]
     assert s.index is None and s.failed_at_s is not None and '<= 0' in s.failure
+
+
+def test_load_trials_reads_the_data_folder_keeping_astern_by_family():
+    """The whole data set from its top folder (kind subfolders found recursively, README and
+    LICENSE skipped); astern propeller and u <= 0 kept because the lowspeed family simulates
+    them, left out (with the note) for a standard-family ship, refused if forced on one."""
+    import mmg_tuner as mt
+    esso_ship, kvlcc2 = mt.load_ship('esso_osaka_3m'), mt.load_ship('kvlcc2')
+    trials = mt.load_trials([DATA], ship=esso_ship)
+    files = sorted(DATA.rglob('*.csv'), key=lambda p: (p.parent.name, p.name))
+    assert [t.name for t in trials] == [p.stem for p in files]
+    be = next(t for t in trials if t.name == BERTHING.stem)
+    assert be['rpm'].min() < 0 and be['u'].min() < 0
+    split = mt.load_trials([BERTHING], ship=kvlcc2)
+    assert len(split) > 1 and all(t['rpm'].min() > 0 and t['u'].min() > 0 for t in split)
+    assert any('left out' in n for n in split[0].notes)
+    assert mt.load_trials([BERTHING])[0]['rpm'].min() > 0       # no ship: as before
+    with pytest.raises(MmgTunerError, match='keep_astern=True.*standard'):
+        mt.load_trials([BERTHING], ship=kvlcc2, keep_astern=True)
+
+
+class _Loaded(MmgTunerError):
+    pass
+
+
+@pytest.mark.parametrize('name', ['tune', 'diagnose', 'evaluate'])
+def test_commands_pass_the_event_cut_and_keep_astern_to_load_trials(tmp_path, monkeypatch,
+                                                                    name):
+    import importlib
+
+    import mmg_tuner.api as api
+    seen = {}
+
+    def fake(paths, **kw):
+        seen.update(kw)
+        raise _Loaded('stop here')
+    monkeypatch.setattr(api, 'load_trials', fake)
+    mod = importlib.import_module(f'mmg_tuner.cli.{name}')
+    with pytest.raises(_Loaded):
+        mod.command([str(TURN), '--ship', 'esso_osaka_3m', '--out', str(tmp_path / 'o'),
+                     '--cut-from-event', 'rudder_first_over:4'])
+    assert seen['cut_from_event'] == 'rudder_first_over:4'
+    assert seen.get('keep_astern') is None      # the ship's family decides (load_trials)
+    with pytest.raises(MmgTunerError, match='cut-from-event'):
+        mod.command([str(TURN), '--out', str(tmp_path / 'p'), '--cut-from-event', 'bogus'])
+
+
+def test_cut_from_event_in_the_api_and_inspect(capsys):
+    import mmg_tuner as mt
+    from mmg_tuner.cli import inspect
+    ship = mt.load_ship('esso_osaka_3m')
+    (whole,) = mt.load_trials(TURN, ship=ship)
+    te = esso.event_time(whole)
+    (cut,) = mt.load_trials(TURN, ship=ship, cut_from_event='rudder_first_over:5')
+    assert cut.t[0] == 0.0 and cut.start_s == pytest.approx(te - 5.0, abs=0.051)
+    (cut2,) = mt.load_trials(TURN, ship=ship, cut_from_event=('rudder_first_over', 5))
+    np.testing.assert_array_equal(cut2.states, cut.states)
+    (kept,) = mt.load_trials(TURN, ship=ship, cut_from_event='propeller_first_astern')
+    assert len(kept) == len(whole) and any(n.startswith('not cut') for n in kept.notes)
+    with pytest.raises(MmgTunerError, match='rudder_first_over'):
+        mt.load_trials(TURN, ship=ship, cut_from_event='nonsense:5')
+    assert inspect.command([str(TURN), '--ship', 'esso_osaka_3m', '--cut-from-event',
+                            'rudder_first_over']) == 0
+    out = capsys.readouterr().out
+    assert 'cut from 5 s before rudder_first_over' in out
+    assert f'{cut.duration_s:.1f} s at dt 0.1 s' in out

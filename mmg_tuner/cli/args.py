@@ -62,3 +62,19 @@ def bounded(kind, lo: float, hi: float, what: str = 'value'):
         return v
     parse.__name__ = what
     return parse
+
+
+CUT_HELP = ('cut every trial from S seconds (default 5) before EVENT: rudder_first_over (the '
+            'first held helm order; real runs start with a manually steered approach) or '
+            'propeller_first_astern; a trial without the event is kept whole, with a note')
+
+
+def event_cut(s: str) -> str:
+    """Check EVENT or EVENT:S of --cut-from-event (data.load.parse_event_cut); return it."""
+    from mmg_tuner.data.load import parse_event_cut
+    from mmg_tuner.errors import ConfigError
+    try:
+        event, before_s = parse_event_cut(s)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return f'{event}:{before_s:g}'

@@ -14,7 +14,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, positive_float
+from mmg_tuner.cli.args import CUT_HELP, bounded, event_cut, positive_float
 from mmg_tuner.cli.common import run_command
 from mmg_tuner.cli.tune import (DT, SEED, Parser, UsageError, parse_or_resume, show_log,
                                 sigterm_as_interrupt, store_args)
@@ -45,8 +45,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--topics')
     ap.add_argument('--dt', type=DT, default=1.0, help='resampling step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship')
+    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
+    ap.add_argument('--residual', action='store_true',
+                    help='after the search, train a residual network on the final model and '
+                    'report how much of the remaining held-out error is learnable structure '
+                    '(needs jax, equinox, optax; tens of seconds)')
     ap.add_argument('--setting', metavar='VENUE[,POSITION]',
                     help='where the trials were recorded: sea, pond, basin or tank, optionally '
                     'with antenna or reference (positions at a GNSS antenna or of the reference '
@@ -64,7 +69,8 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
                               budget=args.budget, max_effects=args.max_effects,
                               integrator=args.integrator, seed=args.seed,
                               setting=getattr(args, 'setting', None),   # (older resumed runs
-                              retune=getattr(args, 'retune', 'lsq'))     # stored neither)
+                              retune=getattr(args, 'retune', 'lsq'),     # stored neither)
+                              residual=getattr(args, 'residual', False))
 
 
 def command(argv: list[str] | None = None) -> int:
@@ -75,7 +81,8 @@ def command(argv: list[str] | None = None) -> int:
         for n in notes:
             log.warning('resume: %s', n)
         ship = api.load_ship(args.ship, args.params)
-        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale)
+        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale,
+                    cut_from_event=getattr(args, 'cut_from_event', None))  # (older runs: none)
         trials = api.load_trials(args.trials, **load)
         test = api.load_trials(args.test, **load) if args.test else None
         if test is None:
@@ -114,6 +121,11 @@ def command(argv: list[str] | None = None) -> int:
     for x in dx.impossible_fits:
         print(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "
               f"{100 * x['gain']:.1f} %), but {x['reason']}: a structural gap of the model")
+    st = dx.structure or {}
+    if (st.get('learnable') or {}).get('line'):
+        print(st['learnable']['line'])
+    if st.get('verdict') in ('structure', 'unexplained'):
+        print(f"STRUCTURE: {st['summary']}")
     print(f'held-out J: tuned base model {fmt_J(b)} -> final model {fmt_J(f)} '
           f'({fmt_gain(b, f)} lower); {dx.wall_s:.0f} s ('
           + ', '.join(f'{k} {v:.0f} s' for k, v in dx.timings_s.items()) + ')')

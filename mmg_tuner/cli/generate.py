@@ -1,12 +1,19 @@
 """``generate``: synthetic trials of a ship (turning, zigzag, pull-out, random) with sensor noise,
 written as rosbag2 (MCAP by default) with the default topics, plus CSV (in DIR/csv/).
 
+For a ship whose family covers astern propeller, u <= 0 and thrusters (lowspeed, e.g.
+esso_osaka_3m) also low-speed trials: berthing:RUDDER (approach with RUDDER deg of helm, stop,
+astern, thrusters push toward the side of RUDDER's sign) and random_astern:RUDDER (random
+rudder, propeller ahead and astern, thruster steps); the thrusters go on their own topics.
+
 --out may be a new or an existing folder; nothing in it is overwritten: a trial whose name is
 taken (by a file already there or by an earlier manoeuvre of the same call) is written beside
 it as NAME_2, NAME_3, ...
 
 Example:
     generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20 random:30
+    generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
+        --duration 300
 """
 from __future__ import annotations
 
@@ -20,10 +27,12 @@ from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import SEED, Parser, UsageError, check_run, check_samples, run_command
 from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
-from mmg_tuner.data.csv_io import csv_text
+from mmg_tuner.data.csv_io import trial_csv_text
 from mmg_tuner.data.generate import SensorNoise, generate_trial, parse_maneuver
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 
@@ -32,6 +41,10 @@ MAX_TRIAL_SAMPLES = 1_000_000
 DEFAULT_MANEUVERS = ('turning:10', 'turning:-20', 'turning:35', 'turning:-40', 'zigzag:20',
                      'random:30')
 RATE_HZ = bounded(float, 1e-3, 1000.0, 'recording rate [Hz]')
+THRUSTER_RPS = bounded(float, 0.0, 200.0, 'thruster speed [rev/s]')
+DEFAULT_RPM = 106.0      # SUZAKU's approach (Suyama et al. 2023)
+DEFAULT_SPEED_KN = 6.0
+FALLBACK_FROUDE = 0.07   # approach of a ship for which 6 kn is implausible (a pond model)
 
 
 def maneuver_spec(s: str) -> tuple[str, float, float | None]:
@@ -65,8 +78,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--maneuvers', nargs='+', type=maneuver_spec, metavar='SPEC',
                     help='manoeuvre:rudder_deg[/check_deg] (zigzag only); default: '
                          + ' '.join(DEFAULT_MANEUVERS))
-    ap.add_argument('--rpm', type=positive_float, default=106.0)
-    ap.add_argument('--speed-kn', type=positive_float, default=6.0)
+    ap.add_argument('--rpm', type=positive_float,
+                    help=f'approach rpm (default {DEFAULT_RPM:g}; for a ship that cannot make '
+                    f'{DEFAULT_SPEED_KN:g} kn, the rpm that holds the approach speed)')
+    ap.add_argument('--speed-kn', type=positive_float,
+                    help=f'approach speed [kn] (default {DEFAULT_SPEED_KN:g}, or Froude number '
+                    f'{FALLBACK_FROUDE:g} for a ship that cannot make it, e.g. a pond model)')
+    ap.add_argument('--thruster-rps', type=THRUSTER_RPS, default=20.0,
+                    help='thruster speed of berthing / random_astern [rev/s] (0-200)')
     ap.add_argument('--duration', type=positive_float, default=800.0, help='[s] per trial')
     ap.add_argument('--rate-hz', type=RATE_HZ, default=10.0,
                     help='sensor/recording rate (0.001-1000 Hz)')
@@ -100,6 +119,35 @@ def free_name(out: Path, name: str, taken: set[str]) -> str:
     return cand
 
 
+def approach(ship, rpm: float | None, speed_kn: float | None) -> tuple[float, float, str]:
+    """
+    Return (rpm, speed [m/s], note) of the approach.
+
+    Options not given: 106 rpm and 6 kn (SUZAKU's), unless the ship cannot plausibly make
+    6 kn (a pond model): then Froude number FALLBACK_FROUDE and the rpm that holds the speed
+    (core.simulate.self_propulsion_rpm), with a note saying so.
+    """
+    small = DEFAULT_SPEED_KN * mv.KNOT > input_limits(ship).top_speed_ms
+    notes = []
+    if speed_kn is not None:
+        speed = speed_kn * mv.KNOT
+    elif small:
+        speed = FALLBACK_FROUDE * math.sqrt(9.80665 * ship.L_pp)
+        notes.append(f'{ship.name} cannot plausibly make {DEFAULT_SPEED_KN:g} kn: approach at '
+                     f'{speed:.3f} m/s (Froude number {FALLBACK_FROUDE:g}; --speed-kn sets it)')
+    else:
+        speed = DEFAULT_SPEED_KN * mv.KNOT
+    if rpm is None and small:
+        try:
+            rpm = self_propulsion_rpm(ship, speed)
+        except SimulationError as exc:
+            raise UsageError(f'--rpm not given and {exc}: give --rpm') from None
+        notes.append(f'--rpm not given: {rpm:.1f} rpm holds {speed:.3f} m/s')
+    elif rpm is None:
+        rpm = DEFAULT_RPM
+    return rpm, speed, '; '.join(notes)
+
+
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not args.maneuvers:
@@ -112,14 +160,23 @@ def command(argv: list[str] | None = None) -> int:
             raise UsageError(f'--effect: {exc}') from None
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)
         return _from_advice(args, ship)
+    for kind, rud, _ in args.maneuvers:
+        if kind in mv.LOWSPEED_MANEUVERS:
+            try:
+                mv.check_lowspeed(ship, kind)
+            except SimulationError as exc:
+                raise UsageError(f'--maneuvers {kind}:{rud:g}: {exc}') from None
+    rpm, speed_ms, note = approach(ship, args.rpm, args.speed_kn)
     n = check_samples(args.duration * args.rate_hz + 1,
                       f'--duration {args.duration:g} x --rate-hz {args.rate_hz:g}',
                       MAX_TRIAL_SAMPLES)
     if n < MIN_SAMPLES:
         raise UsageError(f'--duration {args.duration:g} x --rate-hz {args.rate_hz:g} gives '
                          f'{n} sample(s) per trial; a usable trial needs at least {MIN_SAMPLES}')
-    check_run(ship, args.rpm, args.speed_kn * mv.KNOT, '--speed-kn',
+    check_run(ship, rpm, speed_ms, '--speed-kn',
               [(f'--maneuvers {k}:{r:g}', r) for k, r, _ in args.maneuvers])
+    if note:
+        print(note)
     noise = SensorNoise.none() if args.no_noise else SensorNoise()
     out = OutputDir.open(args.out, resume=True)  # an existing folder is added to, not replaced
     written: list[str] = []
@@ -128,10 +185,11 @@ def command(argv: list[str] | None = None) -> int:
             base = trial_name(kind, rud, chk)
             name = free_name(out.path, base, set(written))
             try:
-                _, measured = generate_trial(ship, kind, rud, chk, args.rpm,
-                                             args.speed_kn * mv.KNOT, args.duration,
-                                             args.rate_hz, noise, args.seed + 100 * i, name,
-                                             record_wind=args.record_wind)
+                _, measured = generate_trial(ship, kind, rud, chk, rpm, speed_ms,
+                                             args.duration, args.rate_hz, noise,
+                                             args.seed + 100 * i, name,
+                                             record_wind=args.record_wind,
+                                             thruster_rps=args.thruster_rps)
                 _write(out, measured, name, args.storage)
             except MmgTunerError as exc:
                 done = ', '.join(f'{w}/ and csv/{w}.csv' for w in written) or 'nothing'
@@ -157,8 +215,7 @@ def _write(out: OutputDir, trial, name: str, storage: str) -> None:
             shutil.rmtree(bag, ignore_errors=True)  # created by this run, just now
         raise OutputError(f'writing {bag} failed ({getattr(exc, "strerror", None) or exc})'
                           ) from None
-    out.write_text(Path('csv') / f'{name}.csv',
-                   csv_text(trial.t, trial.states, trial.controls, trial.wind))
+    out.write_text(Path('csv') / f'{name}.csv', trial_csv_text(trial))
 
 
 def _from_advice(args, ship) -> int:

@@ -14,9 +14,10 @@ import sys
 from dataclasses import replace
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut
 from mmg_tuner.cli.common import Parser, run_command
-from mmg_tuner.data.csv_io import csv_text
+from mmg_tuner.data.csv_io import trial_csv_text
+from mmg_tuner.data.load import parse_event_cut
 from mmg_tuner.data.summary import format_summary, summarize_many
 from mmg_tuner.data.topics import load_topic_map
 
@@ -33,7 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--dt', type=DT, help='resampling step [s] (default: topic map, 1.0)')
     ap.add_argument('--ship', help='ship config name or YAML: samples beyond its plausible '
                                    'rpm, rudder and speed are dropped with a note (default: '
-                                   'generic limits that fit any ship)')
+                                   'generic limits that fit any ship); astern propeller and '
+                                   'u <= 0 are kept when its family covers them (lowspeed)')
+    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
     ap.add_argument('--csv', metavar='OUT_DIR',
                     help='write each trial as CSV into this new (or empty) folder')
     return ap
@@ -45,19 +48,22 @@ def command(argv: list[str] | None = None) -> int:
     if args.dt is not None:
         tm = replace(tm, dt=args.dt)
     limits = None
+    keep_astern = False
     if args.ship:
         from mmg_tuner.core.limits import input_limits
         from mmg_tuner.core.ship import load_ship
-        limits = input_limits(load_ship(args.ship))
+        ship = load_ship(args.ship)
+        limits = input_limits(ship)
+        keep_astern = ship.family.astern_rpm and ship.family.astern_surge
+    cut = parse_event_cut(args.cut_from_event) if args.cut_from_event else None
     out = OutputDir.open(args.csv, option='--csv') if args.csv else None
     try:
-        summaries, trials = summarize_many(args.inputs, tm, limits)
+        summaries, trials = summarize_many(args.inputs, tm, limits, keep_astern, cut)
         for rs in summaries:
             print(format_summary(rs))
         if out is not None:
             for tr in trials:
-                path = out.write_text(f'{tr.name}.csv', csv_text(tr.t, tr.states, tr.controls,
-                                                                 tr.wind))
+                path = out.write_text(f'{tr.name}.csv', trial_csv_text(tr))
                 print(f'  wrote {path}')
     finally:
         if out is not None:

@@ -9,8 +9,9 @@ a rudder leading the yaw response by more than time.max_lag_s is reported.
 
 Repairs are documented in each trial's notes: non-finite samples dropped, unsorted stamps
 sorted, duplicate stamps dropped, gaps longer than max_gap_s split the trial, samples outside
-the model's range (rpm <= 0, u <= 0) split it too. Anything unrepairable raises
-TrialDataError naming the file, topic and time.
+the model's range (rpm <= 0, u <= 0) split it too unless keep_astern (a family that covers
+them). Optional thruster topics become Trial.thrusters [rev/s] (a missing one is 0). Anything
+unrepairable raises TrialDataError naming the file, topic and time.
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from mmg_tuner.core import frames
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
 from mmg_tuner.core.limits import RUDDER_HARD_CAP_RAD, InputLimits
 from mmg_tuner.data.bag import RawRecording, Series
-from mmg_tuner.data.topics import IMU, NAVSATFIX, TopicMap
+from mmg_tuner.data.topics import IMU, NAVSATFIX, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 
@@ -31,6 +32,8 @@ MIN_SAMPLES = 10
 MAX_SAMPLES = 20_000_000  # ~230 days at 1 s: more means corrupt stamps
 LAG_MIN_R2 = 0.5  # below it the yaw model explains too little to date the commands
 MAX_WIND_MS = 100.0  # no anemometer reading beyond it is wind (the strongest gusts ~110 m/s)
+# no thruster turns faster: a model's reaches ~30 rev/s, a ship's a few; more is a unit error
+MAX_THRUSTER_RPS = 200.0
 
 
 # Without a ship the readers still refuse what no ship can do (a unit error, corrupt data);
@@ -72,6 +75,9 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
                      f'{math.degrees(lim.yaw_rate_max_rad_s):.0f} deg/s')
     if role == 'wind':
         return np.hypot(v[:, 0], v[:, 1]) > MAX_WIND_MS, f'wind > {MAX_WIND_MS:g} m/s'
+    if role in THRUSTER_ROLES:
+        return (np.abs(v[:, 0] * tm.thruster_factor(role)) > MAX_THRUSTER_RPS,
+                f'|{role}| > {MAX_THRUSTER_RPS:g} rev/s')
     return none, ''
 
 
@@ -144,9 +150,12 @@ def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int,
 
 
 def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
-                    limits: InputLimits | None = None) -> list[Trial]:
+                    limits: InputLimits | None = None, keep_astern: bool = False
+                    ) -> list[Trial]:
     """Frame, resample and split one recording into trials (see module docstring).
     limits: plausibility ranges of the ship (core.limits.input_limits); default generic.
+    keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that
+    covers them); by default they split the trial and are left out with a note.
     How the recording was read (pose source, datum, frames, time bases, a suspected time
     offset) is added to rec.reading and to every trial's notes."""
     tm = rec.topic_map or tm
@@ -169,13 +178,20 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
         wind = clean_series(rec.series['wind'], rec.path, t0_ns, 'wind', tm, limits)
         if not wind.frame:
             wind.frame = tm.wind_frame
-    check_clocks(rec.path, {**cleaned, **({'wind': wind} if wind is not None else {})}, tm)
+    thr = {r: clean_series(rec.series[r], rec.path, t0_ns, r, tm, limits)
+           for r in THRUSTER_ROLES if r in rec.series}
+    check_clocks(rec.path, {**cleaned, **({'wind': wind} if wind is not None else {}), **thr},
+                 tm)
     notes = list(rec.notes) + list(rec.reading) + [n for s in series for n in s.notes] + \
-        (wind.notes if wind is not None else [])
+        (wind.notes if wind is not None else []) + [n for s in thr.values() for n in s.notes]
+    for r in THRUSTER_ROLES:
+        if thr and r not in thr:
+            notes.append(f'{getattr(tm, r + "_topic") or r}: not recorded, {r} taken as '
+                         '0 rev/s')
     if any(not np.array_equal(s.stamps_ns, s.receive_ns) for s in series[:1]):
         notes.append(f'{cleaned["odom"].topic}: header stamps used (not receive time)')
     kin, how = _kinematics(cleaned, kinds, tm, t0_ns, rec.path)
-    how += _describe_times(cleaned, wind)
+    how += _describe_times({**cleaned, **thr}, wind)
     rec.reading.extend(h for h in how if h not in rec.reading)
     notes.extend(how)
     trials = []
@@ -190,7 +206,7 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
             continue
         grid = lo + tm.dt * np.arange(n)
         trials.extend(_resample(kin, cleaned['rudder'], cleaned['rpm'], tm, t0_ns, grid,
-                                rec.path, name, notes, wind))
+                                rec.path, name, notes, wind, thr, keep_astern))
     if not trials:
         raise TrialDataError(f'{rec.path}: no usable trial ({"; ".join(notes) or "too short"})')
     for tr in trials:
@@ -554,7 +570,8 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
 
 
 def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, grid, path,
-              name, notes, wind=None) -> list[Trial]:
+              name, notes, wind=None, thr: dict[str, Series] | None = None,
+              keep_astern: bool = False) -> list[Trial]:
     # ENU map / FLU base_link (REP-103/105) -> MMG: x_E = y_map, y_E = x_map, psi = pi/2 - yaw
     x = np.interp(grid, kin.t_pos, kin.north)
     y = np.interp(grid, kin.t_pos, kin.east)
@@ -567,7 +584,17 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
     states = np.column_stack([x, y, psi, u, v, r])
     controls = np.column_stack([rpm_v, rudder])
     wind_ne = None if wind is None else _true_wind(wind, t0_ns, grid, psi, u, v)
-    good = (rpm_v > 0) & (u > 0)
+    thrusters = None
+    if thr:  # rev/s, + to starboard; a thruster not recorded is 0
+        thrusters = np.column_stack([
+            _interp(thr[r], t0_ns, grid, 0) * tm.thruster_factor(r) if r in thr
+            else np.zeros(grid.size) for r in THRUSTER_ROLES])
+    good = np.ones(grid.size, dtype=bool) if keep_astern else (rpm_v > 0) & (u > 0)
+    if keep_astern:
+        astern = float(np.mean((rpm_v <= 0) | (u <= 0)))
+        if astern > 0:
+            notes = notes + [f'astern propeller or u <= 0 kept ({100 * astern:.0f} % of '
+                             'samples)']
     out = []
     k = 0
     while k < grid.size:
@@ -578,7 +605,8 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
             what = 'rpm <= 0 (reverse or stopped propeller)' if np.any(rpm_v[k:j] <= 0) \
                 else 'u <= 0 (going astern or stopped)'
             notes.append(f'{what} from t = {grid[k]:.1f} to {grid[j - 1]:.1f} s: outside the '
-                         'MMG model range, left out')
+                         'MMG model range, left out (kept for a ship whose family covers it, '
+                         'e.g. lowspeed)')
             k = j
             continue
         j = k
@@ -588,10 +616,16 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
             out.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
                              source=str(path), start_s=float(grid[k]),
                              wind=None if wind_ne is None else wind_ne[k:j],
+                             thrusters=None if thrusters is None else thrusters[k:j],
                              notes=list(notes) + [f'resampled on dt = {tm.dt:g} s, linear '
                                                   f'interpolation; starts at {grid[k]:.2f} s '
                                                   'of the recording']))
+        else:
+            notes.append(f'segment {grid[k]:.1f}-{grid[j - 1]:.1f} s between the parts left '
+                         f'out is shorter than {MIN_SAMPLES} samples: dropped')
         k = j
+    for tr in out:  # what was left out after a trial began is said in every trial too
+        tr.notes.extend(n for n in notes if n not in tr.notes)
     return out
 
 

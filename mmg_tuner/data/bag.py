@@ -18,7 +18,7 @@ import numpy as np
 from mmg_tuner.core import frames
 from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.files import _why, check_regular_file, display_text
-from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, TopicMap
+from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
 
@@ -76,6 +76,9 @@ def _quat_ok(q) -> float:
     return 1.0 if 0.81 <= n <= 1.21 else 0.0
 
 
+SPEED_ROLES = ('rpm',) + THRUSTER_ROLES  # a JointState gives these as its velocity
+
+
 def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
             ) -> tuple[int | None, tuple]:
     """(header stamp or None, values) of one message, by type."""
@@ -112,11 +115,13 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
         if joint not in names:
             raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} not in {names}')
         i = names.index(joint)
-        # the propeller's shaft speed is the joint velocity, the rudder's angle its position
-        arr = msg.velocity if role == 'rpm' else msg.position
+        # a shaft's speed (propeller, thruster) is the joint velocity, the rudder's angle
+        # its position
+        speed = role in SPEED_ROLES
+        arr = msg.velocity if speed else msg.position
         if len(arr) <= i:
             raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} has no '
-                                 f'{"velocity" if role == "rpm" else "position"}')
+                                 f'{"velocity" if speed else "position"}')
         return _stamp_ns(msg.header), (float(arr[i]),)
     raise TrialDataError(f'{path}: topic {topic}: unsupported type {msgtype}')
 
@@ -151,7 +156,8 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
 
 
 def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
-    """role (odom, twist, heading, imu, rudder, rpm, wind) -> (topic, expected type, joint).
+    """role (odom, twist, heading, imu, rudder, rpm, wind, bow_thruster, stern_thruster) ->
+    (topic, expected type, joint).
     One topic may serve several roles (a JointState carrying rudder and propeller, an Imu
     giving heading and yaw rate)."""
     roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
@@ -165,6 +171,10 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
         roles['heading'] = (tm.heading_topic, tm.heading_type, '')
     if tm.wind_topic:
         roles['wind'] = (tm.wind_topic, tm.wind_type, '')
+    for role in THRUSTER_ROLES:  # optional: read when the recording has them
+        if getattr(tm, f'{role}_topic'):
+            roles[role] = (getattr(tm, f'{role}_topic'), getattr(tm, f'{role}_type'),
+                           getattr(tm, f'{role}_joint'))
     types: dict[str, str] = {}
     for topic, typ, _ in roles.values():
         if types.setdefault(topic, typ) != typ:
@@ -527,7 +537,8 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
     """Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics:
     Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
     written; each message is stamped at its sample time (ns since start_ns). A trial with
-    measured wind also gets the wind topic (Vector3Stamped, true wind in ENU)."""
+    measured wind also gets the wind topic (Vector3Stamped, true wind in ENU), one with
+    thrusters the two thruster topics (Float64 in the map's unit and sign)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 
@@ -547,6 +558,12 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
             if trial.wind is not None:
                 c_wind = w.add_connection(tm.wind_topic or '/wind', V3S.__msgtype__,
                                           typestore=ts)
+            c_thr = []
+            if trial.thrusters is not None:
+                for role in THRUSTER_ROLES:
+                    topic = getattr(tm, f'{role}_topic') or getattr(TopicMap, f'{role}_topic')
+                    c_thr.append((w.add_connection(topic, Float64.__msgtype__, typestore=ts),
+                                  tm.thruster_factor(role)))
             for k in range(len(trial)):
                 stamp = start_ns + int(round(trial.t[k] * 1e9))
                 w.write(c_odom, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
@@ -557,6 +574,10 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                 w.write(c_rpm, stamp, ts.serialize_cdr(
                     Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
                     Float64.__msgtype__))
+                for j, (c, factor) in enumerate(c_thr):
+                    w.write(c, stamp, ts.serialize_cdr(
+                        Float64(data=float(trial.thrusters[k, j] / factor)),
+                        Float64.__msgtype__))
                 if c_wind is not None:  # true wind, ENU: x east, y north
                     w.write(c_wind, stamp, ts.serialize_cdr(V3S(
                         header=_header(stamp, 'map'),

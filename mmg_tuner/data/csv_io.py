@@ -1,5 +1,7 @@
 """CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians; optional
-wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]."""
+wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]; optional
+bow_thruster,stern_thruster: thruster speeds [rev/s], + pushes the ship to starboard (one
+alone: the other is 0)."""
 from __future__ import annotations
 
 import io
@@ -16,20 +18,41 @@ from mmg_tuner.errors import TrialDataError
 
 
 WIND_COLUMNS = ('wind_n', 'wind_e')
+THRUSTER_COLUMNS = ('bow_thruster', 'stern_thruster')  # rev/s, the channels' own names
 
 
 def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray,
-             wind: np.ndarray | None = None) -> str:
+             wind: np.ndarray | None = None, thrusters: np.ndarray | None = None) -> str:
+    """Return a trial's samples as CSV text (see the module docstring for the columns)."""
     buf = io.StringIO()
-    cols = [t, states, controls] + ([] if wind is None else [wind])
-    header = CSV_COLUMNS + (() if wind is None else WIND_COLUMNS)
+    cols = [t, states, controls] + ([] if wind is None else [wind]) + \
+        ([] if thrusters is None else [thrusters])
+    header = CSV_COLUMNS + (() if wind is None else WIND_COLUMNS) + \
+        (() if thrusters is None else THRUSTER_COLUMNS)
     np.savetxt(buf, np.column_stack(cols), delimiter=',', header=','.join(header), comments='',
                fmt='%.10g')
     return buf.getvalue()
 
 
+def trial_csv_text(trial: Trial) -> str:
+    """Return csv_text of a trial, with its measured wind and thrusters when it has them."""
+    return csv_text(trial.t, trial.states, trial.controls, trial.wind, trial.thrusters)
+
+
 def write_trial_csv(trial: Trial, path: str | Path) -> None:
-    write_atomic(path, csv_text(trial.t, trial.states, trial.controls, trial.wind))
+    write_atomic(path, trial_csv_text(trial))
+
+
+def _thruster_columns(header: list[str], data: np.ndarray) -> np.ndarray | None:
+    """
+    Return the (T, 2) bow and stern thruster [rev/s] of a CSV table.
+
+    A missing column is 0; None when the file has neither.
+    """
+    if not any(c in header for c in THRUSTER_COLUMNS):
+        return None
+    return np.column_stack([data[:, header.index(c)] if c in header else np.zeros(len(data))
+                            for c in THRUSTER_COLUMNS])
 
 
 MAX_CSV_BYTES = 1 << 30  # 1 GiB: a day of 50 Hz samples is ~0.5 GB; more is not one trial
@@ -108,7 +131,8 @@ def read_trial_csv(path: str | Path) -> Trial:
         wind = np.column_stack([data[:, header.index(c)] for c in WIND_COLUMNS])
     return Trial(col['t'], np.column_stack([col[c] for c in CSV_COLUMNS[1:7]]),
                  np.column_stack([col['rpm'], col['rudder']]), name=safe_name(path.stem),
-                 source=display_text(str(path)), wind=wind, notes=notes)
+                 source=display_text(str(path)), wind=wind,
+                 thrusters=_thruster_columns(header, data), notes=notes)
 
 
 def csv_recording(path: str | Path):
@@ -132,6 +156,10 @@ def csv_recording(path: str | Path):
         enu = np.column_stack([data[:, header.index('wind_e')], data[:, header.index('wind_n')]])
         series['wind'] = Series('/wind', 'geometry_msgs/msg/Vector3Stamped', ns, enu, ns,
                                 frame='true_enu')
+    for c in THRUSTER_COLUMNS:  # rev/s, read as the default thruster topics (unit rps)
+        if c in header:
+            series[c] = Series(f'/{c}', 'std_msgs/msg/Float64', ns,
+                               data[:, header.index(c)][:, None], ns)
     return RawRecording(str(path), series, {v.topic: (v.msgtype, len(ns))
                                             for v in series.values()},
                         int(ns.min()), int(ns.max()), notes)

@@ -23,6 +23,7 @@ class SensorNoise:
     rudder_rad: float = math.radians(0.1)    # rudder angle indicator
     rpm: float = 0.2                 # shaft tachometer
     wind_ms: float = 0.5             # anemometer, per velocity component (gusts not modelled)
+    thruster_rps: float = 0.05       # thruster tachometer [rev/s]
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
@@ -31,7 +32,7 @@ class SensorNoise:
 
     @staticmethod
     def none() -> 'SensorNoise':
-        return SensorNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return SensorNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def apply(self, trial: Trial, rng: np.random.Generator) -> Trial:
         st = trial.states.copy()
@@ -43,21 +44,26 @@ class SensorNoise:
         st[:, 5] += rng.normal(0, self.yaw_rate_rad_s, n)
         ctrl[:, 0] += rng.normal(0, self.rpm, n)
         ctrl[:, 1] += rng.normal(0, self.rudder_rad, n)
-        wind = None
+        wind = thr = None
         if trial.wind is not None:
             wind = trial.wind + rng.normal(0, self.wind_ms, (n, 2))
+        if trial.thrusters is not None:  # drawn last: trials without keep their noise
+            thr = trial.thrusters + rng.normal(0, self.thruster_rps, (n, 2))
         return Trial(trial.t, st, ctrl, trial.name, trial.source,
                      trial.notes + ['sensor noise added: ' + ', '.join(
-                         f'{k}={v:.4g}' for k, v in self.__dict__.items())], wind=wind)
+                         f'{k}={v:.4g}' for k, v in self.__dict__.items())], wind=wind,
+                     thrusters=thr)
 
 
 def parse_maneuver(text: str) -> tuple[str, float, float | None]:
-    """'turning:35', 'zigzag:20' or 'zigzag:20/10', 'pullout:20', 'random:30' ->
-    (manoeuvre, rudder_deg, check_deg)."""
+    """'turning:35', 'zigzag:20' or 'zigzag:20/10', 'pullout:20', 'random:30', and for a
+    low-speed family 'berthing:20' (helm of the approach; its sign is the berth's side) and
+    'random_astern:30' -> (manoeuvre, rudder_deg, check_deg)."""
     kind, _, arg = text.partition(':')
-    if kind not in mv.MANEUVERS:
+    if kind not in mv.ALL_MANEUVERS:
         raise SimulationError(f'unknown manoeuvre {text!r}; use e.g. turning:35, zigzag:20/20, '
-                              'pullout:20, random:30')
+                              'pullout:20, random:30 or, for a low-speed family, berthing:20, '
+                              'random_astern:30')
     rud, _, chk = (arg or '35').partition('/')
     try:
         rud_deg, chk_deg = float(rud), float(chk) if chk else None
@@ -80,9 +86,11 @@ def parse_maneuver(text: str) -> tuple[str, float, float | None]:
 def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg: float | None,
                    rpm: float, speed_ms: float, duration_s: float, rate_hz: float,
                    noise: SensorNoise, seed: int, name: str, approach_s: float = 10.0,
-                   record_wind: bool = False) -> tuple[Trial, Trial]:
+                   record_wind: bool = False, thruster_rps: float = 20.0
+                   ) -> tuple[Trial, Trial]:
     """(truth, measured) for one manoeuvre; truth is integrated with RK4 at <= 0.1 s.
-    record_wind: the trial carries the (steady) true wind as a measurement."""
+    record_wind: the trial carries the (steady) true wind as a measurement. thruster_rps:
+    the thrusters' speed of the low-speed manoeuvres [rev/s] (mv.LOWSPEED_MANEUVERS)."""
     for what, v in (('rate_hz', rate_hz), ('duration_s', duration_s), ('rpm', rpm),
                     ('speed_ms', speed_ms)):
         if not (math.isfinite(v) and v > 0):
@@ -92,22 +100,26 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
     spec = mv.ManeuverSpec(maneuver, rudder_deg=rudder_deg, check_deg=check_deg, rpm=rpm,
                            speed_ms=speed_ms, duration_s=duration_s, dt=dt,
                            approach_s=approach_s, integrator='rk4', substeps=substeps,
-                           seed=seed, random_rpm_frac=0.1 if maneuver == 'random' else 0.0)
+                           seed=seed, random_rpm_frac=0.1 if maneuver == 'random' else 0.0,
+                           thruster_rps=thruster_rps)
     traj = mv.run(ship, spec)
     if not traj.ok:
         raise SimulationError(f'{name}: generation stopped at t = {traj.fail_time_s:.1f} s: '
                               f'{traj.status}')
-    controls = traj.controls
+    controls, thrusters = traj.controls, traj.thrusters
     toff = ship['time_offset']
     if toff != 0.0:  # commands stamped toff seconds early: recorded(t) = actual(t + toff)
-        controls = np.column_stack([np.interp(traj.t + toff, traj.t, traj.controls[:, i])
-                                    for i in range(2)])
+        def shift(a):
+            return np.column_stack([np.interp(traj.t + toff, traj.t, a[:, i])
+                                    for i in range(a.shape[1])])
+        controls = shift(controls)
+        thrusters = None if thrusters is None else shift(thrusters)
     wind = None
     if record_wind:  # the air's velocity north/east: it blows toward wind_dir + pi
         to = ship['wind_dir'] + math.pi
         wind = np.tile([ship['wind_speed'] * math.cos(to), ship['wind_speed'] * math.sin(to)],
                        (traj.t.size, 1))
-    truth = Trial(traj.t, traj.states, controls, name=name, wind=wind,
+    truth = Trial(traj.t, traj.states, controls, name=name, wind=wind, thrusters=thrusters,
                   notes=[f'generated: {ship.name} {maneuver} {rudder_deg:+g} deg, {rpm:g} rpm, '
                          f'{speed_ms:.3f} m/s, seed {seed}'])
     return truth, noise.apply(truth, np.random.default_rng(seed + 1))

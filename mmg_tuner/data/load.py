@@ -1,7 +1,8 @@
-"""The one door: any path (rosbag2 dir, .mcap, .csv, MARIN .dat, or a directory of them)
--> list of trials."""
+"""The one door: any path (rosbag2 dir, .mcap, .csv, MARIN .dat, or a folder of them, searched
+recursively) -> list of trials."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -9,36 +10,111 @@ from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
 from mmg_tuner.data.csv_io import csv_recording
+from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
-from mmg_tuner.data.esso import is_esso_csv, read_esso_csv
 from mmg_tuner.data.marin import read_marin_dat
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.errors import TrialDataError
+from mmg_tuner.errors import ConfigError, TrialDataError
+
+TRIAL_SUFFIXES = ('.mcap', '.csv', '.dat')
+MAX_DEPTH = 8  # folders below the one given; deeper is not a data set layout
+
+
+def _is_bag(p: Path) -> bool:
+    return p.is_dir() and (p / 'metadata.yaml').is_file()
 
 
 def find_inputs(path: Path) -> list[Path]:
-    """A rosbag2 directory is one input; another directory yields every bag/file inside."""
-    if path.is_dir() and not (path / 'metadata.yaml').is_file():
-        found = []
-        for p in sorted(path.iterdir()):
-            if p.is_dir() and (p / 'metadata.yaml').is_file():
+    """
+    Return the trial inputs in path.
+
+    A rosbag2 folder is one input; another folder is searched recursively (sorted by name at
+    every level, so the order is deterministic) for rosbag2 folders and .mcap, .csv and .dat
+    files.
+
+    Skipped: names starting with '.', files of other suffixes (README.md, LICENSE), folders
+    reached through a symbolic link (no loops) and, below the folder given, ``generate``'s
+    CSV copies: a NAME.csv whose folder's parent holds the rosbag2 folder NAME (the same
+    trial twice). A FIFO or device with a trial suffix is refused by name, not skipped.
+    """
+    if not path.is_dir() or _is_bag(path):
+        return [path]
+    found: list[Path] = []
+
+    def walk(folder: Path, depth: int) -> None:
+        try:
+            entries = sorted(folder.iterdir(), key=lambda q: q.name)
+        except OSError as exc:
+            raise TrialDataError(f'{folder}: cannot list folder ({exc.strerror or exc})'
+                                 ) from None
+        for p in entries:
+            if p.name.startswith('.'):
+                continue
+            if _is_bag(p):
                 found.append(p)
-            elif p.suffix in ('.mcap', '.csv', '.dat') and not p.is_dir():
-                found.append(p)  # a FIFO or device among them is refused by name, not skipped
-        if not found:
-            raise TrialDataError(f'{path}: no rosbag2, .mcap, .csv or .dat inside')
-        return found
-    return [path]
+            elif p.is_dir():
+                if not p.is_symlink() and depth < MAX_DEPTH:
+                    walk(p, depth + 1)
+            elif p.suffix in TRIAL_SUFFIXES:
+                if depth > 0 and p.suffix == '.csv' and _is_bag(folder.parent / p.stem):
+                    continue  # generate's CSV copy of the bag folder.parent/NAME
+                found.append(p)
+
+    walk(path, 0)
+    if not found:
+        raise TrialDataError(f'{path}: no rosbag2, .mcap, .csv or .dat inside (searched '
+                             'its subfolders too)')
+    return found
+
+
+def parse_event_cut(text: str) -> tuple[str, float]:
+    """
+    Parse a cut at an event.
+
+    'EVENT' or 'EVENT:BEFORE_S' (e.g. 'rudder_first_over:5') -> (event, seconds kept before
+    it, default 5); anything else is a ConfigError naming the events.
+    """
+    event, _, before = str(text).partition(':')
+    event = event.strip()
+    if event not in EVENTS:
+        raise ConfigError(f'cut event {text!r}: the event must be one of {list(EVENTS)}, '
+                          'optionally with :SECONDS kept before it (e.g. rudder_first_over:5)')
+    try:
+        before_s = float(before) if before.strip() else 5.0
+    except ValueError:
+        before_s = math.nan
+    if not (math.isfinite(before_s) and 0 <= before_s <= 1e6):
+        raise ConfigError(f'cut event {text!r}: the seconds kept before the event must be a '
+                          'finite number in [0, 1e6]')
+    return event, before_s
+
+
+def cut_at_event(trials: list[Trial], event: str, before_s: float = 5.0) -> list[Trial]:
+    """
+    Cut each trial from before_s seconds before event (:func:`.esso.cut_from_event`).
+
+    A trial in which the event does not occur is kept whole, with a note saying so.
+    """
+    out = []
+    for tr in trials:
+        try:
+            out.append(cut_from_event(tr, event, before_s))
+        except TrialDataError as exc:
+            tr.notes.append(f'not cut: {exc}; kept whole')
+            out.append(tr)
+    return out
 
 
 def load_trials(path: str | Path, tm: TopicMap | None = None,
                 time_ranges: list[tuple[float, float]] | None = None,
                 keep_astern: bool = False, limits: InputLimits | None = None) -> list[Trial]:
-    """Every trial in path, validated and resampled on tm.dt (see :mod:`.assemble`).
+    """Every trial in path (a folder: searched recursively, see :func:`find_inputs`),
+    validated and resampled on tm.dt (see :mod:`.assemble`).
 
-    A CSV with the FRT-DS-ESSO columns goes to :mod:`.esso` (own 0.1 s rate); keep_astern
-    keeps its astern propeller and u <= 0 samples (so far only that reader honours it).
+    A CSV with the FRT-DS-ESSO columns goes to :mod:`.esso` (own 0.1 s rate). keep_astern
+    keeps astern propeller and u <= 0 samples (for a family that covers them), in every
+    format; by default they are left out with a note.
 
     A CSV (model frame) passes through the same checks as a bag; a MARIN .dat is read at its
     own 0.135 s rate, full scale. time_ranges (seconds from each recording's start) cut
@@ -71,6 +147,18 @@ def load_many(paths: list[str | Path], tm: TopicMap | None = None,
     return unique_names(trials)
 
 
+# a model-frame CSV is read through the default topics, whatever the user's map says
+_CSV_TOPICS = {
+    'odom_topic': '/odom', 'odom_type': 'nav_msgs/msg/Odometry',
+    'rudder_topic': '/rudder_angle', 'rudder_type': 'std_msgs/msg/Float64', 'rudder_unit': 'rad',
+    'rudder_sign': 1.0, 'rpm_topic': '/propeller_rpm', 'rpm_type': 'std_msgs/msg/Float64',
+    'rpm_unit': 'rpm', 'bow_thruster_topic': '/bow_thruster',
+    'bow_thruster_type': 'std_msgs/msg/Float64', 'bow_thruster_unit': 'rps',
+    'bow_thruster_sign': 1.0, 'stern_thruster_topic': '/stern_thruster',
+    'stern_thruster_type': 'std_msgs/msg/Float64', 'stern_thruster_unit': 'rps',
+    'stern_thruster_sign': 1.0}
+
+
 def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
              limits: InputLimits | None = None) -> list[Trial]:
     """The trials of one input (a rosbag2 folder, .mcap, .csv or .dat), with safe names."""
@@ -82,14 +170,11 @@ def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
     elif p.suffix == '.csv' and is_esso_csv(p):
         found = read_esso_csv(p, keep_astern=keep_astern)
     elif p.suffix == '.csv':
-        found = assemble_trials(csv_recording(p), replace(tm, odom_topic='/odom',
-                                odom_type='nav_msgs/msg/Odometry', rudder_topic='/rudder_angle',
-                                rudder_type='std_msgs/msg/Float64', rudder_unit='rad',
-                                rudder_sign=1.0, rpm_topic='/propeller_rpm',
-                                rpm_type='std_msgs/msg/Float64', rpm_unit='rpm'), name=name,
-                                limits=limits)
+        found = assemble_trials(csv_recording(p), replace(tm, **_CSV_TOPICS), name=name,
+                                limits=limits, keep_astern=keep_astern)
     else:
-        found = assemble_trials(read_series(p, tm), tm, name=name, limits=limits)
+        found = assemble_trials(read_series(p, tm), tm, name=name, limits=limits,
+                                keep_astern=keep_astern)
     for tr in found:  # a name or path that is not UTF-8 must not break a report
         tr.name = safe_name(tr.name)
         tr.source = display_text(tr.source)
@@ -111,4 +196,3 @@ def cut_time_ranges(trials: list[Trial], ranges: list[tuple[float, float]]) -> l
     if not out:
         raise TrialDataError(f'no samples inside the time ranges {ranges}')
     return out
-

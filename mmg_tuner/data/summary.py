@@ -12,7 +12,7 @@ from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
 from mmg_tuner.data.files import display_text, safe_name, unique_names
-from mmg_tuner.data.load import find_inputs, load_one
+from mmg_tuner.data.load import cut_at_event, find_inputs, load_one
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -70,6 +70,10 @@ def summarize_trial(tr: Trial) -> TrialSummary:
         n, e = tr.wind.mean(axis=0)
         notes.append(f'measured wind: mean {math.hypot(n, e):.1f} m/s from '
                      f'{math.degrees(math.atan2(-e, -n)) % 360:.0f} deg (used by the model)')
+    if tr.thrusters is not None:
+        lo, hi = tr.thrusters.min(axis=0), tr.thrusters.max(axis=0)
+        notes.append(f'thrusters [rev/s]: bow {lo[0]:+.1f}..{hi[0]:+.1f}, stern '
+                     f'{lo[1]:+.1f}..{hi[1]:+.1f} (used by a family that reads them)')
     return TrialSummary(
         tr.name, tr.duration_s, tr.dt, detect_maneuver(tr),
         (float(tr['u'].min()), float(tr['u'].max())),
@@ -78,16 +82,19 @@ def summarize_trial(tr: Trial) -> TrialSummary:
         notes)
 
 
-def summarize(path: str | Path, tm: TopicMap, limits: InputLimits | None = None
-              ) -> tuple[list[RecordingSummary], list[Trial]]:
+def summarize(path: str | Path, tm: TopicMap, limits: InputLimits | None = None,
+              keep_astern: bool = False) -> tuple[list[RecordingSummary], list[Trial]]:
     """What each recording in path holds (see summarize_many)."""
-    return summarize_many([path], tm, limits)
+    return summarize_many([path], tm, limits, keep_astern)
 
 
-def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | None = None
+def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | None = None,
+                   keep_astern: bool = False, cut: tuple[str, float] | None = None
                    ) -> tuple[list[RecordingSummary], list[Trial]]:
     """What each recording in paths holds (one RecordingSummary each, a problem as its error)
-    and the usable trials, read as load_trials reads them, with names unique across all."""
+    and the usable trials, read as load_trials reads them, with names unique across all.
+    keep_astern: keep astern propeller and u <= 0 samples (a ship whose family covers them);
+    cut: (event, seconds before it) cuts each trial there (:func:`.load.cut_at_event`)."""
     out: list[RecordingSummary] = []
     per: list[list[Trial]] = []
     for path in paths:
@@ -104,7 +111,9 @@ def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | 
             per.append([])
             continue
         for p in inputs:
-            rs, found = _summarize_one(p, tm, limits)
+            rs, found = _summarize_one(p, tm, limits, keep_astern)
+            if cut is not None:
+                found = cut_at_event(found, *cut)
             out.append(rs)
             per.append(found)
     trials = unique_names([t for found in per for t in found])
@@ -113,8 +122,8 @@ def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | 
     return out, trials
 
 
-def _summarize_one(p: Path, tm: TopicMap, limits: InputLimits | None
-                   ) -> tuple[RecordingSummary, list[Trial]]:
+def _summarize_one(p: Path, tm: TopicMap, limits: InputLimits | None,
+                   keep_astern: bool = False) -> tuple[RecordingSummary, list[Trial]]:
     rs = RecordingSummary(display_text(str(p)))
     found: list[Trial] = []
     try:
@@ -126,12 +135,12 @@ def _summarize_one(p: Path, tm: TopicMap, limits: InputLimits | None
                 rs.topics[display_text(topic)] = (display_text(typ), n, rate)
             rs.reading = rec.reading
             found = assemble_trials(rec, tm, name=safe_name(p.name if p.is_dir() else p.stem),
-                                    limits=limits)
+                                    limits=limits, keep_astern=keep_astern)
             rs.reading = [display_text(r) for r in rec.reading]
             for tr in found:
                 tr.source = display_text(tr.source)
         else:
-            found = load_one(p, tm, limits=limits)
+            found = load_one(p, tm, keep_astern, limits)
         if not rs.duration_s and found:
             rs.duration_s = sum(t.duration_s for t in found)
     except TrialDataError as exc:

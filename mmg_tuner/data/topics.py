@@ -40,9 +40,12 @@ WIND_TYPES = ('geometry_msgs/msg/Vector3Stamped',)
 # apparent_flu: the air's velocity relative to the ship in base_link (FLU, m/s), as an
 # anemometer on the ship measures it (converted to true wind with the recorded motion)
 WIND_FRAMES = ('true_enu', 'apparent_flu')
-SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'rudder', 'rpm', 'wind', 'frames',
-            'time', 'resample')
-STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind')
+# thruster revolutions -> rev/s (the input channels' unit, core/channels.py)
+THRUSTER_UNITS = {'rps': 1.0, 'rpm': 1.0 / 60.0, 'rad_s': 1.0 / (2.0 * math.pi)}
+THRUSTER_ROLES = ('bow_thruster', 'stern_thruster')
+SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'rudder', 'rpm', 'wind') + \
+    THRUSTER_ROLES + ('frames', 'time', 'resample')
+STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind') + THRUSTER_ROLES
 MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
 
@@ -95,6 +98,22 @@ class TopicMap:
     wind_frame: str = 'true_enu'
     wind_stamp: str = 'header'
     wind_offset_s: float = 0.0
+    # optional thrusters (rev/s after unit and sign; + pushes the ship to starboard, as
+    # core/channels.py): read when the recording has them; '' = never
+    bow_thruster_topic: str = '/bow_thruster'
+    bow_thruster_type: str = 'std_msgs/msg/Float64'
+    bow_thruster_joint: str = ''
+    bow_thruster_unit: str = 'rps'
+    bow_thruster_sign: float = 1.0
+    bow_thruster_stamp: str = 'header'
+    bow_thruster_offset_s: float = 0.0
+    stern_thruster_topic: str = '/stern_thruster'
+    stern_thruster_type: str = 'std_msgs/msg/Float64'
+    stern_thruster_joint: str = ''
+    stern_thruster_unit: str = 'rps'
+    stern_thruster_sign: float = 1.0
+    stern_thruster_stamp: str = 'header'
+    stern_thruster_offset_s: float = 0.0
     frames_earth: tuple[str, ...] = EARTH_FRAMES
     frames_body: tuple[str, ...] = BODY_FRAMES
     # two streams whose header-vs-receive offsets differ by more than this are on two clocks
@@ -127,6 +146,10 @@ class TopicMap:
     @property
     def rpm_factor(self) -> float:
         return RPM_UNITS[self.rpm_unit]
+
+    def thruster_factor(self, role: str) -> float:
+        """Return the factor from a recorded value to rev/s (+ to starboard) of a thruster."""
+        return THRUSTER_UNITS[getattr(self, f'{role}_unit')] * getattr(self, f'{role}_sign')
 
 
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
@@ -193,12 +216,21 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
     tm = TopicMap(**kw, given=frozenset(kw))
     if tm.odom_type not in POSE_TYPES:
         raise ConfigError(f'{source}: odom.type {tm.odom_type!r} not one of {POSE_TYPES}')
-    for name, typ in (('rudder', tm.rudder_type), ('rpm', tm.rpm_type)):
+    for name, typ in (('rudder', tm.rudder_type), ('rpm', tm.rpm_type),
+                      ('bow_thruster', tm.bow_thruster_type),
+                      ('stern_thruster', tm.stern_thruster_type)):
         if typ not in SCALAR_TYPES:
             raise ConfigError(f'{source}: {name}.type {typ!r} not one of {SCALAR_TYPES}')
     if tm.rudder_unit not in RUDDER_UNITS or tm.rpm_unit not in RPM_UNITS:
         raise ConfigError(f'{source}: units must be rudder {list(RUDDER_UNITS)}, '
                           f'rpm {list(RPM_UNITS)}')
+    for role in THRUSTER_ROLES:
+        if getattr(tm, f'{role}_unit') not in THRUSTER_UNITS:
+            raise ConfigError(f'{source}: {role}.unit {getattr(tm, role + "_unit")!r} not one '
+                              f'of {list(THRUSTER_UNITS)}')
+        if getattr(tm, f'{role}_sign') not in (1, -1):
+            raise ConfigError(f'{source}: {role}.sign must be 1 (+ pushes the ship to '
+                              'starboard) or -1')
     if tm.wind_type not in WIND_TYPES or tm.wind_frame not in WIND_FRAMES:
         raise ConfigError(f'{source}: wind.type must be one of {WIND_TYPES} and wind.frame one '
                           f'of {WIND_FRAMES}')
