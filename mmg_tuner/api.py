@@ -32,6 +32,7 @@ from mmg_tuner.core import ship as _ship
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.layout import INTEGRATORS
+from mmg_tuner.core.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
 from mmg_tuner.data.topics import load_topic_map
@@ -39,17 +40,20 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
+from mmg_tuner.diagnosis import structure as _structure
 from mmg_tuner.diagnosis.context import Setting
 from mmg_tuner.diagnosis.select import (BUDGETS, RETUNE_METHODS, Candidate, Cause,
                                         DiagnosisSettings, MapFn, check_trial_sets)
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
-from mmg_tuner.tuning.objective import Objective, TrialBatch, paper_weights
+from mmg_tuner.tuning.objective import Objective, Prior, TrialBatch, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
+from mmg_tuner.tuning.segments import segment_weights, split_trials
 from mmg_tuner.tuning.tuner import Progress, Tuner
-from mmg_tuner.tuning.evaluate import EvaluateResult
+from mmg_tuner.tuning.evaluate import EvaluateResult, compare_index
+from mmg_tuner.tuning.hybrid import ResidualConfig, require_jax, train_residual
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
@@ -71,15 +75,36 @@ def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = N
 
 def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
                 dt: float | None = None, topics: str | Path | None = None,
-                trial_scale: str = 'ship', keep_astern: bool = False) -> list[Trial]:
-    """Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them),
-    as the commands read them: resampled on ``dt`` [s] (default: the topic map's, 1 s; MARIN
-    files keep their own rate unless dt is given), and with ``trial_scale='full'`` Froude-scaled
-    from full scale to the ship's scale (``ship.scale_ratio``). ``keep_astern=True`` keeps
-    astern propeller and u <= 0 samples, for a family that covers them
-    (``ship.family.astern_rpm``; default: they are left out with a note)."""
+                trial_scale: str = 'ship', keep_astern: bool | None = None,
+                cut_from_event: str | tuple[str, float] | None = None) -> list[Trial]:
+    """Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them,
+    searched recursively), as the commands read them: resampled on ``dt`` [s] (default: the
+    topic map's, 1 s; MARIN files keep their own rate unless dt is given), and with
+    ``trial_scale='full'`` Froude-scaled from full scale to the ship's scale
+    (``ship.scale_ratio``).
+
+    keep_astern: keep astern propeller and u <= 0 samples. None (default): what the ship's
+    family can simulate (``ship.family.astern_rpm and astern_surge``, e.g. lowspeed); without
+    a ship, or for a family that cannot, they are left out with a note. True with a ship whose
+    family cannot simulate them is refused.
+    cut_from_event: 'EVENT' or 'EVENT:SECONDS' (or a tuple) cuts each trial from SECONDS
+    (default 5) before the event, one of ``rudder_first_over`` (real runs start with a
+    manually steered approach) or ``propeller_first_astern``; a trial without the event is
+    kept whole with a note."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
+    fam = ship.family if ship is not None else None
+    covers = fam is not None and fam.astern_rpm and fam.astern_surge
+    if keep_astern is None:
+        keep_astern = covers
+    elif keep_astern and fam is not None and not covers:
+        raise ConfigError(f'keep_astern=True: the {fam.name} family of {ship.name} cannot '
+                          'simulate astern propeller or u <= 0 (they are left out with a note '
+                          'by default); use a ship of a family that covers them, e.g. lowspeed')
+    cut = None
+    if cut_from_event is not None:
+        cut = (_load.parse_event_cut(f'{cut_from_event[0]}:{cut_from_event[1]}')
+               if isinstance(cut_from_event, tuple) else _load.parse_event_cut(cut_from_event))
     if dt is not None:
         _check('dt', dt, _finite(dt) and 1e-3 <= dt <= 600, 'a step in [0.001, 600] s')
     if trial_scale not in ('ship', 'full'):
@@ -93,6 +118,11 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     limits = input_limits(ship) if ship is not None else None
     trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
                                           limits=limits)
+    if cut is not None:
+        trials = _load.cut_at_event(trials, *cut)
+        for t in trials:
+            if t.notes and t.notes[-1].startswith('not cut:'):
+                logger.warning('%s: %s', t.name, t.notes[-1])
     if trial_scale == 'full' and ship.scale_ratio != 1.0:
         trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
     if dt:
@@ -139,7 +169,16 @@ class TuneConfig:
     (default: the ship's, 0.5); bounds: per-parameter a_r or (lower, upper); weights: six
     non-negative error weights on x, y, psi, u, v, r (default: the paper's L, L, pi/4, 0, 0, 0);
     shoot_every_s: restart from the recorded state every H s (0: never); popsize / max_popsize /
-    max_evals: IPOP-CMA-ES budget; seed: a whole number.
+    max_evals: IPOP-CMA-ES budget; seed: a whole number. residual: None, 'hybrid' (after the
+    tuning, train a neural residual on the tuning trials: ``tune --residual``) or 'network'
+    (the pure network, no physics tuning: ``--residual-only``); residual_options: fields of
+    :class:`~mmg_tuner.tuning.hybrid.ResidualConfig` (epochs, window, hidden, ...; the seed
+    defaults to this config's, the integrator to 'rk4', as ``evaluate`` runs the hybrid).
+    What CMA-ES minimises (the reported J keeps shoot_every_s): segment_s: cut the tuning
+    trials into pieces of this many s, each started from the measured state (0: whole trials;
+    ``tuning/segments.py``); balance: 'sample' (every sample alike) or 'trial' (every trial
+    the same total weight); prior: pull toward the pre-determined values, in J per sample per
+    squared box width (0: none).
     """
 
     targets: tuple[str, ...] | None = None
@@ -153,10 +192,22 @@ class TuneConfig:
     max_popsize: int = 128
     max_evals: int = 200_000
     seed: int = 0
+    residual: str | None = None
+    residual_options: Mapping[str, object] = field(default_factory=dict)
+    segment_s: float = 0.0
+    balance: str = 'sample'
+    prior: float = 0.0
 
     def __post_init__(self) -> None:
         E = TuningError
         _check_common(self, E)
+        _check_residual(self, E)
+        _check('segment_s', self.segment_s, _finite(self.segment_s) and self.segment_s >= 0,
+               'a finite number >= 0 [s] (0: whole trials)', E)
+        _check('balance', self.balance, self.balance in ('sample', 'trial'),
+               "'sample' or 'trial'", E)
+        _check('prior', self.prior, _finite(self.prior) and self.prior >= 0,
+               'a finite number >= 0 (0: no prior)', E)
         if self.targets is not None:
             object.__setattr__(self, 'targets', tuple(self.targets))
         for name, b in dict(self.bounds).items():
@@ -245,10 +296,13 @@ class TuneResult:
     trials: list[Trial] = field(repr=False, default_factory=list)
     test: list[Trial] = field(repr=False, default_factory=list)
     dt: float = 0.0
+    residual: ResidualResult | None = None   # tune --residual / --residual-only
 
     @property
     def tuned_ship(self) -> ShipConfig:
-        return self.ship.with_params(self.params)
+        """The tuned ship; with a trained residual, the hybrid (or pure network)."""
+        ship = self.ship.with_params(self.params)
+        return ship if self.residual is None else replace(ship, residual=self.residual.net)
 
     def report(self) -> dict:
         """report.json's content."""
@@ -278,22 +332,56 @@ class TuneResult:
                          'dt': self.dt, 'seed': c.seed, 'max_evals': c.max_evals,
                          'popsize': [c.popsize, c.max_popsize]},
             'finite': bool(math.isfinite(self.J.tune)),
+            'residual': None if self.residual is None else self.residual.report(),
         }
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
         """params.yaml, report.md, plot_<trial>.png, and report.json last (its presence means
-        the set is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`."""
+        the set is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`.
+        With a trained residual, its weights (params.residual.npz) come first and params.yaml
+        names them."""
         names = ', '.join(unique_names(self.trials)) or 'the tuning trials'
-        docs = [('params.yaml', params_yaml_text(self.ship, self.params,
-                                                 f'tuned by mmg_tuner on {names}')),
-                ('report.md', markdown_report(self.report()))]
+        rep = self.report()
+        params_text = params_yaml_text(self.ship, self.params, f'tuned by mmg_tuner on {names}')
+        md = markdown_report(rep)
+        if self.residual is not None:
+            return _write_with_residual(self, out, params_text, md, plots)
+        docs = [('params.yaml', params_text), ('report.md', md)]
         images = {}
         if plots:
             images = plot_trials(self.ship, self.trials + self.test,
                                  {'pre-determined': self.ship.params,
                                   'tuned': self.tuned_ship.params},
-                                 'plot_', self.config.integrator, self.config.substeps)
+                                 'plot_', self.config.integrator, self.config.substeps,
+                                 sets=self.J.sets, J={'pre-determined': self.J_pre.per_trial,
+                                                      'tuned': self.J.per_trial})
         return _write_all(out, docs, images, ('report.json', json_text(self.report())))
+
+
+def _write_with_residual(res: TuneResult, out, params_text: str, md: str, plots: bool
+                         ) -> list[Path]:
+    """TuneResult.write with a residual: the weights first, then params.yaml naming them."""
+    r = res.residual
+    own = not isinstance(out, OutputDir)
+    od = OutputDir.open(out) if own else out
+    try:
+        paths = [od.write_bytes(RESIDUAL_FILE, r.npz_bytes())]
+        text = params_text + (f'# the {r.kind} network beside this file (mmg_tuner tune '
+                              f'--residual)\nresidual: {RESIDUAL_FILE}\n')
+        images = {}
+        if plots and r.kind == 'hybrid':   # the physics curves (the hybrid's: evaluate)
+            images = plot_trials(res.ship, res.trials + res.test,
+                                 {'pre-determined': res.ship.params,
+                                  'tuned physics': res.ship.with_params(res.params).params},
+                                 'plot_', res.config.integrator, res.config.substeps,
+                                 sets=res.J.sets, J={'pre-determined': res.J_pre.per_trial,
+                                                     'tuned physics': res.J.per_trial})
+        paths += _write_all(od, [('params.yaml', text), ('report.md', md + r.markdown())],
+                            images, ('report.json', json_text(res.report())))
+    finally:
+        if own:
+            od.close()
+    return paths
 
 
 def _write_all(out, docs, images, last) -> list[Path]:
@@ -325,6 +413,24 @@ def _config(cls, config, options: dict):
     return replace(config, **options) if options else config
 
 
+def _tuning_objective(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig,
+                      space: ParameterSpace, weights: np.ndarray, obj: Objective) -> Objective:
+    """Build what CMA-ES minimises: ``obj``, or segments, balanced, with a prior."""
+    if not cfg.segment_s and cfg.balance == 'sample' and not cfg.prior:
+        return obj
+    segs = split_trials([replace(t, name=n) for t, n in zip(trials, unique_names(trials))],
+                        cfg.segment_s)
+    # a segment starts from its measured sample, as the evaluation index's restarts do
+    batch = TrialBatch.from_trials([s.trial for s in segs],
+                                   x0_window_s=0.0 if cfg.segment_s else 10.0)
+    prior = None
+    if cfg.prior:
+        samples = float(batch.lengths.sum() - len(segs))
+        prior = Prior(space.indices, space.pre, space.upper - space.lower, cfg.prior * samples)
+    return Objective(ship, batch, weights, cfg.shoot_every_s, cfg.integrator, cfg.substeps,
+                     trial_weights=segment_weights(segs, cfg.balance), prior=prior)
+
+
 def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
          test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
          checkpoint: str | Path | None = None, resume: bool = False,
@@ -351,14 +457,138 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     logger.info('tuning %d parameters of %s on %d trial(s)%s; box a_r = %g', space.dim,
                 ship.name, len(trials), f', testing on {len(test)}' if test else '',
                 cfg.a_r or ship.a_r)
-    tuner = Tuner(space, obj, popsize=cfg.popsize, max_popsize=cfg.max_popsize,
-                  max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
-    res = tuner.run(resume=resume, progress=progress)
-    tuned = space.full_params(ship.params, res.theta)[0]
-    return TuneResult(dict(zip(space.names, map(float, res.theta))), _fit(sets, tuned),
-                      _fit(sets, ship.params), space.on_bound(res.theta), list(res.history),
-                      res.evaluations, res.restarts, res.wall_s, res.interrupted, ship, space,
-                      cfg, trials, test, obj.batch.dt)
+    if cfg.residual is not None:
+        require_jax()   # before any work: says how to install it
+    if ship.residual is not None:   # the physics is tuned; an old network would not fit it
+        logger.warning('the residual network of %s is not used for tuning (train a new one '
+                       'with residual=...)', ship.name)
+        ship = replace(ship, residual=None)
+    if cfg.residual == 'network':   # the pure network: no physics to tune
+        pre = _fit(sets, ship.params)
+        result = TuneResult({n: float(ship[n]) for n in space.names}, pre, pre, [], [], 0, 0,
+                            0.0, False, ship, space, cfg, trials, test, obj.batch.dt)
+    else:
+        tuner = Tuner(space, _tuning_objective(ship, trials, cfg, space, weights, obj),
+                      popsize=cfg.popsize, max_popsize=cfg.max_popsize,
+                      max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
+        res = tuner.run(resume=resume, progress=progress)
+        tuned = space.full_params(ship.params, res.theta)[0]
+        result = TuneResult(dict(zip(space.names, map(float, res.theta))), _fit(sets, tuned),
+                            _fit(sets, ship.params), space.on_bound(res.theta),
+                            list(res.history), res.evaluations, res.restarts, res.wall_s,
+                            res.interrupted, ship, space, cfg, trials, test, obj.batch.dt)
+    if cfg.residual is not None and not result.interrupted:
+        result.residual = _train_residual(result)
+    return result
+
+
+# ---------------------------------------------------------------------------------- residual
+RESIDUAL_FILE = 'params.residual.npz'
+RESIDUAL_KINDS = ('hybrid', 'network')
+
+
+def _check_residual(cfg: TuneConfig, error) -> None:
+    """TuneConfig.residual and residual_options, checked like the other options."""
+    _check('residual', cfg.residual, cfg.residual is None or cfg.residual in RESIDUAL_KINDS,
+           f'None or one of {list(RESIDUAL_KINDS)}', error)
+    _check_residual_options(cfg.residual_options, error)
+    _residual_config(cfg)   # ResidualConfig validates the values (ConfigError naming them)
+
+
+def _check_residual_options(options, error) -> None:
+    opts = dict(options)
+    unknown = sorted(set(opts) - set(config_fields(ResidualConfig)))
+    _check('residual_options', opts, not unknown and 'physics' not in opts,
+           f'fields of ResidualConfig (unknown: {unknown}; physics follows the mode)', error)
+    ResidualConfig(**opts)   # validates the values (ConfigError naming them)
+
+
+def _residual_config(cfg: TuneConfig) -> ResidualConfig:
+    # RK4, as evaluate and mt.simulate run the hybrid by default (Euler: residual_options)
+    return ResidualConfig(**{'seed': cfg.seed, 'integrator': 'rk4',
+                             **dict(cfg.residual_options),
+                             'physics': cfg.residual != 'network'})
+
+
+@dataclass
+class ResidualResult:
+    """The neural residual trained after the physics (``tune --residual``): the network, its
+    share of the total acceleration, its gain on its validation windows, and the paper's index
+    (Wakita et al. 2022 eq. 26, restarts every 100 s) of the tuned physics and of the model
+    with the network on the tuning and test trials (``heldout_gain``: 1 - index ratio on the
+    test trials, None without any)."""
+
+    net: object = field(repr=False)
+    kind: str
+    share: float
+    val_gain: float | None
+    index: dict
+    heldout_gain: float | None
+    seconds: float
+    epochs: int
+    seed: int
+    config: dict
+
+    def npz_bytes(self) -> bytes:
+        """The network as the portable .npz ResidualNet.save writes."""
+        import tempfile
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / RESIDUAL_FILE
+            self.net.save(path)
+            return path.read_bytes()
+
+    def report(self) -> dict:
+        d = asdict(self)
+        d.pop('net')
+        d['file'] = RESIDUAL_FILE
+        return d
+
+    def markdown(self) -> str:
+        lines = ['', f'## Neural residual ({self.kind})', '',
+                 f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, seed {self.seed}); '
+                 f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
+                 + (f'Share of the total acceleration: {100 * self.share:.1f} %. '
+                    if self.kind == 'hybrid' else 'The network alone gives the '
+                    'accelerations (no physics). ')
+                 + ('' if self.val_gain is None else
+                    f'Gain on its validation windows: {100 * self.val_gain:.1f} %.'), '',
+                 '| trials | index, tuned physics | index, with the network | gain |',
+                 '|---|---|---|---|']
+        for which, v in self.index.items():
+            lines.append(f"| {which} | {_fmt_idx(v['physics'])} | {_fmt_idx(v['model'])} | "
+                         f"{_fmt_gain_frac(v['gain'])} |")
+        return '\n'.join(lines) + '\n'
+
+
+def _fmt_idx(x) -> str:
+    return 'failed' if x is None else f'{x:.4g}'
+
+
+def _fmt_gain_frac(g) -> str:
+    return '—' if g is None else f'{100 * g:+.1f} %'
+
+
+def _train_residual(result: TuneResult) -> ResidualResult:
+    """Train the residual on the tuning trials (its validation: the last part of each) with
+    the tuned physics, and score both on the tuning and test trials."""
+    cfg = result.config
+    rc = _residual_config(cfg)
+    physics = result.ship.with_params(result.params)
+    logger.info('training the %s network on %d trial(s) (seed %d, up to %d epochs)',
+                'residual' if rc.physics else 'pure', len(result.trials), rc.seed, rc.epochs)
+    fit = train_residual(physics, result.trials, config=rc)
+    model = replace(physics, residual=fit.net)
+    index = {}
+    for which, trials in (('tune', result.trials), ('test', result.test)):
+        if trials:
+            index[which] = compare_index(physics, model, trials, integrator=rc.integrator)
+    held = index.get('test', {}).get('gain')
+    logger.info('   %s network: %.1f s, %d epochs; share %.1f %%; held-out index gain %s',
+                'residual' if rc.physics else 'pure', fit.seconds, fit.epochs,
+                100 * fit.share, _fmt_gain_frac(held))
+    return ResidualResult(fit.net, 'hybrid' if rc.physics else 'pure network',
+                          float(fit.share), fit.val_gain, index, held, float(fit.seconds),
+                          int(fit.epochs), int(fit.seed), asdict(rc))
 
 
 # ---------------------------------------------------------------------------------- diagnose
@@ -372,7 +602,10 @@ class DiagnoseConfig:
     max_effects: how many causes at most. setting: where the trials were recorded, a
     :class:`~mmg_tuner.diagnosis.context.Setting`, 'tank', 'sea,antenna' or a mapping
     {venue, position} (default: the ship YAML's ``setting:``, else what the trial files say);
-    effects impossible there are fitted but never named. retune: 'lsq' (local least squares,
+    effects impossible there are fitted but never named. residual: after the search, train a
+    residual network on the final model and report the share of the remaining held-out error
+    it removes ("unexplained but learnable structure"; needs JAX; residual_options: fields of
+    ResidualConfig). retune: 'lsq' (local least squares,
     warm-started; default) or 'cmaes' for the candidates' re-tunes. measured_signals: a
     measured wind is a candidate cause (True) or always drives the model (False).
     """
@@ -390,9 +623,14 @@ class DiagnoseConfig:
     setting: Setting | str | Mapping | None = None
     retune: str = 'lsq'
     measured_signals: bool = True
+    residual: bool = False
+    residual_options: Mapping[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         E = DiagnosisError
+        _check('residual', self.residual, isinstance(self.residual, bool), 'True or False', E)
+        if self.residual:
+            _check_residual_options(self.residual_options, E)
         _check_common(self, E)
         object.__setattr__(self, 'effects', tuple(self.effects))
         object.__setattr__(self, 'setting', Setting.parse(self.setting, 'the caller'))
@@ -465,6 +703,9 @@ class DiagnosisResult:
     test_final: list[Trial] = field(repr=False, default_factory=list)
     # the trial that would settle each barely identifiable effect / rival pair (advice.py)
     advice: list[dict] = field(default_factory=list)
+    # whether the model structure, not the named effects, is the likely cause (structure.py)
+    structure: dict = field(default_factory=dict)
+    structure_images: dict = field(repr=False, default_factory=dict)   # {file: PNG}
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -479,6 +720,7 @@ class DiagnosisResult:
                 'impossible_here': self.impossible,
                 'would_fit_but_impossible': self.impossible_fits,
                 'measured_signals': self.measured, 'advice': self.advice,
+                'structure': self.structure,
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -502,7 +744,11 @@ class DiagnosisResult:
                                                     self.test_final or self.test, integ))
             images.update(plot_trials(self.ship, self.test, {'base tuned': base_p,
                                                              'with effects': final_p},
-                                      'overlay_', integ))
+                                      'overlay_', integ,
+                                      sets={t.name: 'test' for t in self.test},
+                                      J={'base tuned': self.baseline.J_test_per_trial,
+                                         'with effects': self.final.J_test_per_trial}))
+            images.update(self.structure_images)
         return _write_all(out, docs, images, ('diagnosis.json', json_text(doc)))
 
 
@@ -524,6 +770,8 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
     runs the independent tunings of each step (default: plain map; e.g. a Dask client's map
     for a fleet), results in input order; fn touches neither the checkpoint nor the log."""
     cfg = _config(DiagnoseConfig, config, options)
+    if cfg.residual:
+        require_jax()   # before the search: says how to install it
     trials, test = _as_list(trials), _as_list(test)
     if not test:
         if len(trials) < 4:
@@ -546,7 +794,7 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
     timings = {**d.timings_s, 'report': round(time.perf_counter() - t_report, 3)}
     logger.info('   reporting took %.1f s', timings['report'])
     b, f = d.baseline, d.final
-    return DiagnosisResult(
+    dx = DiagnosisResult(
         d.causes,
         ModelFit(b['J_tune'], b['J_test'], b['J_test_per_trial'], b['params']),
         ModelFit(f['J_tune'], f['J_test'], f['J_test_per_trial'], dict(d.params),
@@ -555,6 +803,30 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg,
         d.setting, d.impossible, d.impossible_fits, d.measured, timings, test_base, test_final,
         d.advice)
+    dx.structure = _structure_of(dx, trials, d.measured_wind_used or not cfg.measured_signals)
+    return dx
+
+
+def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bool) -> dict:
+    """The structure verdict (diagnosis/structure.py) of a finished diagnosis."""
+    t0 = time.perf_counter()
+    cfg = dx.config
+    tune_final = tune_trials if wind_used else [replace(t, wind=None) if t.wind is not None
+                                                else t for t in tune_trials]
+    final = dx.ship.with_params(dx.params)
+    test_final = list(dx.test_final or dx.test)
+    learn = None
+    if cfg.residual:   # what a residual network learns beyond the final model
+        learn = _structure.learnable(final, tune_final, test_final, cfg.residual_options,
+                                     cfg.integrator)
+        dx.structure_images = _structure.plot_learnable(learn)
+        learn.pop('_plot')
+        logger.info('   %s', learn['line'])
+    st = _structure.assess(dx.to_dict(), dx.ship, list(tune_final) + test_final, final.params,
+                           cfg.integrator, targets=cfg.targets, a_r=cfg.a_r, learnable=learn)
+    dx.timings_s['structure'] = round(time.perf_counter() - t0, 3)
+    logger.info('   structure: %s', st['summary'])
+    return st
 
 
 # ---------------------------------------------------------------------------------- simulate
@@ -563,11 +835,14 @@ def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substep
     """The model's prediction of a recorded trial, as a :class:`Trial` on the same time grid
     (compare ``run.states`` with ``trial.states`` sample by sample). It starts from the state
     the tuning objective uses (a quadratic fit over the first 10 s) and is driven by the
-    recorded rpm, rudder and measured wind. A run that diverges or leaves the model's range
-    has NaN states from then on and a note saying when and why."""
+    recorded rpm, rudder, measured wind and thrusters. A run that diverges or leaves the
+    model's range has NaN states from then on and a note saying when and why."""
     _check('integrator', integrator, integrator in INTEGRATORS, f'one of {sorted(INTEGRATORS)}')
     _check('substeps', substeps, _is_int(substeps) and 1 <= substeps <= 1000,
            'a whole number in [1, 1000]')
+    if ship.residual is not None:  # a hybrid (or pure network) named by the params.yaml
+        return _simulate_hybrid(ship, ship.residual, trial, integrator=integrator,
+                                substeps=substeps)
     traj = simulate_recorded(ship, trial, None, integrator, substeps)
     notes = [f'simulated by mmg_tuner ({ship.name}, {integrator}, {substeps} substep(s)) from '
              'the fitted start state']
@@ -578,7 +853,8 @@ def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substep
         logger.warning('%s: %s', trial.name, msg)
     return Trial(trial.t.copy(), traj.states, trial.controls.copy(), trial.name,
                  f'simulated: {trial.source or trial.name}', notes, trial.start_s,
-                 None if trial.wind is None else trial.wind.copy())
+                 None if trial.wind is None else trial.wind.copy(),
+                 None if trial.thrusters is None else trial.thrusters.copy())
 
 
 def config_fields(cls) -> list[str]:
@@ -620,7 +896,7 @@ def evaluate(ship: ShipConfig, trials: Trial | Sequence[Trial],
 
     Example:
         >>> ship = mt.load_ship('esso_osaka_3m')
-        >>> trials = mt.load_trials(['data/esso_osaka_frt/berthing'], keep_astern=True)
+        >>> trials = mt.load_trials(['data/esso_osaka_frt/berthing'], ship=ship)
         >>> res = mt.evaluate(ship, trials, restart_every_s=100)
         >>> {n: s.index for n, s in res.trials.items()}
     """

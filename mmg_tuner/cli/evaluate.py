@@ -15,7 +15,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, nonneg_float
+from mmg_tuner.cli.args import CUT_HELP, bounded, event_cut, nonneg_float
 from mmg_tuner.cli.common import Parser, UsageError, run_command
 from mmg_tuner.cli.tune import show_log
 
@@ -36,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
+    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--no-plots', action='store_true')
@@ -48,10 +49,10 @@ def command(argv: list[str] | None = None) -> int:
     config = api.EvaluateConfig(args.restart_every, args.integrator, args.substeps)
     with show_log(args.quiet), OutputDir.open(args.out) as out:
         ship = api.load_ship(args.ship, args.params)
-        fam = ship.family
+        # astern and u <= 0 kept when the ship's family covers them (load_trials' default)
         trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,
                                  trial_scale=args.trial_scale,
-                                 keep_astern=fam.astern_rpm and fam.astern_surge)
+                                 cut_from_event=args.cut_from_event)
         if not trials:
             raise UsageError(f'no usable trial in {" ".join(args.trials)}')
         result = api.evaluate(ship, trials, config)

@@ -10,13 +10,21 @@ import argparse
 import math
 import sys
 
+import numpy as np
+
 from mmg_tuner.cli.args import bounded, finite_float, nonneg_float, positive_float
 from mmg_tuner.cli.common import (SEED, Parser, UsageError, check_new_file, check_run,
                                   check_samples, run_command, write_new_file)
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.integrate import observe, start_state
+from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.residual import (N_FEATURES, ResidualStepper, advance_hybrid,
+                                     apparent_wind_body, simulate_hybrid_one)
+from mmg_tuner.core.ship import load_ship, ShipConfig
+from mmg_tuner.core.simulate import integrator_code
+from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.csv_io import csv_text
 
 
@@ -87,7 +95,14 @@ def command(argv: list[str] | None = None) -> int:
         approach_s=args.approach, pullout_s=args.pullout_after,
         rudder_rate_deg_s=args.rudder_rate, integrator=args.integrator,
         substeps=args.substeps, seed=args.seed)
-    traj = mv.run(ship, spec)
+    if ship.residual is not None:   # the params.yaml names a residual network
+        if abs(args.dt - ship.residual.dt_s) > 1e-9 * ship.residual.dt_s:
+            raise UsageError(f'--dt {args.dt:g}: the residual network of {args.params} was '
+                             f'trained on {ship.residual.dt_s:g} s samples; use --dt '
+                             f'{ship.residual.dt_s:g}')
+        traj = hybrid_maneuver(ship, spec)
+    else:
+        traj = mv.run(ship, spec)
     if args.out:
         write_new_file(args.out, csv_text(traj.t, traj.states, traj.controls), '--out')
         print(f'wrote {args.out} ({traj.t.size} samples)')
@@ -96,7 +111,9 @@ def command(argv: list[str] | None = None) -> int:
               file=sys.stderr)
     L = ship.L_pp
     k_exec = ix.execution_index(traj['rudder'])
-    print(f'{ship.name} ({ship.model} model), {args.maneuver} {args.rudder_deg:+g} deg, '
+    kind = '' if ship.residual is None else (' + residual network' if ship.residual.physics
+                                             else ', pure network')
+    print(f'{ship.name} ({ship.model} model{kind}), {args.maneuver} {args.rudder_deg:+g} deg, '
           f'{args.rpm:g} rpm, u0 = {speed:.3f} m/s, {args.integrator} dt = {args.dt:g} s')
     if args.maneuver in ('turning', 'pullout'):
         ti = ix.turning_indices(traj['x'], traj['y'], traj['psi'], k_exec)
@@ -113,6 +130,93 @@ def command(argv: list[str] | None = None) -> int:
     print(f'  final: u = {final[3]:.3f} m/s, v = {final[4]:.3f} m/s, '
           f'r = {math.degrees(final[5]):.3f} deg/s')
     return 0 if traj.ok else 1
+
+
+def hybrid_maneuver(ship: ShipConfig, spec: mv.ManeuverSpec) -> Trial:
+    """
+    One manoeuvre of a ship that carries a residual network (hybrid or pure network).
+
+    The programme's inputs come from the physics run (mv.run): open-loop manoeuvres (turning,
+    pull-out, random, the low-speed programmes, whose phase ends the physics decides) replay
+    its rpm, actual rudder angle and thrusters through the hybrid from the same first state,
+    as a recorded trial is replayed; a zigzag closes the loop on the hybrid's own heading,
+    step by step (the residual held over each sample, the steering gear per substep).
+    """
+    phys = mv.run(ship, spec)
+    net = ship.residual
+    if spec.maneuver == 'zigzag':
+        return _hybrid_zigzag(ship, spec, phys)
+    ctrl = np.ascontiguousarray(phys.inputs, dtype=float)
+    if not phys.ok:   # past the physics' failure the programme is undefined: hold its last
+        k = max(1, int(np.argmax(~np.all(np.isfinite(ctrl[:, :2]), axis=1))))
+        ctrl[k:] = ctrl[k - 1]
+    T = len(phys)
+    out = np.empty((T, 6))
+    res = np.empty((T, 3))
+    sizes, flat = net.packed()
+    status, k_fail = simulate_hybrid_one(
+        ship.kind, np.ascontiguousarray(ship.params, dtype=float), phys.states[0].copy(),
+        np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
+        int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
+        net.x_mean, net.x_std, net.y_scale, bool(net.physics), out, res)
+    kw = {} if status == OK else dict(status=STATUS_TEXT[status],
+                                      fail_time_s=float(phys.t[min(k_fail, T - 1)]))
+    return Trial(phys.t.copy(), out, phys.controls.copy(), name=spec.maneuver, wind=phys.wind,
+                 thrusters=phys.thrusters, **kw)
+
+
+def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
+    """The IMO zigzag of integrate.run_maneuver, closed on the hybrid's heading."""
+    net = ship.residual
+    p = np.ascontiguousarray(ship.params, dtype=float)
+    T, dt, n_sub = len(phys), float(spec.dt), int(spec.substeps)
+    h = dt / n_sub
+    amp = math.radians(spec.rudder_deg)
+    check = math.radians(abs(spec.check_deg if spec.check_deg is not None
+                             else spec.rudder_deg))
+    rate = ship.rudder_rate_rad_s if spec.rudder_rate_deg_s is None \
+        else math.radians(spec.rudder_rate_deg_s)
+    max_move = rate * h if rate > 0 else math.inf
+    rpm = phys['rpm']
+    method = integrator_code(spec.integrator)
+    work = [np.empty(6) for _ in range(5)]
+    s = np.empty(6)
+    start_state(p, phys.states[0].copy(), s)
+    out = np.full((T, 6), np.nan)
+    rudder = np.full(T, np.nan)
+    observe(p, s, out[0])
+    delta = 0.0
+    rudder[0] = delta
+    delta_act = delta + ship['rudder_offset']
+    started, cmd_zz, psi0 = False, amp, s[2]
+    stepper = ResidualStepper(net)
+    status, k_fail = OK, T
+    for k in range(T - 1):
+        a0, a1, a2 = stepper.accelerations(s, (rpm[k], delta), apparent_wind_body(ship, s))
+        for _ in range(n_sub):
+            if not started and phys.t[k] >= spec.approach_s:
+                started, psi0 = True, s[2]
+            cmd = 0.0
+            if started:
+                if cmd_zz > 0 and s[2] - psi0 >= check:
+                    cmd_zz = -abs(amp)
+                elif cmd_zz < 0 and s[2] - psi0 <= -check:
+                    cmd_zz = abs(amp)
+                cmd = cmd_zz
+            status, delta_act = advance_hybrid(ship.kind, p, s, delta_act, rpm[k], delta, h, 1,
+                                               method, *work, 0.0, 0.0, a0, a1, a2,
+                                               bool(net.physics))
+            if status != OK:
+                break
+            delta += min(max_move, max(-max_move, cmd - delta))
+        if status != OK:
+            k_fail = k + 1
+            break
+        observe(p, s, out[k + 1])
+        rudder[k + 1] = delta
+    kw = {} if status == OK else dict(status=STATUS_TEXT[status],
+                                      fail_time_s=float(phys.t[min(k_fail, T - 1)]))
+    return Trial(phys.t.copy(), out, np.column_stack([rpm, rudder]), name=spec.maneuver, **kw)
 
 
 def main(argv: list[str] | None = None) -> None:

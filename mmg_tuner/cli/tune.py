@@ -17,7 +17,8 @@ from pathlib import Path
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, nonneg_float, positive_float, positive_int
+from mmg_tuner.cli.args import (CUT_HELP, bounded, event_cut, nonneg_float, positive_float,
+                                positive_int)
 from mmg_tuner.cli.common import SEED, Parser, UsageError, run_command
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
@@ -71,16 +72,42 @@ def build_parser() -> argparse.ArgumentParser:
                     'pi/4, 0, 0, 0)')
     ap.add_argument('--shoot-every', type=nonneg_float, default=0.0,
                     help='restart the simulation from the recorded state every H s (0: never)')
+    ap.add_argument('--segment', type=nonneg_float, default=0.0, metavar='S',
+                    help='tune on pieces of S s, each started from the recorded state '
+                    '(multiple shooting at the data level; 0: whole trials)')
+    ap.add_argument('--balance', choices=('sample', 'trial'), default='sample',
+                    help="'trial': every tuning trial weighs the same, whatever its length")
+    ap.add_argument('--prior', type=nonneg_float, default=0.0, metavar='W',
+                    help='pull toward the pre-determined values: W x J per sample per squared '
+                    'box width (0: none)')
     ap.add_argument('--topics', help='topic map YAML for bags')
     ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
+    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--popsize', type=POPSIZE, default=12)
     ap.add_argument('--max-popsize', type=POPSIZE, default=128)
     ap.add_argument('--max-evals', type=positive_int, default=200_000)
     ap.add_argument('--seed', type=SEED, default=0)
+    res = ap.add_mutually_exclusive_group()
+    res.add_argument('--residual', action='store_true',
+                     help='after tuning, train a neural residual on the accelerations (the '
+                     'hybrid model; needs jax, equinox, optax); params.yaml names its weights')
+    res.add_argument('--residual-only', action='store_true',
+                     help='no physics tuning: train the pure network (Wakita et al. 2022 '
+                     'Type-1), for comparison')
+    ap.add_argument('--residual-epochs', type=positive_int, metavar='N',
+                    help='residual: most epochs (default 200; early stopping decides)')
+    ap.add_argument('--residual-window', type=positive_int, metavar='N',
+                    help='residual: samples of history the network sees (default 5)')
+    ap.add_argument('--residual-hidden', type=positive_int, nargs='+', metavar='N',
+                    help='residual: hidden layer sizes (default 32 32)')
+    ap.add_argument('--residual-horizon', type=positive_float, metavar='S',
+                    help='residual: length of each simulated training window [s] (default 10)')
+    ap.add_argument('--residual-max-seconds', type=positive_float, metavar='S',
+                    help='residual: stop training after this wall time [s]')
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
     return ap
@@ -236,13 +263,31 @@ def show_log(quiet: bool = False):
 
 
 # ----------------------------------------------------------------------------- the command
+RESIDUAL_OPTIONS = {'residual_epochs': 'epochs', 'residual_window': 'window',
+                    'residual_hidden': 'hidden', 'residual_horizon': 'horizon_s',
+                    'residual_max_seconds': 'max_seconds'}
+
+
 def tune_config(args: argparse.Namespace) -> api.TuneConfig:
+    # runs stored before the residual options have none of them: getattr
+    kind = ('network' if getattr(args, 'residual_only', False) else
+            'hybrid' if getattr(args, 'residual', False) else None)
+    opts = {field: getattr(args, dest) for dest, field in RESIDUAL_OPTIONS.items()
+            if getattr(args, dest, None) is not None}
+    if opts and kind is None:
+        given = [d for d in RESIDUAL_OPTIONS if getattr(args, d, None) is not None]
+        raise UsageError(', '.join('--' + d.replace('_', '-') for d in given)
+                         + ': only with --residual or --residual-only')
+    if 'hidden' in opts:
+        opts['hidden'] = tuple(opts['hidden'])
     return api.TuneConfig(targets=args.targets, a_r=args.ar, bounds=dict(args.bound),
                           weights=tuple(args.weights) if args.weights else None,
                           shoot_every_s=args.shoot_every, integrator=args.integrator,
                           substeps=args.substeps, popsize=args.popsize,
                           max_popsize=args.max_popsize, max_evals=args.max_evals,
-                          seed=args.seed)
+                          seed=args.seed, segment_s=getattr(args, 'segment', 0.0),
+                          balance=getattr(args, 'balance', 'sample'),
+                          prior=getattr(args, 'prior', 0.0), residual=kind, residual_options=opts)
 
 
 def command(argv: list[str] | None = None) -> int:
@@ -252,7 +297,8 @@ def command(argv: list[str] | None = None) -> int:
         for n in notes:
             logging.getLogger(__name__).warning('resume: %s', n)
         ship = api.load_ship(args.ship, args.params)
-        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale)
+        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale,
+                    cut_from_event=getattr(args, 'cut_from_event', None))
         tune_trials = api.load_trials(args.trials, **load)
         test_trials = api.load_trials(args.test, **load) if args.test else []
         if not resume:
@@ -273,6 +319,8 @@ def command(argv: list[str] | None = None) -> int:
                  f'({fmt_gain(J0.test, J.test)} lower)' if test_trials else ''))
         for n, t in J.failed_at_s.items():
             print(f'the tuned model diverges on {n} at t = {t:.1f} s')
+        if result.residual is not None:
+            print(_residual_line(result.residual))
         if result.bounds_hit:
             print(f"on a bound of their box: {', '.join(result.bounds_hit)}")
         print(f'{result.evaluations} evaluations in {result.wall_s:.1f} s; wrote {out.path}/'
@@ -282,6 +330,17 @@ def command(argv: list[str] | None = None) -> int:
                   file=sys.stderr)
             return 130
     return 0
+
+
+def _residual_line(r) -> str:
+    """One line on the trained network: share, held-out gain, time, seed."""
+    held = ('' if r.heldout_gain is None else
+            f'; held-out index (eq. 26) {r.index["test"]["physics"]:.4g} -> '
+            f'{r.index["test"]["model"]:.4g} ({100 * r.heldout_gain:+.1f} % gain)')
+    share = f'share of the acceleration {100 * r.share:.1f} %' if r.kind == 'hybrid' \
+        else 'the network alone'
+    return (f'{r.kind} network: {share}{held}; trained in {r.seconds:.1f} s ({r.epochs} '
+            f'epochs, seed {r.seed}); weights in {api.RESIDUAL_FILE}')
 
 
 def _progress_bar(total: int):

@@ -7,7 +7,7 @@ finds the installed or in-tree config by name; a path to any YAML works too.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -78,6 +78,9 @@ class ShipConfig:
     source: str = ''
     extra: Mapping[str, Any] = field(default_factory=dict)
     tuning_bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    # a trained neural residual (core/residual.py) named by the params.yaml that was overlaid:
+    # the ship then simulates as a hybrid (or a pure network); None: the physics alone
+    residual: Any = field(default=None, repr=False, compare=False)
 
     @property
     def kind(self) -> int:
@@ -118,7 +121,7 @@ class ShipConfig:
         p.setflags(write=False)
         return ShipConfig(self.name, self.model, p, self.rudder_rate_rad_s, self.max_rudder_rad,
                           self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra,
-                          self.tuning_bounds)
+                          self.tuning_bounds, self.residual)
 
 
 # Physical plausibility, checked for ship files and overlays alike.
@@ -179,6 +182,9 @@ def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | Non
     ship = ship_from_dict(_read_yaml(path, 'ship config'), str(path))
     if params_file is not None:
         ship = ship.with_params(load_params_file(params_file), source=str(params_file))
+        net = load_params_residual(params_file)
+        if net is not None:
+            ship = replace(ship, residual=net)
     return ship
 
 
@@ -321,3 +327,27 @@ def load_params_file(path: str | Path) -> dict[str, float]:
             raise ConfigError(f'{path}: unknown parameter {k!r}')
         out[k] = _number(v, f'params.{k}', str(path))
     return out
+
+
+def load_params_residual(path: str | Path):
+    """
+    The residual network a params.yaml names (``residual: FILE.npz``, relative to the yaml).
+
+    Returns None when the file names none; a missing or corrupt network file is a ConfigError
+    naming both files.
+    """
+    path = Path(path)
+    doc = _read_yaml(path, 'params file')
+    name = doc.get('residual') if isinstance(doc, Mapping) else None
+    if name is None:
+        return None
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f'{path}: key "residual" = {name!r} must name a .npz file (relative '
+                          'to the params file)')
+    from mmg_tuner.core.residual import ResidualNet   # it imports this module
+    net_path = Path(name) if Path(name).is_absolute() else path.parent / name
+    try:
+        return ResidualNet.load(net_path)
+    except ConfigError as exc:
+        raise ConfigError(f'{path}: key "residual" names {net_path}, which cannot be used: '
+                          f'{exc}') from None

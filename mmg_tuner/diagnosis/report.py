@@ -10,7 +10,9 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.residuals import residual_series, simulate_trials, summarize
 from mmg_tuner.diagnosis.select import Diagnosis
-from mmg_tuner.tuning.report import display_name, fmt_J, fmt_gain, png_bytes, unique_names
+from mmg_tuner.diagnosis.structure import markdown_lines as structure_lines
+from mmg_tuner.tuning.plots import INPUT_AXES, png_bytes
+from mmg_tuner.tuning.report import display_name, fmt_J, fmt_gain, unique_names
 
 
 def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
@@ -63,6 +65,7 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   f"| with it | {_fmt_J(m['J_test_with'])} |",
                   f"| held-out gain | {_pct(m['heldout_gain'])} ± {_pct(m['heldout_gain_se'])} "
                   f"({'named' if m['named'] else 'not named: ' + (m['note'] or '—')}) |"]
+    lines += structure_lines(doc)   # diagnosis/structure.py: is the model structure to blame?
     lines += ['', '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
               '|---|---|---|---|---|---|']
     for i, r in enumerate(doc['candidates'], 1):
@@ -104,9 +107,9 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
             rec = a.get('separation_recorded')
             lines.append(f"| {a['about']} ({a['kind']}) | {a['instruction']}"
                          + ('' if a.get('settles', True) else ' — *no trial separates them '
-                            'clearly better than the recorded ones: degenerate for these '
-                            'manoeuvres*') + f" | {a['separation']:.3g} | "
-                         f"{'—' if rec is None else f'{rec:.3g}'} |")
+                            'by more than the unexplained error and clearly better than the '
+                            'recorded ones: degenerate for these manoeuvres*')
+                         + f" | {a['separation']:.3g} | {'—' if rec is None else f'{rec:.3g}'} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',
               '| trial | position rms [m] | psi rms [deg] | u rms [m/s] | v rms [m/s] | '
               'r rms [deg/s] |', '|---|---|---|---|---|---|']
@@ -164,33 +167,37 @@ def residuals_for(ship: ShipConfig, params: dict[str, float], trials: list[Trial
 
 def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
                    sims_final: list[np.ndarray]) -> dict[str, bytes]:
-    """Residuals over time and against heading; {file name: PNG bytes}."""
+    """Residuals over time (with the rudder beside them) and against heading; {name: PNG}."""
     from matplotlib.figure import Figure
 
     images = {}
-    fig = Figure(figsize=(10, 9))
-    axes = fig.subplots(4, 1, sharex=True)
+    fig = Figure(figsize=(10, 10.5), layout='constrained')
+    axes = fig.subplots(5, 1, sharex=True)
     for tr, label, sb in zip(trials, unique_names(trials), sims_base):
         e = residual_series(tr, sb)
         t = tr.t - tr.t[0]
-        axes[0].plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1, label=label)
+        line, = axes[0].plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1, label=label)
         axes[1].plot(t, np.degrees(e[:, 2]), lw=1)
         axes[2].plot(t, e[:, 4], lw=1)
         axes[3].plot(t, np.degrees(e[:, 5]), lw=1)
-    for a, lab in zip(axes, ('position error [m]', 'heading error [deg]', 'v error [m/s]',
-                             'r error [deg/s]')):
+        axes[4].plot(t, np.degrees(tr['rudder']), lw=1, color=line.get_color())
+    for a, lab in zip(axes, ('position error [m,\ndistance sim. to rec.]',
+                             'heading error [deg,\n+ sim. more clockwise]',
+                             'v error [m/s,\n+ sim. more to starboard]',
+                             'r error [deg/s,\n+ sim. turns more to stbd]',
+                             'recorded ' + INPUT_AXES['rudder'])):
         a.set_ylabel(lab, fontsize=8)
         a.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    axes[0].set_title('Residuals of the tuned base model (simulated - recorded)')
-    axes[-1].set_xlabel('t [s]')
-    fig.tight_layout()
+    axes[0].legend(fontsize=7, title='held-out trial', title_fontsize=7)
+    axes[0].set_title('Residuals of the tuned base model on the held-out trials '
+                      '(simulated - recorded)')
+    axes[-1].set_xlabel('t [s from the trial start]')
     images['residuals_time.png'] = png_bytes(fig)
 
-    fig = Figure(figsize=(11, 4))
+    fig = Figure(figsize=(11, 4.2), layout='constrained')
     axes = fig.subplots(1, 2)
-    for label, sims, c in (('base model', sims_base, 'tab:orange'),
-                           ('final model', sims_final, 'tab:blue')):
+    for label, sims, c in (('base model (tuned)', sims_base, 'tab:orange'),
+                           ('final model (with the named effects)', sims_final, 'tab:blue')):
         hdg, ev, er = [], [], []
         for tr, s in zip(trials, sims):
             e = residual_series(tr, s)
@@ -199,13 +206,14 @@ def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
             er.append(np.degrees(e[:, 5]))
         axes[0].scatter(np.concatenate(hdg), np.concatenate(ev), s=2, c=c, label=label)
         axes[1].scatter(np.concatenate(hdg), np.concatenate(er), s=2, c=c, label=label)
-    axes[0].set_ylabel('v error [m/s]')
-    axes[1].set_ylabel('r error [deg/s]')
+    axes[0].set_ylabel('v error [m/s, simulated - recorded, + to starboard]', fontsize=8)
+    axes[1].set_ylabel('r error [deg/s, simulated - recorded, + to starboard]', fontsize=8)
     for a in axes:
-        a.set_xlabel('heading [deg]')
+        a.set_xlabel('recorded heading psi [deg, clockwise from north]')
+        a.set_xticks(range(0, 361, 45))
         a.grid(alpha=0.3)
-        a.legend(fontsize=7)
-    fig.suptitle('Residuals vs heading (a current or wind shows as a sinusoid)')
-    fig.tight_layout()
+        a.legend(fontsize=7, markerscale=4)
+    fig.suptitle('Residuals vs heading on the held-out trials (a current or wind shows as a '
+                 'sinusoid)')
     images['residuals_vs_heading.png'] = png_bytes(fig)
     return images

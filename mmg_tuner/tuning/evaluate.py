@@ -33,11 +33,13 @@ import numpy as np
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.core.residual import simulate_segments
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
-from mmg_tuner.tuning.report import file_stem, json_text, png_bytes, unique_names
+from mmg_tuner.tuning.plots import png_bytes, trial_figure, trial_title
+from mmg_tuner.tuning.report import file_stem, json_text, unique_names
 
 INDEX_STATES = ('x', 'u', 'y', 'v', 'psi', 'r')
 """The six states of the paper's index, in its order."""
@@ -50,9 +52,15 @@ def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
             ) -> tuple[np.ndarray, float | None, str]:
     """The model's states (T, 6) for a recorded trial, restarted from the measured state at
     t = 0, N, 2N, ... s (N = restart_every_s; 0: only at the start), driven by the recorded
-    inputs (rpm, rudder, measured wind, thrusters) held per sample. Returns (states, time of
-    the first failure [s from the trial's start] or None, its reason); a segment that failed is
-    NaN from the failure to the next restart."""
+    inputs (rpm, rudder, measured wind, thrusters) held per sample; a ship with a residual
+    network (``ship.residual``) runs as the hybrid (or the pure network). Returns (states,
+    time of the first failure [s from the trial's start] or None, its reason); a segment that
+    failed is NaN from the failure to the next restart."""
+    if ship.residual is not None:  # a hybrid (or pure network) from the params.yaml
+        states, _, fail_t, why = simulate_segments(ship, ship.residual, trial, integrator,
+                                                   float(restart_every_s or 0.0), substeps,
+                                                   params)
+        return states, fail_t, why
     T = len(trial)
     K = T if not restart_every_s else max(1, int(round(restart_every_s / trial.dt)))
     inputs = np.ascontiguousarray(trial.inputs)
@@ -70,6 +78,12 @@ def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
             fail_t = float(trial.t[a] - trial.t[0] + run.fail_time_s)
             why = run.status
     return out, fail_t, why
+
+
+def model_kind(ship: ShipConfig) -> str:
+    """'physics', 'hybrid' (physics + residual network) or 'pure network'."""
+    net = ship.residual
+    return 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
 
 
 def pooled_sigma(trials: Sequence[Trial]) -> dict[str, float]:
@@ -134,6 +148,7 @@ class EvaluateResult:
     def to_dict(self) -> dict:
         """evaluate.json's content."""
         return {'ship': self.ship.name, 'model': self.ship.model,
+                'simulated_as': model_kind(self.ship),
                 'index': 'Wakita et al. 2022 eq. 26: mean over samples of the sum over the '
                          'states x, u, y, v, psi, r of ((model - measured) / sigma)^2, sigma '
                          'pooled over all evaluated trials',
@@ -143,7 +158,7 @@ class EvaluateResult:
                 'trials': {n: s.to_dict() for n, s in self.trials.items()}}
 
     def markdown(self) -> str:
-        lines = [f'# evaluate: {self.ship.name} ({self.ship.model})', '',
+        lines = [f'# evaluate: {self.ship.name} ({self.ship.model}, {model_kind(self.ship)})', '',
                  f'Restart from the measured state every {self.restart_every_s:g} s '
                  f'({self.integrator}, {self.substeps} substep(s)); index = Wakita et al. '
                  '(2022) eq. 26 with sigma pooled over these trials.', '',
@@ -165,35 +180,17 @@ class EvaluateResult:
 
     def plots(self) -> dict[str, bytes]:
         """{file name: PNG}: per trial, states recorded vs model and the inputs beside them."""
-        from matplotlib.figure import Figure
         images = {}
+        every = self.restart_every_s
         for tr, (name, s) in zip(self.recorded, self.trials.items()):
-            fig = Figure(figsize=(12, 10))
-            axes = fig.subplots(4, 2, sharex=True)
-            panels = [('x', 'x [m]', 1.0), ('y', 'y [m]', 1.0), ('psi', 'psi [deg]', 180 / math.pi),
-                      ('r', 'r [deg/s]', 180 / math.pi), ('u', 'u [m/s]', 1.0),
-                      ('v', 'v [m/s]', 1.0)]
-            for ax, (k, label, f) in zip(axes.flat[:6], panels):
-                ax.plot(tr.t, f * tr[k], 'k', lw=1.2, label='recorded')
-                ax.plot(tr.t, f * s.predicted[:, STATE_NAMES.index(k)], color='tab:blue',
-                        lw=1.0, label='model')
-                ax.set_ylabel(label)
-                ax.grid(alpha=0.3)
-            axes[0, 0].legend(loc='best', fontsize=8)
-            axes[3, 0].plot(tr.t, np.degrees(tr['rudder']), color='tab:green', lw=1.0)
-            axes[3, 0].set_ylabel('rudder [deg]')
-            axes[3, 1].plot(tr.t, tr['rpm'], color='tab:red', lw=1.0)
-            axes[3, 1].set_ylabel('rpm [1/min]')
-            for ax in axes[3]:
-                ax.set_xlabel('t [s]')
-                ax.grid(alpha=0.3)
-            if self.restart_every_s:
-                for ax in axes.flat:
-                    for tk in np.arange(tr.t[0], tr.t[-1], self.restart_every_s)[1:]:
-                        ax.axvline(tk, color='0.8', lw=0.6, zorder=0)
-            idx = 'failed' if s.index is None else f'{s.index:.3g}'
-            fig.suptitle(f'{name}: index {idx} (restart every {self.restart_every_s:g} s)')
-            fig.tight_layout()
+            step = max(1, round(every / tr.dt)) if every else len(tr)
+            restarts = tr.t[step::step]  # where predict() restarted from the measurement
+            how = (f'restarted from the measured state every {every:g} s' if every
+                   else 'one run from the start')
+            title = trial_title(name, how, {'model': s.index},
+                                error_name='index (Wakita 2022 eq. 26, lower is better)')
+            fig = trial_figure(tr, {'model': s.predicted}, title,
+                               states=('x', 'y', 'psi', 'r', 'u', 'v'), restarts_s=restarts)
             images[f'evaluate_{file_stem(name)}.png'] = png_bytes(fig)
         return images
 
@@ -241,3 +238,18 @@ def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float =
     index_all = index_of(every, sig) if np.all(np.isfinite(every)) else None
     return EvaluateResult(scores, sig, index_all, float(restart_every_s), integrator,
                           int(substeps), ship, trials)
+
+
+def compare_index(physics: ShipConfig, model: ShipConfig, trials: Sequence[Trial],
+                  restart_every_s: float = 100.0, integrator: str = 'rk4') -> dict:
+    """
+    The index over all ``trials`` of two models with one pooled sigma.
+
+    E.g. the tuned physics and the same with a residual network. Returns {'physics': index,
+    'model': index, 'gain': 1 - model / physics} (None where a model failed).
+    """
+    sig = pooled_sigma(trials)
+    a = evaluate(physics, trials, restart_every_s, integrator, sigma=sig).index_all
+    b = evaluate(model, trials, restart_every_s, integrator, sigma=sig).index_all
+    gain = None if a is None or b is None or not a > 0 else 1.0 - b / a
+    return {'physics': a, 'model': b, 'gain': gain}
