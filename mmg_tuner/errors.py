@@ -27,3 +27,7 @@ class DiagnosisError(MmgTunerError):
 
 class OutputError(MmgTunerError):
     """An output location cannot be used (a file, not writable, in use, would overwrite)."""
+
+
+class MissingDependencyError(MmgTunerError):
+    """An optional dependency a feature needs is not installed (the message says how to)."""

@@ -1,0 +1,639 @@
+"""
+A neural residual on the accelerations: the inference half of the hybrid model (issue 14).
+
+A hybrid model is a physics family plus a small MLP that adds (du, dv_m, dr) to the family's
+accelerations; with ``physics=False`` the MLP alone gives them (Wakita et al. 2022's Type-1
+network, kept for comparison). As in that paper, the network sees a finite window of the
+most recent samples (the current one included) of
+
+    u, v_m, r (the model state, through the water), rpm [rev/min], rudder [rad] (recorded),
+    bow and stern thrusters [rev/s] and the apparent wind (air velocity relative to the ship)
+    in body axes [m/s]: :data:`FEATURES`,
+
+each standardised by ``x_mean``/``x_std`` and ordered oldest first. The residual is
+evaluated once per sample from the sampled window and held over the sample interval, as the
+recorded inputs are (zero-order hold; with Euler this is the paper's scheme). Before the first
+sample of a run the window is padded with that sample; a restart from a measured state takes
+the measured history before it.
+
+Only NumPy and numba here (a ROS install without JAX runs trained hybrids); training lives in
+``mmg_tuner.tuning.hybrid``. The weights are stored in a portable ``.npz`` (no pickle).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import io
+import json
+import math
+from pathlib import Path
+import zipfile
+
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.core._jit import FASTMATH
+from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER, WIND_E
+from mmg_tuner.core.dynamics import derivative
+from mmg_tuner.core.integrate import (_control_at, _use_measured_wind, observe, rpm_status,
+                                      start_state, state_status)
+from mmg_tuner.core.layout import EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE, STATUS_TEXT
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.simulate import integrator_code
+from mmg_tuner.core.simulate import simulate as _simulate
+from mmg_tuner.core.trial import Trial
+from mmg_tuner.errors import ConfigError, SimulationError
+from numba import njit
+import numpy as np
+
+FEATURES: tuple[str, ...] = ('u', 'v', 'r', 'rpm', 'rudder', 'bow_thruster', 'stern_thruster',
+                             'wind_u', 'wind_v')
+"""Per-sample inputs of the network (see the module docstring); wind_u/wind_v: apparent
+wind, the air's velocity relative to the ship, body axes [m/s]."""
+N_FEATURES = len(FEATURES)
+FORMAT = 'mmg_tuner.residual/1'
+X0_WINDOW_S = 10.0
+"""The start-state fit of ``mt.simulate`` (tuning.objective.initial_state's default)."""
+
+_Vc = PARAM_INDEX['current_speed']
+_dirc = PARAM_INDEX['current_dir']
+_doff = PARAM_INDEX['rudder_offset']
+_tau = PARAM_INDEX['rudder_lag_tau']
+_nscale = PARAM_INDEX['rpm_scale']
+_toff = PARAM_INDEX['time_offset']
+_Vw = PARAM_INDEX['wind_speed']
+_dirw = PARAM_INDEX['wind_dir']
+
+
+# ------------------------------------------------------------------------------- the network
+@dataclass(frozen=True, eq=False)
+class ResidualNet:
+    """
+    A trained residual (or pure) network, ready for inference.
+
+    window: samples of history fed to the net (the current one included); dt_s: the sample
+    interval the window is built on [s]; weights[l] (out, in) and biases[l] (out,) of the
+    MLP layers (tanh between them, linear output); x_mean, x_std: (N_FEATURES,) input
+    standardisation, applied to every row of the window; y_scale (3,): output scale, du
+    [m/s^2], dv [m/s^2], dr [rad/s^2]; physics: True = physics + residual (hybrid), False =
+    the network alone (Wakita et al. 2022 Type-1); seed: the training seed; meta: training
+    facts (trials, epochs, losses, share, seconds, versions).
+    """
+
+    window: int
+    dt_s: float
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+    x_mean: np.ndarray
+    x_std: np.ndarray
+    y_scale: np.ndarray
+    physics: bool = True
+    seed: int = 0
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Check shapes once, so the compiled kernels never read out of bounds."""
+        _check_net(self, '<ResidualNet>')
+
+    @property
+    def n_inputs(self) -> int:
+        """Length of the standardised, flattened window the MLP reads."""
+        return self.window * N_FEATURES
+
+    def packed(self) -> tuple[np.ndarray, np.ndarray]:
+        """(layer sizes (L+1,) int64, flat float64 weights+biases) for the kernels."""
+        sizes = [self.n_inputs] + [w.shape[0] for w in self.weights]
+        flat = np.concatenate([np.concatenate([w.ravel(), b.ravel()])
+                               for w, b in zip(self.weights, self.biases)])
+        return np.asarray(sizes, dtype=np.int64), np.ascontiguousarray(flat, dtype=float)
+
+    def save(self, path) -> None:
+        """Write a portable ``.npz`` (arrays and a JSON string; no pickle), atomically."""
+        arrays = {'format': np.array(FORMAT), 'window': np.array(self.window, np.int64),
+                  'dt_s': np.array(self.dt_s, float), 'physics': np.array(bool(self.physics)),
+                  'seed': np.array(self.seed, np.int64), 'n_layers': np.array(len(self.weights)),
+                  'x_mean': self.x_mean, 'x_std': self.x_std, 'y_scale': self.y_scale,
+                  'features': np.array(FEATURES),
+                  'meta': np.array(json.dumps(self.meta, default=_json_default))}
+        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
+            arrays[f'W{i}'] = w
+            arrays[f'b{i}'] = b
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        write_atomic(path, buf.getvalue())
+
+    @classmethod
+    def load(cls, path) -> 'ResidualNet':
+        """Read a file written by :meth:`save`; ConfigError names the file and the bad key."""
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError(f'residual network file {path} does not exist')
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ConfigError(f'{path}: not a residual network file (.npz): {exc}') from None
+
+        def get(key):
+            if key not in data:
+                raise ConfigError(f'{path}: key {key!r} missing: not a complete residual '
+                                  'network file (written by mmg_tuner hybrid training)')
+            return data[key]
+
+        fmt = str(get('format'))
+        if fmt != FORMAT:
+            raise ConfigError(f"{path}: key 'format' = {fmt!r}, expected {FORMAT!r}")
+        feats = tuple(str(f) for f in get('features'))
+        if feats != FEATURES:
+            raise ConfigError(f"{path}: key 'features' = {feats}, this version reads "
+                              f'{FEATURES}')
+        try:
+            n = int(get('n_layers'))
+            meta = json.loads(str(get('meta')))
+            net = cls(window=int(get('window')), dt_s=float(get('dt_s')),
+                      weights=tuple(np.asarray(get(f'W{i}'), float) for i in range(n)),
+                      biases=tuple(np.asarray(get(f'b{i}'), float) for i in range(n)),
+                      x_mean=np.asarray(get('x_mean'), float),
+                      x_std=np.asarray(get('x_std'), float),
+                      y_scale=np.asarray(get('y_scale'), float),
+                      physics=bool(get('physics')), seed=int(get('seed')), meta=meta)
+        except ConfigError as exc:
+            msg = str(exc).replace('<ResidualNet>', str(path))
+            raise ConfigError(msg if msg.startswith(str(path)) else f'{path}: {msg}') from None
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f'{path}: malformed residual network file ({exc})') from None
+        return net
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
+
+
+def _check_net(net: ResidualNet, where: str) -> None:
+    """Refuse inconsistent shapes or non-finite values, naming the key."""
+    if not (isinstance(net.window, (int, np.integer)) and net.window >= 1):
+        raise ConfigError(f"{where}: key 'window' = {net.window!r} must be an integer >= 1")
+    if not (math.isfinite(net.dt_s) and net.dt_s > 0):
+        raise ConfigError(f"{where}: key 'dt_s' = {net.dt_s!r} must be positive")
+    if len(net.weights) != len(net.biases) or not net.weights:
+        raise ConfigError(f'{where}: keys W*/b*: {len(net.weights)} weight and '
+                          f'{len(net.biases)} bias arrays (need the same number, >= 1)')
+    n_in = net.window * N_FEATURES
+    for i, (w, b) in enumerate(zip(net.weights, net.biases)):
+        if w.ndim != 2 or w.shape[1] != n_in or b.shape != (w.shape[0],):
+            raise ConfigError(f"{where}: key 'W{i}'/'b{i}' shapes {w.shape}/{b.shape} do "
+                              f'not fit an input of {n_in}')
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
+            raise ConfigError(f"{where}: key 'W{i}'/'b{i}' holds non-finite values")
+        n_in = w.shape[0]
+    if n_in != 3:
+        raise ConfigError(f"{where}: key 'W{len(net.weights) - 1}' gives {n_in} outputs, "
+                          'need 3 (du, dv, dr)')
+    for key, a, n in (('x_mean', net.x_mean, N_FEATURES), ('x_std', net.x_std, N_FEATURES),
+                      ('y_scale', net.y_scale, 3)):
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise ConfigError(f'{where}: key {key!r} must be {n} finite numbers, got shape '
+                              f'{a.shape}')
+    if not (np.all(net.x_std > 0) and np.all(net.y_scale > 0)):
+        raise ConfigError(f"{where}: keys 'x_std', 'y_scale' must be positive")
+
+
+def zero_net(window: int, dt_s: float, hidden=(16,), physics: bool = True) -> ResidualNet:
+    """Return a network whose output is exactly zero (the hybrid then is its physics)."""
+    sizes = [window * N_FEATURES, *hidden, 3]
+    rng = np.random.default_rng(0)
+    ws = [rng.normal(0, 0.3, (o, i)) for i, o in zip(sizes[:-1], sizes[1:])]
+    ws[-1][:] = 0.0
+    return ResidualNet(window, float(dt_s), tuple(ws), tuple(np.zeros(o) for o in sizes[1:]),
+                       np.zeros(N_FEATURES), np.ones(N_FEATURES), np.ones(3), physics)
+
+
+# ------------------------------------------------------------------------------- the kernels
+@njit(cache=True, fastmath=FASTMATH)
+def mlp_forward(sizes, flat, x, buf_a, buf_b):
+    """
+    Evaluate the MLP on x (sizes[0],): tanh hidden layers, linear output.
+
+    Returns the buffer holding the output. buf_a, buf_b: work buffers of length >=
+    max(sizes). Weights are (out, in) row-major then the biases, layer after layer, as
+    :meth:`ResidualNet.packed` lays them out.
+    """
+    n_layers = sizes.shape[0] - 1
+    src = x
+    off = 0
+    for li in range(n_layers):
+        n_in = sizes[li]
+        n_out = sizes[li + 1]
+        dst = buf_a if li % 2 == 0 else buf_b
+        boff = off + n_in * n_out
+        for j in range(n_out):
+            acc = flat[boff + j]
+            row = off + j * n_in
+            for i in range(n_in):
+                acc += flat[row + i] * src[i]
+            dst[j] = math.tanh(acc) if li < n_layers - 1 else acc
+        off = boff + n_out
+        src = dst
+    return src
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def apparent_wind(p, psi, u, v):
+    """
+    Return the apparent wind: air velocity relative to the ship, body axes [m/s].
+
+    For the model state's heading and velocities through the water, with p's wind (and
+    current) slots.
+    """
+    ug = u
+    vg = v
+    Vc = p[_Vc]
+    if Vc != 0.0:
+        ug += Vc * math.cos(p[_dirc] - psi)
+        vg += Vc * math.sin(p[_dirc] - psi)
+    rel = p[_dirw] - psi
+    Vw = p[_Vw]
+    return -Vw * math.cos(rel) - ug, -Vw * math.sin(rel) - vg
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def feature_row(p, s, rpm, rudder, bow, stern, row):
+    """Fill row (N_FEATURES,) for model state s and the inputs held at this sample."""
+    row[0] = s[3]
+    row[1] = s[4]
+    row[2] = s[5]
+    row[3] = rpm
+    row[4] = rudder
+    row[5] = bow
+    row[6] = stern
+    wu, wv = apparent_wind(p, s[2], s[3], s[4])
+    row[7] = wu
+    row[8] = wv
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z, buf_a, buf_b):
+    """(du, dv, dr) of the network for the window ring (window, N_FEATURES), oldest first."""
+    nf = ring.shape[1]
+    for i in range(window):
+        for f in range(nf):
+            z[i * nf + f] = (ring[i, f] - x_mean[f]) / x_std[f]
+    o = mlp_forward(sizes, flat, z, buf_a, buf_b)
+    return o[0] * y_scale[0], o[1] * y_scale[1], o[2] * y_scale[2]
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _deriv_res(kind, p, s, act, physics, a0, a1, a2, out):
+    """ds/dt: the family's (physics) or only the kinematics (pure network), plus a0..a2."""
+    derivative(kind, p, s, act, out)
+    if physics:
+        out[3] += a0
+        out[4] += a1
+        out[5] += a2
+    else:
+        out[3] = a0
+        out[4] = a1
+        out[5] = a2
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def advance_hybrid(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4,
+                   tmp, bow, stern, a0, a1, a2, physics):
+    """
+    ``integrate.advance`` with the residual accelerations (a0, a1, a2) held over the step.
+
+    physics False: the residual replaces the family's accelerations (pure network). Returns
+    (status, new delta_act) like ``advance``.
+    """
+    n_rps = rpm * p[_nscale] / 60.0
+    st = rpm_status(kind, n_rps)
+    if st != OK:
+        return st, delta_act
+    delta_cmd = rudder + p[_doff]
+    h = dt / substeps
+    tau = p[_tau]
+    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    for _ in range(substeps):
+        delta_act = delta_cmd + (delta_act - delta_cmd) * decay
+        act = (n_rps, delta_act, bow, stern)
+        _deriv_res(kind, p, s, act, physics, a0, a1, a2, k1)
+        if method == EULER:
+            for i in range(6):
+                s[i] += h * k1[i]
+            continue
+        for i in range(6):
+            tmp[i] = s[i] + 0.5 * h * k1[i]
+        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k2)
+        for i in range(6):
+            tmp[i] = s[i] + 0.5 * h * k2[i]
+        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k3)
+        for i in range(6):
+            tmp[i] = s[i] + h * k3[i]
+        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k4)
+        for i in range(6):
+            s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    return state_status(kind, s), delta_act
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
+    """
+    Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
+
+    Each observed state is turned into the model's (antenna to midship, velocities through
+    the water), with the inputs and measured wind of its sample.
+    """
+    p = p_in.copy()
+    s = np.empty(6)
+    shift = p[_toff] / dt
+    measured_wind = ctrl.shape[1] > WIND_E
+    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    for k in range(T):
+        if measured_wind:
+            _use_measured_wind(p, ctrl, k)
+        start_state(p, states[k], s)
+        bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T) if thrusters else 0.0
+        stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T) if thrusters else 0.0
+        feature_row(p, s, _control_at(ctrl, k, RPM, shift, T),
+                    _control_at(ctrl, k, RUDDER, shift, T), bow, stern, rows[k])
+        for i in range(6):
+            model_states[k, i] = s[i]
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, method, window,
+                        sizes, flat, x_mean, x_std, y_scale, physics, out, res_out):
+    """
+    One hybrid run over T samples (``integrate.simulate_one`` plus the residual).
+
+    x0: first observed state; hist (>= window-1, N_FEATURES): the feature rows before it, of
+    which the last n_hist are valid (the rest of the window is padded with the first sample's
+    row); res_out (T, 3): the residual held over each interval. Returns (status, k_fail).
+    """
+    p = p_in.copy()
+    s = np.empty(6)
+    k1 = np.empty(6)
+    k2 = np.empty(6)
+    k3 = np.empty(6)
+    k4 = np.empty(6)
+    tmp = np.empty(6)
+    nf = x_mean.shape[0]
+    ring = np.empty((window, nf))
+    row = np.empty(nf)
+    z = np.empty(window * nf)
+    nb = 0
+    for i in range(sizes.shape[0]):
+        nb = max(nb, sizes[i])
+    buf_a = np.empty(nb)
+    buf_b = np.empty(nb)
+    start_state(p, x0, s)
+    observe(p, s, out[0])
+    shift = p[_toff] / dt
+    delta_act = _control_at(ctrl, 0, RUDDER, shift, T) + p[_doff]
+    measured_wind = ctrl.shape[1] > WIND_E
+    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    status = OK
+    k_fail = T
+    nh = hist.shape[0]
+    for k in range(T - 1):
+        if measured_wind:
+            _use_measured_wind(p, ctrl, k)
+        rpm = _control_at(ctrl, k, RPM, shift, T)
+        rudder = _control_at(ctrl, k, RUDDER, shift, T)
+        bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T) if thrusters else 0.0
+        stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T) if thrusters else 0.0
+        feature_row(p, s, rpm, rudder, bow, stern, row)
+        if k == 0:
+            for i in range(window - 1):
+                back = window - 1 - i  # samples before the first
+                for f in range(nf):
+                    ring[i, f] = hist[nh - back, f] if back <= n_hist else row[f]
+        else:
+            for i in range(window - 1):
+                for f in range(nf):
+                    ring[i, f] = ring[i + 1, f]
+        for f in range(nf):
+            ring[window - 1, f] = row[f]
+        a0, a1, a2 = window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z,
+                                     buf_a, buf_b)
+        res_out[k, 0] = a0
+        res_out[k, 1] = a1
+        res_out[k, 2] = a2
+        status, delta_act = advance_hybrid(kind, p, s, delta_act, rpm, rudder, dt, substeps,
+                                           method, k1, k2, k3, k4, tmp, bow, stern, a0, a1, a2,
+                                           physics)
+        if status != OK:
+            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
+            break
+        observe(p, s, out[k + 1])
+    for i in range(3):
+        res_out[T - 1, i] = np.nan
+    if status != OK:
+        for k in range(k_fail, T):
+            for i in range(6):
+                out[k, i] = np.nan
+    return status, k_fail
+
+
+# --------------------------------------------------------------------------- Python entries
+def fitted_start(trial: Trial, window_s: float = X0_WINDOW_S) -> np.ndarray:
+    """
+    Return the state ``mt.simulate`` starts a recorded trial from.
+
+    A quadratic least-squares fit of each state over the first window_s seconds, at t0: the
+    tuning objective's rule (``tuning.objective.initial_state``), restated here because the
+    core may not import the tuning layer; a test holds the two equal.
+    """
+    k = int(np.searchsorted(trial.t, trial.t[0] + window_s, side='right'))
+    if window_s <= 0 or k < 4:
+        return trial.states[0].copy()
+    t = trial.t[:k] - trial.t[0]
+    A = np.column_stack([np.ones(k), t, t * t])
+    coef, *_ = np.linalg.lstsq(A, trial.states[:k], rcond=None)
+    return coef[0]
+
+
+def trial_rows(ship: ShipConfig, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
+    """Feature rows (T, N_FEATURES) and model states (T, 6) of a trial's measured states."""
+    ctrl = np.ascontiguousarray(trial.inputs, dtype=float)
+    T = len(trial)
+    rows = np.empty((T, N_FEATURES))
+    ms = np.empty((T, 6))
+    measured_rows(ship.kind, ship.params, np.ascontiguousarray(trial.states), ctrl, T,
+                  float(trial.dt), rows, ms)
+    return rows, ms
+
+
+def _check_dt(net: ResidualNet, dt: float, what: str) -> None:
+    if abs(dt - net.dt_s) > 1e-6 * net.dt_s:
+        raise SimulationError(f'{what}: sample interval {dt:g} s, but the residual network was '
+                              f'trained on a window of {net.dt_s:g} s samples; resample the '
+                              f'trial to dt = {net.dt_s:g} s')
+
+
+def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
+                      integrator: str = 'rk4', restart_every_s: float | None = None,
+                      substeps: int = 1, params: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, float | None, str]:
+    """
+    States (T, 6), residual (T, 3), first failure time [s from the trial's start] and reason.
+
+    restart_every_s None: one run from :func:`fitted_start` (``mt.simulate``'s rule);
+    a number: restarts from the measured state at t = 0, N, 2N, ... s (0: only at the start)
+    as ``tuning.evaluate.predict`` does (raw measured states; the network's window then holds
+    the measured history before each restart).
+    """
+    method = integrator_code(integrator)
+    p = np.ascontiguousarray(ship.params if params is None else params, dtype=float)
+    T = len(trial)
+    dt = float(trial.dt)
+    inputs = np.ascontiguousarray(trial.inputs, dtype=float)
+    res = np.full((T, 3), np.nan)
+    if net is not None:
+        _check_dt(net, dt, trial.name)
+        rows, _ = trial_rows(ship, trial) if restart_every_s is not None else (None, None)
+        sizes, flat = net.packed()
+    if restart_every_s is None:
+        segs = [(0, T, fitted_start(trial))]
+    else:
+        K = T if not restart_every_s else max(1, int(round(restart_every_s / dt)))
+        segs = [(a, min(T, a + K), trial.states[a]) for a in range(0, T, K)]
+    out = np.full((T, 6), np.nan)
+    fail_t, why = None, ''
+    for a, b, x0 in segs:
+        if b - a < 2:
+            out[a] = trial.states[a]
+            continue
+        if net is None:
+            run = _simulate(ship, x0, inputs[a:b], dt, integrator, substeps,
+                            t0=float(trial.t[a]), params=p, check=False)
+            seg, ok, k_fail, status = run.states, run.ok, None, run.status
+            if not ok:
+                k_fail = int(round((run.fail_time_s - trial.t[a]) / dt))
+        else:
+            seg = np.empty((b - a, 6))
+            seg_res = np.empty((b - a, 3))
+            if rows is None or a == 0:
+                hist, n_hist = np.zeros((max(1, net.window - 1), N_FEATURES)), 0
+            else:
+                lo = max(0, a - (net.window - 1))
+                hist = np.ascontiguousarray(rows[lo:a]) if a > lo else np.zeros((1, N_FEATURES))
+                n_hist = a - lo
+            st, k_fail = simulate_hybrid_one(
+                ship.kind, p, np.asarray(x0, float), hist, n_hist, inputs[a:b], b - a, dt,
+                int(substeps), method, int(net.window), sizes, flat, net.x_mean, net.x_std,
+                net.y_scale, bool(net.physics), seg, seg_res)
+            res[a:b] = seg_res
+            ok, status = st == OK, STATUS_TEXT[st]
+        out[a:b] = seg
+        if not ok and fail_t is None:
+            fail_t = float(trial.t[a] - trial.t[0] + dt * min(k_fail, b - a - 1))
+            why = status
+    return out, res, fail_t, why
+
+
+def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
+                    integrator: str = 'rk4', restart_every_s: float | None = None,
+                    substeps: int = 1) -> Trial:
+    """
+    Predict a recorded trial with the hybrid model: a :class:`Trial` on the same grid.
+
+    Driven by the recorded inputs, thrusters and measured wind (zero-order hold), starting
+    from the fitted first state as ``mt.simulate`` does (restart_every_s None) or restarted
+    from the measured state every restart_every_s s as ``evaluate`` does. net None: the plain
+    physics (equal to ``mt.simulate``). A run that fails has NaN states from then on and
+    ``status``/``fail_time_s`` saying so (the time of the first failure).
+
+    Example::
+
+        net = ResidualNet.load('out/residual.npz')
+        run = simulate_hybrid(ship, net, trial)
+
+    """
+    states, _, fail_t, why = simulate_segments(ship, net, trial, integrator, restart_every_s,
+                                               substeps)
+    kind = 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
+    notes = [f'simulated by mmg_tuner ({ship.name}, {kind}, {integrator})']
+    kw = {}
+    if fail_t is not None:
+        notes.append(f'the simulation stopped at t = {fail_t:.2f} s: {why}')
+        kw = {'status': why, 'fail_time_s': float(trial.t[0] + fail_t)}
+    return Trial(trial.t.copy(), states, trial.controls.copy(), trial.name,
+                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
+                 None if trial.wind is None else trial.wind.copy(),
+                 None if trial.thrusters is None else trial.thrusters.copy(), **kw)
+
+
+def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
+                       wind_e: float = math.nan) -> tuple[float, float]:
+    """
+    Return the apparent wind in body axes [m/s] for a model state (for the node).
+
+    From the measured true wind (air velocity north/east [m/s]) or, when NaN, the ship's wind
+    parameters.
+    """
+    p = np.array(ship.params, dtype=float)
+    if wind_n == wind_n and wind_e == wind_e:
+        p[_Vw] = math.hypot(wind_n, wind_e)
+        p[_dirw] = math.atan2(-wind_e, -wind_n)
+    s = np.asarray(state, dtype=float)
+    wu, wv = apparent_wind(p, float(s[2]), float(s[3]), float(s[4]))
+    return float(wu), float(wv)
+
+
+class ResidualStepper:
+    """
+    The residual one sample at a time (the simulator node's engine).
+
+    A ring buffer holds the window. Call :meth:`accelerations` once per sample interval with
+    the model state at its start, the inputs held over it and the apparent wind; hold the
+    result over the interval (pass it to :func:`advance_hybrid`). This reproduces
+    :func:`simulate_hybrid` step by step.
+    """
+
+    def __init__(self, net: ResidualNet):
+        self.net = net
+        self._sizes, self._flat = net.packed()
+        self._ring = np.empty((net.window, N_FEATURES))
+        self._row = np.empty(N_FEATURES)
+        self._z = np.empty(net.n_inputs)
+        nb = int(self._sizes.max())
+        self._a = np.empty(nb)
+        self._b = np.empty(nb)
+        self._fresh = True
+        self.reset(None)
+
+    def reset(self, state=None) -> None:
+        """Forget the history: the next call pads the window with its own sample."""
+        self._fresh = True
+
+    def accelerations(self, state, act, wind_body) -> tuple[float, float, float]:
+        """
+        Return the residual's (du [m/s^2], dv [m/s^2], dr [rad/s^2]) for this sample.
+
+        state: model state (x, y, psi, u, v_m, r), velocities through the water; act: inputs
+        held over the interval (rpm [rev/min], rudder [rad][, bow, stern [rev/s]]);
+        wind_body: the apparent wind in body axes [m/s] (:func:`apparent_wind_body`).
+        """
+        r = self._row
+        r[0] = state[3]
+        r[1] = state[4]
+        r[2] = state[5]
+        r[3] = act[0]
+        r[4] = act[1]
+        r[5] = act[2] if len(act) > 2 else 0.0
+        r[6] = act[3] if len(act) > 3 else 0.0
+        r[7] = wind_body[0]
+        r[8] = wind_body[1]
+        ring = self._ring
+        if self._fresh:
+            ring[:] = r
+            self._fresh = False
+        else:
+            ring[:-1] = ring[1:]
+            ring[-1] = r
+        net = self.net
+        a0, a1, a2 = window_residual(ring, net.window, self._sizes, self._flat, net.x_mean,
+                                     net.x_std, net.y_scale, self._z, self._a, self._b)
+        return float(a0), float(a1), float(a2)

@@ -1,0 +1,200 @@
+"""
+The differentiable simulation and the optimiser (JAX, equinox, optax; imported lazily).
+
+The physics is the compiled numba kernel itself, called through ``jax.pure_callback`` on the
+whole batch, with a custom VJP whose backward multiplies by the kernel's state Jacobian
+(central differences in float64, computed in the same callback as the forward). The network,
+the features, the kinematics and the integrator steps are JAX, so the gradient of the
+simulation-based loss flows through every step of the simulated window.
+"""
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.tuning.hybrid._bridge import batch_derivative
+import numpy as np
+import optax
+
+jax.config.update('jax_enable_x64', True)  # the physics runs in float64 (before any array)
+
+_Vc = PARAM_INDEX['current_speed']
+_dirc = PARAM_INDEX['current_dir']
+_ax = PARAM_INDEX['antenna_x']
+_ay = PARAM_INDEX['antenna_y']
+
+
+def physics_fn(kind: int, p: np.ndarray):
+    """
+    Return ds/dt (B, 6) of the family as a differentiable JAX function of the states (B, 6).
+
+    Actuators (B, 4) and wind (B, 2) are data (zero cotangent).
+    """
+    p = np.ascontiguousarray(p, dtype=float)
+
+    def host(s, act, wind, with_jac):
+        s = np.ascontiguousarray(s, dtype=float)
+        B = s.shape[0]
+        F = np.empty((B, 6))
+        J = np.empty((B, 6, 6))
+        batch_derivative(kind, p, s, np.ascontiguousarray(act, dtype=float),
+                         np.ascontiguousarray(wind, dtype=float), F, J, with_jac)
+        return (F, J) if with_jac else F
+
+    def shape(s):
+        return jax.ShapeDtypeStruct(s.shape, jnp.float64)
+
+    @jax.custom_vjp
+    def f(s, act, wind):
+        return jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind)
+
+    def fwd(s, act, wind):
+        F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True),
+                                 (shape(s), jax.ShapeDtypeStruct(s.shape + (6,), jnp.float64)),
+                                 s, act, wind)
+        return F, (J, act, wind)
+
+    def bwd(res, g):
+        J, act, wind = res
+        return jnp.einsum('bi,bij->bj', g, J), jnp.zeros_like(act), jnp.zeros_like(wind)
+
+    f.defvjp(fwd, bwd)
+    return f
+
+
+class MLP(eqx.Module):
+    """
+    The network: tanh hidden layers, linear output.
+
+    The last layer starts at zero, so the hybrid starts as its physics part.
+    """
+
+    layers: list
+
+    def __init__(self, sizes, key):
+        keys = jax.random.split(key, len(sizes) - 1)
+        layers = [eqx.nn.Linear(i, o, key=k, dtype=jnp.float64)
+                  for i, o, k in zip(sizes[:-1], sizes[1:], keys)]
+        last = layers[-1]
+        layers[-1] = eqx.tree_at(lambda m: (m.weight, m.bias), last,
+                                 (jnp.zeros_like(last.weight), jnp.zeros_like(last.bias)))
+        self.layers = layers
+
+    def __call__(self, x):
+        for layer in self.layers[:-1]:
+            x = jnp.tanh(layer(x))
+        return self.layers[-1](x)
+
+    def export(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        return (tuple(np.asarray(la.weight, dtype=float) for la in self.layers),
+                tuple(np.asarray(la.bias, dtype=float) for la in self.layers))
+
+
+def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float,
+                   x_mean, x_std, y_scale):
+    """
+    Return simulate(model, x0, hist, inp, act, wind) -> (observed, residual).
+
+    Observed (B, H, 6) and residual (B, H, 3) for a batch of windows, mirroring
+    ``core.residual.simulate_hybrid_one`` (one step per sample, the residual held over it).
+    """
+    phys = physics_fn(kind, p)
+    Vc, dirc, ax, ay = (float(p[_Vc]), float(p[_dirc]), float(p[_ax]), float(p[_ay]))
+    mean = jnp.asarray(x_mean)
+    std = jnp.asarray(x_std)
+    yscale = jnp.asarray(y_scale)
+
+    def features(s, inp, wind):
+        psi, u, v = s[:, 2], s[:, 3], s[:, 4]
+        ug, vg = u, v
+        if Vc != 0.0:
+            ug = u + Vc * jnp.cos(dirc - psi)
+            vg = v + Vc * jnp.sin(dirc - psi)
+        rel = wind[:, 1] - psi
+        wu = -wind[:, 0] * jnp.cos(rel) - ug
+        wv = -wind[:, 0] * jnp.sin(rel) - vg
+        return jnp.concatenate([s[:, 3:6], inp, wu[:, None], wv[:, None]], axis=1)
+
+    def deriv(s, act, wind, a):
+        if physics:
+            return phys(s, act, wind) + jnp.concatenate([jnp.zeros_like(s[:, :3]), a], axis=1)
+        psi, u, v, r = s[:, 2], s[:, 3], s[:, 4], s[:, 5]
+        c, sn = jnp.cos(psi), jnp.sin(psi)
+        dx = u * c - v * sn
+        dy = u * sn + v * c
+        if Vc != 0.0:
+            dx = dx + Vc * np.cos(dirc)
+            dy = dy + Vc * np.sin(dirc)
+        return jnp.concatenate([dx[:, None], dy[:, None], r[:, None], a], axis=1)
+
+    def observe(s):
+        psi = s[:, 2]
+        c, sn = jnp.cos(psi), jnp.sin(psi)
+        o = s
+        if ax != 0.0 or ay != 0.0:
+            o = o.at[:, 0].add(ax * c - ay * sn).at[:, 1].add(ax * sn + ay * c)
+        if Vc != 0.0:
+            o = o.at[:, 3].add(Vc * jnp.cos(dirc - psi)).at[:, 4].add(Vc * jnp.sin(dirc - psi))
+        return o
+
+    def simulate(model, x0, hist, inp, act, wind):
+        net = jax.vmap(model)
+
+        def step(carry, xs):
+            s, ring = carry
+            inp_k, act_k, wind_k = xs
+            row = features(s, inp_k, wind_k)
+            full = jnp.concatenate([ring, row[:, None, :]], axis=1)
+            z = ((full - mean) / std).reshape(full.shape[0], -1)
+            a = net(z) * yscale
+            k1 = deriv(s, act_k, wind_k, a)
+            if rk4:
+                k2 = deriv(s + 0.5 * dt * k1, act_k, wind_k, a)
+                k3 = deriv(s + 0.5 * dt * k2, act_k, wind_k, a)
+                k4 = deriv(s + dt * k3, act_k, wind_k, a)
+                s = s + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            else:
+                s = s + dt * k1
+            return (s, full[:, 1:]), (observe(s), a)
+
+        xs = (jnp.swapaxes(inp, 0, 1), jnp.swapaxes(act, 0, 1), jnp.swapaxes(wind, 0, 1))
+        _, (obs, res) = jax.lax.scan(step, (x0, hist), xs)
+        return jnp.swapaxes(obs, 0, 1), jnp.swapaxes(res, 0, 1)
+
+    return simulate
+
+
+def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
+    """
+    Return the batch losses data_loss(model, b, w) and total(model, b, w).
+
+    The data loss is the mean over windows, steps and the six states of
+    ((simulated - measured) / sigma)^2 (Wakita et al. 2022's simulation-based loss, heading
+    wrapped); the total adds l2 x the mean squared residual in y_scale units (hybrid: keeps
+    it small where the physics is right) or x the mean squared weight (pure network).
+    """
+    inv = jnp.asarray(1.0 / np.asarray(sigma))
+    inv_y2 = jnp.asarray(1.0 / np.asarray(y_scale) ** 2)
+
+    def data_loss(model, b, w):
+        obs, res = simulate(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
+        e = obs - b['target']
+        e = e.at[:, :, 2].set((e[:, :, 2] + jnp.pi) % (2 * jnp.pi) - jnp.pi)
+        per = jnp.mean((e * inv) ** 2, axis=(1, 2))
+        return jnp.sum(per * w) / jnp.sum(w), res, per
+
+    def total(model, b, w):
+        d, res, _ = data_loss(model, b, w)
+        if physics:
+            reg = jnp.sum(jnp.mean(res ** 2, axis=(0, 1)) * inv_y2) / 3.0
+        else:
+            leaves = [la.weight for la in model.layers]
+            reg = sum(jnp.sum(x ** 2) for x in leaves) / sum(x.size for x in leaves)
+        return d + l2 * reg, d
+
+    return data_loss, total
+
+
+def optimiser(learning_rate: float):
+    return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate))

@@ -1,0 +1,121 @@
+"""
+Training windows: the recorded trials cut into short simulations (NumPy only).
+
+Each window starts from a measured state at sample k0 (turned into the model's state), holds
+the network's measured history before it, the inputs, actuators and wind of the H samples it
+simulates and the measured (observed) states it is compared with.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.core.residual import N_FEATURES, trial_rows
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.trial import Trial
+import numpy as np
+
+_doff = PARAM_INDEX['rudder_offset']
+_tau = PARAM_INDEX['rudder_lag_tau']
+_nscale = PARAM_INDEX['rpm_scale']
+_Vw = PARAM_INDEX['wind_speed']
+_dirw = PARAM_INDEX['wind_dir']
+
+
+@dataclass
+class TrialArrays:
+    """
+    One trial as the training reads it.
+
+    Feature rows (T, N_FEATURES), model states (T, 6), observed states (T, 6), actuators
+    (T, 4: n_P [rev/s], actual rudder [rad], thrusters [rev/s]) and wind (T, 2: speed [m/s],
+    direction it blows from [rad]).
+    """
+
+    name: str
+    rows: np.ndarray
+    model_states: np.ndarray
+    observed: np.ndarray
+    act: np.ndarray
+    wind: np.ndarray
+
+
+def prepare(ship: ShipConfig, trial: Trial) -> TrialArrays:
+    """
+    Return the arrays of one trial, with the inputs as the kernels apply them.
+
+    One step per sample: rpm scale, rudder offset and steering-gear lag; measured wind held
+    when missing.
+    """
+    rows, ms = trial_rows(ship, trial)
+    T = len(trial)
+    p = ship.params
+    act = np.empty((T, 4))
+    act[:, 0] = rows[:, 3] * p[_nscale] / 60.0
+    tau = p[_tau]
+    decay = math.exp(-trial.dt / tau) if tau > 0.0 else 0.0
+    cmd = rows[:, 4] + p[_doff]
+    d = cmd[0]
+    for k in range(T):
+        d = cmd[k] + (d - cmd[k]) * decay
+        act[k, 1] = d
+    act[:, 2:4] = rows[:, 5:7]
+    wind = np.empty((T, 2))
+    vw, dw = float(p[_Vw]), float(p[_dirw])
+    for k in range(T):
+        if trial.wind is not None:
+            wn, we = trial.wind[k]
+            if wn == wn and we == we:
+                vw, dw = math.sqrt(wn * wn + we * we), math.atan2(-we, -wn)
+        wind[k] = vw, dw
+    return TrialArrays(trial.name, rows, ms, np.asarray(trial.states, float), act, wind)
+
+
+@dataclass
+class Windows:
+    """
+    N windows of H steps.
+
+    x0 (N, 6) model states, hist (N, W-1, NF) feature rows before, inp (N, H, 4) rpm,
+    rudder, bow, stern for the features, act (N, H, 4), wind (N, H, 2), target (N, H, 6)
+    measured observed states after each step.
+    """
+
+    x0: np.ndarray
+    hist: np.ndarray
+    inp: np.ndarray
+    act: np.ndarray
+    wind: np.ndarray
+    target: np.ndarray
+
+    def __len__(self) -> int:
+        return self.x0.shape[0]
+
+    def take(self, idx) -> 'Windows':
+        return Windows(*(a[idx] for a in (self.x0, self.hist, self.inp, self.act, self.wind,
+                                          self.target)))
+
+
+def starts(T: int, window: int, horizon: int, stride: int) -> list[int]:
+    """First samples of the windows of one trial (each needs window-1 samples of history)."""
+    return list(range(window - 1, T - horizon, stride))
+
+
+def cut(arrs: list[TrialArrays], window: int, horizon: int, stride: int) -> Windows:
+    """All windows of the trials, in trial order."""
+    parts = {k: [] for k in ('x0', 'hist', 'inp', 'act', 'wind', 'target')}
+    for a in arrs:
+        for k0 in starts(a.rows.shape[0], window, horizon, stride):
+            parts['x0'].append(a.model_states[k0])
+            parts['hist'].append(a.rows[k0 - window + 1:k0])
+            parts['inp'].append(a.rows[k0:k0 + horizon, 3:7])
+            parts['act'].append(a.act[k0:k0 + horizon])
+            parts['wind'].append(a.wind[k0:k0 + horizon])
+            parts['target'].append(a.observed[k0 + 1:k0 + horizon + 1])
+    if not parts['x0']:
+        return Windows(np.zeros((0, 6)), np.zeros((0, window - 1, N_FEATURES)),
+                       np.zeros((0, horizon, 4)), np.zeros((0, horizon, 4)),
+                       np.zeros((0, horizon, 2)), np.zeros((0, horizon, 6)))
+    return Windows(*(np.ascontiguousarray(np.stack(parts[k]), dtype=float)
+                     for k in ('x0', 'hist', 'inp', 'act', 'wind', 'target')))

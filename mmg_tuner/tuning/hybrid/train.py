@@ -1,0 +1,415 @@
+"""
+Train a neural residual on the accelerations through the simulation (Wakita et al. 2022).
+
+The loss is the paper's simulation-based one: windows of ``horizon_s`` are simulated from
+measured states with the recorded inputs and measured wind, and the simulated positions,
+heading and velocities are compared with the measured ones, each standardised by its standard
+deviation over the training trials. Gradients flow through every step of the simulation: the
+physics is the compiled kernel (``_bridge``/``_engine``). Early stopping on a validation set,
+seeds fixed and recorded.
+
+JAX, equinox and optax are imported when :func:`train_residual` runs, not when this module
+is imported.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+import math
+import time
+from typing import Sequence
+
+from mmg_tuner.core.residual import FEATURES, N_FEATURES, ResidualNet
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.trial import Trial
+from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
+from mmg_tuner.tuning.hybrid._windows import cut, prepare, Windows
+import numpy as np
+
+INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
+
+
+def require_jax() -> None:
+    """
+    Raise MissingDependencyError when JAX, equinox or optax is missing.
+
+    The message says how to install them; the rest of mmg_tuner works without them.
+    """
+    try:
+        import equinox  # noqa: F401
+        import jax  # noqa: F401
+        import optax  # noqa: F401
+    except ImportError as exc:
+        raise MissingDependencyError(f'{INSTALL_HINT} ({exc})') from None
+
+
+def _bad(option: str, value, what: str) -> ConfigError:
+    return ConfigError(f'ResidualConfig: {option} = {value!r} must be {what}')
+
+
+@dataclass(frozen=True)
+class ResidualConfig:
+    """
+    Options of :func:`train_residual`, validated on creation.
+
+    window: samples of history the network sees (the current one included); hidden: sizes of
+    the tanh hidden layers; horizon_s: length of each simulated training window [s];
+    epochs: maximum passes over the windows; learning_rate: Adam's step; l2: weight of the
+    regulariser keeping the residual small (the mean squared residual in units of the
+    physics' RMS accelerations; for the pure network, the mean squared weight); patience:
+    epochs without a better validation loss before stopping; seed: initial weights and
+    minibatch order; physics: True = hybrid, False = the network alone (Wakita et al. 2022
+    Type-1); integrator: 'rk4' (default: as ``mt.simulate`` and ``evaluate`` run the
+    hybrid; a network trained through Euler learns Euler's discretisation error too) or
+    'euler' (the paper's), one step per sample;
+    batch_size: windows per minibatch; stride_s: spacing of window starts [s] (None:
+    horizon_s / 2); validation_fraction: without validation trials, the last part of each
+    training trial held out for early stopping; max_seconds: stop after this wall time;
+    significance: the best epoch's residual is kept only when its validation loss beats the
+    physics alone by this many standard errors of the paired per-window differences (0: any
+    improvement); otherwise the residual is zero, so noise is not learned.
+    """
+
+    window: int = 5
+    hidden: tuple[int, ...] = (32, 32)
+    horizon_s: float = 10.0
+    epochs: int = 200
+    learning_rate: float = 3e-3
+    l2: float = 1e-2
+    patience: int = 20
+    seed: int = 0
+    physics: bool = True
+    integrator: str = 'rk4'
+    batch_size: int = 64
+    stride_s: float | None = None
+    validation_fraction: float = 0.25
+    max_seconds: float | None = None
+    significance: float = 2.0
+
+    def __post_init__(self) -> None:
+        def whole(x, lo):
+            return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and x >= lo
+
+        def pos(x):
+            return isinstance(x, (int, float)) and not isinstance(x, bool) and \
+                math.isfinite(x) and x > 0
+
+        object.__setattr__(self, 'hidden', tuple(self.hidden))
+        for name, ok, what in (
+                ('window', whole(self.window, 1), 'a whole number >= 1'),
+                ('hidden', len(self.hidden) >= 1 and all(whole(h, 1) for h in self.hidden),
+                 'one or more layer sizes >= 1'),
+                ('horizon_s', pos(self.horizon_s), 'a positive number of seconds'),
+                ('epochs', whole(self.epochs, 1), 'a whole number >= 1'),
+                ('learning_rate', pos(self.learning_rate), 'a positive number'),
+                ('l2', pos(self.l2) or self.l2 == 0, 'a number >= 0'),
+                ('patience', whole(self.patience, 1), 'a whole number >= 1'),
+                ('seed', whole(self.seed, 0) and self.seed < 2**31, 'a whole number in '
+                 '[0, 2^31)'),
+                ('physics', isinstance(self.physics, bool), 'True or False'),
+                ('integrator', self.integrator in ('euler', 'rk4'), "'euler' or 'rk4'"),
+                ('batch_size', whole(self.batch_size, 1), 'a whole number >= 1'),
+                ('stride_s', self.stride_s is None or pos(self.stride_s),
+                 'a positive number of seconds or None'),
+                ('validation_fraction', isinstance(self.validation_fraction, float) and
+                 0 < self.validation_fraction < 1, 'a fraction in (0, 1)'),
+                ('max_seconds', self.max_seconds is None or pos(self.max_seconds),
+                 'a positive number of seconds or None'),
+                ('significance', pos(self.significance) or self.significance == 0,
+                 'a number of standard errors >= 0')):
+            if not ok:
+                raise _bad(name, getattr(self, name), what)
+
+
+@dataclass
+class ResidualFit:
+    """
+    What :func:`train_residual` produced.
+
+    net: the trained network (the best validation epoch); history: one dict per epoch
+    (epoch, train, val, seconds); train_loss, val_loss: the data loss (standardised squared
+    state error of the simulated windows) of the best network on the training and validation
+    windows; share: the residual's share of the total acceleration on the training trials
+    (RMS ratio, 0..1; 1 for the pure network); seconds: wall time; epochs: epochs run;
+    physics_train_loss, physics_val_loss: the same losses of the physics part alone (zero
+    residual; None for the pure network), so the gain is 1 - val_loss / physics_val_loss.
+    """
+
+    net: ResidualNet
+    history: list[dict]
+    train_loss: float
+    val_loss: float
+    share: float
+    seconds: float
+    epochs: int
+    seed: int
+    physics_train_loss: float | None = None
+    physics_val_loss: float | None = None
+    best_epoch: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def val_gain(self) -> float | None:
+        """
+        Return 1 - val_loss / physics_val_loss.
+
+        The held-out share of the error the residual removes (None for the pure network).
+        """
+        if self.physics_val_loss is None or not self.physics_val_loss > 0:
+            return None
+        return 1.0 - self.val_loss / self.physics_val_loss
+
+
+def _significant(gain: np.ndarray, z: float) -> bool:
+    """Return whether the paired per-window gains are > z standard errors above zero."""
+    if z <= 0:
+        return True
+    n = gain.size
+    if n < 2:
+        return bool(gain.mean() > 0)
+    return bool(gain.mean() > z * gain.std(ddof=1) / np.sqrt(n))
+
+
+def _split(trials: list[Trial], fraction: float, window: int) -> tuple[list[Trial], list[Trial]]:
+    """Hold out the last ``fraction`` of each trial (with the window's history before it)."""
+    train, val = [], []
+    for tr in trials:
+        t_cut = tr.t[0] + (1.0 - fraction) * tr.duration_s
+        train.append(tr.slice(tr.t[0], t_cut))
+        val.append(tr.slice(t_cut - (window - 1) * tr.dt, tr.t[-1]))
+    return train, val
+
+
+def _check_trials(trials: Sequence[Trial], what: str) -> float:
+    if not trials:
+        raise TuningError(f'train_residual: no {what} trials given')
+    dts = {round(t.dt, 9) for t in trials}
+    if len(dts) != 1:
+        raise TuningError(f'train_residual: {what} trials have different sample steps '
+                          f'{sorted(dts)}; resample them on one grid (--dt)')
+    for tr in trials:
+        if not (np.all(np.isfinite(tr.states)) and np.all(np.isfinite(tr.controls))):
+            raise TuningError(f'train_residual: {what} trial {tr.name} has non-finite states '
+                              'or controls')
+    return float(dts.pop())
+
+
+def _versions() -> dict[str, str]:
+    import equinox
+    import jax
+    import numba
+    import optax
+
+    from mmg_tuner import __version__
+    return {'mmg_tuner': __version__, 'jax': jax.__version__, 'equinox': equinox.__version__,
+            'optax': optax.__version__, 'numpy': np.__version__, 'numba': numba.__version__}
+
+
+def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
+                   validation: Sequence[Trial] | None = None,
+                   config: ResidualConfig = ResidualConfig()) -> ResidualFit:
+    """
+    Train the residual (or the pure network) of ``ship`` on recorded trials.
+
+    The physics part keeps the ship's (tuned) parameters and only the network trains: the
+    physics was identified first (CMA-ES, with its boxes and identifiability checks), so its
+    coefficients keep their physical meaning and its extrapolation to manoeuvres the trials
+    do not cover; the network, regularised to stay small, only takes up what the physics
+    structure cannot produce. Training both jointly would let the network and the
+    coefficients trade off against each other, undoing the tuning's meaning.
+
+    trials: the training set (one sample interval); validation: held-out trials for early
+    stopping (default: the last ``validation_fraction`` of each training trial).
+
+    Example::
+
+        fit = train_residual(ship, trials[:6], validation=trials[6:],
+                             config=ResidualConfig(epochs=50, seed=1))
+        fit.net.save('residual.npz')
+
+    """
+    require_jax()
+    import equinox as eqx
+    import jax
+
+    from mmg_tuner.tuning.hybrid import _engine as E
+    from mmg_tuner.tuning.hybrid._bridge import batch_derivative, teacher_residuals
+
+    t_start = time.perf_counter()
+    cfg = config
+    trials = list(trials)
+    dt = _check_trials(trials, 'training')
+    if validation is None:
+        train_trials, val_trials = _split(trials, cfg.validation_fraction, cfg.window)
+        val_note = f'validation: the last {cfg.validation_fraction:.0%} of each training trial'
+    else:
+        val_trials = list(validation)
+        if abs(_check_trials(val_trials, 'validation') - dt) > 1e-9:
+            raise TuningError('train_residual: validation trials have a different sample step '
+                              f'from the training trials ({dt:g} s)')
+        train_trials = trials
+        val_note = 'validation: ' + ', '.join(t.name for t in val_trials)
+    H = max(1, int(round(cfg.horizon_s / dt)))
+    stride = max(1, int(round((cfg.stride_s or cfg.horizon_s / 2) / dt)))
+    tr_arrs = [prepare(ship, t) for t in train_trials]
+    va_arrs = [prepare(ship, t) for t in val_trials]
+    w_tr = cut(tr_arrs, cfg.window, H, stride)
+    w_va = cut(va_arrs, cfg.window, H, stride)
+    for what, w, ts in (('training', w_tr, train_trials), ('validation', w_va, val_trials)):
+        if len(w) == 0:
+            raise TuningError(f'train_residual: the {what} trials ({", ".join(t.name for t in ts)}'
+                              f') are too short for one window of {cfg.horizon_s:g} s after '
+                              f'{cfg.window - 1} samples of history')
+
+    # standardisation: inputs by the training rows, outputs by the physics' RMS accelerations,
+    # the loss by each state's deviation over the training trials (as the paper does)
+    rows = np.concatenate([a.rows for a in tr_arrs])
+    x_mean = rows.mean(axis=0)
+    x_std = rows.std(axis=0)
+    x_std = np.where(x_std > 1e-9 * (1.0 + np.abs(x_mean)), x_std, 1.0)
+    ms = np.ascontiguousarray(np.concatenate([a.model_states for a in tr_arrs]))
+    act = np.ascontiguousarray(np.concatenate([a.act for a in tr_arrs]))
+    wind = np.ascontiguousarray(np.concatenate([a.wind for a in tr_arrs]))
+    F = np.empty((ms.shape[0], 6))
+    batch_derivative(ship.kind, ship.params, ms, act, wind, F, np.empty((1, 6, 6)), False)
+    y_scale = np.sqrt(np.mean(F[:, 3:6] ** 2, axis=0))
+    y_scale = np.maximum(y_scale, max(1e-3 * float(y_scale.max()), 1e-9))
+    obs = np.concatenate([a.observed for a in tr_arrs])
+    sigma = obs.std(axis=0)
+    sigma = np.where(sigma > 0, sigma, 1.0)
+
+    sim = E.make_simulator(ship.kind, ship.params, cfg.physics, cfg.integrator == 'rk4', dt,
+                           x_mean, x_std, y_scale)
+    data_loss, total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics)
+    sizes = [cfg.window * N_FEATURES, *cfg.hidden, 3]
+    model = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
+    opt = E.optimiser(cfg.learning_rate)
+    opt_state = opt.init(eqx.filter(model, eqx.is_array))
+
+    @eqx.filter_jit
+    def train_step(model, opt_state, b, w):
+        (_, d), grads = eqx.filter_value_and_grad(total, has_aux=True)(model, b, w)
+        updates, opt_state = opt.update(grads, opt_state, eqx.filter(model, eqx.is_array))
+        return eqx.apply_updates(model, updates), opt_state, d
+
+    @eqx.filter_jit
+    def window_losses(model, b, w):
+        return data_loss(model, b, w)[2]
+
+    B = min(cfg.batch_size, len(w_tr))
+
+    def as_batch(w: Windows, idx):
+        t = w.take(idx)
+        return {'x0': t.x0, 'hist': t.hist, 'inp': t.inp, 'act': t.act, 'wind': t.wind,
+                'target': t.target}
+
+    def per_window(model, w: Windows) -> np.ndarray:
+        """Return the data loss of each window of w (fixed-size chunks: one shape)."""
+        n = len(w)
+        out = []
+        for a in range(0, n, B):
+            idx = np.arange(a, a + B)
+            wt = (idx < n).astype(float)
+            idx = np.where(idx < n, idx, 0)
+            out.append(np.asarray(window_losses(model, as_batch(w, idx), wt))[:int(wt.sum())])
+        return np.concatenate(out)
+
+    def mean_loss(model, w: Windows) -> float:
+        return float(np.mean(per_window(model, w)))
+
+    rng = np.random.default_rng(cfg.seed)
+    ones = np.ones(B)
+    initial = model
+    physics_windows = per_window(model, w_va)   # the zero-initialised output: physics alone
+    physics_val = float(np.mean(physics_windows))
+    physics_train = mean_loss(model, w_tr)
+    best = (physics_val, model, 0, physics_windows)
+    z = cfg.significance if cfg.physics else 0.0
+    history = [{'epoch': 0, 'train': physics_train, 'val': physics_val,
+                'seconds': time.perf_counter() - t_start}]
+    notes = [val_note]
+    skipped = 0
+    epoch = 0
+    for epoch in range(1, cfg.epochs + 1):
+        perm = rng.permutation(len(w_tr))
+        losses = []
+        for a in range(0, len(perm), B):
+            idx = perm[a:a + B] if a + B <= len(perm) else perm[-B:]
+            new_model, new_state, d = train_step(model, opt_state, as_batch(w_tr, idx), ones)
+            d = float(d)
+            if not math.isfinite(d):  # a diverging window: skip the step, keep going
+                skipped += 1
+                continue
+            model, opt_state = new_model, new_state
+            losses.append(d)
+        val_windows = per_window(model, w_va)
+        val = float(np.mean(val_windows))
+        history.append({'epoch': epoch, 'train': float(np.mean(losses)) if losses else math.nan,
+                        'val': val, 'seconds': time.perf_counter() - t_start})
+        if val < best[0]:
+            best = (val, model, epoch, val_windows)
+        elif epoch - best[2] >= cfg.patience:
+            notes.append(f'early stop at epoch {epoch}: no better validation loss for '
+                         f'{cfg.patience} epochs')
+            break
+        if cfg.max_seconds is not None and time.perf_counter() - t_start > cfg.max_seconds:
+            notes.append(f'stopped at epoch {epoch}: max_seconds = {cfg.max_seconds:g} s')
+            break
+    if best[2] > 0 and not _significant(physics_windows - best[3], z):
+        notes.append(f'the best epoch ({best[2]}) did not beat the physics alone by {z:g} '
+                     'standard errors of the paired validation windows: the residual is zero')
+        best = (physics_val, initial, 0, physics_windows)
+    if skipped:
+        notes.append(f'{skipped} minibatch step(s) skipped: a simulated window diverged')
+    val_loss, model, best_epoch, _ = best
+    train_loss = mean_loss(model, w_tr)
+    weights, biases = model.export()
+    net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
+                      cfg.seed)
+    share, parts = _share(net, tr_arrs, F, teacher_residuals)
+    seconds = time.perf_counter() - t_start
+    meta = {'ship': ship.name, 'model': ship.model, 'features': list(FEATURES),
+            'trials': [t.name for t in train_trials],
+            'validation': [t.name for t in val_trials], 'windows_train': len(w_tr),
+            'windows_val': len(w_va), 'horizon_samples': H, 'stride_samples': stride,
+            'epochs': epoch, 'best_epoch': best_epoch, 'train_loss': train_loss,
+            'val_loss': val_loss,
+            'physics_train_loss': physics_train if cfg.physics else None,
+            'physics_val_loss': physics_val if cfg.physics else None,
+            'share': share, 'share_by_component': parts, 'seconds': seconds,
+            'seed': cfg.seed, 'config': asdict(cfg), 'sigma': sigma.tolist(),
+            'versions': _versions(), 'notes': notes,
+            'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
+                    'the states x, y, psi, u, v, r of ((simulated - measured) / sigma)^2'}
+    net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
+                      cfg.seed, meta)
+    return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,
+                       physics_train if cfg.physics else None,
+                       physics_val if cfg.physics else None, best_epoch, notes)
+
+
+def _share(net: ResidualNet, arrs, F_phys: np.ndarray, teacher_residuals
+           ) -> tuple[float, dict[str, float]]:
+    """
+    Return the residual's share of the total acceleration on the training histories.
+
+    RMS of the residual over RMS of physics + residual (each component in units of y_scale),
+    clipped to [0, 1]; per component too. The pure network's share is 1.
+    """
+    names = ('du', 'dv', 'dr')
+    if not net.physics:
+        return 1.0, dict.fromkeys(names, 1.0)
+    sizes, flat = net.packed()
+    res = []
+    for a in arrs:
+        out = np.empty((a.rows.shape[0], 3))
+        teacher_residuals(np.ascontiguousarray(a.rows), net.window, sizes, flat, net.x_mean,
+                          net.x_std, net.y_scale, out)
+        res.append(out)
+    r = np.concatenate(res) / net.y_scale
+    tot = F_phys[:, 3:6] / net.y_scale + r
+
+    def ratio(a, b):
+        den = math.sqrt(float(np.mean(b ** 2)))
+        return min(1.0, math.sqrt(float(np.mean(a ** 2))) / den) if den > 0 else 0.0
+
+    return ratio(r, tot), {n: ratio(r[:, i], tot[:, i]) for i, n in enumerate(names)}

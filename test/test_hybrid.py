@@ -1,0 +1,395 @@
+"""
+The hybrid model's core (issue 14): the residual network's file, inference and training.
+
+Inference (core/residual.py) must equal the plain physics when the network is absent or
+outputs zero, step by step in the node's stepper as in the offline simulation; the training's
+differentiable simulation must equal the compiled one and its gradient the finite
+differences; a small training must find an effect the physics lacks and nothing on clean data.
+"""
+from dataclasses import replace
+import math
+import subprocess
+import sys
+import zipfile
+
+import mmg_tuner as mt
+from mmg_tuner.core.integrate import start_state
+from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
+from mmg_tuner.core.residual import advance_hybrid, apparent_wind_body, fitted_start, \
+    N_FEATURES, ResidualNet, ResidualStepper, simulate_hybrid, simulate_segments, zero_net
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError
+import numpy as np
+import pytest
+
+SPECS = [('turning', 35), ('zigzag', 20), ('random', 30), ('zigzag', -15), ('turning', -25),
+         ('random', 25)]
+CI = {'window': 3, 'hidden': (16,), 'horizon_s': 20.0, 'epochs': 60, 'patience': 10,
+      'integrator': 'rk4'}
+
+
+def random_net(window=3, dt=1.0, hidden=(8,), scale=1e-3, seed=1, physics=True):
+    """Make a network with an output of about ``scale`` (small enough not to diverge)."""
+    rng = np.random.default_rng(seed)
+    sizes = [window * N_FEATURES, *hidden, 3]
+    ws = tuple(rng.normal(0, 0.5, (o, i)) for i, o in zip(sizes[:-1], sizes[1:]))
+    bs = tuple(rng.normal(0, 0.1, o) for o in sizes[1:])
+    return ResidualNet(window, dt, ws, bs, rng.normal(0, 1, N_FEATURES),
+                       rng.uniform(0.5, 2, N_FEATURES), np.full(3, scale), physics, seed,
+                       {'note': 'test', 'values': [1, 2.5]})
+
+
+def make_trials(ship, effect: dict, duration=200.0):
+    truth = ship.with_params(effect)
+    return [generate_trial(truth, m, a, None, 106.0, 3.086, duration, 1.0, SensorNoise(), 10 + i,
+                           f'{m}{a:+d}')[1] for i, (m, a) in enumerate(SPECS)]
+
+
+@pytest.fixture(scope='module')
+def trial(suzaku):
+    return make_trials(suzaku, {}, 120.0)[2]
+
+
+# ------------------------------------------------------------------------------- the file
+def test_save_load_round_trip_is_exact(tmp_path):
+    net = random_net()
+    path = tmp_path / 'residual.npz'
+    net.save(path)
+    back = ResidualNet.load(path)
+    assert (back.window, back.dt_s, back.physics, back.seed) == (3, 1.0, True, 1)
+    assert back.meta == net.meta
+    for a, b in zip(net.weights + net.biases + (net.x_mean, net.x_std, net.y_scale),
+                    back.weights + back.biases + (back.x_mean, back.x_std, back.y_scale)):
+        assert np.array_equal(a, b)
+    with zipfile.ZipFile(path) as z:   # portable: plain .npy arrays, nothing pickled
+        assert all(n.endswith('.npy') for n in z.namelist())
+    np.load(path, allow_pickle=False)['meta']
+
+
+def _rewrite(src, dst, drop=(), change=None):
+    with np.load(src, allow_pickle=False) as z:
+        d = {k: z[k] for k in z.files if k not in drop}
+    d.update(change or {})
+    with open(dst, 'wb') as f:
+        np.savez(f, **d)
+
+
+def test_load_names_the_file_and_the_bad_key(tmp_path):
+    good = tmp_path / 'good.npz'
+    random_net().save(good)
+    with pytest.raises(ConfigError, match='missing.npz.*does not exist'):
+        ResidualNet.load(tmp_path / 'missing.npz')
+    junk = tmp_path / 'junk.npz'
+    junk.write_bytes(b'not a zip file at all')
+    with pytest.raises(ConfigError, match='junk.npz'):
+        ResidualNet.load(junk)
+    cut = tmp_path / 'cut.npz'
+    cut.write_bytes(good.read_bytes()[:200])
+    with pytest.raises(ConfigError, match='cut.npz'):
+        ResidualNet.load(cut)
+    for key in ('y_scale', 'W1', 'window', 'meta'):
+        bad = tmp_path / f'no_{key}.npz'
+        _rewrite(good, bad, drop=(key,))
+        with pytest.raises(ConfigError, match=f"no_{key}.npz.*'{key}'"):
+            ResidualNet.load(bad)
+    bad = tmp_path / 'shape.npz'
+    _rewrite(good, bad, change={'W0': np.zeros((8, 5))})
+    with pytest.raises(ConfigError, match="shape.npz.*'W0'"):
+        ResidualNet.load(bad)
+    bad = tmp_path / 'nan.npz'
+    _rewrite(good, bad, change={'x_std': np.full(N_FEATURES, np.nan)})
+    with pytest.raises(ConfigError, match="nan.npz.*'x_std'"):
+        ResidualNet.load(bad)
+
+
+# -------------------------------------------------------------------------------- inference
+def test_fitted_start_is_the_tuning_objectives_rule(trial):
+    from mmg_tuner.tuning.report import start_state as tuning_start
+    assert np.array_equal(fitted_start(trial), tuning_start(trial))
+
+
+@pytest.mark.parametrize('integrator', ['rk4', 'euler'])
+def test_no_net_and_a_zero_net_are_the_physics(suzaku, trial, integrator):
+    ref = mt.simulate(suzaku, trial, integrator=integrator)
+    assert np.array_equal(simulate_hybrid(suzaku, None, trial, integrator=integrator).states,
+                          ref.states)
+    zero = simulate_hybrid(suzaku, zero_net(4, trial.dt), trial, integrator=integrator)
+    np.testing.assert_allclose(zero.states, ref.states, rtol=1e-12, atol=1e-12)
+    # a net that does something moves the trajectory (the comparison above is not vacuous)
+    other = simulate_hybrid(suzaku, random_net(scale=1e-3), trial, integrator=integrator)
+    assert np.max(np.abs(other.states[:, 1] - ref.states[:, 1])) > 0.1
+
+
+def test_restarts_follow_evaluate(suzaku, trial):
+    from mmg_tuner.tuning.evaluate import predict
+    ref, _, _ = predict(suzaku, trial, 30.0, 'rk4')
+    got, _, fail_t, _ = simulate_segments(suzaku, None, trial, 'rk4', 30.0)
+    assert fail_t is None and np.array_equal(got, ref)
+    got0, _, _, _ = simulate_segments(suzaku, zero_net(3, trial.dt), trial, 'rk4', 30.0)
+    np.testing.assert_allclose(got0, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_pure_network_ignores_the_physics(suzaku, trial):
+    """
+    Check that a pure network ignores the family.
+
+    physics=False: the accelerations are the network's alone, so the family's parameters
+    do not matter (only the kinematics).
+    """
+    net = random_net(scale=1e-3, physics=False)
+    a = simulate_hybrid(suzaku, net, trial).states
+    b = simulate_hybrid(suzaku.with_params({'R_0': 0.05, 'Y_v': -1.0}), net, trial).states
+    assert np.array_equal(a, b)
+
+
+def test_wrong_sample_interval_is_refused(suzaku, trial):
+    with pytest.raises(SimulationError, match='resample'):
+        simulate_hybrid(suzaku, random_net(dt=0.5), trial)
+
+
+@pytest.mark.parametrize('integrator', ['euler', 'rk4'])
+def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
+    net = random_net(scale=1e-3)
+    ref = simulate_hybrid(suzaku, net, trial, integrator=integrator)
+    p = np.array(suzaku.params)
+    s = np.empty(6)
+    start_state(p, fitted_start(trial), s)
+    stepper = ResidualStepper(net)
+    stepper.reset(s)
+    work = [np.empty(6) for _ in range(5)]
+    delta = trial.controls[0, 1] + suzaku['rudder_offset']
+    got = [s.copy()]
+    for k in range(len(trial) - 1):
+        rpm, rudder = trial.controls[k]
+        a = stepper.accelerations(s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
+        st, delta = advance_hybrid(suzaku.kind, p, s, delta, rpm, rudder, trial.dt, 1,
+                                   INTEGRATORS[integrator], *work, 0.0, 0.0, *a, True)
+        assert st == OK
+        got.append(s.copy())
+    np.testing.assert_allclose(np.array(got), ref.states, rtol=1e-12, atol=1e-12)
+
+
+def test_core_residual_runs_without_jax():
+    code = ('import sys; import mmg_tuner.core.residual; import mmg_tuner.tuning.hybrid; '
+            'assert not any(m.split(".")[0] in ("jax", "equinox", "optax") for m in sys.modules)')
+    subprocess.run([sys.executable, '-c', code], check=True)
+
+
+def test_missing_jax_says_how_to_install(monkeypatch, suzaku, trial):
+    from mmg_tuner.tuning.hybrid import train_residual
+    monkeypatch.setitem(sys.modules, 'jax', None)   # import jax -> ImportError
+    with pytest.raises(MissingDependencyError, match='pip install jax equinox optax'):
+        train_residual(suzaku, [trial])
+
+
+def test_config_names_the_bad_option():
+    from mmg_tuner.tuning.hybrid import ResidualConfig
+    for kw, name in (({'window': 0}, 'window'), ({'hidden': ()}, 'hidden'),
+                     ({'integrator': 'rk45'}, 'integrator'), ({'l2': -1.0}, 'l2'),
+                     ({'horizon_s': math.nan}, 'horizon_s')):
+        with pytest.raises(ConfigError, match=name):
+            ResidualConfig(**kw)
+
+
+# ------------------------------------------------------------------------ the physics bridge
+def _states_inputs(ship, rng, n):
+    """Random states, actuators and winds in the family's range."""
+    if ship.model == 'lowspeed':
+        uvr = rng.uniform([-0.3, -0.2, -0.1], [0.8, 0.2, 0.1], (n, 3))
+        act = np.column_stack([rng.uniform(-20, 20, n), rng.uniform(-0.7, 0.7, n),
+                               rng.uniform(-25, 25, (n, 2))])
+        wind = np.column_stack([rng.uniform(0, 5, n), rng.uniform(-4, 4, n)])
+    else:
+        U = 3.0 if ship.name.lower().startswith('suz') else 1.2
+        uvr = rng.uniform([0.6 * U, -0.1 * U, -0.02], [1.1 * U, 0.1 * U, 0.02], (n, 3))
+        act = np.column_stack([rng.uniform(5, 15, n), rng.uniform(-0.6, 0.6, n),
+                               np.zeros((n, 2))])
+        wind = np.column_stack([rng.uniform(0, 8, n), rng.uniform(-4, 4, n)])
+    S = np.column_stack([rng.uniform(-50, 50, (n, 2)), rng.uniform(-4, 4, n), uvr])
+    return S, act, wind
+
+
+@pytest.fixture(scope='module', params=['suzaku', 'kvlcc2', 'esso_osaka_3m'])
+def any_ship(request):
+    ship = load_ship(request.param)
+    if ship.model != 'lowspeed':  # wind loads need windage; give the others a current too
+        ship = ship.with_params({'current_speed': 0.1, 'current_dir': 0.7})
+    return ship
+
+
+def test_bridge_forward_is_the_compiled_kernel(any_ship):
+    pytest.importorskip('jax')
+    import jax.numpy as jnp
+
+    from mmg_tuner.core.dynamics import derivative
+    from mmg_tuner.tuning.hybrid._engine import physics_fn
+    ship = any_ship
+    S, A, Wd = _states_inputs(ship, np.random.default_rng(4), 64)
+    F = np.asarray(physics_fn(ship.kind, ship.params)(jnp.asarray(S), jnp.asarray(A),
+                                                      jnp.asarray(Wd)))
+    p = np.array(ship.params)
+    out = np.empty(6)
+    for b in range(S.shape[0]):
+        p[PARAM_INDEX['wind_speed']], p[PARAM_INDEX['wind_dir']] = Wd[b]
+        derivative(ship.kind, p, S[b].copy(), tuple(A[b]), out)
+        assert np.array_equal(F[b], out)
+
+
+def test_bridge_gradient_matches_finite_differences(any_ship):
+    """
+    Check the VJP (compiled Jacobian) against central differences of the whole kernel.
+
+    On a scalar that mixes every output: a transposed or mis-indexed Jacobian fails.
+    """
+    pytest.importorskip('jax')
+    import jax
+    import jax.numpy as jnp
+
+    from mmg_tuner.tuning.hybrid._engine import physics_fn
+    ship = any_ship
+    rng = np.random.default_rng(9)
+    S, A, Wd = _states_inputs(ship, rng, 16)
+    f = physics_fn(ship.kind, ship.params)
+    G = rng.normal(size=S.shape)
+    _, vjp = jax.vjp(lambda s: f(s, jnp.asarray(A), jnp.asarray(Wd)), jnp.asarray(S))
+    grad = np.asarray(vjp(jnp.asarray(G))[0])
+
+    def scalar(s):
+        return np.sum(G * np.asarray(f(jnp.asarray(s), jnp.asarray(A), jnp.asarray(Wd))), axis=1)
+
+    fd = np.zeros_like(S)
+    for j in range(6):
+        h = 1e-5 * np.maximum(1.0, np.abs(S[:, j]))
+        up, dn = S.copy(), S.copy()
+        up[:, j] += h
+        dn[:, j] -= h
+        fd[:, j] = (scalar(up) - scalar(dn)) / (2 * h)
+    scale = np.max(np.abs(fd), axis=1, keepdims=True)
+    assert np.all(np.abs(grad - fd) <= 1e-5 * scale + 1e-12)
+    assert np.all(grad[:, :2] == 0.0)  # positions do not enter the dynamics
+
+
+def _window_batch(ship, trial, net, k0, H):
+    from mmg_tuner.tuning.hybrid._windows import cut, prepare
+    w = cut([prepare(ship, trial)], net.window, H, 1).take([k0 - net.window + 1])
+    return {'x0': w.x0, 'hist': w.hist, 'inp': w.inp, 'act': w.act, 'wind': w.wind,
+            'target': w.target}
+
+
+@pytest.mark.parametrize('integrator', ['euler', 'rk4'])
+def test_training_simulation_equals_inference(suzaku, trial, integrator):
+    """
+    Check that the JAX window simulation equals the compiled one.
+
+    The window the loss differentiates is simulate_hybrid's run restarted at the same sample
+    (same features, window, residual hold, integrator).
+    """
+    pytest.importorskip('jax')
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    from mmg_tuner.tuning.hybrid._engine import make_simulator, MLP
+    ship = suzaku.with_params({'antenna_x': 1.0, 'current_speed': 0.2, 'current_dir': 1.0})
+    net = random_net(scale=2e-3)
+    k0, H = 40, 20
+    model = MLP([net.n_inputs, 8, 3], jax.random.PRNGKey(0))
+    model = eqx.tree_at(lambda m: [la.weight for la in m.layers] + [la.bias for la in m.layers],
+                        model, [jnp.asarray(x) for x in net.weights + net.biases])
+    sim = make_simulator(ship.kind, ship.params, True, integrator == 'rk4', trial.dt,
+                         net.x_mean, net.x_std, net.y_scale)
+    b = _window_batch(ship, trial, net, k0, H)
+    obs, _ = sim(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
+    ref, _, _, _ = simulate_segments(ship, net, trial.slice(0.0, None), integrator, float(k0))
+    np.testing.assert_allclose(np.asarray(obs)[0], ref[k0 + 1:k0 + H + 1], rtol=1e-9,
+                               atol=1e-9)
+
+
+def test_loss_gradient_through_the_simulation(suzaku, trial):
+    """
+    Check d loss / d weights through 15 simulated steps and the compiled physics.
+
+    JAX's gradient against a central difference along a random direction in weight space.
+    """
+    pytest.importorskip('jax')
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    from mmg_tuner.tuning.hybrid._engine import MLP, make_loss, make_simulator
+    net = random_net(scale=2e-3)
+    sim = make_simulator(suzaku.kind, suzaku.params, True, True, trial.dt, net.x_mean,
+                         net.x_std, net.y_scale)
+    _, total = make_loss(sim, np.std(trial.states, axis=0), net.y_scale, 0.1, True)
+    b = _window_batch(suzaku, trial, net, 30, 15)
+    w = jnp.ones(1)
+    model = MLP([net.n_inputs, 6, 3], jax.random.PRNGKey(3))
+    model = eqx.tree_at(lambda m: m.layers[-1].weight, model,
+                        jnp.asarray(np.random.default_rng(2).normal(0, 0.3, (3, 6))))
+    params, static = eqx.partition(model, eqx.is_array)
+    grads = jax.grad(lambda pr: total(eqx.combine(pr, static), b, w)[0])(params)
+    rng = np.random.default_rng(5)
+    direction = jax.tree_util.tree_map(lambda x: jnp.asarray(rng.normal(size=x.shape)), params)
+    pairs = zip(jax.tree_util.tree_leaves(grads), jax.tree_util.tree_leaves(direction))
+    analytic = sum(float(jnp.sum(g * d)) for g, d in pairs)
+
+    def at(eps):
+        pr = jax.tree_util.tree_map(lambda x, d: x + eps * d, params, direction)
+        return float(total(eqx.combine(pr, static), b, w)[0])
+
+    h = 1e-5
+    fd = (at(h) - at(-h)) / (2 * h)
+    assert abs(analytic) > 1e-8
+    assert analytic == pytest.approx(fd, rel=1e-5)
+
+
+# ------------------------------------------------------------------------------ training
+def _heldout_index(ship, net, trials):
+    """Return the paper's index (100 s restarts, sigma pooled over the held-out trials)."""
+    sig = np.std(np.concatenate([t.states for t in trials]), axis=0)
+    e = [simulate_hybrid(ship, net, t, restart_every_s=100.0).states - t.states for t in trials]
+    e = np.concatenate(e)
+    e[:, 2] = (e[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    return float(np.mean(np.sum((e / sig) ** 2, axis=1)))
+
+
+@pytest.fixture(scope='module')
+def hidden_fit(suzaku):
+    pytest.importorskip('jax')
+    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    trials = make_trials(suzaku, {'yaw_moment_bias': 0.002})
+    fit = train_residual(suzaku, trials[:4], config=ResidualConfig(**CI, seed=0))
+    return fit, trials
+
+
+def test_residual_learns_an_effect_the_physics_lacks(suzaku, hidden_fit):
+    fit, trials = hidden_fit
+    test = trials[4:]
+    physics, hybrid = _heldout_index(suzaku, None, test), _heldout_index(suzaku, fit.net, test)
+    assert hybrid <= 0.7 * physics, (physics, hybrid)
+    assert fit.val_gain > 0.05 and 0.0 < fit.share < 1.0
+    assert fit.net.meta['seed'] == 0 and fit.net.meta['trials'] == [t.name for t in trials[:4]]
+    assert fit.history[0]['val'] == fit.physics_val_loss
+
+
+def test_training_is_reproducible_with_a_seed(suzaku, hidden_fit):
+    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    fit, trials = hidden_fit
+    cfg = ResidualConfig(**{**CI, 'epochs': 3}, seed=0)
+    a = train_residual(suzaku, trials[:4], config=cfg)
+    b = train_residual(suzaku, trials[:4], config=cfg)
+    c = train_residual(suzaku, trials[:4], config=replace(cfg, seed=1))
+    assert all(np.array_equal(x, y) for x, y in zip(a.net.weights, b.net.weights))
+    assert not np.array_equal(a.net.weights[0], c.net.weights[0])
+
+
+def test_residual_finds_nothing_on_clean_data(suzaku):
+    pytest.importorskip('jax')
+    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    trials = make_trials(suzaku, {})
+    fit = train_residual(suzaku, trials[:4], config=ResidualConfig(**CI, seed=0))
+    test = trials[4:]
+    physics, hybrid = _heldout_index(suzaku, None, test), _heldout_index(suzaku, fit.net, test)
+    assert fit.share < 0.1
+    assert abs(hybrid / physics - 1.0) < 0.1, (physics, hybrid)
