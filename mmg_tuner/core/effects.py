@@ -167,7 +167,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                                '(+: stern pushed to starboard)')),
     Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
            'steady true wind on the above-water ship; loads from the windage areas with '
-           "Blendermann's (1994) coefficients",
+           "the family's wind model",
            smallest=(5.0, 0.0), neutral=(0.0, 0.0),
            boxes=((0.0, 17.0), _PI),                            # up to Beaufort 7
            periodic=(False, True),
