@@ -1,15 +1,19 @@
-"""Simulator node speed: CPU share of sim_node publishing at 50 Hz in real time, and the
-free-running speed of the stepper (SUZAKU, dt = 0.1 s). Targets: < 5 % of one core at 50 Hz;
->= 1000x real time free-running.    python bench/bench_node.py  (needs rclpy)
+"""
+Measure the simulator node's speed.
+
+CPU share of sim_node publishing at 50 Hz in real time, and the free-running speed of the
+stepper (SUZAKU, dt = 0.1 s; Esso Osaka astern with thrusters) and of the node. Targets:
+< 5 % of one core at 50 Hz; >= 1000x real time free-running.
+    python bench/bench_node.py  (needs rclpy)
 """
 from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mmg_tuner.core.ship import load_ship  # noqa: E402
@@ -30,6 +34,16 @@ def main() -> None:
     wall = time.perf_counter() - t0
     print(f'free-running stepper: {n / wall:,.0f} steps/s = {n * 0.1 / wall:,.0f}x real time '
           '(SUZAKU, RK4, dt 0.1 s)')
+    # the lowspeed family astern with both thrusters (issue 12): 3 m model, so dt 0.05 s
+    sim = ShipSimulator(load_ship('esso_osaka_3m'), dt=0.05, x0=[0, 0, 0, 0.0, 0, 0], rpm=0.0)
+    sim.set_rpm(-300.0)
+    sim.set_thruster('bow', 10.0)
+    sim.set_thruster('stern', -10.0)
+    t0 = time.perf_counter()
+    sim.step(n)
+    wall = time.perf_counter() - t0
+    print(f'free-running stepper: {n / wall:,.0f} steps/s = {n * 0.05 / wall:,.0f}x real time '
+          '(esso_osaka_3m astern with thrusters, RK4, dt 0.05 s)')
     env = dict(os.environ, ROS_DOMAIN_ID='77', ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_LOG_DIR='/tmp/mmg_bench_roslog', PYTHONPATH=str(Path(__file__).parents[1]))
     proc = subprocess.Popen([sys.executable, '-m', 'mmg_tuner.ros.sim_node', '--ros-args',

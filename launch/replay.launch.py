@@ -1,7 +1,9 @@
 """Replay a recorded trial against the model: `ros2 launch mmg_tuner replay.launch.py
-trial:=trials/zigzag_p20_10 [params_file:=diag/params.yaml] [speed:=10.0] [output_mcap:=replay]`.
+trial:=trials/zigzag_p20_10 [topics:=topics.yaml] [params_file:=diag/params.yaml] [speed:=10.0]
+[output_mcap:=replay]`.
 
-Publishes /clock, the recorded commands, /recorded/odom and the model's /odom (see README,
+Publishes /clock, the recorded commands (rudder, rpm, thrusters when recorded) as the topic
+map describes them, /recorded/odom and the model's /odom (see README,
 "Simulator node"); output_mcap, when given, must name a path that does not exist yet.
 """
 from launch import LaunchDescription
@@ -12,6 +14,7 @@ from launch_ros.actions import Node
 EXECUTABLE = 'replay_node'
 ARGUMENTS = {
     'trial': ('', 'recorded trial: rosbag2 folder, .mcap, .csv or MARIN .dat'),
+    'topics': ('', 'topic map YAML of the recording (its command topics, units, signs)'),
     'ship': ('suzaku', 'ship config name or path to a ship YAML'),
     'params_file': ('', 'tuned params.yaml from tune or diagnose'),
     'speed': ('1.0', 'replay speed, multiple of real time'),

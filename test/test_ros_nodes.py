@@ -144,12 +144,12 @@ def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
     # reset: simulated time starts again near zero
     cli = node.create_client(Trigger, '/sim_node/reset')
     assert cli.wait_for_service(timeout_sec=20)
+    t_before = seconds_from_stamp(got[-1].header.stamp)  # before: a reset one may come first
     fut = cli.call_async(Trigger.Request())
     assert spin_until(ex, fut.done, 20) and fut.result().success
-    t_before = seconds_from_stamp(got[-1].header.stamp)
-    got.clear()
-    assert spin_until(ex, lambda: len(got) > 3, 20)
-    assert seconds_from_stamp(got[0].header.stamp) < t_before
+    got.clear()  # (messages from before the reset may still be in flight)
+    assert spin_until(ex, lambda: any(seconds_from_stamp(m.header.stamp) < t_before
+                                      for m in got), 20)
     # a ship that does not exist is refused with a reason; the node keeps running
     pcli = node.create_client(SetParameters, '/sim_node/set_parameters')
     assert pcli.wait_for_service(timeout_sec=20)
@@ -294,3 +294,119 @@ def test_replay_node_publishes_and_writes_mcap(ros, tmp_path):
     offline = simulate(load_ship('suzaku'), trial.states[0], trial.controls, 1.0, 'rk4',
                        check=False)
     np.testing.assert_allclose(from_mcap.states, offline.states, atol=1e-6)
+
+
+def _commands_status(arrays, node_name='/sim_node'):
+    """Find the latest ``commands`` status of the node in the collected /diagnostics."""
+    for arr in reversed(arrays):
+        for s in arr.status:
+            if s.name == f'{node_name}: commands':
+                return s, {v.key: v.value for v in s.values}
+    return None, {}
+
+
+def _yaw(m) -> float:
+    q = m.pose.pose.orientation
+    return math.atan2(2 * q.w * q.z, 1 - 2 * q.z ** 2)
+
+
+def test_lowspeed_ship_takes_astern_rpm_and_thrusters(ros):
+    """
+    Take astern rpm and thrusters on esso_osaka_3m (lowspeed family).
+
+    Astern rpm moves it astern; the bow thruster turns it, to starboard for + and to port for
+    -; a NaN thruster command is rejected (ERROR on /diagnostics, the last value held) and the
+    node keeps running.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    env, node, ex = ros
+    topics = {'odom': '/esso/odom', 'rudder': '/esso/rudder', 'rpm': '/esso/rpm',
+              'bow_thruster': '/esso/bow', 'stern_thruster': '/esso/stern'}
+    odom, diags = [], []
+    subs = [node.create_subscription(Odometry, topics['odom'], odom.append, 50),
+            node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 50)]
+    pubs = {k: node.create_publisher(Float64, t, 10) for k, t in topics.items() if k != 'odom'}
+    cmd = {'rudder': 0.0, 'rpm': -600.0, 'bow_thruster': 15.0, 'stern_thruster': 0.0}
+
+    def command():
+        for k, v in cmd.items():
+            pubs[k].publish(Float64(data=v))
+
+    def sim_time():
+        return seconds_from_stamp(odom[-1].header.stamp) if odom else -1.0
+
+    proc = start('sim_node', env, 'ship:=esso_osaka_3m', 'initial_speed:=0.0',
+                 'initial_rpm:=0.0', 'wait_for_commands:=true', 'real_time_factor:=20.0',
+                 'publish_clock:=true',  # stamps: simulated time from 0
+                 *(f'{k}_topic:={t}' for k, t in topics.items()))
+    try:
+        turned = {}
+        for bow in (15.0, -15.0):
+            cmd['bow_thruster'] = bow
+            if bow < 0:  # second run from the initial state
+                cli = node.create_client(Trigger, '/sim_node/reset')
+                assert cli.wait_for_service(timeout_sec=20)
+                fut = cli.call_async(Trigger.Request())
+                assert spin_until(ex, fut.done, 20) and fut.result().success
+                odom.clear()
+
+            def early():  # the run's first samples (pre-reset ones still in flight are later)
+                return [m for m in odom if seconds_from_stamp(m.header.stamp) < 5.0]
+
+            assert spin_until(ex, lambda: command() or (early() and sim_time() >= 40.0),
+                              60), stop(proc)
+            first = early()[0]
+            turned[bow] = np.unwrap([_yaw(first), _yaw(odom[-1])])[1] - _yaw(first)
+            # astern: surge < 0 (body x backwards), published as such
+            assert odom[-1].twist.twist.linear.x < -0.03, (bow, odom[-1].twist.twist)
+        # ENU yaw: + bow thruster (to starboard) turns clockwise, - counter-clockwise; offline
+        # from 5 to 40 s: -1.45 and +1.32 rad, without thrusters -0.28 (the astern propeller)
+        assert turned[15.0] < -0.7 and turned[-15.0] > 0.7, turned
+        # a NaN thruster command is rejected: ERROR with its count, the last value held
+        cmd['bow_thruster'] = math.nan
+        assert spin_until(ex, lambda: command() or _commands_status(diags)[1].get(
+            'bow_thruster rejected (total)', '0') != '0', 20), stop(proc)
+        s, kv = _commands_status(diags)
+        assert s.level == DiagnosticStatus.ERROR and 'bow_thruster rejected' in s.message
+        assert kv['bow_thruster [rev/s]'] == '-15' and 'not finite' in kv[
+            'bow_thruster last problem']
+        assert proc.poll() is None
+    finally:
+        for s in subs:
+            node.destroy_subscription(s)
+        out = stop(proc)
+    assert 'Traceback' not in out and 'thrusters clamped to +-30 rev/s' in out, out
+
+
+def test_ship_without_thrusters_refuses_them_with_one_warning(ros):
+    """
+    Refuse thruster commands on SUZAKU, which has none, as one state.
+
+    One WARN line for all of them, 'unsupported' on /diagnostics with the count, not one
+    warning per message.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    env, node, ex = ros
+    diags = []
+    sub = node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 50)
+    bow = node.create_publisher(Float64, '/thr/bow_thruster', 10)
+    proc = start('sim_node', env, 'real_time_factor:=10.0', 'odom_topic:=/thr/odom',
+                 'bow_thruster_topic:=/thr/bow_thruster')
+    sent = []
+
+    def send():
+        bow.publish(Float64(data=5.0))
+        sent.append(1)
+
+    try:
+        assert spin_until(ex, lambda: send() or int(_commands_status(diags)[1].get(
+            'bow_thruster ignored (total)', '0')) >= 20, 30), stop(proc)
+        s, kv = _commands_status(diags)
+        assert s.level == DiagnosticStatus.WARN and 'bow_thruster unsupported' in s.message
+        assert 'has no thrusters' in kv['bow_thruster last problem']
+        assert 'stern_thruster ignored (total)' not in kv  # never sent: not listed
+    finally:
+        node.destroy_subscription(sub)
+        out = stop(proc)
+    assert len(sent) > 20 and out.count('has no thrusters') == 1, out
+    assert 'Traceback' not in out

@@ -101,6 +101,61 @@ def test_health_levels():
     assert status(20.0)['real time'].level == DiagnosticStatus.WARN
 
 
+def test_health_of_thruster_commands():
+    """
+    Report thrusters as optional commands.
+
+    Not waited for; on a ship without them a refused command is one WARN state 'unsupported'
+    with a count (never stale, never an ERROR).
+    """
+    def status(h, now):
+        arr = h.array(now, Odometry().header.stamp, 10.0, 1.0)
+        return {s.name.split(': ')[1]: s for s in arr.status}['commands']
+
+    for supported in (True, False):
+        h = Health('/sim_node', 'ship', commands={
+            'rudder': CommandHealth('rad', 0.0), 'rpm': CommandHealth('rpm', 106.0),
+            'bow_thruster': CommandHealth('rev/s', 0.0, required=False, supported=supported)})
+        h.command('rudder', 0.1, '', 0.0)
+        h.command('rpm', 100.0, '', 0.0)
+        assert h.ready()  # the thruster is not required to start
+        kv = {v.key: v.value for v in status(h, 0.5).values}
+        assert ('bow_thruster [rev/s]' in kv) == supported
+    for k in range(30):  # a stream of refused thruster commands on a ship without them
+        h.command('bow_thruster', None, 'bow_thruster command: no thrusters: ignored', 1.0 + k)
+    s = status(h, 31.0)
+    kv = {v.key: v.value for v in s.values}
+    assert s.level == DiagnosticStatus.WARN and s.message == 'bow_thruster unsupported'
+    assert kv['bow_thruster ignored (total)'] == '30'
+    assert h.update_stale('bow_thruster', 100.0, 1.0) == ''
+    assert 'bow_thruster' not in status(h, 100.0).message  # it stopped coming: no state
+
+
+def test_replay_publishes_recorded_thrusters_in_the_maps_units():
+    """Publish a recording's thrusters as its topic map describes them (topic, unit, sign)."""
+    from mmg_tuner.data.topics import topic_map_from_dict
+    from mmg_tuner.ros.replay_node import CommandPublisher
+
+    class Node:  # stands in for rclpy's: collects what each topic's publisher sends
+        sent: dict = {}
+
+        def create_publisher(self, msgtype, topic, depth):
+            box = self.sent.setdefault(topic, [])
+            return type('Pub', (), {'publish': staticmethod(box.append)})()
+
+    tm = topic_map_from_dict({'bow_thruster': {'topic': '/bt', 'unit': 'rpm', 'sign': -1},
+                              'stern_thruster': {'topic': '/st'}})
+    node = Node()
+    pub = CommandPublisher(node, tm, thrusters=True)
+    pub.publish(np.array([100.0, 0.1, np.nan, np.nan, 5.0, -3.0]), None)
+    assert node.sent['/bt'][0].data == pytest.approx(-300.0)  # 5 rev/s, as rpm to port
+    assert node.sent['/st'][0].data == pytest.approx(-3.0)
+    assert node.sent['/propeller_rpm'][0].data == pytest.approx(100.0)
+    node.sent.clear()
+    CommandPublisher(node, tm).publish(np.array([100.0, 0.1]), None)  # a trial without them
+    assert set(node.sent) == {'/rudder_angle', '/propeller_rpm'}
+
+
 # ---- node processes -----------------------------------------------------------------------
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):

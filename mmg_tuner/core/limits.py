@@ -20,6 +20,11 @@ Fn 0.15-0.25. So
   underestimates, and still excludes unit errors (rad/s or rev/s read as rpm differ by 6.28
   and 60). For SUZAKU (service 106 rpm at 6 kn) this gives about 840 rpm; for the 7 m KVLCC2
   model (about 710 rpm at 1.18 m/s) about 5000 rpm.
+
+Astern and thrusters follow the ship's model family (``core/models``): a family that covers
+astern revolutions (``astern_rpm``) accepts rpm in [-rpm_max, rpm_max]; one with thruster
+inputs accepts thruster revolutions up to the ship's ``steering.max_thruster_rps`` (clamped
+beyond it, refused beyond twice it, like the rudder). Other families refuse both.
 """
 from __future__ import annotations
 
@@ -28,7 +33,7 @@ from dataclasses import dataclass
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import self_propulsion_rpm
-from mmg_tuner.errors import SimulationError
+from mmg_tuner.errors import ConfigError, SimulationError
 
 G = 9.80665  # m/s^2, standard gravity
 FN_TOP = 0.5  # Froude number of a generous top speed for a displacement hull
@@ -37,6 +42,8 @@ RPM_FACTOR = 2.0  # rpm_max / rpm that holds the top speed (see the module docst
 RUDDER_HARD_CAP_RAD = math.pi / 2  # beyond 90 deg a rudder angle has no physical meaning
 DT_MIN_S = 1e-3  # finer than any manoeuvring dynamics; real time then costs 1000 steps/s
 POSITION_MAX_M = 2.0e7  # half the Earth's circumference: no local frame reaches farther
+THRUSTER_PLAUSIBLE_FACTOR = 2.0  # beyond 2 x the thruster limit: a unit error, not a command
+THRUSTER_CHANNELS = ('bow_thruster', 'stern_thruster')
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,11 @@ class InputLimits:
             detects that at run time.)
         position_max_m: |x|, |y| beyond it [m] is no position in a local frame.
         rpm_basis: how rpm_max was found (for messages).
+        astern_rpm: the model family covers rpm <= 0 (then |rpm| <= rpm_max is plausible).
+        thruster_max_rps: the thrusters' limit [rev/s]: commands beyond it are clamped to it;
+            0 when the family has no thruster inputs (every thruster command is refused).
+        thruster_basis: where thruster_max_rps comes from (for messages).
+        model: the ship's model family (for messages).
     """
 
     rpm_max: float
@@ -72,15 +84,45 @@ class InputLimits:
     dt_max_s: float
     position_max_m: float = POSITION_MAX_M
     rpm_basis: str = ''
+    astern_rpm: bool = False
+    thruster_max_rps: float = 0.0
+    thruster_basis: str = ''
+    model: str = ''
+
+    @property
+    def thrusters(self) -> bool:
+        """Whether the ship's model family has thruster inputs."""
+        return self.thruster_max_rps > 0
 
     def check_rpm(self, rpm: float) -> str:
-        """'' if rpm is a plausible forward propeller speed, else why not."""
+        """Say why rpm is not a plausible propeller speed for the family ('' if it is)."""
         if not math.isfinite(rpm):
             return f'rpm {rpm} is not finite'
-        if rpm <= 0:
+        if rpm <= 0 and not self.astern_rpm:
             return f'rpm {rpm:g} <= 0 is outside the MMG model (forward revolutions only)'
-        if rpm > self.rpm_max:
-            return f'rpm {rpm:g} exceeds the plausible {self.rpm_max:.0f} rpm ({self.rpm_basis})'
+        if abs(rpm) > self.rpm_max:
+            return (f'rpm {rpm:g} exceeds the plausible {"+-" if self.astern_rpm else ""}'
+                    f'{self.rpm_max:.0f} rpm ({self.rpm_basis})')
+        return ''
+
+    def check_thruster(self, rps: float, which: str = 'thruster') -> str:
+        """
+        Say why rps [rev/s] is not a plausible command for ``which`` thruster ('' if it is).
+
+        The thrusters' own limit (``thruster_max_rps``) is a clamp, the caller's business, as
+        for the rudder; refused here: no thrusters in the family, non-finite, or beyond
+        THRUSTER_PLAUSIBLE_FACTOR x the limit (a unit error: rpm read as rev/s).
+        """
+        if not self.thrusters:
+            model = f'{self.model} model' if self.model else 'model'
+            return f"{which} command: the ship's {model} has no thrusters"
+        if not math.isfinite(rps):
+            return f'{which} {rps} rev/s is not finite'
+        cap = THRUSTER_PLAUSIBLE_FACTOR * self.thruster_max_rps
+        if abs(rps) > cap:
+            return (f'{which} {rps:g} rev/s is beyond the plausible +-{cap:g} rev/s '
+                    f'({THRUSTER_PLAUSIBLE_FACTOR:g} x the {self.thruster_max_rps:g} rev/s '
+                    f'limit, {self.thruster_basis})')
         return ''
 
     def check_rudder(self, rudder_rad: float) -> str:
@@ -154,6 +196,10 @@ def _compute(ship: ShipConfig) -> InputLimits:
         rpm_top = 1e5 / RPM_FACTOR
         basis = f'no rpm holds {top:.1f} m/s; the search bracket'
     rudder = float(ship.max_rudder_rad)
+    fam = ship.family
+    thr, thr_basis = 0.0, ''
+    if all(c in fam.inputs for c in THRUSTER_CHANNELS):
+        thr, thr_basis = _thruster_limit(ship, RPM_FACTOR * rpm_top / 60.0)
     return InputLimits(
         rpm_max=RPM_FACTOR * rpm_top,
         rudder_max_rad=rudder,
@@ -163,4 +209,29 @@ def _compute(ship: ShipConfig) -> InputLimits:
         yaw_rate_max_rad_s=vmax / (0.5 * L),
         dt_min_s=DT_MIN_S,
         dt_max_s=L / top,
-        rpm_basis=basis)
+        rpm_basis=basis,
+        astern_rpm=fam.astern_rpm,
+        thruster_max_rps=thr,
+        thruster_basis=thr_basis,
+        model=ship.model)
+
+
+def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:
+    """
+    Find the thrusters' limit [rev/s] and where it comes from.
+
+    The YAML's ``steering.max_thruster_rps``, else the propeller's plausible maximum (a
+    generous cap that still catches unit errors).
+    """
+    steering = ship.extra.get('steering') or {}
+    value = steering.get('max_thruster_rps') if isinstance(steering, dict) else None
+    if value is None:
+        return fallback_rps, "no steering.max_thruster_rps: the propeller's plausible maximum"
+    try:
+        rps = float(value)
+    except (TypeError, ValueError):
+        rps = math.nan
+    if isinstance(value, bool) or not (math.isfinite(rps) and rps > 0):
+        raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps = {value!r} '
+                          'must be a positive number of rev/s')
+    return rps, f'steering.max_thruster_rps of {ship.name}'

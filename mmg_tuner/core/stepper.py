@@ -19,7 +19,9 @@ from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
 
 IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed or yaw rate
+ARITHMETIC = -2   # the compiled model raised ZeroDivisionError
 MAX_SUBSTEPS = 1000
+THRUSTERS = ('bow', 'stern')  # thruster commands, in the order of the input channels
 
 
 @dataclass
@@ -36,7 +38,8 @@ class StepFailure:
 
     time_s: simulated time of the step that failed [s]; reason: what was wrong;
     last_state / bad_state: the model state (x, y, psi, u, v, r; SI, rad) before and after it;
-    rpm, rudder_rad, delta_act_rad: the commands held and the actual rudder angle.
+    rpm, rudder_rad, delta_act_rad: the commands held and the actual rudder angle;
+    bow_rps, stern_rps: the thruster commands held [rev/s].
     """
 
     time_s: float
@@ -46,19 +49,23 @@ class StepFailure:
     rpm: float
     rudder_rad: float
     delta_act_rad: float
+    bow_rps: float = 0.0
+    stern_rps: float = 0.0
 
     def __str__(self) -> str:
         def fmt(state):
             return ', '.join(f'{n} {v:.4g}' for n, v in zip(STATE_NAMES, state))
+        thrusters = f', thrusters bow {self.bow_rps:.4g} stern {self.stern_rps:.4g} rev/s' \
+            if self.bow_rps or self.stern_rps else ''
         return (f'at t = {self.time_s:.2f} s: {self.reason}; commands rpm {self.rpm:.6g}, '
                 f'rudder {math.degrees(self.rudder_rad):.2f} deg (actual '
-                f'{math.degrees(self.delta_act_rad):.2f} deg); last good state '
+                f'{math.degrees(self.delta_act_rad):.2f} deg){thrusters}; last good state '
                 f'[{fmt(self.last_state)}]; failed state [{fmt(self.bad_state)}]')
 
 
 @njit(cache=True)
-def _advance_checked(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4,
-                     tmp, n, speed_max, yaw_rate_max, last):
+def _advance_checked(kind, p, s, delta_act, rpm, rudder, bow, stern, dt, substeps, method, k1,
+                     k2, k3, k4, tmp, n, speed_max, yaw_rate_max, last):
     """n calls of advance, each followed by a per-element finiteness and plausibility check.
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
@@ -71,7 +78,7 @@ def _advance_checked(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k
         for j in range(6):
             last[j] = s[j]
         status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method,
-                                    k1, k2, k3, k4, tmp)
+                                    k1, k2, k3, k4, tmp, bow, stern)
         if status != OK:
             return status, i, delta_act
         for j in range(6):
@@ -83,13 +90,15 @@ def _advance_checked(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k
 
 
 class ShipSimulator:
-    """Fixed-step simulation of one ship driven by held rpm and rudder commands.
+    """Fixed-step simulation of one ship driven by held rpm, rudder and thruster commands.
 
     Everything is validated against the ship's plausibility ranges
     (:func:`~mmg_tuner.core.limits.input_limits`): construction refuses bad settings with a
     SimulationError; a bad command is ignored or clamped and the problem returned; every step
     checks the state, and a non-finite or implausible one resets the simulator (``failure``
-    says what happened), so the state is never NaN.
+    says what happened), so the state is never NaN. What the ship's model family covers
+    decides the rest: astern rpm (rpm <= 0) and u <= 0 only where the family has them, thruster
+    commands (``set_thruster``) only for a family with thruster inputs.
 
     Example:
         >>> sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106)
@@ -153,7 +162,13 @@ class ShipSimulator:
         if max(abs(x[0]), abs(x[1])) > lim.position_max_m:
             raise SimulationError(f'initial position ({x[0]:g}, {x[1]:g}) m is beyond '
                                   f'{lim.position_max_m:g} m from the frame origin')
-        if not 0 < x[3] <= lim.top_speed_ms:
+        if self.ship.family.astern_surge:
+            if not abs(x[3]) <= lim.top_speed_ms:
+                raise SimulationError(
+                    f'{self.ship.name}: initial surge speed u = {x[3]:g} m/s is outside '
+                    f'[-{lim.top_speed_ms:.2f}, {lim.top_speed_ms:.2f}] m/s (a generous top '
+                    'speed, Froude number 0.5)')
+        elif not 0 < x[3] <= lim.top_speed_ms:
             raise SimulationError(
                 f'{self.ship.name}: initial surge speed u = {x[3]:g} m/s is outside (0, '
                 f'{lim.top_speed_ms:.2f}] m/s (the MMG model covers u > 0; the upper bound is '
@@ -169,10 +184,13 @@ class ShipSimulator:
         self.steps = 0
         self.rpm = self.rpm0
         self.rudder = self.rudder0
+        self.bow = self.stern = 0.0  # thruster revolutions [rev/s]; 0 without thrusters
         self.s = np.empty(6)
         start_state(self.ship.params, self.x0, self.s)
         self.delta_act = self.rudder + self.ship['rudder_offset']
         self.status = 'ok'
+        if getattr(self, '_residual', None) is not None:
+            self._residual.reset()   # the network's window starts afresh
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
         """Non-finite or beyond the plausible cap (a unit error, garbage): ignored; beyond the
@@ -192,7 +210,12 @@ class ShipSimulator:
         return CommandCheck(rudder_rad)
 
     def check_rpm(self, rpm: float) -> CommandCheck:
-        """Non-finite, <= 0 (outside the model) or beyond the plausible maximum: ignored."""
+        """
+        Check an rpm command.
+
+        Non-finite, <= 0 (unless the family covers astern) or beyond the plausible maximum:
+        ignored.
+        """
         try:
             rpm = float(rpm)
         except (TypeError, ValueError):
@@ -200,6 +223,36 @@ class ShipSimulator:
         if problem := self.limits.check_rpm(rpm):
             return CommandCheck(None, f'rpm command: {problem}: ignored')
         return CommandCheck(rpm)
+
+    def check_thruster(self, which: str, rps: float) -> CommandCheck:
+        """
+        Check a bow or stern thruster command [rev/s].
+
+        Ignored when the family has no thrusters, non-finite or beyond the plausible cap;
+        beyond the thrusters' limit: clamped to it.
+        """
+        if which not in THRUSTERS:
+            raise ValueError(f'which must be one of {THRUSTERS}, got {which!r}')
+        lim = self.limits
+        try:
+            rps = float(rps)
+        except (TypeError, ValueError):
+            return CommandCheck(None, f'{which} thruster command {rps!r} is not a number: '
+                                'ignored')
+        if problem := lim.check_thruster(rps, f'{which} thruster'):
+            return CommandCheck(None, f'{problem}: ignored')
+        if abs(rps) > lim.thruster_max_rps:
+            clamped = math.copysign(lim.thruster_max_rps, rps)
+            return CommandCheck(clamped, f'{which} thruster command {rps:g} rev/s beyond the '
+                                f'{lim.thruster_max_rps:g} rev/s limit: clamped')
+        return CommandCheck(rps)
+
+    def set_thruster(self, which: str, rps: float) -> str:
+        """Apply a thruster command ('bow' or 'stern', validated); a problem or ''."""
+        c = self.check_thruster(which, rps)
+        if c.value is not None:
+            setattr(self, which, c.value)
+        return c.problem
 
     def set_rudder(self, rudder_rad: float) -> str:
         """Apply a rudder command (validated); returns a problem description or ''."""
@@ -224,10 +277,17 @@ class ShipSimulator:
         """
         k1, k2, k3, k4, tmp = self._work
         lim = self.limits
-        status, done, delta = _advance_checked(
-            self.ship.kind, self.ship.params, self.s, self.delta_act, self.rpm, self.rudder,
-            self.dt, self.substeps, self.method, k1, k2, k3, k4, tmp, int(n),
-            lim.speed_max_ms, lim.yaw_rate_max_rad_s, self._last)
+        try:
+            if self.ship.residual is not None:   # a hybrid (params.yaml names a network)
+                status, done, delta = self._hybrid_steps(int(n))
+            else:
+                status, done, delta = _advance_checked(
+                    self.ship.kind, self.ship.params, self.s, self.delta_act, self.rpm,
+                    self.rudder, self.bow, self.stern, self.dt, self.substeps, self.method, k1,
+                    k2, k3, k4, tmp, int(n), lim.speed_max_ms, lim.yaw_rate_max_rad_s,
+                    self._last)
+        except ZeroDivisionError:  # compiled code raises it (x / 0.0): a failure, not a crash
+            status, done, delta = ARITHMETIC, 0, self.delta_act
         self.steps += done
         self.t = self.steps * self.dt
         self.delta_act = delta
@@ -236,17 +296,58 @@ class ShipSimulator:
         if status == IMPLAUSIBLE:
             u, v, r = self.s[3:]
             reason = 'implausible state: ' + lim.state_problem(u, v, r)
+        elif status == ARITHMETIC:
+            reason = f'division by zero in the model within the next {int(n)} step(s)'
         else:
             reason = STATUS_TEXT[status]
         self.failure = StepFailure(
             time_s=self.t + self.dt, reason=reason,
             last_state=tuple(float(a) for a in self._last),
             bad_state=tuple(float(a) for a in self.s), rpm=self.rpm, rudder_rad=self.rudder,
-            delta_act_rad=float(delta))
+            delta_act_rad=float(delta), bow_rps=self.bow, stern_rps=self.stern)
         self.failures += 1
         self.reset()
         self.status = reason
         return False
+
+    def _hybrid_steps(self, n: int) -> tuple[int, int, float]:
+        """
+        The hybrid's hook: _advance_checked with the residual network's accelerations.
+
+        The network (core/residual.py) is evaluated every net.dt_s of simulated time (dt must
+        divide it) from the window of its past samples and held in between, as the offline
+        hybrid does; the same checks follow every step. Returns (status, steps done,
+        delta_act) like _advance_checked.
+        """
+        from mmg_tuner.core.residual import ResidualStepper, advance_hybrid, apparent_wind_body
+        net = self.ship.residual
+        if getattr(self, '_residual', None) is None:
+            every = int(round(net.dt_s / self.dt))
+            if every < 1 or abs(every * self.dt - net.dt_s) > 1e-9 * net.dt_s:
+                raise SimulationError(f'{self.ship.name}: dt = {self.dt:g} s must divide the '
+                                      f"residual network's sample interval {net.dt_s:g} s")
+            self._residual, self._every, self._acc = ResidualStepper(net), every, (0.0,) * 3
+        lim = self.limits
+        k1, k2, k3, k4, tmp = self._work
+        p, s, delta = self.ship.params, self.s, self.delta_act
+        vmax2 = lim.speed_max_ms ** 2
+        for i in range(n):
+            if (self.steps + i) % self._every == 0:
+                self._acc = self._residual.accelerations(
+                    s, (self.rpm, self.rudder, self.bow, self.stern),
+                    apparent_wind_body(self.ship, s))
+            self._last[:] = s
+            status, delta = advance_hybrid(self.ship.kind, p, s, delta, self.rpm, self.rudder,
+                                           self.dt, self.substeps, self.method, k1, k2, k3, k4,
+                                           tmp, self.bow, self.stern, *self._acc,
+                                           bool(net.physics))
+            if status != OK:
+                return status, i, delta
+            if not np.all(np.isfinite(s)):
+                return DIVERGED, i, delta
+            if s[3] * s[3] + s[4] * s[4] > vmax2 or abs(s[5]) > lim.yaw_rate_max_rad_s:
+                return IMPLAUSIBLE, i, delta
+        return OK, n, delta
 
     def observed(self) -> np.ndarray:
         """x, y, psi, u, v, r as measured (antenna position, velocities over ground)."""

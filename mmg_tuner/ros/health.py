@@ -5,7 +5,9 @@ Three statuses, each with key/values and a level (REP-107 style names "<node>: <
 - ``real time``: requested and achieved real-time factor; WARN on a shortfall (< 90 %).
 - ``commands``: each command's last value, age and state; WARN while a command is stale
   (older than command_timeout_s) or for HOLD_S after a clamped one, ERROR for HOLD_S after
-  one was rejected (ignored: the ship kept the previous value).
+  one was rejected (ignored: the ship kept the previous value). A command the ship's model
+  cannot take (thrusters on a family without them) is listed only once it arrives, as one
+  WARN state "<name> unsupported" while such messages keep coming, with their count.
 - ``model``: simulated time and divergence resets; ERROR for HOLD_S after a reset.
 
 A condition is a *state*: the node logs its transitions once; the array says it at ~1 Hz.
@@ -28,6 +30,8 @@ class CommandHealth:
 
     unit: str
     value: float
+    required: bool = True   # wait_for_commands waits for it
+    supported: bool = True  # False: the ship's model has no such input (every one refused)
     last_rx: float | None = None
     stale: bool = False
     clamped: int = 0
@@ -67,10 +71,14 @@ class Health:
                 c.clamped += 1
                 c.last_clamped = now
 
+    def ready(self) -> bool:
+        """Every required command has arrived at least once."""
+        return all(c.last_rx is not None for c in self.commands.values() if c.required)
+
     def update_stale(self, which: str, now: float, limit_s: float) -> str:
         """'stale' or 'resumed' on a transition of the command's staleness, else ''."""
         c = self.commands[which]
-        stale = c.last_rx is not None and now - c.last_rx > limit_s
+        stale = c.supported and c.last_rx is not None and now - c.last_rx > limit_s
         if stale == c.stale:
             return ''
         c.stale = stale
@@ -107,6 +115,14 @@ class Health:
     def _commands(self, now: float, limit_s: float) -> DiagnosticStatus:
         level, problems, values = OK, [], {'command timeout [s]': f'{limit_s:g}'}
         for which, c in self.commands.items():
+            if not c.supported:
+                if c.last_rx is not None:  # listed once someone sends it
+                    values[f'{which} ignored (total)'] = c.rejected
+                    values[f'{which} last problem'] = c.last_problem
+                    if now - c.last_rx < HOLD_S:
+                        level = max(level, WARN)
+                        problems.append(f'{which} unsupported')
+                continue
             age = 'never received' if c.last_rx is None else f'{now - c.last_rx:.1f}'
             values[f'{which} [{c.unit}]'] = f'{c.value:.6g}'
             values[f'{which} age [s]'] = age

@@ -1,10 +1,10 @@
 """``replay_node``: plays a recorded trial through the model beside the recording.
 
-Publishes /clock (trial time), the recorded commands on the topic map's topics in its message
-types, units and rudder sign (as the recording had them), the recorded odometry on
-``recorded/odom`` and the model's odometry on ``odom`` (relative names), at ``speed`` x real
-time; logs the error summary at the end; optionally writes everything to an MCAP that Foxglove
-opens.
+Publishes /clock (trial time), the recorded commands (rudder, rpm and any thrusters) on the
+topic map's topics in its message types, units and signs (as the recording had them), the
+recorded odometry on ``recorded/odom`` and the model's odometry on ``odom`` (relative names),
+at ``speed`` x real time; logs the error summary at the end; optionally writes everything to
+an MCAP that Foxglove opens.
 
     ros2 run mmg_tuner replay_node --ros-args -p trial:=trials/zigzag_p20 -p speed:=10.0
 """
@@ -24,11 +24,13 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32, Float64
 from nav_msgs.msg import Odometry
 
+from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER
+from mmg_tuner.core.residual import simulate_hybrid
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import TopicMap, load_topic_map
+from mmg_tuner.data.topics import load_topic_map, THRUSTER_ROLES, TopicMap
 from mmg_tuner.errors import MmgTunerError, OutputError
 from mmg_tuner.ros.run import Param, declare_parameters, spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
@@ -96,41 +98,62 @@ def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
 
 
 class CommandPublisher:
-    """The recorded rudder [rad, MMG sign] and rpm, published as the topic map describes the
-    recording: topic, message type (Float64, Float32 or JointState with its joint: rudder as
-    position, propeller as velocity, one message when both share a topic), unit and sign."""
+    """
+    Publish the recorded commands as the topic map describes the recording.
+
+    Rudder [rad, MMG sign], rpm and, when the trial has them, the bow and stern thrusters
+    [rev/s, + to starboard], each on its topic, in its message type (Float64, Float32 or
+    JointState with its joint: rudder as position, shaft speeds as velocity, one message per
+    shared topic), unit and sign.
+    """
 
     SCALARS = {'std_msgs/msg/Float64': Float64, 'std_msgs/msg/Float32': Float32}
+    JOINT = 'sensor_msgs/msg/JointState'
 
-    def __init__(self, node: Node, tm: TopicMap) -> None:
-        self.tm = tm
-        self.rudder_scale = 1.0 / tm.rudder_to_rad  # rad -> the map's unit and sign
-        self.rpm_scale = 1.0 / tm.rpm_factor        # rpm -> the map's unit
-        types = {tm.rudder_topic: tm.rudder_type, tm.rpm_topic: tm.rpm_type}
-        if tm.rudder_topic == tm.rpm_topic and tm.rudder_type != tm.rpm_type:
-            raise MmgTunerError(f'topic map: rudder and rpm share topic {tm.rudder_topic} with '
-                                f'different types {tm.rudder_type} and {tm.rpm_type}')
+    def __init__(self, node: Node, tm: TopicMap, thrusters: bool = False) -> None:
+        # role -> (topic, type, joint, scale from the model's unit to the map's unit and sign)
+        self.roles = {'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint,
+                                 1.0 / tm.rudder_to_rad),
+                      'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint, 1.0 / tm.rpm_factor)}
+        if thrusters:
+            for role in THRUSTER_ROLES:
+                topic = getattr(tm, f'{role}_topic') or getattr(TopicMap, f'{role}_topic')
+                self.roles[role] = (topic, getattr(tm, f'{role}_type'),
+                                    getattr(tm, f'{role}_joint'), 1.0 / tm.thruster_factor(role))
+        types: dict[str, tuple[str, str]] = {}  # topic -> (type, the first role on it)
+        for role, (topic, typ, _, _) in self.roles.items():
+            if topic in types and types[topic][0] != typ:
+                other, first = types[topic]
+                raise MmgTunerError(f'topic map: {first} and {role} share topic {topic} with '
+                                    f'different types {other} and {typ}')
+            types.setdefault(topic, (typ, role))
         self.pubs = {topic: node.create_publisher(
-            JointState if typ == 'sensor_msgs/msg/JointState' else self.SCALARS[typ], topic, 10)
-            for topic, typ in types.items()}
+            JointState if typ == self.JOINT else self.SCALARS[typ], topic, 10)
+            for topic, (typ, _) in types.items()}
 
-    def publish(self, rpm: float, rudder_rad: float, stamp) -> None:
-        tm = self.tm
-        values = {'rudder': rudder_rad * self.rudder_scale, 'rpm': rpm * self.rpm_scale}
+    def publish(self, inputs, stamp) -> None:
+        """
+        Publish one sample.
+
+        inputs: the trial's input row (rpm, rudder [rad], wind north, wind east, bow, stern
+        [rev/s]; ``Trial.inputs`` order).
+        """
+        values = {'rpm': inputs[RPM], 'rudder': inputs[RUDDER]}
+        if len(inputs) > STERN_THRUSTER:
+            values.update(bow_thruster=inputs[BOW_THRUSTER],
+                          stern_thruster=inputs[STERN_THRUSTER])
         joints: dict[str, JointState] = {}
-        for role, topic, typ, joint in (('rudder', tm.rudder_topic, tm.rudder_type,
-                                         tm.rudder_joint),
-                                        ('rpm', tm.rpm_topic, tm.rpm_type, tm.rpm_joint)):
-            v = float(values[role])
-            if typ != 'sensor_msgs/msg/JointState':
+        for role, (topic, typ, joint, scale) in self.roles.items():
+            v = float(values[role] * scale)
+            if typ != self.JOINT:
                 self.pubs[topic].publish(self.SCALARS[typ](data=v))
                 continue
             msg = joints.setdefault(topic, JointState())
             msg.header.stamp = stamp
             msg.name.append(joint)
-            # the rudder's angle is the joint position, the shaft speed its velocity
+            # the rudder's angle is the joint position, a shaft's speed its velocity
             msg.position.append(v if role == 'rudder' else float('nan'))
-            msg.velocity.append(v if role == 'rpm' else float('nan'))
+            msg.velocity.append(float('nan') if role == 'rudder' else v)
         for topic, msg in joints.items():
             self.pubs[topic].publish(msg)
 
@@ -149,8 +172,12 @@ class ReplayNode(Node):
                                 f'(it holds {len(trials)} trial(s))')
         self.trial = trials[p['trial_index']]
         ship = load_ship(p['ship'], p['params_file'] or None)
-        sim = simulate(ship, self.trial.states[0], self.trial.inputs, self.trial.dt,
-                       p['integrator'], check=False)
+        if ship.residual is not None:   # the params file names a network: run the hybrid
+            sim = simulate_hybrid(ship, ship.residual, self.trial, integrator=p['integrator'],
+                                  restart_every_s=0.0)   # from the recorded first state
+        else:
+            sim = simulate(ship, self.trial.states[0], self.trial.inputs, self.trial.dt,
+                           p['integrator'], check=False)
         if not sim.ok:
             self.get_logger().warn(f'the model stopped at t = {sim.fail_time_s:.1f} s: '
                                    f'{sim.status}')
@@ -163,7 +190,8 @@ class ReplayNode(Node):
         self.exit_at_end = bool(p['exit_at_end'])
         self.pub_odom = self.create_publisher(Odometry, 'odom', 10)
         self.pub_rec = self.create_publisher(Odometry, 'recorded/odom', 10)
-        self.pub_cmd = CommandPublisher(self, tm)
+        self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None)
+        self.inputs = self.trial.inputs
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.wall0 = self.steady.now().nanoseconds * 1e-9
@@ -181,8 +209,7 @@ class ReplayNode(Node):
             t = float(tr.t[self.k] - tr.t[0])
             stamp = stamp_from_seconds(t)
             self.pub_clock.publish(ClockMsg(clock=stamp))
-            self.pub_cmd.publish(float(tr.controls[self.k, 0]), float(tr.controls[self.k, 1]),
-                                 stamp)
+            self.pub_cmd.publish(self.inputs[self.k], stamp)
             self.pub_rec.publish(odometry_from_state(tr.states[self.k], t))
             if np.all(np.isfinite(self.sim_states[self.k])):
                 self.pub_odom.publish(odometry_from_state(self.sim_states[self.k], t))

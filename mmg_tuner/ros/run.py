@@ -96,6 +96,9 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         code = int(exc.code or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:  # rclpy taking a message while Ctrl-C shuts the context down
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()

@@ -1,6 +1,7 @@
 """``sim_node``: the tuned ship as a ROS 2 simulator.
 
-Subscribes rudder and propeller commands (last value holds), publishes nav_msgs/Odometry
+Subscribes rudder, propeller and (for a model with them) bow and stern thruster commands
+(last value holds; astern rpm where the model covers it), publishes nav_msgs/Odometry
 (REP-103/105) and TF (``odom -> base_link``, static ``map -> odom``) at ``rate_hz``, optional
 simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) on simulated time, and its
 health on ``/diagnostics`` at 1 Hz; ``~/reset`` (std_srvs/Trigger) returns to the initial
@@ -31,7 +32,7 @@ from nav_msgs.msg import Odometry
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
 from mmg_tuner.core.ship import load_ship
-from mmg_tuner.core.stepper import ShipSimulator
+from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
 from mmg_tuner.errors import MmgTunerError
 from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state,
                                        seconds_from_stamp, stamp_from_seconds,
@@ -64,10 +65,11 @@ PARAMS = {
                        (-POSITION_MAX_M, POSITION_MAX_M)),
     'initial_yaw': Param(math.pi / 2, 'initial yaw in frame_id (ENU, from east) [rad]',
                          (-2 * math.pi, 2 * math.pi)),
-    'initial_speed': Param(3.0, 'initial surge speed [m/s]; > 0, at most the ship\'s top speed '
-                           '(Froude number 0.5)', (0.0, 1000.0)),
-    'initial_rpm': Param(106.0, 'propeller rpm until a command arrives; > 0, at most the '
-                         'ship\'s plausible maximum', (0.0, 1e5)),
+    'initial_speed': Param(3.0, 'initial surge speed [m/s]; > 0 (>= 0 for a model covering '
+                           "u <= 0), at most the ship's top speed (Froude number 0.5)",
+                           (0.0, 1000.0)),
+    'initial_rpm': Param(106.0, 'propeller rpm until a command arrives; > 0 (>= 0 for a model '
+                         "covering astern), at most the ship's plausible maximum", (0.0, 1e5)),
     'initial_rudder': Param(0.0, 'rudder angle until a command arrives [rad, + starboard]; '
                             'within the steering gear\'s limit', (-math.pi / 2, math.pi / 2)),
     # relative names: /odom etc. in the root namespace, /ship2/odom under -r __ns:=/ship2
@@ -75,8 +77,15 @@ PARAMS = {
                         read_only=True),
     'rudder_topic': Param('rudder_angle', 'std_msgs/Float64 rudder command [rad, + starboard]',
                           read_only=True),
-    'rpm_topic': Param('propeller_rpm', 'std_msgs/Float64 propeller command [rpm]',
-                       read_only=True),
+    'rpm_topic': Param('propeller_rpm', 'std_msgs/Float64 propeller command [rpm]; < 0 '
+                       '(astern) only for a model covering astern', read_only=True),
+    # thruster topics as config/topics.yaml names them for recordings
+    'bow_thruster_topic': Param('bow_thruster', 'std_msgs/Float64 bow thruster command '
+                                '[rev/s, + pushes the bow to starboard]; only for a model with '
+                                'thrusters', read_only=True),
+    'stern_thruster_topic': Param('stern_thruster', 'std_msgs/Float64 stern thruster command '
+                                  '[rev/s, + pushes the stern to starboard]; only for a model '
+                                  'with thrusters', read_only=True),
     'frame_id': Param('map', 'world frame of the odometry (ENU), shared by all ships: not '
                       'prefixed'),
     'odom_frame_id': Param('odom', 'the ship\'s odometry frame (ENU; TF map -> odom is a static '
@@ -156,13 +165,20 @@ class SimNode(Node):
         self.sensors = SimulatedSensors(self.p, self.sim.dt, pubs, body)
         self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
         self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
+        for which in THRUSTERS:  # always subscribed: a ship without them says so, once
+            self.create_subscription(Float64, self.p[f'{which}_thruster_topic'],
+                                     lambda msg, w=which: self._on_thruster(w, msg), 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
+        thrusters = self.sim.limits.thrusters
         self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name, commands={
             'rudder': CommandHealth('rad', self.sim.rudder),
-            'rpm': CommandHealth('rpm', self.sim.rpm)})
+            'rpm': CommandHealth('rpm', self.sim.rpm),
+            **{f'{w}_thruster': CommandHealth('rev/s', 0.0, required=False,
+                                              supported=thrusters) for w in THRUSTERS}})
+        self._unsupported_logged: set[str] = set()
         self.health.rtf_requested = self.p['real_time_factor']
         self._warned: dict[str, float] = {}
         self._failure_logged, self._unlogged_failures = -math.inf, 0
@@ -181,12 +197,10 @@ class SimNode(Node):
         # ROS time would wait for /clock, which this node may be the one to publish
         sim_time = self.get_parameter('use_sim_time').value
         self.create_timer(self._period, self._tick, clock=self.steady if sim_time else None)
-        lim = self.sim.limits
         self.get_logger().info(
             f"{self.sim.ship.name} ({self.sim.ship.model} model) at {self.p['rate_hz']:g} Hz, "
             f"dt {self.p['dt']:g} s, real-time factor {self.p['real_time_factor']:g}; "
-            f"commands accepted: rpm in (0, {lim.rpm_max:.0f}], rudder clamped to "
-            f"+-{math.degrees(lim.rudder_max_rad):.1f} deg; frames {world} -> {odom} -> {body}")
+            f'commands accepted: {self._accepted()}; frames {world} -> {odom} -> {body}')
         for key in ('gnss_rate_hz', 'imu_rate_hz'):
             if self.p[key] * self.sim.dt > 1.0:
                 self.get_logger().warn(f'{key} {self.p[key]:g} exceeds the step rate 1/dt = '
@@ -201,6 +215,16 @@ class SimNode(Node):
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]
         return ShipSimulator(ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
                              p['integrator'])
+
+    def _accepted(self) -> str:
+        """Describe the command ranges of the current ship, for the log."""
+        lim = self.sim.limits
+        rpm = f'[-{lim.rpm_max:.0f}, {lim.rpm_max:.0f}]' if lim.astern_rpm else \
+            f'(0, {lim.rpm_max:.0f}]'
+        thr = f'thrusters clamped to +-{lim.thruster_max_rps:g} rev/s' if lim.thrusters else \
+            'no thrusters'
+        return (f'rpm in {rpm}, rudder clamped to +-{math.degrees(lim.rudder_max_rad):.1f} '
+                f'deg, {thr}')
 
     @staticmethod
     def _frames(p: dict) -> tuple[str, str, str]:
@@ -230,8 +254,7 @@ class SimNode(Node):
         self.stamp0 = 0.0 if self.p['publish_clock'] else \
             seconds_from_stamp(self.get_clock().now().to_msg())
         # wait_for_commands gates only the first start: after a reset the last commands hold
-        self.started = not self.p['wait_for_commands'] or \
-            all(c.last_rx is not None for c in self.health.commands.values())
+        self.started = not self.p['wait_for_commands'] or self.health.ready()
         self.health.waiting = not self.started
         self.sensors.restart(self.sim.steps, self.sim.dt)
 
@@ -259,6 +282,21 @@ class SimNode(Node):
             self.sim.set_rpm(c.value)
         self._command_received('rpm', c.value, c.problem)
 
+    def _on_thruster(self, which: str, msg: Float64) -> None:
+        name = f'{which}_thruster'
+        if not self.sim.limits.thrusters:  # one state, logged once per ship: not per message
+            c = self.sim.check_thruster(which, msg.data)
+            self.health.command(name, None, c.problem, self._steady_s())
+            if name not in self._unsupported_logged:
+                self._unsupported_logged.add(name)
+                self.get_logger().warn(f'{c.problem} ({self.sim.ship.name}); further {name} '
+                                       'commands are ignored silently (see /diagnostics)')
+            return
+        c = self.sim.check_thruster(which, msg.data)
+        if c.value is not None:
+            self.sim.set_thruster(which, c.value)
+        self._command_received(name, c.value, c.problem)
+
     def _command_received(self, which: str, value: float | None, problem: str) -> None:
         now = self._steady_s()
         cmd = self.health.commands[which]
@@ -270,8 +308,7 @@ class SimNode(Node):
         if problem:
             # throttle per kind of problem: the message without its numbers
             self._warn(problem, key=which + _NUMBER.sub('#', problem))
-        if not self.started and all(c.last_rx is not None
-                                    for c in self.health.commands.values()):
+        if not self.started and self.health.ready():
             self.started = True
             self.health.waiting = False
             self.wall0 = self._steady_s()
@@ -415,6 +452,10 @@ class SimNode(Node):
             self.sim = self._pending or self._build(self.p)
             self._pending = None
             self.health.hardware_id = self.sim.ship.name
+            for w in THRUSTERS:  # the new ship may or may not have thrusters
+                cmd = self.health.commands[f'{w}_thruster']
+                cmd.supported, cmd.value = self.sim.limits.thrusters, 0.0
+            self._unsupported_logged.clear()
             self._restart_clock()
             self._window = (self._steady_s(), 0)
         elif 'real_time_factor' in names:  # keep the simulated time, re-anchor the wall clock
