@@ -241,3 +241,13 @@ def test_a_division_by_zero_in_the_model_is_a_failure_not_a_crash(esso):
     if not sim.step(20):  # the model may since have been fixed: then it simply runs
         assert 'division by zero' in sim.failure.reason and sim.t == 0.0
     assert plausible(sim)
+
+
+def test_lowspeed_cross_flow_integrals_survive_underflow():
+    """The cause of the division above: b * b underflowed to 0 for b ~ 1e-300."""
+    from mmg_tuner.core.models.lowspeed import cross_flow_integrals
+    for a, b in ((1e-310, 1e-300), (0.0, 1e-300), (-1e-305, -1e-200)):
+        iy, in_ = cross_flow_integrals(a, b)
+        assert np.isfinite(iy) and np.isfinite(in_) and abs(iy) < 1e-300 and abs(in_) < 1e-300
+    iy, in_ = cross_flow_integrals(0.1, 1.0)  # a sign change inside: the closed form still runs
+    assert np.isfinite(iy) and iy != 0.0

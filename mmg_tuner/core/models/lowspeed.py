@@ -106,12 +106,15 @@ def cross_flow_integrals(a, b):
     if abs(b) <= 2.0 * abs(a):
         s = _sgn(a)
         return s * (a * a + b * b / 12.0), s * a * b / 6.0
+    bb = b * b
+    if bb == 0.0:  # |a| < |b| / 2 < 1e-154: both integrals underflow to 0 (and x / 0.0 raises)
+        return 0.0, 0.0
     sp = a + 0.5 * b
     sm = a - 0.5 * b
     iy = (abs(sp) ** 3 - abs(sm) ** 3) / (3.0 * b)
     fp = sp ** 3 * abs(sp) / 4.0 - a * abs(sp) ** 3 / 3.0
     fm = sm ** 3 * abs(sm) / 4.0 - a * abs(sm) ** 3 / 3.0
-    return iy, (fp - fm) / (b * b)
+    return iy, (fp - fm) / bb
 
 
 @njit(cache=True)
