@@ -1,4 +1,5 @@
-"""ament_python package definition for mmg_tuner.
+"""
+ament_python package definition for mmg_tuner.
 
 Executables are console scripts installed into lib/mmg_tuner (see setup.cfg) so that
 `ros2 run mmg_tuner <exe>` finds them on a ROS 2 install.

@@ -1,6 +1,9 @@
-"""Runs inside the benchmark's own environment with the public `shipmmg` package: its KVLCC2
-35 deg turn (standard MMG method) with a fixed step, timing right-hand-side evaluations.
-Prints one JSON line. Not part of mmg_tuner; no code of shipmmg is copied."""
+"""
+Runs inside the benchmark's own environment with the public `shipmmg` package.
+
+Its KVLCC2 35 deg turn (standard MMG method) with a fixed step, timing right-hand-side evaluations.
+Prints one JSON line. Not part of mmg_tuner; no code of shipmmg is copied.
+"""
 import json
 import math
 import sys

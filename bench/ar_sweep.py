@@ -1,5 +1,7 @@
-"""The paper's a_r experiment on synthetic SUZAKU turning trials at +-10, +-20, +-35, +-40 deg:
-tune on {+10, -20, +35, -40}, test on {-10, +20, -35, +40}, for a_r = 0.2 ... 0.6.
+"""
+The paper's a_r experiment on synthetic SUZAKU turning trials at +-10, +-20, +-35, +-40 deg.
+
+Tune on {+10, -20, +35, -40}, test on {-10, +20, -35, +40}, for a_r = 0.2 ... 0.6.
 
 The 'real' ship has its targets moved (up to 0.3 |theta|) and a steering gear lag the model
 does not have (rudder_lag_tau), so the tuned model can only bend its coefficients to mimic
@@ -11,8 +13,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from common import PAPER_TEST, PAPER_TUNE, moved_truth, paper_turning_trials
-
+from common import moved_truth, PAPER_TEST, PAPER_TUNE, paper_turning_trials
 from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
 
 

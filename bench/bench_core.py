@@ -1,4 +1,5 @@
-"""Speed of the MMG core, printed as figures (not a test).
+"""
+Speed of the MMG core, printed as figures (not a test).
 
   python bench/bench_core.py [--shipmmg]
 
@@ -15,10 +16,10 @@ import argparse
 import json
 import math
 import os
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -75,7 +76,7 @@ def shipmmg_rate(dt=0.05, duration=300.0):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--shipmmg', action='store_true', help='also measure shipmmg')
     args = ap.parse_args()
     print(f'machine: {os.cpu_count()} cores, numba threads: '

@@ -1,5 +1,8 @@
-"""Diagnosis benchmark: many random cases per effect, the confusion matrix with and without one
-advised trial, parameter errors and run time per stage.
+"""
+Diagnosis benchmark.
+
+Many random cases per effect, the confusion matrix with and without one advised trial, parameter
+errors and run time per stage.
 
 Each case: SUZAKU with its 12 tuning targets moved inside the box (up to 0.3 x half-width),
 10 trials of 400 s at 1 Hz (turning, zigzag and random manoeuvres with random angles; 5 tune,
@@ -29,22 +32,21 @@ median <= 30 s per diagnosis of 10 trials (issue 15).
 from __future__ import annotations
 
 import argparse
+from collections import Counter, defaultdict
 import json
 import logging
 import math
-import time
-from collections import Counter, defaultdict
 from pathlib import Path
+import time
 
-import numpy as np
 import common  # noqa: F401  (puts the repository on sys.path)
-
 import mmg_tuner as mt
 from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship
-from mmg_tuner.data.generate import SensorNoise, generate_trial
-from mmg_tuner.diagnosis.advice import TrialSpec, trial_from_spec
+from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.diagnosis.advice import trial_from_spec, TrialSpec
 from mmg_tuner.tuning import ParameterSpace
+import numpy as np
 
 OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
@@ -59,7 +61,7 @@ def _sign(rng) -> float:
 
 
 def random_effect(name: str, rng: np.random.Generator) -> dict[str, float]:
-    """A realistic magnitude and direction for each effect (full-scale SUZAKU, 83 m)."""
+    """Return a realistic magnitude and direction for each effect (full-scale SUZAKU, 83 m)."""
     if name == 'clean':
         return {}
     if name == 'current':
@@ -144,9 +146,13 @@ def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
 
 
 def best_advice(advice: list[dict]) -> dict | None:
-    """The advised trial a crew would sail first: the diagnosis lists its advice most pressing
-    first (rival causes, then barely identifiable effects by how much each explained alone);
-    the first that settles something (else the first). Chosen without knowing the truth."""
+    """
+    Return the advised trial a crew would sail first.
+
+    The diagnosis lists its advice most pressing first (rival causes, then barely identifiable
+    effects by how much each explained alone); the first that settles something (else the first).
+    Chosen without knowing the truth.
+    """
     if not advice:
         return None
     return next((a for a in advice if a['settles']), advice[0])
@@ -175,7 +181,7 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
 
 
 def _with_advice(r: dict) -> dict:
-    """The case's outcome once the advised trial was added (the plain one if none was)."""
+    """Return the case's outcome once the advised trial was added (the plain one if none was)."""
     return {**r, **{k: v for k, v in r['advice'].items() if k in (
         'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
         if 'advice' in r else r
@@ -252,14 +258,14 @@ def summarise(rows: list[dict]) -> str:
             f"{k} {np.median([r.get('timings_s', {}).get(k, 0.0) for r in rows]):.1f} s"
             for k in stages))
         if tried:
-            lines.append(f"Re-diagnosis with the advised trial: median "
+            lines.append(f'Re-diagnosis with the advised trial: median '
                          f"{np.median([r['advice']['wall_s'] for r in tried]):.1f} s over "
                          f'{len(tried)} cases')
     return '\n'.join(lines)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--cases', type=int, default=5, help='random cases per class')
     ap.add_argument('--seed0', type=int, default=0, help='first case seed')
     ap.add_argument('--budget', choices=list(BUDGETS), default='standard')

@@ -1,5 +1,8 @@
-"""Fleet throughput: ships/hour on this machine with 1 and 2 Dask worker processes, and a
-scaling model from the measured task sizes to 100 ships x 50 trials on N machines.
+"""
+Fleet throughput.
+
+ships/hour on this machine with 1 and 2 Dask worker processes, and a scaling model from the
+measured task sizes to 100 ships x 50 trials on N machines.
 
 Each ship: SUZAKU with a hidden effect (a current, a rudder offset, or none), 6 trials of
 240 s at 1 Hz (3 tune, 3 held out), tune (1500 evaluations) and diagnose (quick budget, three
@@ -22,14 +25,13 @@ import argparse
 import contextlib
 import io
 import json
+from pathlib import Path
 import shutil
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import common  # noqa: F401  (puts the repository on sys.path)
-
 from mmg_tuner.cli.generate import command as generate
 from mmg_tuner.fleet import fleet, local_cluster
 from mmg_tuner.fleet.jobs import cpu_count
@@ -107,7 +109,7 @@ def model_table(r1: dict, r2: dict, ships: int = 100, trials: int = 50,
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ships', type=int, default=4)
     ap.add_argument('--workers', type=int, nargs='+', default=[1, 2])
     args = ap.parse_args()
@@ -123,7 +125,7 @@ def main() -> None:
                   f"(+{r['start_s']:.1f} s cluster start) = {r['ships_per_hour']:.0f} "
                   f"ships/hour; failed: {r['failed'] or 'none'}", flush=True)
         if 1 in results and 2 in results:
-            print(f"speed-up 1 -> 2 workers: "
+            print(f'speed-up 1 -> 2 workers: '
                   f"{results[1]['wall_s'] / results[2]['wall_s']:.2f} x")
             print('\n'.join(model_table(results[1], results[2])))
     finally:

@@ -1,15 +1,17 @@
-"""Time to read and resample one hour of 50 Hz odometry plus 50 Hz commands, per storage format
-(rosbag2 sqlite3, rosbag2 MCAP, bare MCAP). Target: under 5 s each.
+"""
+Time to read and resample one hour of 50 Hz odometry plus 50 Hz commands.
+
+Per storage format (rosbag2 sqlite3, rosbag2 MCAP, bare MCAP). Target: under 5 s each.
 
   python bench/bench_read.py
 """
 from __future__ import annotations
 
+from pathlib import Path
 import shutil
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 

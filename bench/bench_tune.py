@@ -1,8 +1,10 @@
-"""The paper's full tuning problem: 12 parameters, four 800 s SUZAKU turning trials at dt = 1 s
-(+10, -20, +35, -40 deg; truth moved inside the box, sensor noise), CMA-ES with IPOP restarts
-from population 12 doubling to 128, until the restarts converge or 200 000 evaluations.
-Prints wall time, evaluations per second, final J, test J and peak memory.
-Target: <= 60 s, < 500 MB.    python bench/bench_tune.py [--seed N]
+"""
+The paper's full tuning problem.
+
+12 parameters, four 800 s SUZAKU turning trials at dt = 1 s (+10, -20, +35, -40 deg; truth moved
+inside the box, sensor noise), CMA-ES with IPOP restarts from population 12 doubling to 128, until
+the restarts converge or 200 000 evaluations. Prints wall time, evaluations per second, final J,
+test J and peak memory. Target: <= 60 s, < 500 MB.    python bench/bench_tune.py [--seed N]
 """
 from __future__ import annotations
 
@@ -10,8 +12,7 @@ import argparse
 import resource
 import time
 
-from common import PAPER_TEST, PAPER_TUNE, moved_truth, paper_turning_trials
-
+from common import moved_truth, PAPER_TEST, PAPER_TUNE, paper_turning_trials
 from mmg_tuner.tuning import Objective, TrialBatch, Tuner
 
 

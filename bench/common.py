@@ -1,8 +1,8 @@
 """Shared set-ups for the benchmarks: the paper's synthetic SUZAKU turning trials."""
 from __future__ import annotations
 
-import sys
 from pathlib import Path
+import sys
 
 import numpy as np
 
@@ -18,8 +18,11 @@ PAPER_TEST = (-10, 20, -35, 40)
 
 
 def paper_turning_trials(truth, angles, duration_s=800.0, seed=0, noise=None):
-    """Turning tests at 6 kn, 106 rpm, sampled at 1 s (as the paper's data), with the steering
-    gear's rate limit and sensor noise."""
+    """
+    Turning tests at 6 kn, 106 rpm, sampled at 1 s (as the paper's data).
+
+    With the steering gear's rate limit and sensor noise.
+    """
     noise = SensorNoise() if noise is None else noise
     out = []
     for i, a in enumerate(angles):

@@ -1,4 +1,5 @@
-"""The diagnosis on real data: KVLCC2 (standard MMG, model scale) on MARIN's free-running tests.
+"""
+The diagnosis on real data: KVLCC2 (standard MMG, model scale) on MARIN's free-running tests.
 
 Tunes on both 35 deg turns and the two 10/10 zigzags and holds out the two 20/20 zigzags (the
 turns must both be in the tuning set, or the port/starboard asymmetry cannot show in the tuning
@@ -19,14 +20,14 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mmg_tuner.cli.diagnose import command as diagnose  # noqa: E402
 from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.data.marin import MARIN_FILES, compare_with_marin, marin_data_dir  # noqa: E402
+from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin_diagnosis'
 OUT = OUT / time.strftime('%Y%m%d-%H%M%S')  # a new folder per run: --out refuses a used one
@@ -42,7 +43,7 @@ def td_ratio(ship) -> tuple[float, float]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--budget', default='quick')
     ap.add_argument('--runs', nargs='+', default=['A', 'B'], choices=['A', 'B'])
     ap.add_argument('--dt', default='0.1', help='resampling step [s] (full scale)')
@@ -87,7 +88,7 @@ def main() -> None:
         gam = {k: round(v, 3) for k, v in doc['baseline']['params'].items()
                if k.startswith('gamma_R')}
         if gam:
-            print(f"   tuned gamma_R: {gam} (pre-determined "
+            print(f'   tuned gamma_R: {gam} (pre-determined '
                   f"{ship['gamma_Rp']:.3f} / {ship['gamma_Rn']:.3f})")
 
 

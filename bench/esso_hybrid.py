@@ -1,5 +1,7 @@
 """
-The hybrid model on the real Esso Osaka pond data: Wakita et al. (2022) Table 9, reproduced.
+The hybrid model on the real Esso Osaka pond data: Wakita et al.
+
+(2022) Table 9, reproduced.
 
     python bench/esso_hybrid.py [--dt 0.5] [--seeds 0] [--epochs 200] [--tuned FILE]
 
@@ -37,8 +39,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import mmg_tuner as mt  # noqa: E402
 from esso_osaka import KINDS, read, RESTART_S, runs_by_kind, split  # noqa: E402
+import mmg_tuner as mt  # noqa: E402
 from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402
 from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual  # noqa: E402

@@ -1,19 +1,22 @@
-"""KVLCC2 (standard MMG, model scale) tuned on MARIN's two 35 deg turns, tested on the four
-MARIN zigzags: J and manoeuvring indices before and after. Runs the `tune` command.
-    python bench/tune_kvlcc2_marin.py [--evals N]
+"""
+Tune KVLCC2 on MARIN's two 35 deg turns and test it on the four MARIN zigzags.
+
+KVLCC2 (standard MMG, model scale) tuned on MARIN's two 35 deg turns, tested on the four MARIN
+zigzags: J and manoeuvring indices before and after. Runs the `tune` command. python
+bench/tune_kvlcc2_marin.py [--evals N]
 """
 from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mmg_tuner.cli.tune import command as tune  # noqa: E402
 from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.data.marin import MARIN_FILES, compare_with_marin, marin_data_dir  # noqa: E402
+from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin'
 OUT = OUT / time.strftime('%Y%m%d-%H%M%S')  # a new folder per run: --out refuses a used one

@@ -1,10 +1,13 @@
-"""KVLCC2 (standard MMG method, model scale) against MARIN's free-running tests: prints the
-table in the README.  python bench/verify_kvlcc2.py [--rpm hold_speed|recorded]"""
+"""
+KVLCC2 (standard MMG method, model scale) against MARIN's free-running tests.
+
+Prints the table in the README.  python bench/verify_kvlcc2.py [--rpm hold_speed|recorded]
+"""
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
+import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mmg_tuner.core.ship import load_ship  # noqa: E402
@@ -12,7 +15,7 @@ from mmg_tuner.data.marin import compare_with_marin  # noqa: E402
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--rpm', choices=('hold_speed', 'recorded'), default='hold_speed')
     args = ap.parse_args()
     ship = load_ship('kvlcc2')

@@ -1,6 +1,8 @@
-"""Replay a recorded trial against the model: `ros2 launch mmg_tuner replay.launch.py
-trial:=trials/zigzag_p20_10 [topics:=topics.yaml] [params_file:=diag/params.yaml] [speed:=10.0]
-[output_mcap:=replay]`.
+"""
+Replay a recorded trial against the model.
+
+`ros2 launch mmg_tuner replay.launch.py trial:=trials/zigzag_p20_10 [topics:=topics.yaml]
+[params_file:=diag/params.yaml] [speed:=10.0] [output_mcap:=replay]`.
 
 Publishes /clock, the recorded commands (rudder, rpm, thrusters when recorded) as the topic
 map describes them, /recorded/odom and the model's /odom (see README,
@@ -23,7 +25,7 @@ ARGUMENTS = {
 
 
 def generate_launch_description():
-    """The replay node with every argument passed through as a parameter."""
+    """Return the replay node with every argument passed through as a parameter."""
     args = [DeclareLaunchArgument(k, default_value=d, description=h)
             for k, (d, h) in ARGUMENTS.items()]
     node = Node(package='mmg_tuner', executable=EXECUTABLE, name='replay_node', output='screen',

@@ -1,4 +1,7 @@
-"""Start one simulated ship: `ros2 launch mmg_tuner sim.launch.py [ship:=kvlcc2] [namespace:=ship2]
+"""
+Start one simulated ship.
+
+`ros2 launch mmg_tuner sim.launch.py [ship:=kvlcc2] [namespace:=ship2]
 [params_file:=tuned/params.yaml]`.
 
 The node's parameters come from config/sim_node.yaml (installed in share/mmg_tuner/config);
@@ -18,7 +21,7 @@ PARAMS_FILE = 'config/sim_node.yaml'
 
 
 def generate_launch_description():
-    """The simulator node with its parameter file and the user's overrides."""
+    """Return the simulator node with its parameter file and the user's overrides."""
     share = Path(get_package_share_directory('mmg_tuner'))
     return LaunchDescription([
         DeclareLaunchArgument('namespace', default_value='',

@@ -1,4 +1,5 @@
-"""mmg_tuner: learn, diagnose and serve a ship's 3-DOF MMG manoeuvring model.
+"""
+mmg_tuner: learn, diagnose and serve a ship's 3-DOF MMG manoeuvring model.
 
 Layers, each importing only those before it:
 ``core`` (model, integrators, manoeuvres; NumPy/numba only) -> ``data`` (trials in/out) ->

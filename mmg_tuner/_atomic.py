@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
+import tempfile
 
 
 def write_atomic(path: str | Path, data: str | bytes) -> None:

@@ -1,20 +1,25 @@
-"""Output folders a command owns: checked before the work starts, locked against a second run,
-written atomically, and never holding a user's file that the run did not create.
+"""
+Output folders a command owns.
+
+Checked before the work starts, locked against a second run, written atomically, and never holding
+a user's file that the run did not create.
 
 Imports only the standard library and errors.py, so every layer may use it.
 
-Example:
-    >>> out = OutputDir.open('tuned')            # refuses a non-empty folder or a file
-    >>> out.write_text('report.md', text)         # atomic; remembered in out.written
-    >>> out.close()
+Examples
+--------
+>>> out = OutputDir.open('tuned')            # refuses a non-empty folder or a file
+>>> out.write_text('report.md', text)         # atomic; remembered in out.written
+>>> out.close()
+
 """
 from __future__ import annotations
 
 import errno
 import fcntl
 import os
-import tempfile
 from pathlib import Path
+import tempfile
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.errors import OutputError
@@ -23,8 +28,13 @@ LOCK_NAME = '.mmg_tuner.lock'
 
 
 class OutputDir:
-    """A locked output folder. Use :meth:`open`; write through :meth:`write_text` /
-    :meth:`write_bytes` so that a failure says what was written and where."""
+    """
+    A locked output folder.
+
+    Use :meth:`open`; write through :meth:`write_text` /
+
+    :meth:`write_bytes` so that a failure says what was written and where.
+    """
 
     def __init__(self, path: Path, lock_fd: int):
         self.path = path
@@ -34,7 +44,8 @@ class OutputDir:
     @classmethod
     def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out'
              ) -> 'OutputDir':
-        """Create or reuse ``path`` as this run's output folder.
+        """
+        Create or reuse ``path`` as this run's output folder.
 
         A path that is a file, a folder that is not writable, a non-empty folder (unless
         ``resume``: the run continues its own earlier output) and a folder another run holds

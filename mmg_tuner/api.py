@@ -1,60 +1,64 @@
-"""The public Python API: everything ``tune`` and ``diagnose`` do, with typed results, for a
-notebook or another package. The commands are thin wrappers: argparse -> a config dataclass ->
-one call here -> ``result.write(out)``.
+"""
+The public Python API.
 
-Example:
-    >>> import mmg_tuner as mt
-    >>> ship = mt.load_ship('suzaku')
-    >>> trials = mt.load_trials(['trials/'], ship=ship)
-    >>> fit = mt.tune(ship, trials[:4], test=trials[4:], max_evals=5000)
-    >>> fit.J.test, fit.bounds_hit
-    >>> dx = mt.diagnose(ship, trials[:4], test=trials[4:], budget='quick')
-    >>> [c.summary for c in dx.causes]
-    >>> run = mt.simulate(ship.with_params(dx.params), trials[5])
+Everything ``tune`` and ``diagnose`` do, with typed results, for a notebook or another package. The
+commands are thin wrappers: argparse -> a config dataclass -> one call here ->
+``result.write(out)``.
+
+Examples
+--------
+>>> import mmg_tuner as mt
+>>> ship = mt.load_ship('suzaku')
+>>> trials = mt.load_trials(['trials/'], ship=ship)
+>>> fit = mt.tune(ship, trials[:4], test=trials[4:], max_evals=5000)
+>>> fit.J.test, fit.bounds_hit
+>>> dx = mt.diagnose(ship, trials[:4], test=trials[4:], budget='quick')
+>>> [c.summary for c in dx.causes]
+>>> run = mt.simulate(ship.with_params(dx.params), trials[5])
 
 Progress and messages go to the ``mmg_tuner`` loggers (silence them with
 ``logging.getLogger('mmg_tuner').setLevel(logging.WARNING)``). Errors are
 :class:`~mmg_tuner.errors.MmgTunerError` subclasses naming the option and value.
+
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field, fields, replace
 import logging
 import math
-import time
-from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
+import time
 from typing import Callable, Mapping, Sequence
-
-import numpy as np
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core import ship as _ship
 from mmg_tuner.core.effects import EFFECTS
-from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.layout import INTEGRATORS
+from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
 from mmg_tuner.data.topics import load_topic_map
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis import structure as _structure
+from mmg_tuner.diagnosis.context import Setting
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
-from mmg_tuner.diagnosis import structure as _structure
-from mmg_tuner.diagnosis.context import Setting
-from mmg_tuner.diagnosis.select import (BUDGETS, RETUNE_METHODS, Candidate, Cause,
-                                        DiagnosisSettings, MapFn, check_trial_sets)
+from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, check_trial_sets,
+                                        DiagnosisSettings, MapFn, RETUNE_METHODS)
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
-from mmg_tuner.tuning.objective import Objective, Prior, TrialBatch, paper_weights
+from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
+from mmg_tuner.tuning.evaluate import evaluate as _evaluate
+from mmg_tuner.tuning.hybrid import require_jax, ResidualConfig, train_residual
+from mmg_tuner.tuning.objective import Objective, paper_weights, Prior, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
 from mmg_tuner.tuning.segments import segment_weights, split_trials
 from mmg_tuner.tuning.tuner import Progress, Tuner
-from mmg_tuner.tuning.evaluate import EvaluateResult, compare_index
-from mmg_tuner.tuning.hybrid import ResidualConfig, require_jax, train_residual
-from mmg_tuner.tuning.evaluate import evaluate as _evaluate
+import numpy as np
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
            'TuneConfig', 'TuneResult', 'diagnose', 'load_ship', 'load_trials', 'simulate',
@@ -68,8 +72,12 @@ MAX_SEED = 2**31 - 1
 # ---------------------------------------------------------------------------------- loading
 def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = None
               ) -> ShipConfig:
-    """A ship config by name (``'suzaku'``, ``'kvlcc2'``) or YAML path; ``params`` overlays a
-    params.yaml (e.g. a tuned one). Tuned values in memory: ``ship.with_params(fit.params)``."""
+    """
+    Return a ship config by name (``'suzaku'``, ``'kvlcc2'``) or YAML path.
+
+    ``params`` overlays a params.yaml (e.g. a tuned one). Tuned values in memory:
+    ``ship.with_params(fit.params)``.
+    """
     return _ship.load_ship(name_or_path, params)
 
 
@@ -77,9 +85,12 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
                 dt: float | None = None, topics: str | Path | None = None,
                 trial_scale: str = 'ship', keep_astern: bool | None = None,
                 cut_from_event: str | tuple[str, float] | None = None) -> list[Trial]:
-    """Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them,
-    searched recursively), as the commands read them: resampled on ``dt`` [s] (default: the
-    topic map's, 1 s; MARIN files keep their own rate unless dt is given), and with
+    """
+    Read every trial in ``paths`` as the commands read them.
+
+    Every trial in ``paths`` (rosbag2 folders, .mcap, .csv, MARIN .dat, or folders of them,
+    searched recursively), as the commands read them: resampled on ``dt`` [s] (default: the topic
+    map's, 1 s; MARIN files keep their own rate unless dt is given), and with
     ``trial_scale='full'`` Froude-scaled from full scale to the ship's scale
     (``ship.scale_ratio``).
 
@@ -90,7 +101,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     cut_from_event: 'EVENT' or 'EVENT:SECONDS' (or a tuple) cuts each trial from SECONDS
     (default 5) before the event, one of ``rudder_first_over`` (real runs start with a
     manually steered approach) or ``propeller_first_astern``; a trial without the event is
-    kept whole with a note."""
+    kept whole with a note.
+    """
     if isinstance(paths, (str, Path)):
         paths = [paths]
     fam = ship.family if ship is not None else None
@@ -163,7 +175,8 @@ def _check_common(cfg, error) -> None:
 # ---------------------------------------------------------------------------------- tune
 @dataclass(frozen=True)
 class TuneConfig:
-    """Options of :func:`tune` (the ``tune`` command's flags), validated on creation.
+    """
+    Options of :func:`tune` (the ``tune`` command's flags), validated on creation.
 
     targets: parameter names to tune (default: the ship's); a_r: relative box half-width
     (default: the ship's, 0.5); bounds: per-parameter a_r or (lower, upper); weights: six
@@ -238,9 +251,12 @@ class TuneConfig:
 
 @dataclass
 class Fit:
-    """J (Suyama et al. 2023, eq. 43) of one parameter set, per trial and summed over the
-    tuning and the test set. A run that diverged or left the model's range has J = inf and
-    its failure time [s from the trial's start] in ``failed_at_s``."""
+    """
+    J (Suyama et al. 2023, eq. 43) of one parameter set.
+
+    Per trial and summed over the tuning and the test set. A run that diverged or left the model's
+    range has J = inf and its failure time [s from the trial's start] in ``failed_at_s``.
+    """
 
     per_trial: dict[str, float]
     sets: dict[str, str]                       # trial -> 'tune' | 'test'
@@ -277,9 +293,13 @@ def _fit(obj_by_set: dict[str, tuple[Objective, list[str]]], params: np.ndarray)
 
 @dataclass
 class TuneResult:
-    """What :func:`tune` found. ``params``: tuned values of the targets; ``J`` / ``J_pre``:
-    the tuned / pre-determined model's :class:`Fit`; ``bounds_hit``: targets that ended on a
-    bound of their box; ``history``: (evaluations, restart, best J) per generation."""
+    """
+    What :func:`tune` found.
+
+    ``params``: tuned values of the targets; ``J`` / ``J_pre``: the tuned / pre-determined model's
+    :class:`Fit`; ``bounds_hit``: targets that ended on a bound of their box; ``history``:
+    (evaluations, restart, best J) per generation.
+    """
 
     params: dict[str, float]
     J: Fit
@@ -300,7 +320,7 @@ class TuneResult:
 
     @property
     def tuned_ship(self) -> ShipConfig:
-        """The tuned ship; with a trained residual, the hybrid (or pure network)."""
+        """Return the tuned ship; with a trained residual, the hybrid (or pure network)."""
         ship = self.ship.with_params(self.params)
         return ship if self.residual is None else replace(ship, residual=self.residual.net)
 
@@ -336,10 +356,13 @@ class TuneResult:
         }
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
-        """params.yaml, report.md, plot_<trial>.png, and report.json last (its presence means
-        the set is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`.
-        With a trained residual, its weights (params.residual.npz) come first and params.yaml
-        names them."""
+        """
+        Write the result's files into ``out``, the completion marker last.
+
+        params.yaml, report.md, plot_<trial>.png, and report.json last (its presence means the set
+        is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`. With a trained
+        residual, its weights (params.residual.npz) come first and params.yaml names them.
+        """
         names = ', '.join(unique_names(self.trials)) or 'the tuning trials'
         rep = self.report()
         params_text = params_yaml_text(self.ship, self.params, f'tuned by mmg_tuner on {names}')
@@ -435,11 +458,14 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
          test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
          checkpoint: str | Path | None = None, resume: bool = False,
          progress: Callable[[Progress], None] | None = None, **options) -> TuneResult:
-    """Tune ``ship``'s targets on ``trials`` with IPOP-CMA-ES (the paper's formulation);
+    """
+    Tune ``ship``'s targets on ``trials`` with IPOP-CMA-ES (the paper's formulation).
+
     ``test`` trials are only evaluated. ``options`` are :class:`TuneConfig` fields (e.g.
-    ``max_evals=5000, a_r=0.5``). ``checkpoint``: a file written every generation;
-    ``resume=True`` continues from it. Ctrl-C stops after the current generation and returns
-    the best so far with ``interrupted=True``."""
+    ``max_evals=5000, a_r=0.5``). ``checkpoint``: a file written every generation; ``resume=True``
+    continues from it. Ctrl-C stops after the current generation and returns the best so far with
+    ``interrupted=True``.
+    """
     cfg = _config(TuneConfig, config, options)
     trials, test = _as_list(trials), _as_list(test)
     if not trials:
@@ -512,11 +538,14 @@ def _residual_config(cfg: TuneConfig) -> ResidualConfig:
 
 @dataclass
 class ResidualResult:
-    """The neural residual trained after the physics (``tune --residual``): the network, its
-    share of the total acceleration, its gain on its validation windows, and the paper's index
-    (Wakita et al. 2022 eq. 26, restarts every 100 s) of the tuned physics and of the model
-    with the network on the tuning and test trials (``heldout_gain``: 1 - index ratio on the
-    test trials, None without any)."""
+    """
+    The neural residual trained after the physics (``tune --residual``).
+
+    The network, its share of the total acceleration, its gain on its validation windows, and the
+    paper's index (Wakita et al. 2022 eq. 26, restarts every 100 s) of the tuned physics and of the
+    model with the network on the tuning and test trials (``heldout_gain``: 1 - index ratio on the
+    test trials, None without any).
+    """
 
     net: object = field(repr=False)
     kind: str
@@ -530,7 +559,7 @@ class ResidualResult:
     config: dict
 
     def npz_bytes(self) -> bytes:
-        """The network as the portable .npz ResidualNet.save writes."""
+        """Return the network as the portable .npz ResidualNet.save writes."""
         import tempfile
         with tempfile.TemporaryDirectory() as d:
             path = Path(d) / RESIDUAL_FILE
@@ -569,8 +598,12 @@ def _fmt_gain_frac(g) -> str:
 
 
 def _train_residual(result: TuneResult) -> ResidualResult:
-    """Train the residual on the tuning trials (its validation: the last part of each) with
-    the tuned physics, and score both on the tuning and test trials."""
+    """
+    Train the residual on the tuning trials with the tuned physics and score both.
+
+    Train the residual on the tuning trials (its validation: the last part of each) with the tuned
+    physics, and score both on the tuning and test trials.
+    """
     cfg = result.config
     rc = _residual_config(cfg)
     physics = result.ship.with_params(result.params)
@@ -594,7 +627,8 @@ def _train_residual(result: TuneResult) -> ResidualResult:
 # ---------------------------------------------------------------------------------- diagnose
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Options of :func:`diagnose` (the ``diagnose`` command's flags), validated on creation.
+    """
+    Options of :func:`diagnose` (the ``diagnose`` command's flags), validated on creation.
 
     effects: library entries to search (default: all); targets / a_r: the base model's tuning
     box; budget: 'quick', 'standard' or 'full' (evaluations for the base tuning, the screening
@@ -677,10 +711,14 @@ class ModelFit:
 
 @dataclass
 class DiagnosisResult:
-    """What :func:`diagnose` found: the named ``causes``, the tuned base model (``baseline``)
-    and the final model with the causes (``final``, its full parameters in ``params``:
-    ``ship.with_params(dx.params)``), every candidate tried per round, effects the trials can
-    barely see, and the residuals of both models on the test trials."""
+    """
+    What :func:`diagnose` found.
+
+    The named ``causes``, the tuned base model (``baseline``) and the final model with the causes
+    (``final``, its full parameters in ``params``: ``ship.with_params(dx.params)``), every
+    candidate tried per round, effects the trials can barely see, and the residuals of both models
+    on the test trials.
+    """
 
     causes: list[Cause]
     baseline: ModelFit
@@ -724,8 +762,12 @@ class DiagnosisResult:
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
-        """params.yaml first, diagnosis.md, plots, and diagnosis.json last (its presence means
-        the set is complete)."""
+        """
+        Write the result's files into ``out``, the completion marker last.
+
+        params.yaml first, diagnosis.md, plots, and diagnosis.json last (its presence means the set
+        is complete).
+        """
         doc = self.to_dict()
         names = ', '.join(c.effect for c in self.causes) or 'none'
         docs = [('params.yaml', params_yaml_text(
@@ -761,14 +803,18 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
              test: Trial | Sequence[Trial] | None = None, config: DiagnoseConfig | None = None,
              *, checkpoint: str | Path | None = None, resume: bool = False,
              map_fn: MapFn | None = None, **options) -> DiagnosisResult:
-    """Tune the base model on ``trials``, search the effects library, name the cause(s) by
-    their gain on the held-out ``test`` trials (default: every second trial of ``trials``
-    is held out; at least two are needed). ``options`` are :class:`DiagnoseConfig` fields
-    (e.g. ``budget='quick'``). ``checkpoint``: a file where every completed tuning is stored;
-    ``resume=True`` continues from it. Ctrl-C raises KeyboardInterrupt after the last
-    completed tuning was stored (never a truncated result). ``map_fn(fn, items) -> list``
-    runs the independent tunings of each step (default: plain map; e.g. a Dask client's map
-    for a fleet), results in input order; fn touches neither the checkpoint nor the log."""
+    """
+    Tune the base model, search the effects library and name the cause(s).
+
+    Tune the base model on ``trials``, search the effects library, name the cause(s) by their gain
+    on the held-out ``test`` trials (default: every second trial of ``trials`` is held out; at
+    least two are needed). ``options`` are :class:`DiagnoseConfig` fields (e.g.
+    ``budget='quick'``). ``checkpoint``: a file where every completed tuning is stored;
+    ``resume=True`` continues from it. Ctrl-C raises KeyboardInterrupt after the last completed
+    tuning was stored (never a truncated result). ``map_fn(fn, items) -> list`` runs the
+    independent tunings of each step (default: plain map; e.g. a Dask client's map for a fleet),
+    results in input order; fn touches neither the checkpoint nor the log.
+    """
     cfg = _config(DiagnoseConfig, config, options)
     if cfg.residual:
         require_jax()   # before the search: says how to install it
@@ -808,7 +854,7 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
 
 
 def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bool) -> dict:
-    """The structure verdict (diagnosis/structure.py) of a finished diagnosis."""
+    """Return the structure verdict (diagnosis/structure.py) of a finished diagnosis."""
     t0 = time.perf_counter()
     cfg = dx.config
     tune_final = tune_trials if wind_used else [replace(t, wind=None) if t.wind is not None
@@ -832,11 +878,15 @@ def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bo
 # ---------------------------------------------------------------------------------- simulate
 def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substeps: int = 1
              ) -> Trial:
-    """The model's prediction of a recorded trial, as a :class:`Trial` on the same time grid
-    (compare ``run.states`` with ``trial.states`` sample by sample). It starts from the state
-    the tuning objective uses (a quadratic fit over the first 10 s) and is driven by the
-    recorded rpm, rudder, measured wind and thrusters. A run that diverges or leaves the
-    model's range has NaN states from then on and a note saying when and why."""
+    """
+    Return the model's prediction of a recorded trial.
+
+    As a :class:`Trial` on the same time grid (compare ``run.states`` with ``trial.states`` sample
+    by sample). It starts from the state the tuning objective uses (a quadratic fit over the first
+    10 s) and is driven by the recorded rpm, rudder, measured wind and thrusters. A run that
+    diverges or leaves the model's range has NaN states from then on and a note saying when and
+    why.
+    """
     _check('integrator', integrator, integrator in INTEGRATORS, f'one of {sorted(INTEGRATORS)}')
     _check('substeps', substeps, _is_int(substeps) and 1 <= substeps <= 1000,
            'a whole number in [1, 1000]')
@@ -865,7 +915,8 @@ def config_fields(cls) -> list[str]:
 # ---------------------------------------------------------------------------------- evaluate
 @dataclass(frozen=True)
 class EvaluateConfig:
-    """Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
+    """
+    Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
 
     restart_every_s: restart each simulation from the measured state every N s (Wakita et al.
     2022 use 100 s; 0: never); integrator, substeps: as for simulate.
@@ -887,18 +938,22 @@ class EvaluateConfig:
 
 def evaluate(ship: ShipConfig, trials: Trial | Sequence[Trial],
              config: EvaluateConfig | None = None, **options) -> 'EvaluateResult':
-    """How good ``ship``'s model is on recorded ``trials``: each is simulated with its recorded
-    inputs (and measured wind), restarting from the measured state every
-    ``restart_every_s`` s, and scored per trial by the RMS error of each state and the index of
-    Wakita et al. (2022) eq. 26 (standardised by deviations pooled over all the trials).
-    ``options`` are :class:`EvaluateConfig` fields. ``result.write(out)`` writes
-    evaluate.json, evaluate.md and the plots.
+    """
+    How good ``ship``'s model is on recorded ``trials``.
 
-    Example:
-        >>> ship = mt.load_ship('esso_osaka_3m')
-        >>> trials = mt.load_trials(['data/esso_osaka_frt/berthing'], ship=ship)
-        >>> res = mt.evaluate(ship, trials, restart_every_s=100)
-        >>> {n: s.index for n, s in res.trials.items()}
+    Each is simulated with its recorded inputs (and measured wind), restarting from the measured
+    state every ``restart_every_s`` s, and scored per trial by the RMS error of each state and the
+    index of Wakita et al. (2022) eq. 26 (standardised by deviations pooled over all the trials).
+    ``options`` are :class:`EvaluateConfig` fields. ``result.write(out)`` writes evaluate.json,
+    evaluate.md and the plots.
+
+    Examples
+    --------
+    >>> ship = mt.load_ship('esso_osaka_3m')
+    >>> trials = mt.load_trials(['data/esso_osaka_frt/berthing'], ship=ship)
+    >>> res = mt.evaluate(ship, trials, restart_every_s=100)
+    >>> {n: s.index for n, s in res.trials.items()}
+
     """
     cfg = _config(EvaluateConfig, config, options)
     return _evaluate(ship, _as_list(trials), cfg.restart_every_s, cfg.integrator, cfg.substeps)

@@ -1,4 +1,8 @@
-"""Exceptions a user can act on. Every message names the file, key, topic or time involved."""
+"""
+Exceptions a user can act on.
+
+Every message names the file, key, topic or time involved.
+"""
 
 
 class MmgTunerError(Exception):

@@ -1,4 +1,5 @@
-"""Build the tf2_msgs message package (TFMessage only) into this Python environment.
+"""
+Build the tf2_msgs message package (TFMessage only) into this Python environment.
 
 tf2_msgs has no wheel on PyPI, but the ROS 2 Jazzy rosidl generator wheels and the headers and
 libraries of geometry_msgs are installed with rclpy. This runs the same generators colcon
@@ -17,12 +18,12 @@ import contextlib
 import importlib.util
 import io
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import sys
 import sysconfig
 import tempfile
-from pathlib import Path
 
 PKG = 'tf2_msgs'
 # tf2_msgs/msg/TFMessage.msg of ROS 2 Jazzy (geometry2 0.36), verbatim
@@ -37,8 +38,12 @@ def run(cmd: list[str], cwd: Path) -> None:
 
 
 def generate(src: Path, gen: Path) -> None:
-    """The rosidl generators, called directly (the ``rosidl generate`` CLI refuses the
-    duplicate entry points the wheels register)."""
+    """
+    Run the rosidl generators directly.
+
+    The rosidl generators, called directly (the ``rosidl generate`` CLI refuses the duplicate entry
+    points the wheels register).
+    """
     # the generators find their templates through the ament index of this prefix
     prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     os.environ['AMENT_PREFIX_PATH'] = os.pathsep.join([sys.prefix] + prefixes)
@@ -108,8 +113,11 @@ def build(gen: Path, out: Path) -> None:
 
 
 def install(src: Path, gen: Path, out: Path) -> None:
-    """Libraries first, the Python package last: an interrupted run leaves tf2_msgs
-    unimportable, so the next run builds again."""
+    """
+    Libraries first, the Python package last.
+
+    An interrupted run leaves tf2_msgs unimportable, so the next run builds again.
+    """
     prefix = Path(sys.prefix)
     site = Path(sysconfig.get_paths()['purelib'])
     for lib in out.glob(f'lib{PKG}__*.so'):

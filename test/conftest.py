@@ -1,7 +1,10 @@
-"""Shared fixtures. Tests run from a colcon install or a source checkout alike."""
-import pytest
+"""
+Shared fixtures.
 
+Tests run from a colcon install or a source checkout alike.
+"""
 from mmg_tuner.core.ship import load_ship
+import pytest
 
 
 @pytest.fixture(scope='session')
@@ -15,8 +18,12 @@ def kvlcc2():
 
 
 def installed_executable(name: str):
-    """Path of an installed executable as `ros2 run mmg_tuner <name>` finds it
-    (<prefix>/lib/mmg_tuner/<name>), or None when the package is not installed."""
+    """
+    Return the path of an installed executable as `ros2 run` finds it, or None.
+
+    Path of an installed executable as `ros2 run mmg_tuner <name>` finds it
+    (<prefix>/lib/mmg_tuner/<name>), or None when the package is not installed.
+    """
     import os
     from pathlib import Path
     prefixes = [p for v in ('AMENT_PREFIX_PATH', 'COLCON_PREFIX_PATH')

@@ -2,10 +2,9 @@
 import json
 import logging
 
+import mmg_tuner as mt
 import numpy as np
 import pytest
-
-import mmg_tuner as mt
 
 
 @pytest.fixture(scope='module')
@@ -61,8 +60,12 @@ def test_readme_notebook_example(trial_dir, tmp_path, monkeypatch, caplog):
 
 
 def test_simulate_starts_from_the_objectives_fitted_state(trial_dir, suzaku):
-    """One way to simulate a recorded trial: the residuals in reports describe the run that
-    was tuned (J from the simulation equals the objective's J)."""
+    """
+    One way to simulate a recorded trial.
+
+    The residuals in reports describe the run that was tuned (J from the simulation equals the
+    objective's J).
+    """
     from mmg_tuner.tuning.objective import Objective, TrialBatch, initial_state
     tr = mt.load_trials(trial_dir / 'zigzag_p20')[0]
     run = mt.simulate(suzaku, tr, integrator='euler')
@@ -77,13 +80,13 @@ def test_simulate_starts_from_the_objectives_fitted_state(trial_dir, suzaku):
 
 
 def test_configs_validate_like_the_cli(suzaku):
-    for bad in (dict(popsize=0), dict(seed=-1), dict(weights=(0,) * 6), dict(substeps=0),
-                dict(shoot_every_s=-5.0), dict(max_evals=0), dict(a_r=float('nan')),
-                dict(a_r=0.0), dict(bounds={'R_0': (1.0, 0.5)}), dict(integrator='rk9'),
-                dict(max_popsize=4, popsize=12)):
+    for bad in ({'popsize': 0}, {'seed': -1}, {'weights': (0,) * 6}, {'substeps': 0},
+                {'shoot_every_s': -5.0}, {'max_evals': 0}, {'a_r': float('nan')},
+                {'a_r': 0.0}, {'bounds': {'R_0': (1.0, 0.5)}}, {'integrator': 'rk9'},
+                {'max_popsize': 4, 'popsize': 12}):
         with pytest.raises(mt.TuningError, match=next(iter(bad)).split('_s')[0]):
             mt.TuneConfig(**bad)
-    for bad in (dict(budget='huge'), dict(max_effects=0), dict(effects=['nope']),
-                dict(seed=-1)):
+    for bad in ({'budget': 'huge'}, {'max_effects': 0}, {'effects': ['nope']},
+                {'seed': -1}):
         with pytest.raises(mt.DiagnosisError):
             mt.DiagnoseConfig(**bad)

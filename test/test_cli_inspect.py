@@ -1,12 +1,11 @@
 """The ``inspect`` command: topics, detected manoeuvres, problems, CSV export, exit status."""
 import subprocess
 
-import pytest
-
 from conftest import installed_executable
 from mmg_tuner.cli.generate import command as generate
 from mmg_tuner.cli.inspect import command as inspect
 from mmg_tuner.data.csv_io import read_trial_csv
+import pytest
 
 
 @pytest.fixture(scope='module')

@@ -1,13 +1,12 @@
 """The ``simulate`` command, called as a function and as the installed executable."""
 import subprocess
 
-import numpy as np
-import pytest
-import yaml
-
 from conftest import installed_executable
 from mmg_tuner.cli.simulate import command
 from mmg_tuner.data.csv_io import read_trial_csv
+import numpy as np
+import pytest
+import yaml
 
 
 def test_turning_writes_csv_and_prints_indices(tmp_path, capsys):

@@ -1,21 +1,24 @@
-"""Contracts every registry entry must meet (effects, model families), the frames module and
-the numba cache key: the way SciPy's solvers or pysindy's libraries are tested."""
+"""
+Contracts every registry entry must meet, the frames module and the numba cache key.
+
+Contracts every registry entry must meet (effects, model families), the frames module and the numba
+cache key: the way SciPy's solvers or pysindy's libraries are tested.
+"""
 import math
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import sys
-from pathlib import Path
-
-import numpy as np
-import pytest
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import CHANNELS
-from mmg_tuner.core.effects import EFFECTS, describe_values
+from mmg_tuner.core.effects import describe_values, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, PARAM_INDEX, SHARED_PARAMS
-from mmg_tuner.core.models import REGISTRY, declared_params, families
+from mmg_tuner.core.models import declared_params, families, REGISTRY
 from mmg_tuner.core.simulate import simulate
+import numpy as np
+import pytest
 
 
 def _run(ship, u0, rpm):
@@ -61,8 +64,11 @@ def test_effect_entry_contract(name, suzaku, kvlcc2):
 
 
 def test_effect_boxes_scale_with_the_ship(suzaku, kvlcc2):
-    """Every speed and time box shrinks with Froude scaling, the current's included (it was a
-    fixed 1.5 m/s)."""
+    """
+    Every speed and time box shrinks with Froude scaling, the current's included.
+
+    (it was a fixed 1.5 m/s).
+    """
     assert EFFECTS['current'].bounds(suzaku)[0] == (0.0, 1.5)
     assert EFFECTS['current'].bounds(kvlcc2)[0][1] == pytest.approx(
         1.5 / math.sqrt(kvlcc2.scale_ratio))
@@ -104,8 +110,11 @@ def test_family_contract(fam):
 
 
 def test_status_checks_follow_the_family(suzaku):
-    """A family without astern capability stops at rpm <= 0 and u <= 0 (the per-family flags
-    the kernels read)."""
+    """
+    A family without astern capability stops at rpm <= 0 and u <= 0.
+
+    (the per-family flags the kernels read).
+    """
     assert not suzaku.family.astern_rpm and not suzaku.family.astern_surge
     from mmg_tuner.core.integrate import rpm_status
     from mmg_tuner.core.layout import OK, RPM_NOT_POSITIVE
@@ -152,9 +161,13 @@ def test_frames_round_trips_and_conventions():
 
 
 def test_numba_cache_is_keyed_by_the_core_sources(tmp_path):
-    """A change to a module a kernel imports (here a family's capability flag, read by
+    """
+    A change to a module a kernel imports must not run the stale cached kernel.
+
+    A change to a module a kernel imports (here a family's capability flag, read by
     integrate.rpm_status) must not run the stale cached kernel: numba alone would, since
-    integrate.py did not change."""
+    integrate.py did not change.
+    """
     pkg = Path(__file__).resolve().parents[1] / 'mmg_tuner'
     shutil.copytree(pkg, tmp_path / 'mmg_tuner',
                     ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))

@@ -7,14 +7,13 @@ over the families at run time. Both must give the same results for every registe
 and a tag must select its own family (a tag mapped to the wrong forces would pass a test that
 only compares a family with itself, not this one).
 """
-import numpy as np
-import pytest
-
 from mmg_tuner.core import dynamics, integrate
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from mmg_tuner.core.models import REGISTRY
 from mmg_tuner.core.ship import config_dirs, load_ship
 from mmg_tuner.core.simulate import self_propulsion_rpm
+import numpy as np
+import pytest
 
 
 def _ships_by_family():

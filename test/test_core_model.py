@@ -1,14 +1,13 @@
 """The MMG core: the paper's check, physics sanity, batching, integrators, range checks."""
 import math
 
-import numpy as np
-import pytest
-
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.simulate import self_propulsion_rpm, simulate, simulate_batch
 from mmg_tuner.errors import SimulationError
+import numpy as np
+import pytest
 
 KN6 = 6 * mv.KNOT
 
@@ -22,8 +21,12 @@ def paper_turn(ship, rudder_deg):
 
 
 def test_paper_check_starboard_circle_larger(suzaku):
-    """Suyama et al. 2023 sec. 6.1 / Fig. 3: Euler dt = 1 s, 6 kn, 106 rpm, delta = +-35 deg:
-    the starboard turning circle is larger than the port one."""
+    """
+    Suyama et al. 2023 Fig. 3: the starboard turning circle is larger than the port one.
+
+    Suyama et al. 2023 sec. 6.1 / Fig. 3: Euler dt = 1 s, 6 kn, 106 rpm, delta = +-35 deg: the
+    starboard turning circle is larger than the port one.
+    """
     stbd, port = paper_turn(suzaku, 35.0), paper_turn(suzaku, -35.0)
     assert stbd.direction == 'starboard' and port.direction == 'port'
     assert stbd.tactical_diameter_m > 1.1 * port.tactical_diameter_m
@@ -172,8 +175,11 @@ def test_indices_on_a_perfect_circle():
     {'antenna_x': 20.0, 'antenna_y': -3.0}, {'wind_speed': 12.0, 'wind_dir': -0.7},
     {'prop_side_force': 0.01}])
 def test_effects_generated_and_replayed_consistently(suzaku, effect):
-    """A manoeuvre generated with an effect replays exactly through the simulator given the
-    same effect, and visibly differs without it."""
+    """
+    A manoeuvre generated with an effect replays exactly through the simulator.
+
+    Given the same effect, and visibly differs without it.
+    """
     ship = suzaku.with_params(effect)
     spec = mv.ManeuverSpec('zigzag', rudder_deg=20, rpm=106, speed_ms=KN6, duration_s=300)
     gen = mv.run(ship, spec)
@@ -184,9 +190,13 @@ def test_effects_generated_and_replayed_consistently(suzaku, effect):
 
 
 def test_wind_loads_act_the_way_a_seaman_expects(suzaku):
-    """Blendermann loads, heading north at 3 m/s: a head wind slows the ship, a beam wind
-    pushes it to leeward, and on a ship at rest, with the windage centroid aft (s_L < 0), a
-    beam wind turns the bow into it; port and starboard winds mirror each other."""
+    """
+    Blendermann loads, heading north at 3 m/s.
+
+    A head wind slows the ship, a beam wind pushes it to leeward, and on a ship at rest, with the
+    windage centroid aft (s_L < 0), a beam wind turns the bow into it; port and starboard winds
+    mirror each other.
+    """
     from mmg_tuner.core.mmg import wind_loads
 
     def loads(wind_from_deg, u=3.0):
@@ -211,8 +221,11 @@ def test_wind_loads_act_the_way_a_seaman_expects(suzaku):
 
 
 def test_measured_wind_replaces_the_wind_parameters(suzaku):
-    """The kernels read a measured wind from two extra input channels (north/east air
-    velocity): a steady measured wind replays exactly what the wind parameters generate."""
+    """
+    The kernels read a measured wind from two extra input channels (north/east air velocity).
+
+    A steady measured wind replays exactly what the wind parameters generate.
+    """
     ship = suzaku.with_params({'wind_speed': 12.0, 'wind_dir': 1.0})
     gen = mv.run(ship, mv.ManeuverSpec('zigzag', rudder_deg=20, rpm=106, speed_ms=KN6,
                                        duration_s=200))

@@ -2,17 +2,16 @@
 import math
 import shutil
 
-import numpy as np
-import pytest
-
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.data.assemble import assemble_trials, body_velocities_from_poses
-from mmg_tuner.data.bag import RawRecording, Series, read_series, write_trial_bag
+from mmg_tuner.data.bag import RawRecording, read_series, Series, write_trial_bag
 from mmg_tuner.data.csv_io import read_trial_csv, write_trial_csv
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import TopicMap, topic_map_from_dict
+from mmg_tuner.data.topics import topic_map_from_dict, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, TrialDataError
+import numpy as np
+import pytest
 
 
 @pytest.fixture(scope='module')
@@ -190,8 +189,11 @@ def test_generate_command(tmp_path, capsys):
 
 
 def _write_custom_bag(path, t, trial_states, rudder_deg, rpm_rps, pose_only=True):
-    """A bag as another ship's logger might write it: PoseStamped (no twist), JointState
-    actuators in degrees and rev/s."""
+    """
+    A bag as another ship's logger might write it.
+
+    PoseStamped (no twist), JointState actuators in degrees and rev/s.
+    """
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from mmg_tuner.data.bag import TYPESTORE as ts

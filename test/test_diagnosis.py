@@ -1,16 +1,18 @@
-"""The diagnosis must find an effect hidden in generated data, and name nothing on clean data.
-Small trials and budgets keep this part of the suite to a couple of minutes; the full-size
-runs belong in the benchmark."""
+"""
+The diagnosis must find an effect hidden in generated data, and name nothing on clean data.
+
+Small trials and budgets keep this part of the suite to a couple of minutes; the full-size runs
+belong in the benchmark.
+"""
 import json
 import math
 
+from mmg_tuner.core.effects import EFFECTS
+from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.diagnosis import diagnose, DiagnosisSettings
+from mmg_tuner.tuning import ParameterSpace
 import numpy as np
 import pytest
-
-from mmg_tuner.core.effects import EFFECTS
-from mmg_tuner.data.generate import SensorNoise, generate_trial
-from mmg_tuner.diagnosis import DiagnosisSettings, diagnose
-from mmg_tuner.tuning import ParameterSpace
 
 SPECS = [('turning', 35, None), ('turning', -25, None), ('zigzag', 20, None), ('random', 30, None),
          ('zigzag', -15, None), ('turning', -35, None), ('random', 25, None), ('zigzag', 10, None)]
@@ -18,8 +20,12 @@ QUICK = dict(base_evals=6000, screen_evals=300, effect_evals=3000, screen=3, max
 
 
 def hidden(suzaku, effect: dict, seed: int = 3, targets=None):
-    """Trials of SUZAKU with the targets (default: the paper's 12) moved inside the box and an
-    effect hidden."""
+    """
+    Return trials of SUZAKU with the targets moved inside the box and an effect hidden.
+
+    Trials of SUZAKU with the targets (default: the paper's 12) moved inside the box and an effect
+    hidden.
+    """
     space = ParameterSpace.around(suzaku, targets)
     rng = np.random.default_rng(seed)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
@@ -94,10 +100,14 @@ def test_finds_a_hidden_wind(suzaku):
 
 
 def test_finds_a_hidden_steering_gear_lag(suzaku):
-    """The lag is named first. Its size is poorly determined by 1 Hz trials with a 2.3 deg/s
-    gear while the rudder coefficients are tuned too (standard error ~3 s at the base
-    optimum): here the estimate comes out about twice the truth and a -1 s time offset joins
-    it as a second effect (the benchmark has the statistics; README, Diagnosis)."""
+    """
+    The lag is named first.
+
+    Its size is poorly determined by 1 Hz trials with a 2.3 deg/s gear while the rudder
+    coefficients are tuned too (standard error ~3 s at the base optimum): here the estimate comes
+    out about twice the truth and a -1 s time offset joins it as a second effect (the benchmark has
+    the statistics; README, Diagnosis).
+    """
     d = run(suzaku, {'rudder_lag_tau': 8.0})
     assert [c['effect'] for c in d.causes][:1] == ['rudder_lag']
     assert 4.0 < d.causes[0]['parameters']['rudder_lag_tau'] < 20.0
@@ -105,10 +115,14 @@ def test_finds_a_hidden_steering_gear_lag(suzaku):
 
 
 def test_finds_a_hidden_antenna_offset(suzaku):
-    """One effect searched: beside a 25 m antenna offset a wind of 5.1-5.5 m/s from about
-    155 deg joins as a second effect on three of four truth draws (seeds 1, 3, 4; CMA-ES and
-    least-squares re-tunes alike, 5 m/s being the smallest wind worth finding), and the joint
-    re-tune moves antenna_x by up to 4 m: the offset's own estimate is asserted here."""
+    """
+    One effect searched.
+
+    Beside a 25 m antenna offset a wind of 5.1-5.5 m/s from about 155 deg joins as a second effect
+    on three of four truth draws (seeds 1, 3, 4; CMA-ES and least-squares re-tunes alike, 5 m/s
+    being the smallest wind worth finding), and the joint re-tune moves antenna_x by up to 4 m: the
+    offset's own estimate is asserted here.
+    """
     d = run(suzaku, {'antenna_x': -25.0, 'antenna_y': 2.0}, max_effects=1)
     assert [c['effect'] for c in d.causes][:1] == ['antenna_offset']
     p = d.causes[0]['parameters']
@@ -117,9 +131,11 @@ def test_finds_a_hidden_antenna_offset(suzaku):
 
 
 def test_two_hidden_effects_are_both_named(suzaku):
-    """Each must explain at least min_abs_gain (5 %) of the base model's held-out error: a
-    0.2 m/s current and a 3 deg rudder offset both do (a 2 deg offset beside a 0.3 m/s
-    current explains 3 % and goes unnamed: the documented detection limit).
+    """
+    Each must explain at least min_abs_gain (5 %) of the base model's held-out error.
+
+    A 0.2 m/s current and a 3 deg rudder offset both do (a 2 deg offset beside a 0.3 m/s current
+    explains 3 % and goes unnamed: the documented detection limit).
 
     Margins measured over five truth draws (seeds 1-5; natively and with
     NUMBA_CPU_NAME=generic, which agree to 1e-4 rad): speed 0.191-0.199 m/s, rudder offset
@@ -128,7 +144,8 @@ def test_two_hidden_effects_are_both_named(suzaku):
     direction carries a systematic bias of about 25 deg (the 25 deg once asserted here sat
     on it). 40 deg leaves 12 deg to the worst draw and still fails a sign, from/to or
     north/east convention error (90 deg or more); the speed bound is tightened so that the
-    current vector stays within about 0.15 m/s."""
+    current vector stays within about 0.15 m/s.
+    """
     d = run(suzaku, {'current_speed': 0.2, 'current_dir': 2.0,
                      'rudder_offset': math.radians(3.0)})
     assert sorted(c['effect'] for c in d.causes) == ['current', 'rudder_offset']
@@ -139,9 +156,13 @@ def test_two_hidden_effects_are_both_named(suzaku):
 
 
 def test_rpm_scale_is_named_when_the_propulsion_coefficients_are_known(suzaku):
-    """An rpm scale error and a changed wake fraction / thrust deduction produce the same
-    thrust (J and K_T are unchanged when (1 - w_P) scales with n): with those tuned the
-    diagnosis must say the effect is barely identifiable; with them held, it must find it."""
+    """
+    An rpm scale error is named when the propulsion coefficients are known.
+
+    An rpm scale error and a changed wake fraction / thrust deduction produce the same thrust (J
+    and K_T are unchanged when (1 - w_P) scales with n): with those tuned the diagnosis must say
+    the effect is barely identifiable; with them held, it must find it.
+    """
     d = run(suzaku, {'rpm_scale': 0.94}, effects=['rpm_scale', 'rudder_offset', 'current'])
     assert 'rpm_scale' in d.aliased
     hull_rudder = ['t_R', 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn']
@@ -178,8 +199,12 @@ def test_effects_too_small_to_matter_are_not_causes(suzaku):
 
 
 def test_a_time_offset_the_trials_cannot_see_is_reported_not_misnamed(suzaku):
-    """A 1.5 s command delay under a 2.3 deg/s gear sampled at 1 Hz is below what these trials
-    resolve: the diagnosis must say so and must not blame another effect for it."""
+    """
+    A time offset the trials cannot resolve is reported, not blamed on another effect.
+
+    A 1.5 s command delay under a 2.3 deg/s gear sampled at 1 Hz is below what these trials
+    resolve: the diagnosis must say so and must not blame another effect for it.
+    """
     d = run(suzaku, {'time_offset': 1.5})
     assert 'time_offset' in d.aliased
     assert d.aliased['time_offset']['se'] > 0.5 * d.aliased['time_offset']['smallest']

@@ -1,7 +1,6 @@
 """The one acceptance rule: a test trial getting worse vetoes only when it matters."""
-import numpy as np
-
 from mmg_tuner.diagnosis.select import acceptance, DiagnosisSettings
+import numpy as np
 
 
 def _pieces():

@@ -1,19 +1,22 @@
-"""A diagnosis that holds on real data (issue 15): what is physically possible where the trials
-were recorded, measured signals as candidates, divergence reported as such, and effects
-outside the library not blamed on the library. Quick budget, 300 s trials."""
-import math
-from dataclasses import replace
+"""
+A diagnosis that holds on real data (issue 15).
 
-import numpy as np
-import pytest
+What is physically possible where the trials were recorded, measured signals as candidates,
+divergence reported as such, and effects outside the library not blamed on the library. Quick
+budget, 300 s trials.
+"""
+from dataclasses import replace
+import math
 
 from mmg_tuner.core.simulate import simulate_batch
-from mmg_tuner.data.generate import SensorNoise, generate_trial
+from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.diagnosis import DiagnosisSettings, diagnose
-from mmg_tuner.diagnosis.context import Setting, impossible_effects, resolve
+from mmg_tuner.diagnosis import diagnose, DiagnosisSettings
+from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
 from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning import ParameterSpace
+import numpy as np
+import pytest
 
 SPECS = [('turning', 35, None), ('turning', -25, None), ('zigzag', 20, None), ('random', 30, None),
          ('zigzag', -15, None), ('turning', -35, None), ('random', 25, None), ('zigzag', 10, None)]
@@ -63,8 +66,11 @@ def test_setting_rules_and_where_the_setting_comes_from(suzaku):
 
 # ---------------------------------------------------------------------- impossible: not named
 def test_wind_in_a_tank_is_listed_as_impossible_not_named(suzaku):
-    """The same hidden wind that test_diagnosis names at sea: in a tank it would fit, but it
-    is never named (nor the current that mimics it)."""
+    """
+    The same hidden wind that test_diagnosis names at sea.
+
+    In a tank it would fit, but it is never named (nor the current that mimics it).
+    """
     tune, test = _trials(_truth(suzaku, {'wind_speed': 10.0, 'wind_dir': -2.2}))
     d = _diagnose(suzaku, tune, test, setting=Setting('tank'),
                   effects=['wind', 'current', 'rudder_offset'], max_effects=1)
@@ -99,9 +105,12 @@ def test_a_recorded_calm_names_nothing(suzaku):
 
 # ------------------------------------------------------------------ outside the library
 def _stalled_trials(truth, stall_deg=25.0):
-    """A rudder that stalls beyond stall_deg: the force stops growing there. Implemented in
-    the data: the truth is driven by the clipped angle while the recording shows the full
-    one (the kernels are not touched)."""
+    """
+    Return a rudder that stalls beyond stall_deg: the force stops growing there.
+
+    Implemented in the data: the truth is driven by the clipped angle while the recording shows the
+    full one (the kernels are not touched).
+    """
     out = []
     for i, (m, a, c) in enumerate(SPECS):
         clean, _ = generate_trial(truth, m, a, c, 106.0, 3.086, 300.0, 1.0, SensorNoise.none(),
@@ -146,9 +155,13 @@ def test_a_diverging_candidate_is_reported_with_trial_and_time(suzaku, tmp_path)
 
 # ---------------------------------------------------------------- map_fn: the fleet's hook
 def test_map_fn_runs_the_independent_tunings_in_order_without_the_store(suzaku, tmp_path):
-    """A map_fn that ships every task through pickle (as a process pool or Dask does) gives the
-    plain result; the mapped function never writes the checkpoint; screening, the null with the
-    top candidates, and the backward removals arrive as batches."""
+    """
+    A map_fn that pickles every task gives the plain result.
+
+    A map_fn that ships every task through pickle (as a process pool or Dask does) gives the plain
+    result; the mapped function never writes the checkpoint; screening, the null with the top
+    candidates, and the backward removals arrive as batches.
+    """
     import pickle
     tune, test = _trials(_truth(suzaku, {'rudder_offset': math.radians(3.0),
                                          'current_speed': 0.3, 'current_dir': 2.0}))
@@ -208,15 +221,19 @@ def test_advice_specs_read_back_and_generate_runs_them(suzaku, tmp_path):
 
 # ------------------------------------------------------------------------ MARIN, real data
 def test_marin_towing_tank_names_no_physically_impossible_cause(kvlcc2):
-    """MARIN's KVLCC2 free-running runs (a towing tank; positions of the model's reference
-    point, as the reader notes). Before issue 15 the diagnosis named an antenna offset, a wind
-    and a time offset here. The setting comes from the files (no --setting); nothing
-    impossible in a tank may be named, and whatever of it fits is listed. The slowest test of
-    this file (about 11 s here: 0.5 s steps, quick budget; the benchmark runs 0.1 s)."""
+    """
+    MARIN's towing-tank runs name no physically impossible cause.
+
+    MARIN's KVLCC2 free-running runs (a towing tank; positions of the model's reference point, as
+    the reader notes). Before issue 15 the diagnosis named an antenna offset, a wind and a time
+    offset here. The setting comes from the files (no --setting); nothing impossible in a tank may
+    be named, and whatever of it fits is listed. The slowest test of this file (about 11 s here:
+    0.5 s steps, quick budget; the benchmark runs 0.1 s).
+    """
     import mmg_tuner as mt
     from mmg_tuner.data.marin import MARIN_FILES, marin_data_dir
     d = marin_data_dir()
-    load = dict(ship=kvlcc2, dt=0.5, trial_scale='full')
+    load = {'ship': kvlcc2, 'dt': 0.5, 'trial_scale': 'full'}
     tune = mt.load_trials([d / MARIN_FILES[k] for k in MARIN_FILES
                            if k.startswith('turn') or '10' in k], **load)
     test = mt.load_trials([d / MARIN_FILES[k] for k in MARIN_FILES if '20' in k], **load)

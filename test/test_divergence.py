@@ -1,19 +1,22 @@
-"""A diverging model must never look perfect: a run that diverges or leaves the model's range
-has an infinite J and says on which trial and at what time, wherever J is reported (issue 10,
-section 3). Before, J summed only the samples before the failure, so a model that diverged at
-once (R_0 = 1e300) scored J = 0, better than any working one."""
+"""
+A diverging model must never look perfect.
+
+A run that diverges or leaves the model's range has an infinite J and says on which trial and at
+what time, wherever J is reported (issue 10, section 3). Before, J summed only the samples before
+the failure, so a model that diverged at once (R_0 = 1e300) scored J = 0, better than any working
+one.
+"""
 import json
 import math
-
-import numpy as np
-import pytest
-import yaml
 
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning.objective import Objective, TrialBatch
+import numpy as np
+import pytest
+import yaml
 
 # Sway "damping" of the wrong sign (Y'_v = +2 instead of about -0.3): the hull drives the drift
 # angle up until the surge speed goes negative about 46 s into any manoeuvre of SUZAKU, so the
@@ -69,8 +72,11 @@ def test_a_diverging_run_has_infinite_J_and_says_where(suzaku):
 
 
 def test_tune_reports_where_the_start_model_diverges(tmp_path, capsys):
-    """A params overlay that makes every candidate diverge (Y_v is not a tuning target): the
-    report must not show J = 0 or any finite J, and must name the trial and the time."""
+    """
+    A params overlay that makes every candidate diverge (Y_v is not a tuning target).
+
+    The report must not show J = 0 or any finite J, and must name the trial and the time.
+    """
     from mmg_tuner.cli.generate import command as generate
     from mmg_tuner.cli.tune import command as tune
     gen = tmp_path / 'gen'
@@ -100,8 +106,12 @@ def test_tune_reports_where_the_start_model_diverges(tmp_path, capsys):
 
 
 def test_a_nan_state_is_reported_as_divergence_not_ok(suzaku):
-    """Under the kernels' fast-math flags a single isfinite() over the sum of the state was
-    folded to True, so a run that went NaN came back 'ok' (with m'_x < 0 it does at ~82 s)."""
+    """
+    A run that goes NaN is reported as diverged, never 'ok'.
+
+    Under the kernels' fast-math flags a single isfinite() over the sum of the state was folded to
+    True, so a run that went NaN came back 'ok' (with m'_x < 0 it does at ~82 s).
+    """
     import math
 
     import numpy as np

@@ -1,15 +1,18 @@
-"""FRT-DS-ESSO pond data (data/esso_osaka_frt): the reader, its conventions checked against
-the data, robustness on damaged copies, and cutting at events."""
+"""
+FRT-DS-ESSO pond data (data/esso_osaka_frt).
+
+The reader, its conventions checked against the data, robustness on damaged copies, and cutting at
+events.
+"""
 import math
 import shutil
-
-import numpy as np
-import pytest
 
 from mmg_tuner.core.models.lowspeed import apparent_wind_ne
 from mmg_tuner.data import esso
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.errors import MmgTunerError, TrialDataError
+import numpy as np
+import pytest
 
 DATA = esso.esso_data_dir()
 TURN = DATA / 'turning' / 'turn_14-Sep-2020_13_39_32.csv'      # n 10, +35 deg helm
@@ -77,8 +80,12 @@ def test_units_and_frame_against_the_raw_file():
 
 
 def test_true_wind_reproduces_the_relative_columns():
-    """Trial.wind is the air's velocity toward north/east: with the ship's motion it gives the
-    file's apparent wind at midship (the data set's own relation, ~1e-4 m/s)."""
+    """
+    Trial.wind is the air's velocity toward north/east.
+
+    With the ship's motion it gives the file's apparent wind at midship (the data set's own
+    relation, ~1e-4 m/s).
+    """
     cols, _ = esso.read_esso_table(TURN)
     tr = esso.read_esso_csv(TURN, keep_astern=True)[0]
     ua = np.empty(len(tr))
@@ -181,9 +188,13 @@ def test_cut_from_event_starts_before_the_helm_order():
 
 
 def test_every_run_simulates_with_the_lowspeed_family():
-    """All 33 runs, astern and u <= 0 kept, through the lowspeed family with the measured wind
+    """
+    All 33 runs simulate through the lowspeed family with the measured wind.
+
+    All 33 runs, astern and u <= 0 kept, through the lowspeed family with the measured wind
     (api.load_trials' keep_astern pass-through): no failure, a finite index for each; the
-    standard-model ships refuse the astern parts with a status, not NaN."""
+    standard-model ships refuse the astern parts with a status, not NaN.
+    """
     import mmg_tuner as mt
     ship = mt.load_ship('esso_osaka_3m')
     trials = mt.load_trials([DATA / k for k in ('turning', 'zigzag', 'random', 'berthing')],
@@ -201,9 +212,13 @@ def test_every_run_simulates_with_the_lowspeed_family():
 
 
 def test_load_trials_reads_the_data_folder_keeping_astern_by_family():
-    """The whole data set from its top folder (kind subfolders found recursively, README and
-    LICENSE skipped); astern propeller and u <= 0 kept because the lowspeed family simulates
-    them, left out (with the note) for a standard-family ship, refused if forced on one."""
+    """
+    The whole data set reads from its top folder, astern kept by family.
+
+    The whole data set from its top folder (kind subfolders found recursively, README and LICENSE
+    skipped); astern propeller and u <= 0 kept because the lowspeed family simulates them, left out
+    (with the note) for a standard-family ship, refused if forced on one.
+    """
     import mmg_tuner as mt
     esso_ship, kvlcc2 = mt.load_ship('esso_osaka_3m'), mt.load_ship('kvlcc2')
     trials = mt.load_trials([DATA], ship=esso_ship)

@@ -1,11 +1,11 @@
-"""evaluate (tuning/evaluate.py, api.evaluate, the ``evaluate`` command): the Wakita et al.
+"""
+Evaluate (tuning/evaluate.py, api.evaluate, the ``evaluate`` command): the Wakita et al.
+
 (2022) eq. 26 index on synthetic cases with a known answer, the command end to end on two Esso
-Osaka runs, and tuning lowspeed parameters on synthetic lowspeed trials."""
+Osaka runs, and tuning lowspeed parameters on synthetic lowspeed trials.
+"""
 import json
 import math
-
-import numpy as np
-import pytest
 
 import mmg_tuner as mt
 from mmg_tuner.cli.common import run_command
@@ -14,6 +14,8 @@ from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.esso import esso_data_dir
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning.evaluate import INDEX_STATES
+import numpy as np
+import pytest
 
 
 @pytest.fixture(scope='module')
@@ -22,7 +24,7 @@ def esso():
 
 
 def _trial(ship, seed, T=400, dt=0.5, name='run'):
-    """A low-speed run with astern propeller, measured wind and a thruster."""
+    """Return a low-speed run with astern propeller, measured wind and a thruster."""
     rng = np.random.default_rng(seed)
     m = T // 40
     ctrl = np.column_stack([60 * np.repeat(rng.uniform(-12, 14, m), 40),
@@ -43,10 +45,13 @@ def test_perfect_model_scores_zero(esso):
 
 
 def test_known_offset_gives_the_known_index_with_restarts_and_pooled_sigma(esso):
-    """Measured x = model x + c after the first sample. Without restarts the error is -c on
-    every later sample; with a restart every K samples the model restarts from the shifted
-    measurement (x-invariant dynamics), so only the first segment has the error. sigma_x is
-    pooled over both trials."""
+    """
+    Measured x = model x + c after the first sample.
+
+    Without restarts the error is -c on every later sample; with a restart every K samples the
+    model restarts from the shifted measurement (x-invariant dynamics), so only the first segment
+    has the error. sigma_x is pooled over both trials.
+    """
     c = 0.7
     a, b = _trial(esso, 3, name='a'), _trial(esso, 4, T=320, name='b')
     shifted = a.states.copy()
@@ -99,8 +104,12 @@ def test_command_on_two_esso_runs(tmp_path, capsys):
 
 
 def test_tuning_lowspeed_parameters_recovers_them(esso):
-    """CMA-ES on synthetic low-speed trials of a 'true' ship whose cross-flow drag and yaw
-    damping differ from the published ones: J falls and both come back roughly."""
+    """
+    CMA-ES on synthetic low-speed trials recovers cross-flow drag and yaw damping.
+
+    CMA-ES on synthetic low-speed trials of a 'true' ship whose cross-flow drag and yaw damping
+    differ from the published ones: J falls and both come back roughly.
+    """
     truth = {'C_D': 1.25, 'N_r': -0.075}
     true_ship = esso.with_params(truth)
     trials = [_trial(true_ship, s, name=f't{s}') for s in (11, 12)]

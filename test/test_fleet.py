@@ -1,7 +1,11 @@
-"""The fleet: manifest validation and input hashing (fast), the drift fit (seconds), and the
-proof on a real Dask cluster (a `dask scheduler` and two `dask worker` processes on
-127.0.0.1, about a minute and a half): three synthetic ships with different hidden effects,
-the named causes, results equal to the sequential commands to the bit, and resuming."""
+"""
+The fleet: manifest validation, the drift fit and the proof on a real Dask cluster.
+
+The fleet: manifest validation and input hashing (fast), the drift fit (seconds), and the proof on
+a real Dask cluster (a `dask scheduler` and two `dask worker` processes on 127.0.0.1, about a
+minute and a half): three synthetic ships with different hidden effects, the named causes, results
+equal to the sequential commands to the bit, and resuming.
+"""
 from __future__ import annotations
 
 import contextlib
@@ -10,20 +14,19 @@ import io
 import json
 import math
 import os
+from pathlib import Path
 import shutil
 import signal
 import socket
 import subprocess
 import sys
 import time
-from pathlib import Path
-
-import pytest
-import yaml
 
 from mmg_tuner.errors import ConfigError, OutputError
 from mmg_tuner.fleet.manifest import load_manifest, manifest_from_dict
 from mmg_tuner.fleet.resume import check_fleet_dir, input_digest
+import pytest
+import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 DASK = Path(sys.executable).parent / 'dask'
@@ -35,7 +38,7 @@ def ship(name='a', **kw):
 
 # ------------------------------------------------------------------ manifest validation
 @pytest.mark.parametrize('entry, words', [
-    (ship(budjet='quick'), ["ships[0] (a)", "'budjet'", "did you mean 'budget'"]),
+    (ship(budjet='quick'), ['ships[0] (a)', "'budjet'", "did you mean 'budget'"]),
     (ship(budget='huge'), ['ships[0] (a)', 'budget', "'huge'"]),
     (ship(max_evals=0), ['ships[0] (a)', 'max_evals']),
     (ship(dt=-1), ['ships[0] (a)', 'dt']),
@@ -116,15 +119,18 @@ def test_fleet_command_usage_errors(tmp_path, capsys):
     from mmg_tuner.cli.fleet import command
     (tmp_path / 'm.yaml').write_text(yaml.safe_dump({'ships': [ship(budget='huge')]}))
     assert run_command(command, [str(tmp_path / 'm.yaml'), '--out', str(tmp_path / 'o')]) == 2
-    assert "ERROR: manifest" in capsys.readouterr().err
+    assert 'ERROR: manifest' in capsys.readouterr().err
     assert run_command(command, [str(tmp_path / 'm.yaml'), '--out', 'o', '--workers', '0']) == 2
     assert '--workers' in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ drift over dated trials
 def test_trend_sees_a_rising_resistance(suzaku):
-    """Trials of two dates, the later with R_0 30 % higher (fouling): the per-date fit
-    follows it and the ship is flagged."""
+    """
+    Trials of two dates, the later with R_0 30 % higher (fouling).
+
+    The per-date fit follows it and the ship is flagged.
+    """
     from mmg_tuner.data.generate import SensorNoise, generate_trial
     from mmg_tuner.fleet.jobs import Loaded, trend
     groups = [('2024-01-10', 1.0), ('2024-07-10', 1.3)]
@@ -205,9 +211,12 @@ def _generate(out: Path, extra: list[str], seed: int = 0, maneuvers=MANEUVERS) -
 
 
 def _sequential(trials: Path, out: Path) -> None:
-    """The same ship with the sequential commands, as a user would run them: each command a
-    fresh process (as the dask workers are), not this test process, whose numba and BLAS
-    state earlier tests may have changed."""
+    """
+    The same ship with the sequential commands, as a user would run them.
+
+    Each command a fresh process (as the dask workers are), not this test process, whose numba and
+    BLAS state earlier tests may have changed.
+    """
     t = [str(trials / n) for n in TUNE]
     s = [str(trials / n) for n in TEST]
     for cmd in (['tune', *t, '--test', *s, '--ship', 'suzaku', '--out', str(out / 'tune'),
@@ -222,7 +231,7 @@ def _sequential(trials: Path, out: Path) -> None:
 
 
 def _results(folder: Path) -> dict:
-    """What must be equal to the bit: params and every J (wall times excluded)."""
+    """Return what must be equal to the bit: params and every J (wall times excluded)."""
     rep = json.loads((folder / 'tune' / 'report.json').read_text())
     dx = json.loads((folder / 'diagnose' / 'diagnosis.json').read_text())
     return {'tune_params.yaml': (folder / 'tune' / 'params.yaml').read_text(),

@@ -1,11 +1,10 @@
 """core/geodesy.py: WGS84 <-> local ENU about a datum (pymap3d underneath), no ROS."""
 import math
 
-import numpy as np
-import pytest
-
 from mmg_tuner.core.geodesy import Datum, datum_from_fixes, enu_to_geodetic, geodetic_to_enu
 from mmg_tuner.errors import ConfigError, TrialDataError
+import numpy as np
+import pytest
 
 
 def test_geodesy_round_trip_and_scale():

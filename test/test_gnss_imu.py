@@ -1,20 +1,23 @@
-"""Recordings as a real ship makes them: NavSatFix + Imu (+ TwistStamped, heading topics),
-frames checked, time bases (header/receive, /clock, GPS-time offsets), topics found by type,
-and a command/state time offset detected (issue 13, "Recordings in")."""
-import math
-from dataclasses import replace
+"""
+Recordings as a real ship makes them.
 
-import numpy as np
-import pytest
+NavSatFix + Imu (+ TwistStamped, heading topics), frames checked, time bases (header/receive,
+/clock, GPS-time offsets), topics found by type, and a command/state time offset detected (issue
+13, "Recordings in").
+"""
+from dataclasses import replace
+import math
 
 from mmg_tuner.core.geodesy import Datum
 from mmg_tuner.data.assemble import command_lag_s, local_poly_fit
 from mmg_tuner.data.bag import write_sensor_bag, write_trial_bag
-from mmg_tuner.data.generate import SensorNoise, generate_trial
+from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import TopicMap, topic_map_from_dict
+from mmg_tuner.data.topics import topic_map_from_dict, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, TrialDataError
+import numpy as np
+import pytest
 
 DATUM = Datum(34.6, 135.4, 40.0)
 LEVER = (12.0, -1.5)  # antenna forward of midship, to starboard [m] (FLU)
@@ -107,8 +110,12 @@ def test_ambiguous_topics_list_the_candidates(tmp_path, noisy):
 
 @pytest.mark.parametrize('frame', ['map', 'base_link', 'ship2/base_link'])
 def test_twist_is_read_in_its_frame(tmp_path, noisy, frame):
-    """nmea_navsat_driver's /vel is the antenna's ENU velocity: taken as body surge it read
-    u 0.0-2.0 m/s where the truth was 0.8-3.2. Its frame_id decides how it is read."""
+    """
+    nmea_navsat_driver's /vel is the antenna's ENU velocity.
+
+    Taken as body surge it read u 0.0-2.0 m/s where the truth was 0.8-3.2. Its frame_id decides how
+    it is read.
+    """
     truth, meas = noisy
     write_sensor_bag(truth.slice(0, 200), tmp_path / 'b', DATUM, lever_arm_m=LEVER,
                      twist_frame=frame)
@@ -173,8 +180,11 @@ def test_heading_from_quaternion_or_compass_number(tmp_path, noisy):
 
 
 def test_simulated_time_reads_like_wall_time(tmp_path, noisy):
-    """A simulation's stamps count from 0 on /clock while rosbag2 records wall-clock receive
-    times; the header-less commands are mapped onto the simulated clock."""
+    """
+    A simulation's stamps count from 0 on /clock while rosbag2 records wall-clock receive times.
+
+    The header-less commands are mapped onto the simulated clock.
+    """
     _, meas = noisy
     tr0 = meas.slice(0, 120)
     write_sensor_bag(tr0, tmp_path / 'wall', DATUM)
@@ -262,8 +272,12 @@ def test_topic_map_refuses_what_it_cannot_read():
 
 
 def test_tuning_on_either_recording_gives_the_same_parameters(tmp_path, suzaku):
-    """Must hold: a bag with Odometry and one with NavSatFix + Imu of the same trials tune to
-    the same parameters within noise (small budget: a smoke-size run, both sides alike)."""
+    """
+    Odometry and NavSatFix + Imu bags of the same trials tune to the same parameters.
+
+    Must hold: a bag with Odometry and one with NavSatFix + Imu of the same trials tune to the same
+    parameters within noise (small budget: a smoke-size run, both sides alike).
+    """
     import mmg_tuner.api as mt
     pairs = [generate_trial(suzaku, m, d, None, 106, 3.086, 200, 5.0, SensorNoise(), s, n)[1]
              for m, d, s, n in (('zigzag', 20, 1, 'z20'), ('turning', 35, 2, 't35'))]

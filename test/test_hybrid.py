@@ -15,8 +15,9 @@ import zipfile
 import mmg_tuner as mt
 from mmg_tuner.core.integrate import start_state
 from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
-from mmg_tuner.core.residual import advance_hybrid, apparent_wind_body, fitted_start, \
-    N_FEATURES, ResidualNet, ResidualStepper, simulate_hybrid, simulate_segments, zero_net
+from mmg_tuner.core.residual import (advance_hybrid, apparent_wind_body, fitted_start, N_FEATURES,
+                                     ResidualNet, ResidualStepper, simulate_hybrid,
+                                     simulate_segments, zero_net)
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError

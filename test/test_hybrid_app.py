@@ -8,14 +8,13 @@ import json
 import math
 import sys
 
-import numpy as np
-import pytest
-import yaml
-
 import mmg_tuner as mt
 from mmg_tuner.core.residual import ResidualNet, zero_net
 from mmg_tuner.diagnosis import structure
 from mmg_tuner.errors import ConfigError
+import numpy as np
+import pytest
+import yaml
 
 TUNE = ['turning_p35', 'zigzag_p20', 'turning_m25', 'random_p30']
 TEST = ['zigzag_m15', 'turning_m35']

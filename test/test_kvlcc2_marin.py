@@ -1,7 +1,6 @@
 """KVLCC2, standard MMG method, against the real MARIN free-running tests (SIMMAN 2008)."""
-import pytest
-
 from mmg_tuner.data.marin import compare_with_marin
+import pytest
 
 
 @pytest.fixture(scope='module')
@@ -14,8 +13,11 @@ def rel(row, key):
 
 
 def test_measured_indices_match_the_data_readme(rows):
-    """The data's README lists indices computed from the files; our reader and index code
-    must reproduce them (sign of delta, earth-fixed u/v, time rebuilt)."""
+    """
+    The data's README lists indices computed from the files.
+
+    Our reader and index code must reproduce them (sign of delta, earth-fixed u/v, time rebuilt).
+    """
     stbd, port = rows['turn_starboard_35']['measured'], rows['turn_port_35']['measured']
     assert stbd['advance_L'] == pytest.approx(3.10, abs=0.015)
     assert stbd['tactical_diameter_L'] == pytest.approx(3.33, abs=0.015)
@@ -39,8 +41,11 @@ def test_turning_circles_within_explained_bounds(rows):
 
 
 def test_asymmetry_is_real_model_error(rows):
-    """MARIN's starboard circle is ~8 % larger; the standard model turns almost symmetrically.
-    Not tuned away: the diagnosis must find it."""
+    """
+    MARIN's starboard circle is ~8 % larger; the standard model turns almost symmetrically.
+
+    Not tuned away: the diagnosis must find it.
+    """
     key = 'tactical_diameter_L'
     meas = rows['turn_starboard_35']['measured'][key] / rows['turn_port_35']['measured'][key]
     sim = rows['turn_starboard_35']['simulated'][key] / rows['turn_port_35']['simulated'][key]

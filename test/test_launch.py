@@ -1,4 +1,5 @@
-"""Launch files: installed, and naming executables and parameter files that exist.
+"""
+Launch files: installed, and naming executables and parameter files that exist.
 
 launch_ros has no wheel on the PyPI-only machines, so the files are checked by reading them;
 where launch_ros is installed (a real Jazzy install) they are also built.

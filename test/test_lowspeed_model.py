@@ -1,17 +1,20 @@
-"""The low-speed four-quadrant MMG (core/models/lowspeed.py) against the sanity numbers of
-docs/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with
-the lab's Fortran to 2e-10), with config/esso_osaka_3m.yaml; and the family through the
-generic kernels (core/dynamics.py, core/integrate.py) against the standalone form."""
-import math
+"""
+The low-speed four-quadrant MMG against the reference's sanity numbers.
 
-import numpy as np
-import pytest
+The low-speed four-quadrant MMG (core/models/lowspeed.py) against the sanity numbers of
+docs/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with the
+lab's Fortran to 2e-10), with config/esso_osaka_3m.yaml; and the family through the generic kernels
+(core/dynamics.py, core/integrate.py) against the standalone form.
+"""
+import math
 
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import family
 from mmg_tuner.core.models import lowspeed as ls
 from mmg_tuner.core.ship import load_ship, ship_from_dict
 from mmg_tuner.errors import ConfigError
+import numpy as np
+import pytest
 
 
 @pytest.fixture(scope='module')
@@ -153,9 +156,12 @@ def _side(p, u, n):
 
 
 def test_four_quadrants_continuous_where_the_model_is(p):
-    """Thrust is continuous across u = 0 (both n signs) and n = 0 (both u signs); the Q3/Q4
-    side-force pieces meet at J_syn and J_syn0; hull forces are continuous everywhere. (The
-    model itself jumps at u = 0 in Y_P for n > 0 and in u_R for n < 0, reference §9.)"""
+    """
+    Thrust is continuous across u = 0 (both n signs) and n = 0 (both u signs).
+
+    The Q3/Q4 side-force pieces meet at J_syn and J_syn0; hull forces are continuous everywhere.
+    (The model itself jumps at u = 0 in Y_P for n > 0 and in u_R for n < 0, reference §9.)
+    """
     h = 1e-7
     for n in (10.0, -10.0):
         assert ls.propeller_forces(p, h, 0.0, 0.0, n)[0] == pytest.approx(
@@ -188,8 +194,12 @@ def test_four_quadrants_continuous_where_the_model_is(p):
 
 def simulate(p, n, delta, T, state0=(0, 0, 0, 0, 0, 0), dt=0.05, n_bt=0.0, n_st=0.0,
              wind=(0.0, 0.0), n_of_t=None):
-    """(t, states x, y, psi, u, v, r); inputs held, no actuator lag, apparent wind from the
-    true wind (speed, FROM) and the ship's motion at every stage."""
+    """
+    (t, states x, y, psi, u, v, r).
+
+    Inputs held, no actuator lag, apparent wind from the true wind (speed, FROM) and the ship's
+    motion at every stage.
+    """
     def f(s, nn):
         x, y, psi, u, v, r = s
         ua, ga = ls.apparent_wind(wind[0], wind[1], psi, u, v)
@@ -302,9 +312,13 @@ def test_family_capabilities_and_inputs(ship):
 
 
 def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
-    """dynamics.derivative (family forces + shared equations of motion + the family's wind on
-    the apparent wind) equals lowspeed.accelerations to 1e-12 on random states and inputs, in
-    all four quadrants, with and without true wind (the ship's own air drag)."""
+    """
+    The generic kernels reproduce the standalone low-speed accelerations to 1e-12.
+
+    dynamics.derivative (family forces + shared equations of motion + the family's wind on the
+    apparent wind) equals lowspeed.accelerations to 1e-12 on random states and inputs, in all four
+    quadrants, with and without true wind (the ship's own air drag).
+    """
     from mmg_tuner.core.dynamics import derivative
     rng = np.random.default_rng(12)
     out = np.empty(6)
@@ -327,8 +341,12 @@ def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
 
 
 def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
-    """simulate() with the measured wind and thruster channels, RK4, equals an RK4 loop over
-    the standalone model driven by the same held inputs; batched == single to the bit."""
+    """
+    simulate() with measured wind and thrusters equals the standalone RK4 loop.
+
+    simulate() with the measured wind and thruster channels, RK4, equals an RK4 loop over the
+    standalone model driven by the same held inputs; batched == single to the bit.
+    """
     from mmg_tuner.core.simulate import simulate, simulate_batch
     rng = np.random.default_rng(5)
     T, dt = 800, 0.1   # ahead, then astern: through u = 0
@@ -367,8 +385,12 @@ def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
 
 
 def test_generic_kernel_reproduces_the_reference_manoeuvres(ship):
-    """§14.3 through simulate(): the 35 deg turn from the approach speed and the crash astern
-    (astern rpm and u < 0), RK4 0.05 s, no true wind (own air drag acting)."""
+    """
+    §14.3 through simulate().
+
+    The 35 deg turn from the approach speed and the crash astern (astern rpm and u < 0), RK4 0.05
+    s, no true wind (own air drag acting).
+    """
     from mmg_tuner.core.simulate import simulate
     T = 6001
     ctrl = np.tile([600.0, math.radians(35)], (T, 1))

@@ -1,20 +1,20 @@
-"""Bad input never crashes simulate, generate, inspect or the trial readers, and no file is
-lost (issue 10, sections 4 and 5): every bad value is refused at the edge with one
-``ERROR: ...`` line naming the option, file or key; the readers repair what they can, with a
-note, and refuse the rest; nothing is overwritten that the run did not create."""
+"""
+Bad input never crashes simulate, generate, inspect or the trial readers.
+
+And no file is lost (issue 10, sections 4 and 5): every bad value is refused at the edge with one
+``ERROR: ...`` line naming the option, file or key; the readers repair what they can, with a note,
+and refuse the rest; nothing is overwritten that the run did not create.
+"""
 import contextlib
 import errno
 import io
 import os
+from pathlib import Path
 import shutil
 import threading
-from pathlib import Path
 
-import numpy as np
-import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-
 from mmg_tuner.cli import generate as gen_cli
 from mmg_tuner.cli import inspect as inspect_cli
 from mmg_tuner.cli import simulate as sim_cli
@@ -27,6 +27,8 @@ from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
+import pytest
 
 FUZZ = settings(max_examples=40, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,

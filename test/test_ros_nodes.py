@@ -1,5 +1,9 @@
-"""The nodes as separate processes, driven over ROS topics from this test (no launch here:
-PyPI rclpy has none). Needs rclpy; skipped without it."""
+"""
+The nodes as separate processes.
+
+Driven over ROS topics from this test (no launch here: PyPI rclpy has none). Needs rclpy; skipped
+without it.
+"""
 import math
 import os
 import random
@@ -12,18 +16,17 @@ import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+from conftest import installed_executable  # noqa: E402
+from mmg_tuner.core.limits import input_limits  # noqa: E402
+from mmg_tuner.core.ship import load_ship  # noqa: E402
+from mmg_tuner.core.simulate import simulate  # noqa: E402
+from mmg_tuner.ros.conversions import seconds_from_stamp, state_from_odometry  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
-
-from conftest import installed_executable  # noqa: E402
-from mmg_tuner.core.limits import input_limits  # noqa: E402
-from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.core.simulate import simulate  # noqa: E402
-from mmg_tuner.ros.conversions import seconds_from_stamp, state_from_odometry  # noqa: E402
 
 
 @pytest.fixture(scope='module')
@@ -224,8 +227,12 @@ def test_bad_start_parameters_exit_2_with_one_error_line(ros, tmp_path):
 
 
 def test_work_per_tick_is_bounded(ros):
-    """dt 1 ms at 10000x real time asks for 1e7 steps/s: the node stays at its rate, answers
-    its parameter service and reports the shortfall (it used to wedge at 0 Hz)."""
+    """
+    Dt 1 ms at 10000x real time asks for 1e7 steps/s.
+
+    The node stays at its rate, answers its parameter service and reports the shortfall (it used to
+    wedge at 0 Hz).
+    """
     env, node, ex = ros
     proc = start('sim_node', env, 'dt:=0.001', 'real_time_factor:=10000.0', 'rate_hz:=50.0',
                  'odom_topic:=/wedge/odom')
@@ -250,8 +257,12 @@ def test_work_per_tick_is_bounded(ros):
 
 
 def test_divergence_resets_and_never_publishes_nan(ros):
-    """Explicit Euler at the coarsest accepted step, full rpm and helm: the model blows up
-    within seconds of simulated time; the node resets with an ERROR saying when and why."""
+    """
+    Explicit Euler at the coarsest accepted step, full rpm and helm.
+
+    The model blows up within seconds of simulated time; the node resets with an ERROR saying when
+    and why.
+    """
     env, node, ex = ros
     proc = start('sim_node', env, 'ship:=kvlcc2', 'integrator:=euler', 'dt:=1.6',
                  'initial_speed:=1.0', 'initial_rpm:=4900.0', 'initial_rudder:=0.6',

@@ -1,6 +1,9 @@
-"""The simulator as a citizen of a ROS system (issue 13): namespaces and frames, TF, simulated
-GNSS and IMU, /diagnostics, the replay node's topic-map units; plus the pure pieces (message
-builders, health levels) without ROS processes. Geodesy: test_geodesy.py.
+"""
+The simulator as a citizen of a ROS system (issue 13).
+
+Namespaces and frames, TF, simulated GNSS and IMU, /diagnostics, the replay node's topic-map units;
+plus the pure pieces (message builders, health levels) without ROS processes. Geodesy:
+test_geodesy.py.
 
 Every node process is started by ``running`` and always stopped (SIGINT, then kill) however
 the test ends, so a failure never leaves a node burning CPU.
@@ -8,22 +11,28 @@ the test ends, so a failure never leaves a node burning CPU.
 import contextlib
 import math
 import os
+from pathlib import Path
 import random
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
-
-import numpy as np
-import pytest
 
 from mmg_tuner.core.geodesy import Datum, geodetic_to_enu
+import numpy as np
+import pytest
 
 
 # ---- message builders and health (rclpy messages, no processes) ---------------------------
 rclpy = pytest.importorskip('rclpy')
+from conftest import installed_executable  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from mmg_tuner.core.ship import load_ship  # noqa: E402
+from mmg_tuner.core.simulate import simulate  # noqa: E402
+from mmg_tuner.ros.conversions import (imu_from_state, odometry_from_state,  # noqa: E402
+                                       seconds_from_stamp, transform_from_state,
+                                       yaw_from_quaternion)
+from mmg_tuner.ros.health import CommandHealth, Health  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
@@ -31,14 +40,6 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from sensor_msgs.msg import Imu, JointState, NavSatFix  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
-
-from conftest import installed_executable  # noqa: E402
-from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.core.simulate import simulate  # noqa: E402
-from mmg_tuner.ros.conversions import (imu_from_state, odometry_from_state,  # noqa: E402
-                                       seconds_from_stamp, transform_from_state,
-                                       yaw_from_quaternion)
-from mmg_tuner.ros.health import CommandHealth, Health  # noqa: E402
 
 try:
     from tf2_msgs.msg import TFMessage
@@ -184,8 +185,12 @@ def ros(tmp_path_factory):
 
 @contextlib.contextmanager
 def running(exe: str, env: dict, *ros_args: str, params: tuple = ()):
-    """A node process for the duration of the block; always stopped afterwards (SIGINT, then
-    SIGKILL after 10 s). ``proc.output`` holds what it printed."""
+    """
+    A node process for the duration of the block.
+
+    Always stopped afterwards (SIGINT, then SIGKILL after 10 s). ``proc.output`` holds what it
+    printed.
+    """
     path = installed_executable(exe)
     cmd = [path] if path else [sys.executable, '-m', f'mmg_tuner.ros.{exe}']
     args = ['--ros-args', *ros_args] + [a for p in params for a in ('-p', p)]
@@ -223,9 +228,13 @@ TF_STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL
 
 
 def test_two_ships_in_two_namespaces_follow_their_own_commands(ros, tmp_path):
-    """-r __ns:=/shipN: own topics, own frames (shipN/odom, shipN/base_link), own commands;
-    config/sim_node.yaml applies in a namespace too (its node key used to match only /sim_node,
-    so sim.launch.py namespace:=ship2 silently ran on defaults)."""
+    """
+    -r __ns:=/shipN.
+
+    Own topics, own frames (shipN/odom, shipN/base_link), own commands; config/sim_node.yaml
+    applies in a namespace too (its node key used to match only /sim_node, so sim.launch.py
+    namespace:=ship2 silently ran on defaults).
+    """
     env, node, ex = ros
     cfg = Path(__file__).resolve().parents[1] / 'config' / 'sim_node.yaml'
     ship2_cfg = tmp_path / 'sim_node.yaml'
@@ -294,9 +303,12 @@ def test_two_ships_in_two_namespaces_follow_their_own_commands(ros, tmp_path):
 
 
 def test_navsat_fix_maps_back_to_the_simulated_track(ros):
-    """GNSS about a datum while the ship sails north-east: each fix, mapped back to the local
-    plane with core.geodesy, lies on the offline simulation of the same commands within the
-    noise; the IMU heading and yaw rate agree too."""
+    """
+    GNSS about a datum while the ship sails north-east.
+
+    Each fix, mapped back to the local plane with core.geodesy, lies on the offline simulation of
+    the same commands within the noise; the IMU heading and yaw rate agree too.
+    """
     env, node, ex = ros
     datum = Datum(-33.85, 151.25, 20.0)  # southern and eastern hemisphere: signs matter
     sigma = 0.8
@@ -374,8 +386,12 @@ def commands_status(arrays, node_name):
 
 
 def test_diagnostics_stale_and_rejected_commands_and_new_parameters(ros):
-    """/diagnostics: a stale command is one WARN state (logged once, however long it lasts),
-    a rejected one an ERROR with its count; every new parameter is applied or refused."""
+    """
+    /diagnostics reports stale and rejected commands; new parameters apply or refuse.
+
+    /diagnostics: a stale command is one WARN state (logged once, however long it lasts), a
+    rejected one an ERROR with its count; every new parameter is applied or refused.
+    """
     env, node, ex = ros
     diags, s1 = collect(node, DiagnosticArray, '/diagnostics')
     odom, s2 = collect(node, Odometry, '/diag/odom')
@@ -446,8 +462,12 @@ def test_diagnostics_stale_and_rejected_commands_and_new_parameters(ros):
 
 
 def test_replay_publishes_commands_in_the_topic_maps_units_and_sign(ros, tmp_path):
-    """Topic map: rudder in deg with the REP-103 sign on a Float64 topic, rpm as rev/s in a
-    JointState: the replay publishes exactly that (it used to publish rad whatever the map)."""
+    """
+    The replay publishes commands in the topic map's units and sign.
+
+    Topic map: rudder in deg with the REP-103 sign on a Float64 topic, rpm as rev/s in a
+    JointState: the replay publishes exactly that (it used to publish rad whatever the map).
+    """
     from mmg_tuner.data.csv_io import csv_text
     env, node, ex = ros
     dt, T = 1.0, 40

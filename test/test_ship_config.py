@@ -1,10 +1,9 @@
 """Ship configs are data: loading, overlays and errors that name the file and key."""
+from mmg_tuner.core.ship import load_params_file, load_ship, resolve_config_path
+from mmg_tuner.errors import ConfigError
 import numpy as np
 import pytest
 import yaml
-
-from mmg_tuner.core.ship import load_params_file, load_ship, resolve_config_path
-from mmg_tuner.errors import ConfigError
 
 
 def test_suzaku_values_as_in_the_paper(suzaku):
@@ -102,8 +101,11 @@ def test_params_overlay_is_validated_like_a_ship_file(tmp_path, overlay, words):
 
 
 def test_fuzzed_ship_values_and_overlays_give_config_errors(tmp_path):
-    """Hypothesis over hostile values anywhere in the ship file and in an overlay: loading
-    either succeeds or raises ConfigError, never another exception."""
+    """
+    Hypothesis over hostile values anywhere in the ship file and in an overlay.
+
+    Loading either succeeds or raises ConfigError, never another exception.
+    """
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
     doc = _suzaku_doc()

@@ -1,17 +1,19 @@
-"""The interactive simulator never dies or lies: plausibility ranges from the ship, bad
-commands ignored or clamped, bad settings refused, and any non-finite or implausible state
-reset with a diagnostic (issue 10 section 2). Unit level, no ROS."""
+"""
+The interactive simulator never dies or lies.
+
+Plausibility ranges from the ship, bad commands ignored or clamped, bad settings refused, and any
+non-finite or implausible state reset with a diagnostic (issue 10 section 2). Unit level, no ROS.
+"""
 import math
 
-import numpy as np
-import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.simulate import self_propulsion_rpm, simulate
 from mmg_tuner.core.stepper import ShipSimulator
 from mmg_tuner.errors import SimulationError
+import numpy as np
+import pytest
 
 NASTY = [math.nan, math.inf, -math.inf, 1e308, -1e308, 1e6, 1e4, -50.0, 0.0, -0.0, 5e-324]
 
@@ -64,8 +66,11 @@ def test_huge_rpm_commands_never_give_a_nan_state(suzaku):
 
 
 def test_a_non_finite_state_is_detected_and_reset(suzaku):
-    """advance()'s own isfinite(sum) check is folded away under fastmath: a NaN must still be
-    caught, even in x (which feeds no derivative)."""
+    """
+    advance()'s own isfinite(sum) check is folded away under fastmath.
+
+    A NaN must still be caught, even in x (which feeds no derivative).
+    """
     sim = ShipSimulator(suzaku, dt=0.1, x0=[5.0, 0, 0, 3.0, 0, 0], rpm=106.0)
     sim.set_rudder(0.2)
     assert sim.step(30)
@@ -82,8 +87,12 @@ def test_a_non_finite_state_is_detected_and_reset(suzaku):
 
 
 def test_divergence_within_the_limits_resets_with_a_diagnostic(kvlcc2):
-    """Explicit Euler with the coarsest accepted step at full rpm and helm blows up (an
-    exponential instability, not a marginal one): reset with the reason, never NaN."""
+    """
+    A divergence within the input limits resets the node with a diagnostic.
+
+    Explicit Euler with the coarsest accepted step at full rpm and helm blows up (an exponential
+    instability, not a marginal one): reset with the reason, never NaN.
+    """
     lim = input_limits(kvlcc2)
     sim = ShipSimulator(kvlcc2, dt=lim.dt_max_s, x0=[0, 0, 0, 1.0, 0, 0], rpm=700.0,
                         rudder_rad=0.0, integrator='euler')
@@ -98,21 +107,21 @@ def test_divergence_within_the_limits_resets_with_a_diagnostic(kvlcc2):
 
 
 @pytest.mark.parametrize('kw, words', [
-    (dict(dt=math.nan), 'dt'), (dict(dt=math.inf), 'dt'), (dict(dt=0.0), 'dt'),
-    (dict(dt=-1.0), 'dt'), (dict(dt=1e-7), 'dt'), (dict(dt=100.0), 'dt'),
-    (dict(integrator='rk9'), 'integrator'), (dict(substeps=0), 'substeps'),
-    (dict(substeps=2.5), 'substeps'),
-    (dict(x0=[0, 0, 0, math.nan, 0, 0]), 'not finite'),
-    (dict(x0=[math.inf, 0, 0, 3.0, 0, 0]), 'not finite'),
-    (dict(x0=[1e300, 0, 0, 3.0, 0, 0]), 'position'),
-    (dict(x0=[0, 0, 0, 0.0, 0, 0]), 'surge'), (dict(x0=[0, 0, 0, 1e3, 0, 0]), 'surge'),
-    (dict(x0=[0, 0, 0, 3.0]), 'shape'),
-    (dict(rpm=-50.0), 'rpm'), (dict(rpm=0.0), 'rpm'), (dict(rpm=1e308), 'rpm'),
-    (dict(rpm=math.nan), 'rpm'), (dict(rudder_rad=1000.0), 'rudder'),
-    (dict(rudder_rad=math.nan), 'rudder'),
+    ({'dt': math.nan}, 'dt'), ({'dt': math.inf}, 'dt'), ({'dt': 0.0}, 'dt'),
+    ({'dt': -1.0}, 'dt'), ({'dt': 1e-7}, 'dt'), ({'dt': 100.0}, 'dt'),
+    ({'integrator': 'rk9'}, 'integrator'), ({'substeps': 0}, 'substeps'),
+    ({'substeps': 2.5}, 'substeps'),
+    ({'x0': [0, 0, 0, math.nan, 0, 0]}, 'not finite'),
+    ({'x0': [math.inf, 0, 0, 3.0, 0, 0]}, 'not finite'),
+    ({'x0': [1e300, 0, 0, 3.0, 0, 0]}, 'position'),
+    ({'x0': [0, 0, 0, 0.0, 0, 0]}, 'surge'), ({'x0': [0, 0, 0, 1e3, 0, 0]}, 'surge'),
+    ({'x0': [0, 0, 0, 3.0]}, 'shape'),
+    ({'rpm': -50.0}, 'rpm'), ({'rpm': 0.0}, 'rpm'), ({'rpm': 1e308}, 'rpm'),
+    ({'rpm': math.nan}, 'rpm'), ({'rudder_rad': 1000.0}, 'rudder'),
+    ({'rudder_rad': math.nan}, 'rudder'),
 ])
 def test_bad_settings_are_refused(suzaku, kw, words):
-    args = dict(dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
+    args = {'dt': 0.1, 'x0': [0, 0, 0, 3.0, 0, 0], 'rpm': 106.0}
     args.update(kw)
     with pytest.raises(SimulationError, match=words):
         ShipSimulator(suzaku, **args)
@@ -234,8 +243,10 @@ def test_any_lowspeed_command_sequence_keeps_the_state_finite(esso, cmds):
 
 
 def test_a_division_by_zero_in_the_model_is_a_failure_not_a_crash(esso):
-    """A rudder of 1e-300 rad made the lowspeed kernel raise ZeroDivisionError (compiled
-    code raises it for x / 0.0), which would kill the node: it is a reset with a reason."""
+    """
+    A rudder of 1e-300 rad made the lowspeed kernel raise ZeroDivisionError (compiled code raises
+    it for x / 0.0), which would kill the node: it is a reset with a reason.
+    """
     sim = ShipSimulator(esso, dt=0.1, x0=[0, 0, 0, 0.3, 0, 0], rpm=300.0)
     assert sim.set_rudder(1e-300) == ''
     if not sim.step(20):  # the model may since have been fixed: then it simply runs

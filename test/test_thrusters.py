@@ -1,9 +1,6 @@
 """Thrusters and low-speed trials through the data layer: bags, CSV, generate, the API."""
 import math
 
-import numpy as np
-import pytest
-
 from mmg_tuner import api as mt
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.simulate import simulate
@@ -14,6 +11,8 @@ from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import topic_map_from_dict
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, SimulationError
+import numpy as np
+import pytest
 
 ESSO_RPM = 572.0   # holds about 0.38 m/s (Froude number 0.07) with the Esso Osaka 3 m model
 ESSO_U = 0.38

@@ -1,22 +1,24 @@
-"""tune and diagnose under bad input and interruption (issue 10 sections 4 and 5): output
-folders checked and locked before the work, no half-written result sets, a diagnosis that
-resumes to the same answer, --resume from anywhere, and every bad option a one-line error."""
+"""
+Tune and diagnose under bad input and interruption (issue 10 sections 4 and 5).
+
+Output folders checked and locked before the work, no half-written result sets, a diagnosis that
+resumes to the same answer, --resume from anywhere, and every bad option a one-line error.
+"""
 import json
 import math
 import os
 
-import numpy as np
-import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-
 import mmg_tuner as mt
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli import diagnose as cli_diagnose
 from mmg_tuner.cli import tune as cli_tune
-from mmg_tuner.data.generate import SensorNoise, generate_trial
-from mmg_tuner.diagnosis.select import DiagnosisSettings, acceptance
+from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.diagnosis.select import acceptance, DiagnosisSettings
 from mmg_tuner.tuning import tuner as tuner_mod
+import numpy as np
+import pytest
 
 TINY_DX = dict(effects=('current', 'rudder_offset'), max_effects=1, base_evals=600,
                screen_evals=60, effect_evals=300)

@@ -2,10 +2,6 @@
 import json
 import math
 
-import numpy as np
-import pytest
-import yaml
-
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.generate import SensorNoise
@@ -13,6 +9,9 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
 from mmg_tuner.tuning.identifiability import standard_errors
+import numpy as np
+import pytest
+import yaml
 
 TUNE_SPECS = [mv.ManeuverSpec('turning', rudder_deg=35, duration_s=300),
               mv.ManeuverSpec('turning', rudder_deg=-20, duration_s=300),
@@ -39,11 +38,14 @@ def trials(ship, specs, noise, seed0):
 
 
 def rudder_force_invariants(ship, space, theta) -> np.ndarray:
-    """What the trials can determine of the rudder model's coefficients. Scaling epsilon and
-    gamma_R by c scales u_R and v_R by c (same attack angle, while u_R stays above u_R**), so
-    F_N by c^2: the forces, hence every trajectory, depend only on these five combinations
-    (and the other targets), not on the six coefficients separately: a one-dimensional family
-    of exact optima."""
+    """
+    Return what the trials can determine of the rudder model's coefficients.
+
+    Scaling epsilon and gamma_R by c scales u_R and v_R by c (same attack angle, while u_R stays
+    above u_R**), so F_N by c^2: the forces, hence every trajectory, depend only on these five
+    combinations (and the other targets), not on the six coefficients separately: a one-dimensional
+    family of exact optima.
+    """
     p = dict(zip(space.names, theta))
     e2 = p['epsilon'] ** 2
     return np.array([(1 - p['t_R']) * e2, (1 + p['a_H']) * e2,
@@ -52,12 +54,15 @@ def rudder_force_invariants(ship, space, theta) -> np.ndarray:
 
 
 def test_noise_free_data_recovers_every_identifiable_parameter(suzaku):
-    """Noise-free trials of a ship with all 12 targets moved: CMA-ES must reach the exact
-    optimum. Where on the family of exact optima it stops (t_R, a_H, x_H, epsilon, gamma_R
-    move together, see rudder_force_invariants) depends on the seeded path and on the CPU's
-    rounding (t_R ended 0.10 to 0.77 of its box from the truth over four seeds, x_H 0.036 on
-    an AMD EPYC where 0.01 was once asserted), so the test
-    asserts what the data determine, each with many orders of magnitude of margin:
+    """
+    Noise-free trials of a ship with all 12 targets moved: CMA-ES must reach the exact optimum.
+
+    Where on the family of exact optima it stops (t_R, a_H, x_H, epsilon, gamma_R move together,
+    see rudder_force_invariants) depends on the seeded path and on the CPU's rounding (t_R ended
+    0.10 to 0.77 of its box from the truth over four seeds, x_H 0.036 on an AMD EPYC where 0.01 was
+    once asserted), so the test asserts what the data determine, each with many orders of magnitude
+    of margin:
+
     - J at the optimum < 1e-12 of the pre-determined model's (measured ~1e-25: machine
       precision, as noise-free data allow); a wrong objective (misaligned samples, a dropped
       trial, wrong start state) or a tuner that stops early leaves it >= 1e-6;
@@ -65,7 +70,8 @@ def test_noise_free_data_recovers_every_identifiable_parameter(suzaku):
       five invariants within 1e-6 relative (measured ~1e-10): a wrong box mapping or a biased
       optimum breaks it; (15 000 evaluations: seeds 1-4 had converged by 12 000)
     - held-out manoeuvres of the truth (other rudder angles, other random orders) reproduced
-      to 1e-12 of J: the recovered model is the same ship, not a fit of these four trials."""
+      to 1e-12 of J: the recovered model is the same ship, not a fit of these four trials.
+    """
     space = ParameterSpace.around(suzaku)
     truth, theta = truth_ship(suzaku, space, 5)
     obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS, SensorNoise.none(),
@@ -86,8 +92,12 @@ def test_noise_free_data_recovers_every_identifiable_parameter(suzaku):
 
 
 def test_noisy_data_test_set_gain(suzaku):
-    """The issue's check: 12 targets moved inside the box, sensor noise: test J >= 90 % lower
-    than with the pre-determined parameters, and close to what the truth itself achieves."""
+    """
+    The issue's check.
+
+    12 targets moved inside the box, sensor noise: test J >= 90 % lower than with the
+    pre-determined parameters, and close to what the truth itself achieves.
+    """
     space = ParameterSpace.around(suzaku)
     truth, theta = truth_ship(suzaku, space, 5)
     tune = trials(truth, TUNE_SPECS, SensorNoise(), 0)
@@ -201,8 +211,11 @@ def test_tune_command_outputs(tmp_path, capsys):
 
 
 def test_measured_wind_in_the_trials_is_used_by_the_objective(suzaku):
-    """Trials recorded with an anemometer drive the model with the measured wind: the true
-    model without any wind parameter then fits them; without the measurement it cannot."""
+    """
+    Trials recorded with an anemometer drive the model with the measured wind.
+
+    The true model without any wind parameter then fits them; without the measurement it cannot.
+    """
     from dataclasses import replace
 
     from mmg_tuner.data.generate import SensorNoise, generate_trial

@@ -1,5 +1,9 @@
-"""argparse value types that validate at the edge: every option is checked once, here, with a
-message naming the option's value (argparse adds the option's name), before any work starts."""
+"""
+Argparse value types that validate at the edge.
+
+Every option is checked once, here, with a message naming the option's value (argparse adds the
+option's name), before any work starts.
+"""
 from __future__ import annotations
 
 import argparse
@@ -22,7 +26,7 @@ def finite_float(s: str) -> float:
 
 
 def positive_float(s: str) -> float:
-    """A finite number > 0."""
+    """Return a finite number > 0."""
     v = _number(float, s, 'a positive number')
     if not v > 0:
         raise argparse.ArgumentTypeError(f'{s!r} must be > 0')
@@ -30,7 +34,7 @@ def positive_float(s: str) -> float:
 
 
 def nonneg_float(s: str) -> float:
-    """A finite number >= 0."""
+    """Return a finite number >= 0."""
     v = _number(float, s, 'a number >= 0')
     if v < 0:
         raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
@@ -38,7 +42,7 @@ def nonneg_float(s: str) -> float:
 
 
 def positive_int(s: str) -> int:
-    """A whole number >= 1."""
+    """Return a whole number >= 1."""
     v = _number(int, s, 'a whole number')
     if v < 1:
         raise argparse.ArgumentTypeError(f'{s!r} must be >= 1')
@@ -46,7 +50,7 @@ def positive_int(s: str) -> int:
 
 
 def nonneg_int(s: str) -> int:
-    """A whole number >= 0."""
+    """Return a whole number >= 0."""
     v = _number(int, s, 'a whole number')
     if v < 0:
         raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
@@ -54,7 +58,11 @@ def nonneg_int(s: str) -> int:
 
 
 def bounded(kind, lo: float, hi: float, what: str = 'value'):
-    """A type accepting kind(s) within [lo, hi], e.g. ``bounded(float, 1e-4, 3600, 'dt [s]')``."""
+    """
+    Return a type accepting kind(s) within [lo, hi], e.g.
+
+    ``bounded(float, 1e-4, 3600, 'dt [s]')``.
+    """
     def parse(s: str):
         v = _number(kind, s, f'a {what}')
         if not lo <= v <= hi:

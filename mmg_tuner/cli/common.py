@@ -1,14 +1,18 @@
-"""Shared CLI plumbing: error reporting, argparse that reports through it, and single output
-files that are checked before the work starts and never replace a file this run did not make."""
+"""
+Shared CLI plumbing.
+
+Error reporting, argparse that reports through it, and single output files that are checked before
+the work starts and never replace a file this run did not make.
+"""
 from __future__ import annotations
 
 import argparse
 import errno
 import math
 import os
+from pathlib import Path
 import sys
 import tempfile
-from pathlib import Path
 from typing import Callable
 
 from mmg_tuner.cli.args import bounded
@@ -26,7 +30,7 @@ class UsageError(MmgTunerError):
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse whose errors become one ``ERROR: ...`` line with exit status 2 (run_command)."""
+    """Argparse whose errors become one ``ERROR: ...`` line with exit status 2 (run_command)."""
 
     def error(self, message: str):
         raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')
@@ -47,8 +51,12 @@ def run_command(command: Callable[[list[str] | None], int], argv: list[str] | No
 
 
 def _never_fail_printing() -> None:
-    """A file name that is not UTF-8 (kept by Python as surrogate escapes) must not crash a
-    message about it: print it with backslash escapes instead."""
+    """
+    Print a message even when a file name in it is not UTF-8.
+
+    A file name that is not UTF-8 (kept by Python as surrogate escapes) must not crash a message
+    about it: print it with backslash escapes instead.
+    """
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.reconfigure(errors='backslashreplace')
@@ -57,7 +65,7 @@ def _never_fail_printing() -> None:
 
 
 def check_samples(n: float, what: str, limit: int = MAX_RUN_SAMPLES) -> int:
-    """n samples as an int, or a UsageError naming what asked for them when n > limit."""
+    """N samples as an int, or a UsageError naming what asked for them when n > limit."""
     if not n <= limit:
         raise UsageError(f'{what} gives {n:.4g} samples, more than the {limit:.0e} one run '
                          'may hold: use a larger step or a shorter duration')
@@ -65,9 +73,12 @@ def check_samples(n: float, what: str, limit: int = MAX_RUN_SAMPLES) -> int:
 
 
 def check_new_file(path: str | Path, option: str) -> Path:
-    """Check, before the work starts, that ``path`` can be written as a new file: refuses an
-    existing file or folder (nothing is overwritten) and a location that is not writable.
-    Creates missing parent folders."""
+    """
+    Check, before the work starts, that ``path`` can be written as a new file.
+
+    Refuses an existing file or folder (nothing is overwritten) and a location that is not
+    writable. Creates missing parent folders.
+    """
     path = Path(path)
     if path.is_dir():
         raise OutputError(f'{option} {path} is an existing folder; give a file name')
@@ -85,9 +96,12 @@ def check_new_file(path: str | Path, option: str) -> Path:
 
 
 def write_new_file(path: str | Path, data: str | bytes, option: str) -> Path:
-    """Write ``data`` as the new file ``path``, atomically and without replacing anything:
-    the text goes to a temporary file that is then hard-linked into place (which fails if
-    the name was taken meanwhile). Failures raise an OutputError saying nothing was written."""
+    """
+    Write ``data`` as the new file ``path``, atomically and without replacing anything.
+
+    The text goes to a temporary file that is then hard-linked into place (which fails if the name
+    was taken meanwhile). Failures raise an OutputError saying nothing was written.
+    """
     path = Path(path)
     tmp = None
     try:
@@ -116,9 +130,12 @@ def write_new_file(path: str | Path, data: str | bytes, option: str) -> Path:
 
 def check_run(ship, rpm: float, speed_ms: float, speed_opt: str,
               rudders: list[tuple[str, float]]) -> None:
-    """Refuse, before any work, what the ship cannot plausibly do (core/limits.py): an rpm
-    beyond its plausible maximum, a speed beyond its top speed, a rudder beyond its steering
-    limit. rudders: (option as given, rudder angle [deg]) pairs."""
+    """
+    Refuse, before any work, what the ship cannot plausibly do (core/limits.py).
+
+    An rpm beyond its plausible maximum, a speed beyond its top speed, a rudder beyond its steering
+    limit. rudders: (option as given, rudder angle [deg]) pairs.
+    """
     lim = input_limits(ship)
     problem = lim.check_rpm(rpm)
     if problem:

@@ -1,10 +1,15 @@
-"""``diagnose``: what the tuned model gets wrong, its physical cause, the extended model, and
-its gain on held-out trials.
+"""
+``diagnose``: what the tuned model gets wrong, its physical cause and the extended model.
 
-Example:
-    diagnose trials/ --ship suzaku --out diag          # alternate trials held out
-    diagnose T1 T2 T3 --test T4 T5 --effects current rudder_offset --out diag
-    diagnose --resume diag                             # continue an interrupted diagnosis
+``diagnose``: what the tuned model gets wrong, its physical cause, the extended model, and its gain
+on held-out trials.
+
+Examples
+--------
+diagnose trials/ --ship suzaku --out diag          # alternate trials held out
+diagnose T1 T2 T3 --test T4 T5 --effects current rudder_offset --out diag
+diagnose --resume diag                             # continue an interrupted diagnosis
+
 """
 from __future__ import annotations
 
@@ -14,10 +19,10 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import CUT_HELP, bounded, event_cut, positive_float
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, positive_float
 from mmg_tuner.cli.common import run_command
-from mmg_tuner.cli.tune import (DT, SEED, Parser, UsageError, parse_or_resume, show_log,
-                                sigterm_as_interrupt, store_args)
+from mmg_tuner.cli.tune import (DT, parse_or_resume, Parser, SEED, show_log, sigterm_as_interrupt,
+                                store_args, UsageError)
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
@@ -26,7 +31,7 @@ CHECKPOINT = 'checkpoint.pkl'
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='diagnose', description=__doc__.split('\n')[0],
+    ap = Parser(prog='diagnose', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('trials', nargs='*', help='trials: bags, .mcap, .csv, .dat, or folders')
     ap.add_argument('--test', nargs='*', default=[],
@@ -90,7 +95,7 @@ def command(argv: list[str] | None = None) -> int:
                 raise UsageError(
                     f'{len(trials)} trial(s) and no --test: holding out every second trial '
                     'needs at least four (with one held-out trial no cause can ever be named: '
-                    'the gain\'s uncertainty is infinite); give more trials or --test with two '
+                    "the gain's uncertainty is infinite); give more trials or --test with two "
                     'or more')
             trials, test = api.split_alternate(trials)
             print(f"held out (every second trial): {', '.join(t.name for t in test)}")

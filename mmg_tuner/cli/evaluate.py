@@ -1,12 +1,15 @@
-"""``evaluate``: how good is a model on recorded trials (per-state RMS and the eq. 26 index)?
+"""
+``evaluate``: how good is a model on recorded trials (per-state RMS and the eq. 26 index).
 
 Simulates each trial driven by its recorded inputs (and measured wind), restarting from the
 measured state every N s, and writes the RMS error of each state and the index of Wakita et al.
 (2022, eq. 26) per trial: evaluate.json, evaluate.md and overlay plots.
 
-Example:
-    evaluate data/esso_osaka_frt/berthing --ship esso_osaka_3m --restart-every 100 --out ev
-    evaluate trials/ --ship suzaku --params tuned/params.yaml --out ev_tuned
+Examples
+--------
+evaluate data/esso_osaka_frt/berthing --ship esso_osaka_3m --restart-every 100 --out ev
+evaluate trials/ --ship suzaku --params tuned/params.yaml --out ev_tuned
+
 """
 from __future__ import annotations
 
@@ -15,8 +18,8 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import CUT_HELP, bounded, event_cut, nonneg_float
-from mmg_tuner.cli.common import Parser, UsageError, run_command
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float
+from mmg_tuner.cli.common import Parser, run_command, UsageError
 from mmg_tuner.cli.tune import show_log
 
 DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
@@ -24,7 +27,7 @@ SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='evaluate', description=__doc__.split('\n')[0],
+    ap = Parser(prog='evaluate', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('trials', nargs='+', help='recorded trials: bags, .mcap, .csv, .dat, folders')
     ap.add_argument('--ship', default='suzaku')

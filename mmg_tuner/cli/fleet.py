@@ -1,12 +1,15 @@
-"""``fleet``: tune and diagnose many ships on a Dask cluster (a LocalCluster by default).
+"""
+``fleet``: tune and diagnose many ships on a Dask cluster (a LocalCluster by default).
 
-Example:
-    fleet fleet.yaml --out fleet_out                          # this machine, one worker per core
-    fleet fleet.yaml --out fleet_out --scheduler tcp://10.0.0.5:8786
-    fleet fleet.yaml --out fleet_out                          # again: up-to-date ships skipped
+Examples
+--------
+fleet fleet.yaml --out fleet_out                          # this machine, one worker per core
+fleet fleet.yaml --out fleet_out --scheduler tcp://10.0.0.5:8786
+fleet fleet.yaml --out fleet_out                          # again: up-to-date ships skipped
 
 Exit status 0 when every ship ran or was up to date, 1 when some failed (each with its reason
 in fleet.md and OUT/<ship>/fleet_ship.json), 2 on a usage or manifest error.
+
 """
 from __future__ import annotations
 
@@ -14,11 +17,11 @@ import argparse
 import sys
 
 from mmg_tuner.cli.args import positive_int
-from mmg_tuner.cli.common import Parser, UsageError, run_command
+from mmg_tuner.cli.common import Parser, run_command, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='fleet', description=__doc__.split('\n')[0],
+    ap = Parser(prog='fleet', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('manifest', help='fleet manifest YAML (ships, their trials and options)')
     ap.add_argument('--out', required=True,
@@ -70,7 +73,7 @@ def command(argv: list[str] | None = None) -> int:
                                  f'{args.scheduler})') from None
             info = client.scheduler_info(n_workers=-1)
             print(f"fleet: {len(manifest)} ship(s) on {len(info['workers'])} worker(s); "
-                  f"dashboard {_dashboard(client, info)}"
+                  f'dashboard {_dashboard(client, info)}'
                   f"{'; resuming ' + args.out if resumed else ''}", file=sys.stderr)
             bar = None if args.quiet else _bar(len(manifest))
             try:
@@ -100,7 +103,7 @@ def command(argv: list[str] | None = None) -> int:
 
 
 def _dashboard(client, info: dict) -> str:
-    """The scheduler's dashboard address, when it serves one (it needs bokeh)."""
+    """Return the scheduler's dashboard address, when it serves one (it needs bokeh)."""
     if 'dashboard' not in info.get('services', {}):
         return 'not served by this scheduler (it needs bokeh)'
     return client.dashboard_link

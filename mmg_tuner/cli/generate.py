@@ -1,5 +1,7 @@
-"""``generate``: synthetic trials of a ship (turning, zigzag, pull-out, random) with sensor noise,
-written as rosbag2 (MCAP by default) with the default topics, plus CSV (in DIR/csv/).
+"""
+``generate``: synthetic trials of a ship (turning, zigzag, pull-out, random) with sensor noise.
+
+Written as rosbag2 (MCAP by default) with the default topics, plus CSV (in DIR/csv/).
 
 For a ship whose family covers astern propeller, u <= 0 and thrusters (lowspeed, e.g.
 esso_osaka_3m) also low-speed trials: berthing:RUDDER (approach with RUDDER deg of helm, stop,
@@ -10,22 +12,24 @@ rudder, propeller ahead and astern, thruster steps); the thrusters go on their o
 taken (by a file already there or by an earlier manoeuvre of the same call) is written beside
 it as NAME_2, NAME_3, ...
 
-Example:
-    generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20 random:30
-    generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
-        --duration 300
+Examples
+--------
+generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20 random:30
+generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
+    --duration 300
+
 """
 from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 import shutil
 import sys
-from pathlib import Path
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, positive_float
-from mmg_tuner.cli.common import SEED, Parser, UsageError, check_run, check_samples, run_command
+from mmg_tuner.cli.common import check_run, check_samples, Parser, run_command, SEED, UsageError
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import load_ship
@@ -33,7 +37,7 @@ from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
-from mmg_tuner.data.generate import SensorNoise, generate_trial, parse_maneuver
+from mmg_tuner.data.generate import generate_trial, parse_maneuver, SensorNoise
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 
 # per trial: 1e6 samples is ~0.8 GB of bag (three topics a sample); a day at 10 Hz fits
@@ -48,7 +52,7 @@ FALLBACK_FROUDE = 0.07   # approach of a ship for which 6 kn is implausible (a p
 
 
 def maneuver_spec(s: str) -> tuple[str, float, float | None]:
-    """argparse type of 'turning:35', 'zigzag:20/10', ... (see parse_maneuver)."""
+    """Argparse type of 'turning:35', 'zigzag:20/10', ... (see parse_maneuver)."""
     try:
         return parse_maneuver(s)
     except SimulationError as exc:
@@ -56,7 +60,7 @@ def maneuver_spec(s: str) -> tuple[str, float, float | None]:
 
 
 def effect_spec(s: str) -> tuple[str, float]:
-    """argparse type of NAME=VALUE with a finite VALUE."""
+    """Argparse type of NAME=VALUE with a finite VALUE."""
     name, eq, val = s.partition('=')
     try:
         v = float(val)
@@ -69,7 +73,7 @@ def effect_spec(s: str) -> tuple[str, float]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='generate', description=__doc__.split('\n')[0],
+    ap = Parser(prog='generate', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('--ship', default='suzaku')
     ap.add_argument('--params', help='params.yaml overlay (e.g. true parameters moved)')
@@ -98,8 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     ap.add_argument('--seed', type=SEED, default=0)
     ap.add_argument('--from-advice', metavar='DIAGNOSIS_JSON',
-                    help="the trials a diagnosis advised (its diagnosis.json or folder), in "
-                    "place of --maneuvers (each spec sets its own rpm, speed and duration)")
+                    help='the trials a diagnosis advised (its diagnosis.json or folder), in '
+                    'place of --maneuvers (each spec sets its own rpm, speed and duration)')
     return ap
 
 
@@ -205,8 +209,12 @@ def command(argv: list[str] | None = None) -> int:
 
 
 def _write(out: OutputDir, trial, name: str, storage: str) -> None:
-    """The bag, then the CSV; a bag left half-written by a failure (ours, of this run) is
-    removed so that no corrupt recording stays behind."""
+    """
+    The bag, then the CSV.
+
+    A bag left half-written by a failure (ours, of this run) is removed so that no corrupt
+    recording stays behind.
+    """
     bag = out.path / name
     try:
         write_trial_bag(trial, bag, storage)

@@ -1,17 +1,21 @@
-"""``inspect``: what a recording holds as a ship trial — like `ros2 bag info`, plus how it is
-read (the pose source: Odometry or NavSatFix + heading, the datum, frames, time bases, topics
-found by type), a suspected command/state time offset, detected manoeuvres, speed/rpm/rudder
-ranges and every problem found; ``--csv DIR`` writes each trial resampled in the model frame.
-Exit status 1 when nothing usable is in the input.
+"""
+``inspect``: what a recording holds as a ship trial — like `ros2 bag info`.
 
-Example:
-    inspect trials/turning_p35 trials/zigzag_p20 --csv out/
+Plus how it is read (the pose source: Odometry or NavSatFix + heading, the datum, frames, time
+bases, topics found by type), a suspected command/state time offset, detected manoeuvres,
+speed/rpm/rudder ranges and every problem found; ``--csv DIR`` writes each trial resampled in the
+model frame. Exit status 1 when nothing usable is in the input.
+
+Examples
+--------
+inspect trials/turning_p35 trials/zigzag_p20 --csv out/
+
 """
 from __future__ import annotations
 
 import argparse
-import sys
 from dataclasses import replace
+import sys
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut
@@ -26,7 +30,7 @@ DT = bounded(float, 1e-3, 3600.0, 'resampling step dt [s]')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='inspect', description=__doc__.split('\n')[0],
+    ap = Parser(prog='inspect', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('inputs', nargs='+', help='rosbag2 dirs, .mcap, .csv, .dat, or folders')
     ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics; a topic '

@@ -1,8 +1,11 @@
-"""``simulate``: one manoeuvre of a ship config, written as CSV, with its manoeuvring indices.
+r"""
+``simulate``: one manoeuvre of a ship config, written as CSV, with its manoeuvring indices.
 
-Example:
-    simulate --ship suzaku --maneuver turning --rudder-deg 35 --rpm 106 --speed-kn 6 \\
-        --duration 900 --dt 1.0 --integrator euler --out run.csv
+Examples
+--------
+simulate --ship suzaku --maneuver turning --rudder-deg 35 --rpm 106 --speed-kn 6 \
+    --duration 900 --dt 1.0 --integrator euler --out run.csv
+
 """
 from __future__ import annotations
 
@@ -10,29 +13,28 @@ import argparse
 import math
 import sys
 
-import numpy as np
-
 from mmg_tuner.cli.args import bounded, finite_float, nonneg_float, positive_float
-from mmg_tuner.cli.common import (SEED, Parser, UsageError, check_new_file, check_run,
-                                  check_samples, run_command, write_new_file)
+from mmg_tuner.cli.common import (check_new_file, check_run, check_samples, Parser, run_command,
+                                  SEED, UsageError, write_new_file)
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.integrate import observe, start_state
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.residual import (N_FEATURES, ResidualStepper, advance_hybrid,
-                                     apparent_wind_body, simulate_hybrid_one)
+from mmg_tuner.core.residual import (advance_hybrid, apparent_wind_body, N_FEATURES,
+                                     ResidualStepper, simulate_hybrid_one)
 from mmg_tuner.core.ship import load_ship, ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.csv_io import csv_text
+import numpy as np
 
 
 SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
 
 
 def check_angle(s: str) -> float:
-    """A zigzag check angle [deg]: 0 < |angle| <= 90 (its sign is not used)."""
+    """Return a zigzag check angle [deg]: 0 < |angle| <= 90 (its sign is not used)."""
     v = finite_float(s)
     if not 0 < abs(v) <= 90:
         raise argparse.ArgumentTypeError(f'check angle {s!r} must satisfy 0 < |angle| <= 90 deg')
@@ -40,7 +42,7 @@ def check_angle(s: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='simulate', description=__doc__.split('\n')[0],
+    ap = Parser(prog='simulate', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('--ship', default='suzaku', help='ship config name or YAML path')
     ap.add_argument('--params', help='params.yaml with tuned values to overlay')
@@ -50,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--check-deg', type=check_angle,
                     help='zigzag check angle (default = rudder)')
     ap.add_argument('--rpm', type=positive_float, default=106.0,
-                    help='propeller revolutions [rpm], up to the ship\'s plausible maximum')
+                    help="propeller revolutions [rpm], up to the ship's plausible maximum")
     speed = ap.add_mutually_exclusive_group()
     speed.add_argument('--speed-kn', type=positive_float, default=6.0, help='approach speed [kn]')
     speed.add_argument('--speed-ms', type=positive_float, help='approach speed [m/s]')
@@ -65,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--pullout-after', type=positive_float, default=300.0,
                     help='pull-out: time the rudder is held before returning to 0 [s]')
     ap.add_argument('--rudder-rate', type=nonneg_float,
-                    help='steering-gear rate [deg/s]; 0 = instantaneous; default: the ship\'s')
+                    help="steering-gear rate [deg/s]; 0 = instantaneous; default: the ship's")
     ap.add_argument('--seed', type=SEED, default=0, help='random manoeuvre seed')
     ap.add_argument('--out', help='new CSV file to write (t,x,y,psi,u,v,r,rpm,rudder); an '
                                   'existing file is never overwritten')
@@ -166,7 +168,7 @@ def hybrid_maneuver(ship: ShipConfig, spec: mv.ManeuverSpec) -> Trial:
 
 
 def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
-    """The IMO zigzag of integrate.run_maneuver, closed on the hybrid's heading."""
+    """Return the IMO zigzag of integrate.run_maneuver, closed on the hybrid's heading."""
     net = ship.residual
     p = np.ascontiguousarray(ship.params, dtype=float)
     T, dt, n_sub = len(phys), float(spec.dt), int(spec.substeps)

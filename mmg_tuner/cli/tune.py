@@ -1,8 +1,11 @@
-"""``tune``: fine-tune MMG parameters on recorded trials with CMA-ES (Suyama et al. 2023).
+"""
+``tune``: fine-tune MMG parameters on recorded trials with CMA-ES (Suyama et al. 2023).
 
-Example:
-    tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suzaku --out tuned
-    tune --resume tuned        # continue an interrupted run (from any working directory)
+Examples
+--------
+tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suzaku --out tuned
+tune --resume tuned        # continue an interrupted run (from any working directory)
+
 """
 from __future__ import annotations
 
@@ -11,15 +14,15 @@ import contextlib
 import json
 import logging
 import math
+from pathlib import Path
 import signal
 import sys
-from pathlib import Path
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import (CUT_HELP, bounded, event_cut, nonneg_float, positive_float,
+from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, positive_float,
                                 positive_int)
-from mmg_tuner.cli.common import SEED, Parser, UsageError, run_command
+from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
@@ -52,7 +55,7 @@ def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='tune', description=__doc__.split('\n')[0],
+    ap = Parser(prog='tune', description=__doc__.strip().split('\n')[0],
                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument('trials', nargs='*', help='tuning trials: bags, .mcap, .csv, .dat, folders')
     ap.add_argument('--test', nargs='*', default=[], help='held-out test trials')
@@ -68,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help='per-parameter a_r or explicit bounds (repeatable)')
     ap.add_argument('--weights', nargs=6, type=nonneg_float,
                     metavar=('X', 'Y', 'PSI', 'U', 'V', 'R'),
-                    help='error weights, >= 0, not all 0 (default: the paper\'s L_pp, L_pp, '
+                    help="error weights, >= 0, not all 0 (default: the paper's L_pp, L_pp, "
                     'pi/4, 0, 0, 0)')
     ap.add_argument('--shoot-every', type=nonneg_float, default=0.0,
                     help='restart the simulation from the recorded state every H s (0: never)')
@@ -119,8 +122,11 @@ PATH_OPTS = ('params', 'topics', 'out')
 
 
 def absolute_paths(opts: dict) -> dict:
-    """Option values with every path made absolute (a resume may run from another folder).
-    --ship stays a name unless it names an existing file."""
+    """
+    Option values with every path made absolute (a resume may run from another folder).
+
+    --ship stays a name unless it names an existing file.
+    """
     o = dict(opts)
     for k in PATH_LISTS:
         if o.get(k):
@@ -135,12 +141,12 @@ def absolute_paths(opts: dict) -> dict:
 
 
 def explicit_options(parser: argparse.ArgumentParser, argv: list[str] | None) -> dict:
-    """The options actually given on the command line (not defaults)."""
+    """Return the options actually given on the command line (not defaults)."""
     quiet = Parser(prog=parser.prog, add_help=False)
     for a in parser._actions:
         if a.dest == 'help':
             continue
-        kw = dict(dest=a.dest, default=argparse.SUPPRESS)
+        kw = {'dest': a.dest, 'default': argparse.SUPPRESS}
         if isinstance(a, argparse._StoreTrueAction):
             quiet.add_argument(*a.option_strings, action='store_true', **kw)
         elif isinstance(a, argparse._AppendAction):
@@ -163,8 +169,12 @@ def option_name(parser: argparse.ArgumentParser, dest: str) -> str:
 
 def parse_or_resume(parser: argparse.ArgumentParser, argv: list[str] | None, command: str,
                     what: str) -> tuple[argparse.Namespace, list[str], bool]:
-    """Parse argv; with --resume DIR the stored run's options (and notes on what was applied
-    or refused), else require trials and --out. Returns (args, notes, resume)."""
+    """
+    Parse argv, or with --resume DIR read the stored run's options.
+
+    Parse argv; with --resume DIR the stored run's options (and notes on what was applied or
+    refused), else require trials and --out. Returns (args, notes, resume).
+    """
     args = parser.parse_args(argv)
     if args.resume:
         args, notes = resumed_args(parser, argv, command, ('quiet', 'no_plots'))
@@ -176,9 +186,13 @@ def parse_or_resume(parser: argparse.ArgumentParser, argv: list[str] | None, com
 
 def resumed_args(parser: argparse.ArgumentParser, argv: list[str] | None, command: str,
                  applicable: tuple[str, ...]) -> tuple[argparse.Namespace, list[str]]:
-    """The stored options of the run in --resume DIR. Options given with --resume must equal
-    the stored ones, except ``applicable`` ones (which cannot change the result so far),
-    which are applied. Returns (options, messages about what was applied)."""
+    """
+    Return the stored options of the run in --resume DIR.
+
+    Options given with --resume must equal the stored ones, except ``applicable`` ones (which
+    cannot change the result so far), which are applied. Returns (options, messages about what was
+    applied).
+    """
     given = explicit_options(parser, argv)
     out = Path(given.pop('resume'))
     saved = out / ARGS_FILE

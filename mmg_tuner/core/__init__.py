@@ -1,4 +1,5 @@
-"""Pure numerical core: ship configs, model families, integrators, manoeuvres, indices.
+"""
+Pure numerical core: ship configs, model families, integrators, manoeuvres, indices.
 
 Imports NumPy, numba and PyYAML only; never rclpy, never the data/tuning layers.
 
@@ -19,7 +20,7 @@ from mmg_tuner.core import _numba_cache
 _numba_cache.configure()  # before any kernel module is imported: cache keyed by the sources
 
 from mmg_tuner.core.layout import PARAM_NAMES, STATE_NAMES  # noqa: E402
-from mmg_tuner.core.ship import ShipConfig, load_ship  # noqa: E402
+from mmg_tuner.core.ship import load_ship, ShipConfig  # noqa: E402
 from mmg_tuner.core.simulate import simulate, simulate_batch  # noqa: E402
 from mmg_tuner.core.trial import Trajectory, Trial  # noqa: E402
 

@@ -1,4 +1,5 @@
-"""Numba's on-disk cache, keyed by the package version and a hash of the core's sources.
+"""
+Numba's on-disk cache, keyed by the package version and a hash of the core's sources.
 
 Numba invalidates a cached kernel when *its own* source file changes, not when a module it
 imports does (a family's forces, a parameter index in ``layout``, a flag in a registry):
@@ -12,8 +13,8 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from pathlib import Path
+import tempfile
 
 CORE_DIR = Path(__file__).resolve().parent
 _BASE_ENV = os.environ.get('NUMBA_CACHE_DIR', '')  # as given before configure() ran
@@ -40,7 +41,7 @@ def _writable(d: Path) -> bool:
 
 
 def cache_dir() -> Path:
-    """The folder this installation's kernels cache into (created if needed)."""
+    """Return the folder this installation's kernels cache into (created if needed)."""
     import numba
 
     from mmg_tuner import __version__

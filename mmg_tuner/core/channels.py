@@ -1,4 +1,5 @@
-"""Named input channels: what drives a simulation, one column each.
+"""
+Named input channels: what drives a simulation, one column each.
 
 A recorded or planned input array ``ctrl`` has shape (T, n) with its columns in
 :data:`CHANNELS` order; trailing channels may be left out (n = 2 is rpm and rudder only):

@@ -1,7 +1,9 @@
-"""Family-blind dynamics: dispatch to the model family's forces, the effects that act as
-forces, wind loads (the family's own wind model, or Blendermann's), and the equations of
-motion (paper eq. 7 / Yasukawa & Yoshimura 2015 eq. 4) solved for the accelerations; ds/dt
-with the current's kinematics.
+"""
+Family-blind dynamics.
+
+Dispatch to the model family's forces, the effects that act as forces, wind loads (the family's own
+wind model, or Blendermann's), and the equations of motion (paper eq. 7 / Yasukawa & Yoshimura 2015
+eq. 4) solved for the accelerations; ds/dt with the current's kinematics.
 
 The model state is (x_E, y_E, psi, u, v_m, r) with u, v_m relative to the water; with a
 current, kinematics add the current and outputs report velocities over ground.
@@ -17,14 +19,13 @@ from __future__ import annotations
 import math
 import warnings
 
-from numba import literal_unroll, njit, types
-from numba.core.errors import NumbaExperimentalFeatureWarning
-from numba.extending import overload
-
 from mmg_tuner.core._jit import FASTMATH, U_MIN
 from mmg_tuner.core.channels import ACT_N
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import families
+from numba import literal_unroll, njit, types
+from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.extending import overload
 
 # literal_unroll over a tuple of dispatchers reports numba's first-class-function machinery as
 # experimental; each call in the unrolled loop is a static, inlined call.
@@ -134,7 +135,7 @@ _wdel = PARAM_INDEX['wind_delta']
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def family_forces(kind, p, u, v, r, act):
-    """The forces of family ``kind`` (code or tag): (X [N], Y [N], N [N m])."""
+    """Return the forces of family ``kind`` (code or tag): (X [N], Y [N], N [N m])."""
     return _forces_of(kind, p, u, v, r, act)
 
 
@@ -183,7 +184,8 @@ def accelerations(kind, p, u, v, r, act):
 
 @njit(cache=True, fastmath=FASTMATH)
 def wind_loads(p, psi, u_g, v_g):
-    """Wind force and moment (X [N], Y [N], N [N m]) on the above-water ship, Blendermann (1994).
+    """
+    Wind force and moment (X [N], Y [N], N [N m]) on the above-water ship, Blendermann (1994).
 
     A steady true wind of p[wind_speed] m/s blows *from* p[wind_dir] (rad, clockwise from north,
     the meteorological convention); u_g, v_g is the ship's velocity over ground (body axes).
@@ -194,8 +196,10 @@ def wind_loads(p, psi, u_g, v_g):
 
 @njit(cache=True, fastmath=FASTMATH)
 def blendermann(p, ua, va):
-    """Blendermann (1994) wind loads (X [N], Y [N], N [N m]) from the apparent wind (ua, va):
-    the air's velocity relative to the ship in body axes [m/s].
+    """
+    Blendermann (1994) wind loads (X [N], Y [N], N [N m]) from the apparent wind (ua, va).
+
+    The air's velocity relative to the ship in body axes [m/s].
 
     gamma is the apparent wind's angle *from* the bow, + from starboard, so the formulas read
     (Blendermann 1994 eqs. for C_X, C_Y, C_N as given in Fossen 2011 sec. 8.1, with that
@@ -251,9 +255,13 @@ def _wind_of_impl(kind, p, ua, va):
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def family_wind(kind, p, ua, va):
-    """Wind loads (X [N], Y [N], N [N m]) of family ``kind``'s wind model (its own, else
-    Blendermann's) from the apparent wind (ua, va), the air's velocity relative to the ship in
-    body axes [m/s]."""
+    """
+    Compute the wind loads of family ``kind``'s wind model from the apparent wind.
+
+    Wind loads (X [N], Y [N], N [N m]) of family ``kind``'s wind model (its own, else
+    Blendermann's) from the apparent wind (ua, va), the air's velocity relative to the ship in body
+    axes [m/s].
+    """
     return _wind_of(kind, p, ua, va)
 
 

@@ -1,4 +1,5 @@
-"""Effects: small physical model extensions, each declared once, here.
+"""
+Effects: small physical model extensions, each declared once, here.
 
 An effect is one :class:`Effect` entry in :data:`EFFECTS`. It declares, for each of its
 parameters, the neutral value at which it vanishes, the search box, whether the parameter is a
@@ -21,9 +22,9 @@ imports: ``layout`` reads it.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Union
+import math
+from typing import Callable, TYPE_CHECKING, Union
 
 if TYPE_CHECKING:
     from mmg_tuner.core.ship import ShipConfig
@@ -41,19 +42,24 @@ def froude_factor(unit: str, ratio: float) -> float:
 
 @dataclass(frozen=True)
 class Effect:
-    """One effect. Per-parameter tuples run parallel to ``params``.
+    """
+    One effect.
 
-    Attributes:
-        name: effect name (what ``diagnose --effects`` takes).
-        params: names of its slots in the flat parameter vector.
-        units: unit of each parameter ('m', 's', 'm/s' are Froude-scaled; 'rad', '-' are not).
-        description: the physics, in one sentence.
-        smallest: smallest magnitude worth finding, full scale, measured from neutral (0 for
-            directions: they have no size).
-        neutral: values at which the effect vanishes.
-        boxes: search box of each parameter (see :data:`Box`).
-        periodic: whether the parameter is a direction (wraps at +-pi).
-        words: formats values (and optional standard errors) for people.
+    Per-parameter tuples run parallel to ``params``.
+
+    Attributes
+    ----------
+    name: effect name (what ``diagnose --effects`` takes).
+    params: names of its slots in the flat parameter vector.
+    units: unit of each parameter ('m', 's', 'm/s' are Froude-scaled; 'rad', '-' are not).
+    description: the physics, in one sentence.
+    smallest: smallest magnitude worth finding, full scale, measured from neutral (0 for
+        directions: they have no size).
+    neutral: values at which the effect vanishes.
+    boxes: search box of each parameter (see :data:`Box`).
+    periodic: whether the parameter is a direction (wraps at +-pi).
+    words: formats values (and optional standard errors) for people.
+
     """
 
     name: str
@@ -73,7 +79,7 @@ class Effect:
                 raise ValueError(f'effect {self.name}: {what} needs {n} entries')
 
     def bounds(self, ship: 'ShipConfig') -> list[tuple[float, float]]:
-        """The search box of each parameter at the ship's scale."""
+        """Return the search box of each parameter at the ship's scale."""
         out = []
         for box, unit in zip(self.boxes, self.units):
             if callable(box):
@@ -84,14 +90,22 @@ class Effect:
         return out
 
     def smallest_for(self, ship: 'ShipConfig') -> tuple[float, ...]:
-        """The smallest magnitudes Froude-scaled to the ship's scale (times and speeds by
-        1/sqrt(ratio), lengths by 1/ratio)."""
+        """
+        Return the smallest magnitudes Froude-scaled to the ship's scale.
+
+        The smallest magnitudes Froude-scaled to the ship's scale (times and speeds by
+        1/sqrt(ratio), lengths by 1/ratio).
+        """
         return tuple(v * froude_factor(u, ship.scale_ratio)
                      for v, u in zip(self.smallest, self.units))
 
     def too_small(self, ship: 'ShipConfig', values: dict[str, float]) -> bool:
-        """Whether every sized parameter is below the smallest magnitude worth finding (an
-        effect that small is noise-fitting, not a cause)."""
+        """
+        Tell whether every sized parameter is below the smallest magnitude worth finding.
+
+        Whether every sized parameter is below the smallest magnitude worth finding (an effect that
+        small is noise-fitting, not a cause).
+        """
         sized = [(p, s, n) for p, s, n in zip(self.params, self.smallest_for(ship), self.neutral)
                  if s > 0]
         return bool(sized) and all(abs(values[p] - n) < s for p, s, n in sized)
@@ -162,7 +176,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            smallest=(0.003,), neutral=(0.0,),
            boxes=((-0.03, 0.03),),                              # ~15 % of K_T at most
            periodic=(False,),
-           words=lambda v, e: (f"propeller side force C_YPS = "
+           words=lambda v, e: (f'propeller side force C_YPS = '
                                f"{_pm(v, e, 'prop_side_force', fmt='.2e')} "
                                '(+: stern pushed to starboard)')),
     Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
@@ -182,5 +196,9 @@ PARAM_NEUTRAL: dict[str, float] = {p: n for e in EFFECTS.values()
 
 def describe_values(effect: Effect, values: dict[str, float],
                     errors: dict[str, float] | None = None) -> str:
-    """Human wording, e.g. 'current 0.34 ± 0.03 m/s toward 112 ± 4 deg'."""
+    """
+    Human wording, e.g.
+
+    'current 0.34 ± 0.03 m/s toward 112 ± 4 deg'.
+    """
     return effect.words(values, errors or {})

@@ -1,4 +1,5 @@
-"""Frame conventions and conversions, in one place.
+"""
+Frame conventions and conversions, in one place.
 
 ROS (REP-103/105) world frames are ENU: x east, y north, z up, yaw counter-clockwise from east;
 ``base_link`` is x forward, y port (left), z up. The MMG earth frame (the model state) is
@@ -16,18 +17,21 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-from numba import njit
-
 from mmg_tuner.core._jit import FASTMATH
+from numba import njit
+import numpy as np
 
 TWO_PI = 2.0 * math.pi
 
 
 @njit(cache=True, fastmath=FASTMATH)
 def wrap_pi(a):
-    """An angle [rad] wrapped into [-pi, pi) (a value already inside (-pi, pi] is returned
-    unchanged: heading errors almost always are, so the costly modulo is skipped)."""
+    """
+    Return an angle [rad] wrapped into [-pi, pi).
+
+    An angle [rad] wrapped into [-pi, pi) (a value already inside (-pi, pi] is returned unchanged:
+    heading errors almost always are, so the costly modulo is skipped).
+    """
     if -math.pi < a <= math.pi:
         return a
     return (a + math.pi) % TWO_PI - math.pi
@@ -39,7 +43,7 @@ def wrap_angle(a):
 
 
 def unwrap(psi):
-    """A continuous heading history [rad] from a wrapped one (jumps over pi removed)."""
+    """Return a continuous heading history [rad] from a wrapped one (jumps over pi removed)."""
     return np.unwrap(np.asarray(psi, dtype=float))
 
 
@@ -75,8 +79,9 @@ def mmg_to_enu_position(x_e, y_e):
 
 
 def flu_to_mmg_body(vx, vy, wz):
-    """base_link (forward, left, up) velocities -> MMG body (u forward, v starboard, r
-    clockwise)."""
+    """
+    base_link (forward, left, up) velocities -> MMG body (u forward, v starboard, r clockwise).
+    """
     return vx, -vy, -wz
 
 
@@ -86,7 +91,7 @@ def mmg_body_to_flu(u, v, r):
 
 
 def enu_vector_to_ne(vx_enu, vy_enu):
-    """A world vector in ENU (east, north) -> (north, east) components."""
+    """Return a world vector in ENU (east, north) -> (north, east) components."""
     return vy_enu, vx_enu
 
 
@@ -97,6 +102,6 @@ def body_to_ne(psi, fwd, stbd):
 
 
 def ne_to_body(psi, north, east):
-    """A (north, east) vector -> body axes (forward, starboard) at heading psi."""
+    """Return a (north, east) vector -> body axes (forward, starboard) at heading psi."""
     c, s = np.cos(psi), np.sin(psi)
     return north * c + east * s, -north * s + east * c

@@ -1,23 +1,25 @@
-"""Geodetic (WGS84 latitude, longitude, ellipsoidal height) <-> a local tangent plane.
+"""
+Geodetic (WGS84 latitude, longitude, ellipsoidal height) <-> a local tangent plane.
 
 A thin wrapper over pymap3d (a maintained, pure-Python geodesy library) so that the rest of the
 package never does ellipsoid maths by hand. The local frame is ENU at a datum: x east,
 y north, z up [m] -- the ROS ``map`` frame of REP-103/105 (see docs/conventions.md).
 
-Example:
-    >>> d = Datum(35.5, 139.8, 0.0)
-    >>> e, n, u = geodetic_to_enu(lat, lon, alt, d)          # numpy arrays, metres
-    >>> lat2, lon2, alt2 = enu_to_geodetic(e, n, u, d)       # back, degrees and metres
+Examples
+--------
+>>> d = Datum(35.5, 139.8, 0.0)
+>>> e, n, u = geodetic_to_enu(lat, lon, alt, d)          # numpy arrays, metres
+>>> lat2, lon2, alt2 = enu_to_geodetic(e, n, u, d)       # back, degrees and metres
+
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-import numpy as np
-import pymap3d
+import math
 
 from mmg_tuner.errors import ConfigError, TrialDataError
+import numpy as np
+import pymap3d
 
 WGS84 = pymap3d.Ellipsoid.from_name('wgs84')
 ALT_MAX_M = 1.0e5  # |altitude| beyond 100 km is no ship's GNSS fix
@@ -25,8 +27,11 @@ ALT_MAX_M = 1.0e5  # |altitude| beyond 100 km is no ship's GNSS fix
 
 @dataclass(frozen=True)
 class Datum:
-    """Origin of a local ENU frame: WGS84 latitude and longitude [deg] and ellipsoidal
-    height [m] (what sensor_msgs/NavSatFix carries). Refused when not finite or out of range.
+    """
+    Origin of a local ENU frame.
+
+    WGS84 latitude and longitude [deg] and ellipsoidal height [m] (what sensor_msgs/NavSatFix
+    carries). Refused when not finite or out of range.
     """
 
     lat_deg: float
@@ -43,8 +48,11 @@ class Datum:
 
 
 def datum_from_fixes(lat_deg, lon_deg, alt_m, source: str = 'fixes') -> Datum:
-    """The first fix whose three values are finite, as a datum (a recording's default origin).
-    source names the topic or file for the error when there is none."""
+    """
+    Return the first fix whose three values are finite, as a datum (a recording's default origin).
+
+    Source names the topic or file for the error when there is none.
+    """
     lat, lon, alt = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (lat_deg, lon_deg, alt_m))
     ok = np.flatnonzero(np.isfinite(lat) & np.isfinite(lon) & np.isfinite(alt))
     if ok.size == 0:
@@ -65,8 +73,12 @@ def _check_latlon(lat: np.ndarray, lon: np.ndarray) -> None:
 
 def geodetic_to_enu(lat_deg, lon_deg, alt_m, datum: Datum
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """East, north, up [m] of WGS84 points about ``datum``; vectorised (numpy broadcasting),
-    NaN in gives NaN out. Returns float arrays of the broadcast shape (0-d for scalars)."""
+    """
+    East, north, up [m] of WGS84 points about ``datum``.
+
+    Vectorised (numpy broadcasting), NaN in gives NaN out. Returns float arrays of the broadcast
+    shape (0-d for scalars).
+    """
     lat, lon, alt = np.broadcast_arrays(*(np.asarray(a, dtype=float)
                                           for a in (lat_deg, lon_deg, alt_m)))
     _check_latlon(lat, lon)
@@ -77,8 +89,11 @@ def geodetic_to_enu(lat_deg, lon_deg, alt_m, datum: Datum
 
 def enu_to_geodetic(e_m, n_m, u_m, datum: Datum
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """WGS84 latitude, longitude [deg] and ellipsoidal height [m] of ENU points about
-    ``datum``; vectorised like :func:`geodetic_to_enu`, whose inverse it is."""
+    """
+    WGS84 latitude, longitude [deg] and ellipsoidal height [m] of ENU points about ``datum``.
+
+    Vectorised like :func:`geodetic_to_enu`, whose inverse it is.
+    """
     e, n, u = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (e_m, n_m, u_m)))
     lat, lon, alt = pymap3d.enu2geodetic(e, n, u, datum.lat_deg, datum.lon_deg, datum.alt_m,
                                          ell=WGS84, deg=True)

@@ -1,16 +1,16 @@
-"""Manoeuvring indices (IMO MSC.137(76) definitions) from a trajectory in the model frame.
+"""
+Manoeuvring indices (IMO MSC.137(76) definitions) from a trajectory in the model frame.
 
 Heading changes are measured from the heading at rudder execution; positions relative to the
 position there, along (advance) and across (transfer, tactical diameter) the initial heading.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-import numpy as np
+import math
 
 from mmg_tuner.core.frames import unwrap
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -60,8 +60,12 @@ def _interp(a: np.ndarray, fidx: float) -> float:
 
 def turning_indices(x: np.ndarray, y: np.ndarray, psi: np.ndarray, k_exec: int = 0
                     ) -> TurningIndices:
-    """Advance and transfer at 90 deg, tactical diameter at 180 deg heading change (NaN if the
-    turn does not get that far)."""
+    """
+    Return advance, transfer and tactical diameter of a turn.
+
+    Advance and transfer at 90 deg, tactical diameter at 180 deg heading change (NaN if the turn
+    does not get that far).
+    """
     psi = unwrap(psi)
     dpsi = psi[k_exec:] - psi[k_exec]
     sign = 1.0 if dpsi[np.argmax(np.abs(dpsi))] >= 0 else -1.0
@@ -82,7 +86,8 @@ def turning_indices(x: np.ndarray, y: np.ndarray, psi: np.ndarray, k_exec: int =
 
 def zigzag_indices(psi: np.ndarray, rudder_rad: np.ndarray, check_rad: float,
                    k_exec: int | None = None) -> ZigzagIndices:
-    """First and second overshoot angles [deg] of a zigzag (NaN where not reached).
+    """
+    First and second overshoot angles [deg] of a zigzag (NaN where not reached).
 
     The first overshoot is the largest heading excursion beyond the check angle after the
     heading first passes it, until it passes the opposite check angle; the second likewise.

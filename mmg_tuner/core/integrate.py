@@ -1,8 +1,10 @@
-"""Fixed-step integration of the family-blind dynamics, compiled with numba: ``advance`` (one
-sample interval; the one implementation used by offline simulation, the tuning objective and
-the simulator node), whole trajectories (``simulate_one``/``simulate_many``), manoeuvres with
-a steering gear in the loop (``run_maneuver``) and the tuning cost (``trajectory_cost``/
-``cost_many``).
+"""
+Fixed-step integration of the family-blind dynamics, compiled with numba.
+
+``advance`` (one sample interval; the one implementation used by offline simulation, the tuning
+objective and the simulator node), whole trajectories (``simulate_one``/``simulate_many``),
+manoeuvres with a steering gear in the loop (``run_maneuver``) and the tuning cost
+(``trajectory_cost``/ ``cost_many``).
 
 Every kernel takes the family ``kind`` first and passes it down to
 :func:`~mmg_tuner.core.dynamics.derivative`; nothing here knows a family. ``kind`` is the
@@ -20,15 +22,14 @@ from __future__ import annotations
 import functools
 import math
 
-import numpy as np
-from numba import njit, prange
-
 from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER, WIND_E, WIND_N
 from mmg_tuner.core.dynamics import astern_rpm, astern_surge, derivative, family_tag
 from mmg_tuner.core.frames import wrap_pi
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
                                    SURGE_NOT_POSITIVE)
+from numba import njit, prange
+import numpy as np
 
 _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
@@ -90,8 +91,12 @@ def to_water(p, s):
 
 @njit(cache=True, fastmath=FASTMATH)
 def observe(p, s, out):
-    """Measured quantities from the model state: position at the antenna, velocities over
-    ground (the model integrates velocities through the water)."""
+    """
+    Measured quantities from the model state.
+
+    Position at the antenna, velocities over ground (the model integrates velocities through the
+    water).
+    """
     for i in range(6):
         out[i] = s[i]
     psi = s[2]
@@ -128,8 +133,10 @@ def state_status(kind, s):
 @njit(cache=True, fastmath=FASTMATH)
 def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4, tmp,
             bow=0.0, stern=0.0):
-    """Advance the model state s (in place) over one sample interval dt with the recorded or
-    commanded rpm, rudder [rad] and thrusters [rev/s] held.
+    """
+    Advance the model state s (in place) over one sample interval dt.
+
+    With the recorded or commanded rpm, rudder [rad] and thrusters [rev/s] held.
 
     delta_act is the actual rudder angle (the steering-gear lag state); the input effects act
     here: rpm_scale, rudder_offset, rudder_lag_tau. Returns (status, new delta_act).
@@ -157,8 +164,12 @@ def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3
 
 @njit(cache=True, fastmath=FASTMATH)
 def start_state(p, x0, s):
-    """Model state from a first observed state: antenna position moved to midship, velocities
-    over ground turned into velocities through the water."""
+    """
+    Model state from a first observed state.
+
+    Antenna position moved to midship, velocities over ground turned into velocities through the
+    water.
+    """
     for i in range(6):
         s[i] = x0[i]
     c = math.cos(s[2])
@@ -170,8 +181,12 @@ def start_state(p, x0, s):
 
 @njit(cache=True, fastmath=FASTMATH)
 def _use_measured_wind(p, ctrl, k):
-    """Set the wind parameters of p (a per-trajectory copy) from the measured wind channels
-    (air velocity north/east [m/s]) at sample k; NaN keeps the parameters."""
+    """
+    Set the wind parameters of p from the measured wind channels at sample k.
+
+    Set the wind parameters of p (a per-trajectory copy) from the measured wind channels (air
+    velocity north/east [m/s]) at sample k; NaN keeps the parameters.
+    """
     wn = ctrl[k, WIND_N]
     we = ctrl[k, WIND_E]
     if wn == wn and we == we:
@@ -181,7 +196,8 @@ def _use_measured_wind(p, ctrl, k):
 
 @njit(cache=True, fastmath=FASTMATH)
 def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
-    """Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
+    """
+    Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
 
     x0 is the first observed state (antenna position, velocities over ground); ctrl[k] holds
     the input channels (rpm, rudder_rad[, wind_n, wind_e[, bow, stern]]) held from sample k to
@@ -231,8 +247,12 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
 @njit(cache=True, parallel=True)
 def _simulate_many(kind, params, x0s, ctrls, lengths, dt, substeps, method, out, status,
                    k_fail):
-    """All (candidate, trial) pairs: params (N, P), x0s (M, 6), ctrls (M, T, n_channels),
-    lengths (M,), out (N, M, T, 6). Pairs are independent, so they run in parallel over cores."""
+    """
+    All (candidate, trial) pairs.
+
+    Params (N, P), x0s (M, 6), ctrls (M, T, n_channels), lengths (M,), out (N, M, T, 6). Pairs are
+    independent, so they run in parallel over cores.
+    """
     N = params.shape[0]
     M = x0s.shape[0]
     for job in prange(N * M):
@@ -247,7 +267,8 @@ def _simulate_many(kind, params, x0s, ctrls, lengths, dt, substeps, method, out,
 @njit(cache=True, fastmath=FASTMATH)
 def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T, dt,
                   substeps, method, out, rudder_out):
-    """Simulate a manoeuvre with a steering gear in the loop (for generating trials).
+    """
+    Simulate a manoeuvre with a steering gear in the loop (for generating trials).
 
     rudder_cmd[k] is the open-loop rudder order at sample k (rad); if zigzag_amp != 0 the order
     is instead closed on heading from the first sample where rudder_cmd[k] != 0: it starts at
@@ -335,7 +356,8 @@ def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, 
 
 @njit(cache=True, fastmath=FASTMATH)
 def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, shoot_every):
-    """Weighted squared error of a simulation against a measured trial (Suyama et al. eq. 43).
+    """
+    Weighted squared error of a simulation against a measured trial (Suyama et al. eq. 43).
 
     The simulation starts from meas[0] and is driven by ctrl; J = sum_{k>=1} e_k' W e_k with
     e = observed - measured over (x, y, psi (wrapped), u, v, r) and W = diag(weights).

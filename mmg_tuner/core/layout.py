@@ -1,4 +1,5 @@
-"""Index layout of the flat parameter vector and of the state and control arrays.
+"""
+Index layout of the flat parameter vector and of the state and control arrays.
 
 The compiled kernels read parameters by fixed index from one float64 vector, so that a batch
 of candidates is simply a 2-D array ``(n_candidates, N_PARAMS)``. The vector is the union of
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 from mmg_tuner.core.channels import CONTROL_NAMES  # noqa: F401  (re-exported)
 from mmg_tuner.core.effects import PARAM_NEUTRAL
-from mmg_tuner.core.models import REGISTRY, declared_params
+from mmg_tuner.core.models import declared_params, REGISTRY
 
 STATE_NAMES = ('x', 'y', 'psi', 'u', 'v', 'r')
 """Model-frame state: x_E north [m], y_E east [m], psi clockwise from north [rad],

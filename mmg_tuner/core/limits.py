@@ -1,4 +1,5 @@
-"""Physical plausibility ranges of a ship's inputs and states.
+"""
+Physical plausibility ranges of a ship's inputs and states.
 
 One place says what a command, a recorded sample or a simulated state of *this* ship can
 physically be, so that the node, the CLIs and the trial readers refuse the same nonsense (a
@@ -28,8 +29,8 @@ beyond it, refused beyond twice it, like the rudder). Other families refuse both
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import self_propulsion_rpm
@@ -48,30 +49,33 @@ THRUSTER_CHANNELS = ('bow_thruster', 'stern_thruster')
 
 @dataclass(frozen=True)
 class InputLimits:
-    """Plausibility ranges for one ship's inputs and simulated states (SI units, rpm).
+    """
+    Plausibility ranges for one ship's inputs and simulated states (SI units, rpm).
 
-    Attributes:
-        rpm_max: largest plausible propeller speed [rev/min]; the model covers rpm > 0 only.
-        rudder_max_rad: the steering gear's limit (``ShipConfig.max_rudder_rad``): commands
-            beyond it are clamped to it.
-        rudder_plausible_rad: hard cap for recorded rudder angles, min(2 x rudder_max_rad,
-            90 deg): beyond it a sample is a unit error or corrupt, not a steering action.
-        top_speed_ms: generous top speed (Fn 0.5) [m/s]; e.g. the largest initial speed.
-        speed_max_ms: no state of the ship moves faster (Fn 1.5) [m/s]; beyond it the
-            simulation has diverged or a recording is corrupt.
-        yaw_rate_max_rad_s: |r| beyond speed_max_ms / (L_pp / 2) (turning on a circle of one
-            ship length at speed_max_ms) is a diverged state [rad/s].
-        dt_min_s, dt_max_s: the integration step range [s]; dt_max_s is the time to sail one
-            ship length at the top speed: a coarser step cannot resolve a turn. (Within the
-            range an explicit integrator may still diverge at high speed; the simulation
-            detects that at run time.)
-        position_max_m: |x|, |y| beyond it [m] is no position in a local frame.
-        rpm_basis: how rpm_max was found (for messages).
-        astern_rpm: the model family covers rpm <= 0 (then |rpm| <= rpm_max is plausible).
-        thruster_max_rps: the thrusters' limit [rev/s]: commands beyond it are clamped to it;
-            0 when the family has no thruster inputs (every thruster command is refused).
-        thruster_basis: where thruster_max_rps comes from (for messages).
-        model: the ship's model family (for messages).
+    Attributes
+    ----------
+    rpm_max: largest plausible propeller speed [rev/min]; the model covers rpm > 0 only.
+    rudder_max_rad: the steering gear's limit (``ShipConfig.max_rudder_rad``): commands
+        beyond it are clamped to it.
+    rudder_plausible_rad: hard cap for recorded rudder angles, min(2 x rudder_max_rad,
+        90 deg): beyond it a sample is a unit error or corrupt, not a steering action.
+    top_speed_ms: generous top speed (Fn 0.5) [m/s]; e.g. the largest initial speed.
+    speed_max_ms: no state of the ship moves faster (Fn 1.5) [m/s]; beyond it the
+        simulation has diverged or a recording is corrupt.
+    yaw_rate_max_rad_s: |r| beyond speed_max_ms / (L_pp / 2) (turning on a circle of one
+        ship length at speed_max_ms) is a diverged state [rad/s].
+    dt_min_s, dt_max_s: the integration step range [s]; dt_max_s is the time to sail one
+        ship length at the top speed: a coarser step cannot resolve a turn. (Within the
+        range an explicit integrator may still diverge at high speed; the simulation
+        detects that at run time.)
+    position_max_m: |x|, |y| beyond it [m] is no position in a local frame.
+    rpm_basis: how rpm_max was found (for messages).
+    astern_rpm: the model family covers rpm <= 0 (then |rpm| <= rpm_max is plausible).
+    thruster_max_rps: the thrusters' limit [rev/s]: commands beyond it are clamped to it;
+        0 when the family has no thruster inputs (every thruster command is refused).
+    thruster_basis: where thruster_max_rps comes from (for messages).
+    model: the ship's model family (for messages).
+
     """
 
     rpm_max: float
@@ -126,8 +130,12 @@ class InputLimits:
         return ''
 
     def check_rudder(self, rudder_rad: float) -> str:
-        """'' if rudder_rad is within the hard plausibility cap, else why not (the steering
-        gear's own limit, a clamp, is the caller's business)."""
+        """
+        Return '' if rudder_rad is within the hard plausibility cap, else why not.
+
+        '' if rudder_rad is within the hard plausibility cap, else why not (the steering gear's own
+        limit, a clamp, is the caller's business).
+        """
         if not math.isfinite(rudder_rad):
             return f'rudder {rudder_rad} is not finite'
         if abs(rudder_rad) > self.rudder_plausible_rad:
@@ -166,11 +174,14 @@ class InputLimits:
 
 
 def input_limits(ship: ShipConfig) -> InputLimits:
-    """The plausibility ranges of ``ship`` (cached per model, parameter vector and rudder limit).
+    """
+    The plausibility ranges of ``ship`` (cached per model, parameter vector and rudder limit).
 
-    Example:
-        >>> lim = input_limits(load_ship('suzaku'))
-        >>> round(lim.rpm_max)   # about 840
+    Examples
+    --------
+    >>> lim = input_limits(load_ship('suzaku'))
+    >>> round(lim.rpm_max)   # about 840
+
     """
     key = (ship.kind, ship.params.tobytes(), ship.max_rudder_rad)
     lim = _CACHE.get(key)

@@ -1,7 +1,10 @@
-"""Manoeuvre programmes with a steering gear in the loop: turning circle, IMO zigzag, pull-out
-and random rudder/rpm sequences (the most informative input for identification according to
-Wakita et al. 2022). Each returns a :class:`~mmg_tuner.core.trial.Trial` whose rudder
-column is the actual (rate-limited) rudder angle, as a rudder-angle sensor would record it.
+"""
+Manoeuvre programmes with a steering gear in the loop.
+
+Turning circle, IMO zigzag, pull-out and random rudder/rpm sequences (the most informative input
+for identification according to Wakita et al. 2022). Each returns a
+:class:`~mmg_tuner.core.trial.Trial` whose rudder column is the actual (rate-limited) rudder angle,
+as a rudder-angle sensor would record it.
 
 Low-speed programmes (:data:`LOWSPEED_MANEUVERS`, for a family that covers astern propeller,
 u <= 0 and thrusters, e.g. ``lowspeed``): ``berthing`` (approach, helm toward the berth, slow
@@ -12,20 +15,19 @@ trial with the same ship reproduces it exactly.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
-import numpy as np
-
-from mmg_tuner.core.channels import (BOW_THRUSTER, CHANNELS, RPM, RUDDER, STERN_THRUSTER,
-                                     WIND_E, WIND_N)
+from mmg_tuner.core.channels import (BOW_THRUSTER, CHANNELS, RPM, RUDDER, STERN_THRUSTER, WIND_E,
+                                     WIND_N)
+from mmg_tuner.core.integrate import run_maneuver
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.models import family
-from mmg_tuner.core.integrate import run_maneuver
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code, simulate
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import SimulationError
+import numpy as np
 
 KNOT = 1852.0 / 3600.0  # m/s
 
@@ -37,7 +39,10 @@ ALL_MANEUVERS = MANEUVERS + LOWSPEED_MANEUVERS
 
 @dataclass(frozen=True)
 class ManeuverSpec:
-    """What to run. Angles in degrees here because that is how trials are specified.
+    """
+    What to run.
+
+    Angles in degrees here because that is how trials are specified.
 
     rudder_deg: turning/pull-out rudder, or zigzag amplitude (sign = first rudder direction,
     + starboard). check_deg: zigzag heading check angle. approach_s: straight run before the

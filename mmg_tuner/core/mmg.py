@@ -1,6 +1,10 @@
-"""Compatibility re-exports: the kernels now live in ``core/dynamics.py`` (family dispatch,
-equations of motion, wind) and ``core/integrate.py`` (integrators, simulation, cost); the
-families in ``core/models/``. Import from there in new code."""
+"""
+Compatibility re-exports.
+
+The kernels now live in ``core/dynamics.py`` (family dispatch, equations of motion, wind) and
+``core/integrate.py`` (integrators, simulation, cost); the families in ``core/models/``. Import
+from there in new code.
+"""
 from mmg_tuner.core.dynamics import (accelerations, derivative, external_accelerations,  # noqa: F401
                                      family_forces, wind_loads)
 from mmg_tuner.core.integrate import (advance, cost_many, observe, run_maneuver,  # noqa: F401

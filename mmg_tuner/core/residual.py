@@ -549,7 +549,6 @@ def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
 
         net = ResidualNet.load('out/residual.npz')
         run = simulate_hybrid(ship, net, trial)
-
     """
     states, _, fail_t, why = simulate_segments(ship, net, trial, integrator, restart_every_s,
                                                substeps)

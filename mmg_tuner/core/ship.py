@@ -1,4 +1,5 @@
-"""Ship configs: YAML files into a frozen :class:`ShipConfig` holding the flat parameter vector.
+"""
+Ship configs: YAML files into a frozen :class:`ShipConfig` holding the flat parameter vector.
 
 A ship is data, never code: ``config/<name>.yaml`` holds particulars, added masses, hull
 derivatives, propeller and rudder models (each value citing its source). ``load_ship('suzaku')``
@@ -6,18 +7,16 @@ finds the installed or in-tree config by name; a path to any YAML works too.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
+import math
 from pathlib import Path
 from typing import Any, Mapping
 
-import numpy as np
-import yaml
-
-from mmg_tuner.core.layout import (EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX,
-                                   PARAM_NAMES)
+from mmg_tuner.core.layout import EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX, PARAM_NAMES
 from mmg_tuner.core.models import Family, family
 from mmg_tuner.errors import ConfigError
+import numpy as np
+import yaml
 
 _SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'thrusters', 'windage')
 
@@ -34,7 +33,7 @@ def config_dirs() -> list[Path]:
 
 
 def resolve_config_path(name_or_path: str | Path) -> Path:
-    """A ship name (``suzaku``) or a path to a YAML file -> the file's path."""
+    """Return a ship name (``suzaku``) or a path to a YAML file -> the file's path."""
     p = Path(name_or_path)
     if p.suffix in ('.yaml', '.yml') or p.is_file():
         if not p.is_file():
@@ -50,21 +49,24 @@ def resolve_config_path(name_or_path: str | Path) -> Path:
 
 @dataclass(frozen=True)
 class ShipConfig:
-    """One ship: its model structure and the full flat parameter vector.
+    """
+    One ship: its model structure and the full flat parameter vector.
 
-    Attributes:
-        name: ship name.
-        model: the model family (``core/models``): ``'container'`` (fine-tuning paper),
-            ``'standard'`` (MMG standard method) or ``'lowspeed'`` (four-quadrant, low speed).
-        params: float64 vector in :data:`~mmg_tuner.core.layout.PARAM_NAMES` order.
-        rudder_rate_rad_s: steering-gear rate limit.
-        max_rudder_rad: rudder angle limit.
-        tuning_targets: default names to tune.
-        a_r: default relative half-width of the tuning box.
-        scale_ratio: Froude scale ratio to full scale (1 for a real ship).
-        source: the YAML file this came from.
-        tuning_bounds: absolute search boxes {name: (lower, upper)} from the YAML's
-            ``tuning.bounds`` (they replace +-a_r for those names).
+    Attributes
+    ----------
+    name: ship name.
+    model: the model family (``core/models``): ``'container'`` (fine-tuning paper),
+        ``'standard'`` (MMG standard method) or ``'lowspeed'`` (four-quadrant, low speed).
+    params: float64 vector in :data:`~mmg_tuner.core.layout.PARAM_NAMES` order.
+    rudder_rate_rad_s: steering-gear rate limit.
+    max_rudder_rad: rudder angle limit.
+    tuning_targets: default names to tune.
+    a_r: default relative half-width of the tuning box.
+    scale_ratio: Froude scale ratio to full scale (1 for a real ship).
+    source: the YAML file this came from.
+    tuning_bounds: absolute search boxes {name: (lower, upper)} from the YAML's
+        ``tuning.bounds`` (they replace +-a_r for those names).
+
     """
 
     name: str
@@ -84,12 +86,12 @@ class ShipConfig:
 
     @property
     def kind(self) -> int:
-        """The family's integer code: what the compiled kernels take first."""
+        """Return the family's integer code: what the compiled kernels take first."""
         return MODEL_KINDS[self.model]
 
     @property
     def family(self) -> Family:
-        """The model family: its inputs and capabilities (astern rpm, u <= 0)."""
+        """Return the model family: its inputs and capabilities (astern rpm, u <= 0)."""
         return family(self.model)
 
     @property
@@ -98,8 +100,11 @@ class ShipConfig:
 
     @property
     def has_windage(self) -> bool:
-        """Whether the config describes the above-water ship (needed by the wind effect):
-        Blendermann's areas and coefficients, or those a family's own wind model reads."""
+        """
+        Whether the config describes the above-water ship (needed by the wind effect).
+
+        Blendermann's areas and coefficients, or those a family's own wind model reads.
+        """
         keys = ('rho_air', 'A_F', 'A_L') if self.family.wind is not None else (
             'rho_air', 'A_F', 'A_L', 'L_OA', 'CD_t')
         return all(self[k] > 0 for k in keys)
@@ -111,8 +116,11 @@ class ShipConfig:
         return {n: float(v) for n, v in zip(PARAM_NAMES, self.params)}
 
     def with_params(self, values: Mapping[str, float], source: str = '') -> 'ShipConfig':
-        """A copy with some parameters replaced (e.g. tuned values), validated like a ship
-        file; ``source`` names where the values came from in errors."""
+        """
+        A copy with some parameters replaced (e.g. tuned values), validated like a ship file.
+
+        ``source`` names where the values came from in errors.
+        """
         where = source or 'parameters'
         p = self.params.copy()
         for k, v in values.items():
@@ -135,7 +143,7 @@ MAX_MAGNITUDE = 1e15
 
 
 def _number(v: Any, key: str, source: str) -> float:
-    """A finite float from a YAML value, or a ConfigError naming the key and value."""
+    """Return a finite float from a YAML value, or a ConfigError naming the key and value."""
     if isinstance(v, bool) or not isinstance(v, (int, float, str)):
         raise ConfigError(f'{source}: {key} = {v!r} is not a number')
     try:
@@ -171,12 +179,15 @@ def _index(name: str, source: str) -> int:
 
 def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | None = None
               ) -> ShipConfig:
-    """Load a ship config by name or path; ``params_file`` overlays tuned values.
+    """
+    Load a ship config by name or path; ``params_file`` overlays tuned values.
 
-    Example:
-        >>> ship = load_ship('suzaku')
-        >>> ship['t_P']
-        0.08
+    Examples
+    --------
+    >>> ship = load_ship('suzaku')
+    >>> ship['t_P']
+    0.08
+
     """
     path = resolve_config_path(name_or_path)
     ship = ship_from_dict(_read_yaml(path, 'ship config'), str(path))
@@ -189,7 +200,7 @@ def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | Non
 
 
 def _read_yaml(path: Path, what: str) -> Any:
-    """A YAML document from a text file, or a ConfigError saying why not."""
+    """Return a YAML document from a text file, or a ConfigError saying why not."""
     if not path.is_file():
         raise ConfigError(f'{what} {path} is not a file')
     try:
@@ -299,7 +310,9 @@ def _section(doc: Mapping[str, Any], sec: str, source: str) -> Mapping[str, Any]
 
 
 def _derive_mass(values: dict[str, Any], source: str) -> None:
-    """m and I_zG given as 'derived': m = rho C_b L B d (or rho * displacement), I_zG = m (L/4)^2."""
+    """
+    M and I_zG given as 'derived': m = rho C_b L B d (or rho * displacement), I_zG = m (L/4)^2.
+    """
     rho, L = float(values['rho']), float(values['L_pp'])
     if values.get('m', 'derived') == 'derived':
         if 'displacement' in values:
@@ -331,7 +344,7 @@ def load_params_file(path: str | Path) -> dict[str, float]:
 
 def load_params_residual(path: str | Path):
     """
-    The residual network a params.yaml names (``residual: FILE.npz``, relative to the yaml).
+    Return the residual network a params.yaml names (``residual: FILE.npz``, relative to the yaml).
 
     Returns None when the file names none; a missing or corrupt network file is a ConfigError
     naming both files.

@@ -1,8 +1,10 @@
-"""Simulation entry points: one trajectory (:func:`simulate`) or a batch of parameter
-candidates x trials in one compiled call (:func:`simulate_batch`)."""
-from __future__ import annotations
+"""
+Simulation entry points.
 
-import numpy as np
+One trajectory (:func:`simulate`) or a batch of parameter candidates x trials in one compiled call
+(:func:`simulate_batch`).
+"""
+from __future__ import annotations
 
 from mmg_tuner.core.channels import CHANNELS, N_ACT
 from mmg_tuner.core.integrate import simulate_many, simulate_one
@@ -11,6 +13,7 @@ from mmg_tuner.core.models import Family, family
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trajectory, Trial  # noqa: F401  (Trajectory: former name)
 from mmg_tuner.errors import SimulationError
+import numpy as np
 
 
 def integrator_code(name: str) -> int:
@@ -23,8 +26,12 @@ def integrator_code(name: str) -> int:
 
 def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.0,
                  what: str = 'simulation', fam: Family | None = None) -> None:
-    """Refuse, with a message naming the sample time, inputs outside the model's range (the
-    family's: astern rpm and u <= 0 only where it covers them; default: neither)."""
+    """
+    Refuse inputs outside the model's range, with a message naming the sample time.
+
+    Refuse, with a message naming the sample time, inputs outside the model's range (the family's:
+    astern rpm and u <= 0 only where it covers them; default: neither).
+    """
     astern_rpm = fam is not None and fam.astern_rpm
     astern_surge = fam is not None and fam.astern_surge
     if not dt > 0:
@@ -54,27 +61,31 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
 def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',
              substeps: int = 1, t0: float = 0.0, params: np.ndarray | None = None,
              check: bool = True) -> Trial:
-    """Simulate one trajectory driven by recorded/planned controls (zero-order hold).
+    """
+    Simulate one trajectory driven by recorded/planned controls (zero-order hold).
 
-    Args:
-        ship: the ship config (its parameter vector is used unless ``params`` is given).
-        x0: first observed state (x, y, psi, u, v, r), velocities over ground.
-        controls: (T, n) input channels (``core/channels.CHANNELS`` order) at each sample;
-            sample k is held until k+1. (T, 2): rpm and rudder [rad]; two more columns are the
-            measured true wind's north/east components [m/s] (the air's velocity), which
-            replace the wind parameters (NaN: not measured); two more the bow and stern
-            thrusters [rev/s].
-        dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
-        integrator: 'euler' (the paper's) or 'rk4'.
+    Parameters
+    ----------
+    ship: the ship config (its parameter vector is used unless ``params`` is given).
+    x0: first observed state (x, y, psi, u, v, r), velocities over ground.
+    controls: (T, n) input channels (``core/channels.CHANNELS`` order) at each sample;
+        sample k is held until k+1. (T, 2): rpm and rudder [rad]; two more columns are the
+        measured true wind's north/east components [m/s] (the air's velocity), which
+        replace the wind parameters (NaN: not measured); two more the bow and stern
+        thrusters [rev/s].
+    dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
+    integrator: 'euler' (the paper's) or 'rk4'.
 
     Returns a :class:`~mmg_tuner.core.trial.Trial` (inputs as given). A run that leaves the
     model's range or diverges is returned with ``status`` saying so and NaN after
     ``fail_time_s``; it never returns NaN silently.
 
-    Example:
-        >>> ship = load_ship('suzaku')
-        >>> ctrl = np.tile([106.0, np.radians(35)], (901, 1))
-        >>> traj = simulate(ship, [0, 0, 0, 3.086, 0, 0], ctrl, dt=1.0)
+    Examples
+    --------
+    >>> ship = load_ship('suzaku')
+    >>> ctrl = np.tile([106.0, np.radians(35)], (901, 1))
+    >>> traj = simulate(ship, [0, 0, 0, 3.086, 0, 0], ctrl, dt=1.0)
+
     """
     x0 = np.asarray(x0, dtype=float)
     controls = np.ascontiguousarray(controls, dtype=float)
@@ -96,17 +107,21 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
 def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.ndarray,
                    dt: float, lengths: np.ndarray | None = None, integrator: str = 'euler',
                    substeps: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """N candidates x M trials in one compiled, multi-core call.
+    """
+    N candidates x M trials in one compiled, multi-core call.
 
-    Args:
-        kind: model structure code (``ShipConfig.kind``).
-        params: (N, N_PARAMS) parameter vectors.
-        x0s: (M, 6) first states; controls: (M, T, n) input channels (see
-            ``core/channels.py``), padded to the longest trial;
-        lengths: (M,) samples per trial (default all T).
+    Parameters
+    ----------
+    kind: model structure code (``ShipConfig.kind``).
+    params: (N, N_PARAMS) parameter vectors.
+    x0s: (M, 6) first states; controls: (M, T, n) input channels (see
+        ``core/channels.py``), padded to the longest trial;
+    lengths: (M,) samples per trial (default all T).
 
-    Returns:
-        states (N, M, T, 6), status codes (N, M) and failure sample indices (N, M).
+    Returns
+    -------
+    states (N, M, T, 6), status codes (N, M) and failure sample indices (N, M).
+
     """
     params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
     if params.shape[1] != N_PARAMS:
@@ -126,8 +141,11 @@ def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.
 
 def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
                         hi: float = 1e5) -> float:
-    """Propeller rpm at which a straight run (rudder 0) holds speed_ms: the surge force
-    balance X_H + X_P + X_R = 0, solved by bisection."""
+    """
+    Propeller rpm at which a straight run (rudder 0) holds speed_ms.
+
+    The surge force balance X_H + X_P + X_R = 0, solved by bisection.
+    """
     from mmg_tuner.core.dynamics import accelerations
 
     def du(rpm: float) -> float:

@@ -1,22 +1,22 @@
-"""A stateful ship for interactive simulation (the ROS node's engine; no ROS here).
+"""
+A stateful ship for interactive simulation (the ROS node's engine; no ROS here).
 
 It steps the same compiled :func:`~mmg_tuner.core.mmg.advance` as the offline simulation, so
 a command history held per step reproduces :func:`~mmg_tuner.core.simulate.simulate` exactly.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-import numpy as np
-from numba import njit
+import math
 
 from mmg_tuner.core.layout import DIVERGED, OK, STATE_NAMES, STATUS_TEXT
-from mmg_tuner.core.limits import InputLimits, input_limits
+from mmg_tuner.core.limits import input_limits, InputLimits
 from mmg_tuner.core.mmg import advance, observe, start_state
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
+from numba import njit
+import numpy as np
 
 IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed or yaw rate
 ARITHMETIC = -2   # the compiled model raised ZeroDivisionError
@@ -34,7 +34,8 @@ class CommandCheck:
 
 @dataclass(frozen=True)
 class StepFailure:
-    """Why and when a step failed; the simulator was then reset to its initial state.
+    """
+    Why and when a step failed; the simulator was then reset to its initial state.
 
     time_s: simulated time of the step that failed [s]; reason: what was wrong;
     last_state / bad_state: the model state (x, y, psi, u, v, r; SI, rad) before and after it;
@@ -66,7 +67,8 @@ class StepFailure:
 @njit(cache=True)
 def _advance_checked(kind, p, s, delta_act, rpm, rudder, bow, stern, dt, substeps, method, k1,
                      k2, k3, k4, tmp, n, speed_max, yaw_rate_max, last):
-    """n calls of advance, each followed by a per-element finiteness and plausibility check.
+    """
+    N calls of advance, each followed by a per-element finiteness and plausibility check.
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
     isfinite(a + b + ...) to True, so advance's own check cannot be relied on. Returns
@@ -90,7 +92,8 @@ def _advance_checked(kind, p, s, delta_act, rpm, rudder, bow, stern, dt, substep
 
 
 class ShipSimulator:
-    """Fixed-step simulation of one ship driven by held rpm, rudder and thruster commands.
+    """
+    Fixed-step simulation of one ship driven by held rpm, rudder and thruster commands.
 
     Everything is validated against the ship's plausibility ranges
     (:func:`~mmg_tuner.core.limits.input_limits`): construction refuses bad settings with a
@@ -100,10 +103,12 @@ class ShipSimulator:
     decides the rest: astern rpm (rpm <= 0) and u <= 0 only where the family has them, thruster
     commands (``set_thruster``) only for a family with thruster inputs.
 
-    Example:
-        >>> sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106)
-        >>> sim.set_rudder(math.radians(10)); sim.step(100)
-        >>> sim.observed()  # x, y, psi, u, v, r in the model frame
+    Examples
+    --------
+    >>> sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106)
+    >>> sim.set_rudder(math.radians(10)); sim.step(100)
+    >>> sim.observed()  # x, y, psi, u, v, r in the model frame
+
     """
 
     def __init__(self, ship: ShipConfig, dt: float = 0.1, x0=None, rpm: float = 100.0,
@@ -132,7 +137,7 @@ class ShipSimulator:
             raise SimulationError(f'{ship.name}: initial {problem}')
         if not (math.isfinite(rudder_rad) and abs(rudder_rad) <= lim.rudder_max_rad):
             raise SimulationError(f'{ship.name}: initial rudder {rudder_rad:g} rad is outside '
-                                  f'the steering gear\'s +-{lim.rudder_max_rad:.4f} rad '
+                                  f"the steering gear's +-{lim.rudder_max_rad:.4f} rad "
                                   f'(+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
         self.rpm0 = rpm
         self.rudder0 = rudder_rad
@@ -193,8 +198,11 @@ class ShipSimulator:
             self._residual.reset()   # the network's window starts afresh
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
-        """Non-finite or beyond the plausible cap (a unit error, garbage): ignored; beyond the
-        steering gear's limit: clamped to it."""
+        """
+        Non-finite or beyond the plausible cap (a unit error, garbage).
+
+        ignored; beyond the steering gear's limit: clamped to it.
+        """
         lim = self.limits
         try:
             rudder_rad = float(rudder_rad)
@@ -269,7 +277,8 @@ class ShipSimulator:
         return c.problem
 
     def step(self, n: int = 1) -> bool:
-        """Advance n steps of dt with the held commands.
+        """
+        Advance n steps of dt with the held commands.
 
         False if a step left the model's range, diverged or reached an implausible state:
         ``failure`` then says when, why, with which commands and from which state, and the
@@ -312,7 +321,7 @@ class ShipSimulator:
 
     def _hybrid_steps(self, n: int) -> tuple[int, int, float]:
         """
-        The hybrid's hook: _advance_checked with the residual network's accelerations.
+        Return the hybrid's hook: _advance_checked with the residual network's accelerations.
 
         The network (core/residual.py) is evaluated every net.dt_s of simulated time (dt must
         divide it) from the window of its past samples and held in between, as the offline

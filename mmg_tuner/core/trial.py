@@ -1,23 +1,24 @@
-"""One time-history type for everything: a recorded, generated or simulated trial.
+"""
+One time-history type for everything: a recorded, generated or simulated trial.
 
 ``simulate()`` and the manoeuvres return it, the readers produce it, the objective and the
 diagnosis consume it, so a prediction compares with a recording sample by sample.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
-
-import numpy as np
+import math
 
 from mmg_tuner.core.channels import CHANNELS, CONTROL_NAMES, STERN_THRUSTER, WIND_E
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 
 @dataclass
 class Trial:
-    """A time history on a uniform grid, in the model frame, SI units.
+    """
+    A time history on a uniform grid, in the model frame, SI units.
 
     t [s] (T,); states (T, 6) = x_E, y_E [m], psi [rad, unwrapped], u, v [m/s over ground],
     r [rad/s]; controls (T, 2) = rpm [rev/min], rudder [rad, + to starboard];
@@ -58,7 +59,7 @@ class Trial:
 
     @classmethod
     def from_inputs(cls, t, states, inputs, **kw) -> 'Trial':
-        """A trial from an input array whose columns follow ``core/channels.CHANNELS``."""
+        """Return a trial from an input array whose columns follow ``core/channels.CHANNELS``."""
         inputs = np.asarray(inputs, dtype=float)
         n = inputs.shape[1]
         wind = inputs[:, 2:4] if n > WIND_E else None
@@ -69,10 +70,13 @@ class Trial:
 
     @property
     def inputs(self) -> np.ndarray:
-        """What drives a simulation, columns in ``CHANNELS`` order: (T, 2) rpm, rudder; (T, 4)
-        with the measured wind's north/east components when the trial has it (the kernels then
-        use it instead of the wind parameters); (T, 6) with thrusters (wind NaN if not
-        measured)."""
+        """
+        Return what drives a simulation, columns in ``CHANNELS`` order.
+
+        (T, 2) rpm, rudder; (T, 4) with the measured wind's north/east components when the trial
+        has it (the kernels then use it instead of the wind parameters); (T, 6) with thrusters
+        (wind NaN if not measured).
+        """
         if self.wind is None and self.thrusters is None:
             return self.controls
         cols = [self.controls,
@@ -116,7 +120,7 @@ class Trial:
 
     def slice(self, start_s: float, end_s: float | None = None, name: str | None = None
               ) -> 'Trial':
-        """The part between start_s and end_s (trial time, inclusive)."""
+        """Return the part between start_s and end_s (trial time, inclusive)."""
         end_s = self.t[-1] if end_s is None else end_s
         k = (self.t >= start_s - 1e-9) & (self.t <= end_s + 1e-9)
         return replace(self, t=self.t[k], states=self.states[k], controls=self.controls[k],
@@ -124,8 +128,11 @@ class Trial:
                        **self._map_series(lambda a: a[k]))
 
     def froude_scaled(self, ratio: float) -> 'Trial':
-        """Scale by 1/ratio in length (ratio = L_from / L_to), Froude similarity: time and
-        velocity by 1/sqrt(ratio), yaw rate, rpm and thruster revolutions by sqrt(ratio)."""
+        """
+        Scale by 1/ratio in length (ratio = L_from / L_to), Froude similarity.
+
+        Time and velocity by 1/sqrt(ratio), yaw rate, rpm and thruster revolutions by sqrt(ratio).
+        """
         s = math.sqrt(ratio)
         st = self.states.copy()
         st[:, :2] /= ratio

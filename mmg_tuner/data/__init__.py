@@ -1,4 +1,5 @@
-"""Recorded trials in and out: the one door through which tuning, diagnosis and replay read data.
+"""
+Recorded trials in and out: the one door through which tuning, diagnosis and replay read data.
 
 Imports the core layer, NumPy, rosbags and mcap; never rclpy.
 """

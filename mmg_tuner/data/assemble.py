@@ -1,4 +1,5 @@
-"""Raw topic series -> validated trials on a uniform grid in the model frame.
+"""
+Raw topic series -> validated trials on a uniform grid in the model frame.
 
 The motion comes from an Odometry, a PoseStamped (+ TwistStamped) or a GNSS recording:
 NavSatFix on a local ENU plane at a datum (core.geodesy), heading from an Imu, a
@@ -15,18 +16,17 @@ unrepairable raises TrialDataError naming the file, topic and time.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-import numpy as np
+import math
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
-from mmg_tuner.core.limits import RUDDER_HARD_CAP_RAD, InputLimits
+from mmg_tuner.core.limits import InputLimits, RUDDER_HARD_CAP_RAD
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.topics import IMU, NAVSATFIX, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 MIN_SAMPLES = 10
 MAX_SAMPLES = 20_000_000  # ~230 days at 1 s: more means corrupt stamps
@@ -83,8 +83,12 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
 
 def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap | None = None,
                  limits: InputLimits | None = None) -> Series:
-    """Drop non-finite, implausible (outside limits, see core/limits.py) and duplicate
-    samples, sort unsorted stamps; say what was done."""
+    """
+    Drop non-finite, implausible and duplicate samples and sort the stamps.
+
+    Drop non-finite, implausible (outside limits, see core/limits.py) and duplicate samples, sort
+    unsorted stamps; say what was done.
+    """
     def t(ns):
         return (ns - t0_ns) * 1e-9
     ok = np.all(np.isfinite(s.values), axis=1)
@@ -152,12 +156,15 @@ def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int,
 def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
                     limits: InputLimits | None = None, keep_astern: bool = False
                     ) -> list[Trial]:
-    """Frame, resample and split one recording into trials (see module docstring).
+    """
+    Frame, resample and split one recording into trials (see module docstring).
+
     limits: plausibility ranges of the ship (core.limits.input_limits); default generic.
-    keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that
-    covers them); by default they split the trial and are left out with a note.
-    How the recording was read (pose source, datum, frames, time bases, a suspected time
-    offset) is added to rec.reading and to every trial's notes."""
+    keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that covers
+    them); by default they split the trial and are left out with a note. How the recording was read
+    (pose source, datum, frames, time bases, a suspected time offset) is added to rec.reading and
+    to every trial's notes.
+    """
     tm = rec.topic_map or tm
     needed = ['odom', 'rudder', 'rpm']
     for role in needed:
@@ -244,9 +251,12 @@ def frame_kind(frame_id: str, tm: TopicMap) -> str | None:
 
 
 def check_frames(rec: RawRecording, tm: TopicMap) -> dict[str, str]:
-    """Check every mapped topic's frame_id(s) against what its role needs; returns the frame
-    kind per role ('earth' or 'body': a twist's decides how it is read). A topic whose frame
-    is unknown, contradicts its role or changes is an error naming topic and frame."""
+    """
+    Check every mapped topic's frame_id(s) against what its role needs.
+
+    Returns the frame kind per role ('earth' or 'body': a twist's decides how it is read). A topic
+    whose frame is unknown, contradicts its role or changes is an error naming topic and frame.
+    """
     kinds: dict[str, str] = {}
     for role, s in rec.series.items():
         rules = dict(_FRAME_RULES.get((role, s.msgtype), {}))
@@ -280,10 +290,14 @@ def check_frames(rec: RawRecording, tm: TopicMap) -> dict[str, str]:
 # -------------------------------------------------------------------------------------- time
 
 def check_clocks(path: str, series: dict[str, Series], tm: TopicMap) -> None:
-    """Refuse streams on two clocks: each header-timed series' receive times lag its stamps by
-    lag_s (transport, milliseconds); a receive-timed one by 0. Lags differing by more than
-    time.max_offset_s mean a constant offset between streams (GPS time is 18 s ahead of UTC)
-    that would shift the commands against the states: an error naming topic and field."""
+    """
+    Refuse streams on two clocks.
+
+    Each header-timed series' receive times lag its stamps by lag_s (transport, milliseconds); a
+    receive-timed one by 0. Lags differing by more than time.max_offset_s mean a constant offset
+    between streams (GPS time is 18 s ahead of UTC) that would shift the commands against the
+    states: an error naming topic and field.
+    """
     lags = {r: (s.lag_s if s.base == 'header' else 0.0) for r, s in series.items()
             if s.base and (s.base == 'receive' or s.lag_s is not None)}
     if len(lags) < 2:
@@ -320,14 +334,16 @@ def _describe_times(series: dict[str, Series], wind: Series | None) -> list[str]
 
 def command_lag_s(trial: Trial, max_lag_s: float = 30.0, window_s: float = 10.0
                   ) -> tuple[float, float] | None:
-    """(lag [s], fit R^2) at which the rudder best explains the yaw acceleration: for each lag
-    L within +-max_lag_s the first-order Nomoto model r' = a delta(t - L) + b r + c is fitted
-    by least squares (the b r term takes the yaw damping, which biases a plain cross-
-    correlation of delta and r' by several seconds); the best L is refined by a parabola.
-    Positive: the recorded rudder leads the motion (commands stamped early). About 0 (a
-    second or two) in a consistent recording. window_s: the local quadratic fit that gives r'.
-    None when the rudder hardly moves or the trial
-    is too short to tell."""
+    """
+    (lag [s], fit R^2) at which the rudder best explains the yaw acceleration.
+
+    For each lag L within +-max_lag_s the first-order Nomoto model r' = a delta(t - L) + b r + c is
+    fitted by least squares (the b r term takes the yaw damping, which biases a plain cross-
+    correlation of delta and r' by several seconds); the best L is refined by a parabola. Positive:
+    the recorded rudder leads the motion (commands stamped early). About 0 (a second or two) in a
+    consistent recording. window_s: the local quadratic fit that gives r'. None when the rudder
+    hardly moves or the trial is too short to tell.
+    """
     dt = trial.dt
     n = len(trial)
     k_max = int(min(max_lag_s, trial.duration_s / 4) / dt)
@@ -370,14 +386,18 @@ def _lag_note(lag: tuple[float, float], tm: TopicMap, rudder_topic: str) -> str:
 
 def local_poly_fit(t: np.ndarray, y: np.ndarray, window_s: float, order: int = 2,
                    chunk: int = 4096) -> tuple[np.ndarray, np.ndarray]:
-    """(fitted value, first derivative) of y at each t from a least-squares polynomial of the
-    given order (1 or 2) over the samples within +-window_s/2 (Savitzky-Golay for irregular
-    stamps); within window_s/2 of either end the window keeps its full width, shifted inward
-    (savgol's mode='interp'); at a gap it is one-sided. On a symmetric window both orders give
-    the same slope; at the ends order 1 has a far smaller variance (the derivative of an
-    off-centre quadratic is an extrapolation), at a bias of about acceleration x window/2, so
-    the velocities use order 1. A point with fewer than order + 2 neighbours uses a straight
-    line, with one only its neighbour difference."""
+    """
+    Return the local polynomial fit of y and its first derivative at each t.
+
+    (fitted value, first derivative) of y at each t from a least-squares polynomial of the given
+    order (1 or 2) over the samples within +-window_s/2 (Savitzky-Golay for irregular stamps);
+    within window_s/2 of either end the window keeps its full width, shifted inward (savgol's
+    mode='interp'); at a gap it is one-sided. On a symmetric window both orders give the same
+    slope; at the ends order 1 has a far smaller variance (the derivative of an off-centre
+    quadratic is an extrapolation), at a bias of about acceleration x window/2, so the velocities
+    use order 1. A point with fewer than order + 2 neighbours uses a straight line, with one only
+    its neighbour difference.
+    """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
     n = t.size
@@ -427,9 +447,12 @@ def local_poly_fit(t: np.ndarray, y: np.ndarray, window_s: float, order: int = 2
 
 @dataclass
 class Kinematics:
-    """The ship's motion at the recording's own sample times, REP-103/105 frames: base_link
-    position east/north in the local ENU frame [m], ENU yaw (unwrapped) [rad], body velocity
-    forward/left (FLU) [m/s] and yaw rate about z up [rad/s]; times [s] from t0."""
+    """
+    The ship's motion at the recording's own sample times, REP-103/105 frames.
+
+    base_link position east/north in the local ENU frame [m], ENU yaw (unwrapped) [rad], body
+    velocity forward/left (FLU) [m/s] and yaw rate about z up [rad/s]; times [s] from t0.
+    """
 
     t_pos: np.ndarray
     east: np.ndarray
@@ -471,10 +494,13 @@ def _heading(s: Series, role: str, tm: TopicMap, path: str, notes: list[str]
 
 def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_ns: int,
                 path: str) -> tuple[Kinematics, list[str]]:
-    """The motion from whichever sources the map gives, plus how it was read (for notes and
-    inspect): pose and heading, velocities (recorded, turned by the heading when in an earth
-    frame, or derived by a local linear fit over resample.smooth_s), yaw rate (IMU, a
-    body twist, or derived from the heading likewise), the GNSS lever arm removed."""
+    """
+    The motion from whichever sources the map gives, plus how it was read (for notes and inspect).
+
+    Pose and heading, velocities (recorded, turned by the heading when in an earth frame, or
+    derived by a local linear fit over resample.smooth_s), yaw rate (IMU, a body twist, or derived
+    from the heading likewise), the GNSS lever arm removed.
+    """
     od = ser['odom']
     t_od = _t(od, t0_ns)
     how: list[str] = []

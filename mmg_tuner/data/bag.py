@@ -1,4 +1,5 @@
-"""rosbag2 (sqlite3 or MCAP storage) and bare MCAP files to and from :class:`Trial`.
+"""
+rosbag2 (sqlite3 or MCAP storage) and bare MCAP files to and from :class:`Trial`.
 
 Reading is two layers, as in rosbags: :func:`read_series` pulls the raw time series of the
 mapped topics (stamps in ns, values as arrays) out of any container; :mod:`.assemble` turns
@@ -6,14 +7,12 @@ those into validated, framed, resampled trials. No ROS install is needed.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field, replace
 import math
 import os
+from pathlib import Path
 import sqlite3
 import struct
-from dataclasses import dataclass, field, replace
-from pathlib import Path
-
-import numpy as np
 
 from mmg_tuner.core import frames
 from mmg_tuner.data.cdr import decode_columns
@@ -21,6 +20,7 @@ from mmg_tuner.data.files import _why, check_regular_file, display_text
 from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
+import numpy as np
 
 try:  # rosbags >= 0.10
     from rosbags.typesys import Stores, get_typestore
@@ -129,8 +129,11 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
 def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, role: str,
                   topic: str, path: str
                   ) -> tuple[np.ndarray | None, np.ndarray, dict[str, dict[str, int]]]:
-    """(header stamps [ns] or None for a type without header, values, frame_ids) of one topic:
-    column-wise when the layout allows, else one by one."""
+    """
+    (header stamps [ns] or None for a type without header, values, frame_ids) of one topic.
+
+    column-wise when the layout allows, else one by one.
+    """
     cols = decode_columns(raws, msgtype)
     if cols is not None:
         st, values, frames = cols
@@ -156,10 +159,13 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
 
 
 def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
-    """role (odom, twist, heading, imu, rudder, rpm, wind, bow_thruster, stern_thruster) ->
-    (topic, expected type, joint).
-    One topic may serve several roles (a JointState carrying rudder and propeller, an Imu
-    giving heading and yaw rate)."""
+    """
+    Map each role to (topic, expected type, joint).
+
+    role (odom, twist, heading, imu, rudder, rpm, wind, bow_thruster, stern_thruster) -> (topic,
+    expected type, joint). One topic may serve several roles (a JointState carrying rudder and
+    propeller, an Imu giving heading and yaw rate).
+    """
     roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
              'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint),
              'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint)}
@@ -184,17 +190,20 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
 
 
 def _is_auto(tm: TopicMap, key: str) -> bool:
-    """A key the user's map did not set and that still holds its default: found by type."""
+    """Return a key the user's map did not set and that still holds its default: found by type."""
     return key not in tm.given and getattr(tm, key) == getattr(TopicMap, key)
 
 
 def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
                       ) -> tuple[TopicMap, list[str]]:
-    """The topic map with the topics it leaves open found by message type, where that is
-    unambiguous: the pose source (/odom, else the one Odometry or NavSatFix topic), and for a
-    NavSatFix the one Imu (yaw rate, and heading), the one QuaternionStamped (heading, before
-    the Imu's orientation) and the one TwistStamped. Ambiguity is an
-    error listing the candidates; a topic the user's map names is never replaced."""
+    """
+    The topic map with the topics it leaves open found by message type, where that is unambiguous.
+
+    The pose source (/odom, else the one Odometry or NavSatFix topic), and for a NavSatFix the one
+    Imu (yaw rate, and heading), the one QuaternionStamped (heading, before the Imu's orientation)
+    and the one TwistStamped. Ambiguity is an error listing the candidates; a topic the user's map
+    names is never replaced.
+    """
     by_type: dict[str, list[str]] = {}
     for topic, (typ, n) in sorted(found.items()):
         if n > 0:
@@ -240,9 +249,12 @@ def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
 
 
 def _reader_errors() -> tuple[type[BaseException], ...]:
-    """What the readers raise on a corrupt, truncated or unreadable file -- found by fuzzing
-    real bags (test_data_io.py flips and cuts bytes) -- so that only those become
-    TrialDataError and a bug of ours still surfaces as itself."""
+    """
+    Return what the readers raise on a corrupt, truncated or unreadable file.
+
+    Found by fuzzing real bags (test_data_io.py flips and cuts bytes) -- so that only those become
+    TrialDataError and a bug of ours still surfaces as itself.
+    """
     from mcap.exceptions import McapError
     from rosbags.rosbag2.errors import ReaderError
     from rosbags.serde import SerdeError
@@ -270,7 +282,7 @@ MAX_METADATA_BYTES = 64 << 20  # a rosbag2 metadata.yaml is kilobytes; more is n
 
 
 def _check_bag_files(bag: Path) -> list[Path]:
-    """The storage files of a rosbag2 folder, every file checked to be regular."""
+    """Return the storage files of a rosbag2 folder, every file checked to be regular."""
     check_regular_file(bag / 'metadata.yaml', 'rosbag2 metadata.yaml', MAX_METADATA_BYTES)
     files = sorted(p for p in bag.iterdir() if p.suffix in ('.mcap', '.db3', '.zstd'))
     for f in files:
@@ -279,8 +291,12 @@ def _check_bag_files(bag: Path) -> list[Path]:
 
 
 def _iter_rosbag2(path: Path):
-    """Items of a rosbag2 folder; one whose MCAP storage rosbags cannot open (a recorder
-    killed before writing the footer) is recovered by a streaming read of its .mcap files."""
+    """
+    Items of a rosbag2 folder.
+
+    One whose MCAP storage rosbags cannot open (a recorder killed before writing the footer) is
+    recovered by a streaming read of its .mcap files.
+    """
     from rosbags.rosbag2 import Reader
     files = _check_bag_files(path)
     started = False
@@ -303,8 +319,12 @@ def _iter_rosbag2(path: Path):
 
 
 def _iter_bare_mcap(path: Path):
-    """rosbags reads a bare ROS 2 MCAP fastest; other MCAP files (another profile, a missing
-    summary or footer, corruption) are read record by record with the mcap library."""
+    """
+    Rosbags reads a bare ROS 2 MCAP fastest.
+
+    Other MCAP files (another profile, a missing summary or footer, corruption) are read record by
+    record with the mcap library.
+    """
     from rosbags.rosbag2 import Reader
     try:
         reader = Reader(path)
@@ -323,9 +343,12 @@ def _iter_bare_mcap(path: Path):
 
 
 def _iter_mcap_stream(path: Path):
-    """Every intact message of an MCAP file, read front to back without its summary: a file
-    cut short (a recorder killed before writing the footer) or corrupt part-way gives the
-    messages before the break, and a note saying how many and where it broke."""
+    """
+    Every intact message of an MCAP file, read front to back without its summary.
+
+    A file cut short (a recorder killed before writing the footer) or corrupt part-way gives the
+    messages before the break, and a note saying how many and where it broke.
+    """
     from mcap.records import Channel, Footer, Message, Schema
     from mcap.stream_reader import StreamReader
     size = check_regular_file(path, 'MCAP file')
@@ -385,11 +408,13 @@ WALL_TIME_MIN_NS = 1_000_000_000 * NS  # receive times after 2001: the wall cloc
 
 
 def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
-    """Raw series of the mapped topics from a rosbag2 directory or a bare .mcap file.
+    """
+    Raw series of the mapped topics from a rosbag2 directory or a bare .mcap file.
 
     Topics the map leaves open are found by type (:func:`resolve_topic_map`); each series is
     timed as the map says (header stamp or receive time, plus offset_s), receive times on
-    another clock than the header stamps (a simulation on /clock) mapped onto it."""
+    another clock than the header stamps (a simulation on /clock) mapped onto it.
+    """
     path = Path(path)
     if path.is_dir() or path.name == 'metadata.yaml':
         bag = path if path.is_dir() else path.parent
@@ -485,11 +510,15 @@ def _linear_map(r0: int, h0: int, a: float, b: float):
 
 def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None], tm: TopicMap,
                 clock: tuple[str, np.ndarray, np.ndarray] | None) -> list[str]:
-    """Time each series as the map says: header.stamp (a zero stamp falls back to the receive
-    time) or receive time, plus the role's offset_s. Receive times on another clock than the
-    header stamps (a simulation: stamps from /clock near 0, the recorder on the wall clock)
-    are mapped onto the header clock through /clock, else by a linear fit to the stamps.
-    Sets each header-timed series' lag_s (median receive - stamp) for the clock check."""
+    """
+    Time each series as the map says.
+
+    header.stamp (a zero stamp falls back to the receive time) or receive time, plus the role's
+    offset_s. Receive times on another clock than the header stamps (a simulation: stamps from
+    /clock near 0, the recorder on the wall clock) are mapped onto the header clock through /clock,
+    else by a linear fit to the stamps. Sets each header-timed series' lag_s (median receive -
+    stamp) for the clock check.
+    """
     notes: list[str] = []
     for role, s in series.items():
         hdr = headers.get(role)
@@ -534,11 +563,14 @@ def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None]
 def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                     tm: TopicMap | None = None, start_ns: int = 1_700_000_000_000_000_000
                     ) -> None:
-    """Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics:
+    """
+    Write a trial as a rosbag2 (storage 'mcap' or 'sqlite3') with the default topics.
+
     Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
-    written; each message is stamped at its sample time (ns since start_ns). A trial with
-    measured wind also gets the wind topic (Vector3Stamped, true wind in ENU), one with
-    thrusters the two thruster topics (Float64 in the map's unit and sign)."""
+    written; each message is stamped at its sample time (ns since start_ns). A trial with measured
+    wind also gets the wind topic (Vector3Stamped, true wind in ENU), one with thrusters the two
+    thruster topics (Float64 in the map's unit and sign).
+    """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 
@@ -624,8 +656,12 @@ def odometry_msg(state: np.ndarray, stamp_ns: int):
 
 def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
                      storage: str = 'mcap') -> None:
-    """Recorded odometry (/recorded/odom), simulated odometry (/odom) and the recorded
-    commands, stamped in trial time, as a rosbag2 (MCAP: Foxglove opens the .mcap inside)."""
+    """
+    Write recorded and simulated odometry and the recorded commands as a rosbag2.
+
+    Recorded odometry (/recorded/odom), simulated odometry (/odom) and the recorded commands,
+    stamped in trial time, as a rosbag2 (MCAP: Foxglove opens the .mcap inside).
+    """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 
@@ -662,9 +698,12 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
                      twist_frame: str = '', gnss_frame: str = 'gps', imu_frame: str = 'imu_link',
                      state_stamp_offset_s: float = 0.0, sim_time: bool = False,
                      write_clock: bool = True, storage: str = 'mcap', start_ns: int = 1_700_000_000_000_000_000) -> None:
-    """Write a trial as a ship's sensors record it: sensor_msgs/NavSatFix on /fix (the antenna
-    at lever_arm_m (forward, left) in base_link, about ``datum``, a core.geodesy.Datum),
-    sensor_msgs/Imu on /imu/data (ENU yaw, angular_velocity.z = -r), and Float64 commands.
+    """
+    Write a trial as a ship's sensors record it.
+
+    sensor_msgs/NavSatFix on /fix (the antenna at lever_arm_m (forward, left) in base_link, about
+    ``datum``, a core.geodesy.Datum), sensor_msgs/Imu on /imu/data (ENU yaw, angular_velocity.z =
+    -r), and Float64 commands.
 
     heading: 'imu' (the Imu's orientation), 'quaternion' (geometry_msgs/QuaternionStamped on
     /heading in ``map``; the Imu then has no orientation), 'north_deg' (Float64 compass
@@ -674,7 +713,8 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
     state_stamp_offset_s: header stamps of /fix, /imu/data, /heading and /vel run this much
     ahead of their receive times (a GPS-time clock). sim_time: header stamps count from 0
     (a simulation's /clock, recorded on /clock unless write_clock is False) while receive
-    times stay on the wall clock. Test and demonstration tool: the samples are the trial's own."""
+    times stay on the wall clock. Test and demonstration tool: the samples are the trial's own.
+    """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 

@@ -1,20 +1,23 @@
-"""CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians; optional
+"""
+CSV trials: a header row, model frame, SI units, radians.
+
+CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radians; optional
 wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]; optional
-bow_thruster,stern_thruster: thruster speeds [rev/s], + pushes the ship to starboard (one
-alone: the other is 0)."""
+bow_thruster,stern_thruster: thruster speeds [rev/s], + pushes the ship to starboard (one alone:
+the other is 0).
+"""
 from __future__ import annotations
 
 import io
-import warnings
 from pathlib import Path
+import warnings
 
-import numpy as np
-
-from mmg_tuner.core import frames
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner.core import frames
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name
 from mmg_tuner.data.trial import CSV_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 
 WIND_COLUMNS = ('wind_n', 'wind_e')
@@ -61,11 +64,13 @@ MAX_TIME_S = 1e10  # ~300 years: a larger time is no trial time (and overflows i
 
 
 def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
-    """(lower-case header, data (rows, columns), notes) of a CSV trial file.
+    """
+    (lower-case header, data (rows, columns), notes) of a CSV trial file.
 
     Only a regular file of at most MAX_CSV_BYTES is read; a UTF-8 byte-order mark is skipped;
     rows with a wrong number of fields are dropped with a note, as are rows whose time (column
-    't') is not a number; other non-numeric fields become NaN (dropped later, with a note)."""
+    't') is not a number; other non-numeric fields become NaN (dropped later, with a note).
+    """
     path = Path(path)
     check_regular_file(path, 'CSV file', MAX_CSV_BYTES)
     try:
@@ -121,8 +126,11 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
 
 
 def read_trial_csv(path: str | Path) -> Trial:
-    """Read a CSV with a header naming at least t,x,y,psi,u,v,r,rpm,rudder (any order), as it
-    stands (no resampling or repair beyond read_csv_table's; see csv_recording for that)."""
+    """
+    Read a CSV with a header naming at least t,x,y,psi,u,v,r,rpm,rudder (any order).
+
+    As it stands (no resampling or repair beyond read_csv_table's; see csv_recording for that).
+    """
     path = Path(path)
     header, data, notes = read_csv_table(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
@@ -136,8 +144,11 @@ def read_trial_csv(path: str | Path) -> Trial:
 
 
 def csv_recording(path: str | Path):
-    """A model-frame CSV as a raw recording (ENU/FLU series), so that it passes through the
-    same validation, repair and resampling as a bag."""
+    """
+    Return a model-frame CSV as a raw recording (ENU/FLU series).
+
+    So that it passes through the same validation, repair and resampling as a bag.
+    """
     from mmg_tuner.data.bag import RawRecording, Series
     path = Path(path)
     header, data, notes = read_csv_table(path)

@@ -1,4 +1,7 @@
-"""Reader for the FRT-DS-ESSO free-running pond tests of the Esso Osaka 3 m model
+"""
+Read the FRT-DS-ESSO free-running pond tests of the Esso Osaka 3 m model.
+
+Reader for the FRT-DS-ESSO free-running pond tests of the Esso Osaka 3 m model
 (data/esso_osaka_frt, CC BY-NC-SA 4.0; see its README), and cutting trials at events.
 
 Layout (one CSV per run, 10 Hz, header line): ``t [s]``, ``x_position_mid [m]``,
@@ -29,14 +32,13 @@ from __future__ import annotations
 
 import io
 import math
-import warnings
 from pathlib import Path
-
-import numpy as np
+import warnings
 
 from mmg_tuner.core import frames
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 MIN_SAMPLES = 10  # as data/assemble.py: shorter pieces are dropped with a note
 
@@ -62,14 +64,18 @@ def _norm(h: str) -> str:
 
 
 def is_esso_header(header: list[str]) -> bool:
-    """True when a CSV header names every required FRT-DS-ESSO column."""
+    """Return True when a CSV header names every required FRT-DS-ESSO column."""
     names = {_norm(h) for h in header}
     return all(c in names for c in ESSO_COLUMNS.values())
 
 
 def is_esso_csv(path: str | Path) -> bool:
-    """True when path is a readable CSV whose first line is an FRT-DS-ESSO header (anything
-    unreadable says False, so the generic CSV reader reports it)."""
+    """
+    Return True when path is a readable CSV with an FRT-DS-ESSO header.
+
+    True when path is a readable CSV whose first line is an FRT-DS-ESSO header (anything unreadable
+    says False, so the generic CSV reader reports it).
+    """
     try:
         with open(path, encoding='utf-8', errors='replace') as f:
             first = f.readline(10_000)
@@ -79,9 +85,12 @@ def is_esso_csv(path: str | Path) -> bool:
 
 
 def read_esso_table(path: str | Path) -> tuple[dict[str, np.ndarray], list[str]]:
-    """The file's columns by FRT-DS-ESSO header name (float arrays, NaN where a field is empty
-    or not a number), rows with a non-finite value in a required column removed, and notes
-    saying what was removed. Raises TrialDataError naming the file when nothing usable is left.
+    """
+    Return the file's columns by FRT-DS-ESSO header name, with notes.
+
+    The file's columns by FRT-DS-ESSO header name (float arrays, NaN where a field is empty or not
+    a number), rows with a non-finite value in a required column removed, and notes saying what was
+    removed. Raises TrialDataError naming the file when nothing usable is left.
     """
     path = Path(path)
     try:
@@ -139,10 +148,14 @@ def read_esso_table(path: str | Path) -> tuple[dict[str, np.ndarray], list[str]]
 
 
 def apparent_wind(true_speed, true_from, psi, u, v):
-    """Apparent wind (speed [m/s], FROM-angle clockwise from the bow [rad] in [0, 2pi)) at a
-    point moving with body velocity (u, v) on heading psi, from the true wind (speed,
-    FROM-direction clockwise from x_E). The air's velocity relative to the ship in body axes is
-    w = -U_T (cos(zeta - psi), sin(zeta - psi)) - (u, v)."""
+    """
+    Return the apparent wind at a point moving with body velocity (u, v) on heading psi.
+
+    Apparent wind (speed [m/s], FROM-angle clockwise from the bow [rad] in [0, 2pi)) at a point
+    moving with body velocity (u, v) on heading psi, from the true wind (speed, FROM-direction
+    clockwise from x_E). The air's velocity relative to the ship in body axes is w = -U_T (cos(zeta
+    - psi), sin(zeta - psi)) - (u, v).
+    """
     wx = -true_speed * np.cos(true_from - psi) - u
     wy = -true_speed * np.sin(true_from - psi) - v
     return np.hypot(wx, wy), np.mod(np.arctan2(-wy, -wx), 2.0 * np.pi)
@@ -181,7 +194,8 @@ def _wind_from_table(cols, psi, u, v, notes, name) -> np.ndarray | None:
 
 def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float = 1.0,
                   dt: float | None = None) -> list[Trial]:
-    """One FRT-DS-ESSO run -> trials in the model frame (SI, rpm = 60 n, wind north/east).
+    """
+    One FRT-DS-ESSO run -> trials in the model frame (SI, rpm = 60 n, wind north/east).
 
     keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that
     handles them); by default the run is split around them with a note, as every reader does.
@@ -268,8 +282,11 @@ def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float 
 
 
 def read_esso(path: str | Path, keep_astern: bool = False) -> list[Trial]:
-    """Every FRT-DS-ESSO run in path: one CSV, or a folder searched recursively (sorted), such
-    as data/esso_osaka_frt itself."""
+    """
+    Every FRT-DS-ESSO run in path.
+
+    One CSV, or a folder searched recursively (sorted), such as data/esso_osaka_frt itself.
+    """
     path = Path(path)
     if path.is_dir():
         files = sorted(p for p in path.rglob('*.csv') if p.is_file())
@@ -282,7 +299,7 @@ def read_esso(path: str | Path, keep_astern: bool = False) -> list[Trial]:
 
 
 def esso_data_dir() -> Path:
-    """The FRT-DS-ESSO runs shipped with the package (data/esso_osaka_frt)."""
+    """Return the FRT-DS-ESSO runs shipped with the package (data/esso_osaka_frt)."""
     here = Path(__file__).resolve()
     for parent in here.parents:
         for cand in (parent / 'data' / 'esso_osaka_frt',
@@ -299,7 +316,8 @@ EVENTS = ('rudder_first_over', 'propeller_first_astern')
 
 def event_time(trial: Trial, event: str = 'rudder_first_over', hold_s: float = 3.0,
                min_deg: float | None = None) -> float | None:
-    """Trial time [s] of an event, or None when it does not occur.
+    """
+    Trial time [s] of an event, or None when it does not occur.
 
     rudder_first_over: the rudder's first move to a held helm angle (held within 1 deg for
     hold_s) of at least min_deg; by default min_deg is 90 % of the largest angle held anywhere
@@ -335,9 +353,13 @@ def event_time(trial: Trial, event: str = 'rudder_first_over', hold_s: float = 3
 
 def cut_from_event(trial: Trial, event: str = 'rudder_first_over', before_s: float = 5.0,
                    **kw) -> Trial:
-    """The trial from before_s seconds before the event to its end, time restarting at 0
-    (start_s and notes say where it was cut). Raises TrialDataError when the event does not
-    occur. kw go to :func:`event_time` (hold_s, min_deg)."""
+    """
+    Return the trial from before_s seconds before the event to its end.
+
+    The trial from before_s seconds before the event to its end, time restarting at 0 (start_s and
+    notes say where it was cut). Raises TrialDataError when the event does not occur. kw go to
+    :func:`event_time` (hold_s, min_deg).
+    """
     te = event_time(trial, event, **kw)
     if te is None:
         raise TrialDataError(f'{trial.name}: event {event!r} not found; cannot cut')

@@ -1,12 +1,15 @@
-"""Input files and trial names that cannot hurt the reader: only regular files of a bounded
-size are opened (a FIFO blocks, /dev/zero never ends), and every trial name is printable
-UTF-8 text, unique among the trials read together."""
+"""
+Input files and trial names that cannot hurt the reader.
+
+Only regular files of a bounded size are opened (a FIFO blocks, /dev/zero never ends), and every
+trial name is printable UTF-8 text, unique among the trials read together.
+"""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import re
 import stat
-from pathlib import Path
 
 from mmg_tuner.errors import TrialDataError
 
@@ -16,8 +19,12 @@ def _why(exc: BaseException) -> str:
 
 
 def check_regular_file(path: Path, what: str = 'file', max_bytes: int | None = None) -> int:
-    """The size of ``path`` [bytes] if it is a regular file (not a FIFO, device or socket that
-    would block or never end) of at most max_bytes; else a TrialDataError."""
+    """
+    Return the size of ``path`` [bytes] if it is a regular file of at most max_bytes.
+
+    The size of ``path`` [bytes] if it is a regular file (not a FIFO, device or socket that would
+    block or never end) of at most max_bytes; else a TrialDataError.
+    """
     try:
         st = os.stat(path)
     except OSError as exc:
@@ -35,21 +42,32 @@ _UNSAFE = re.compile(r'[\x00-\x1f\x7f/\\]')
 
 
 def display_text(text: str) -> str:
-    """``text`` (e.g. a path whose bytes are not UTF-8, which Python keeps as surrogate
-    escapes) as valid UTF-8 text: undecodable bytes become U+FFFD."""
+    """
+    Return ``text`` as valid UTF-8 text.
+
+    ``text`` (e.g. a path whose bytes are not UTF-8, which Python keeps as surrogate escapes) as
+    valid UTF-8 text: undecodable bytes become U+FFFD.
+    """
     return os.fsencode(text).decode('utf-8', 'replace') if isinstance(text, str) else str(text)
 
 
 def safe_name(name: str) -> str:
-    """A trial name fit for reports and file names: valid UTF-8, no control characters or
-    path separators (each becomes '_'), never empty."""
+    """
+    Return a trial name fit for reports and file names.
+
+    Valid UTF-8, no control characters or path separators (each becomes '_'), never empty.
+    """
     return _UNSAFE.sub('_', display_text(name)).strip() or 'trial'
 
 
 def unique_names(trials: list, sources: list[str] | None = None) -> list:
-    """Give trials that share a name (e.g. turning.csv in two folders) distinct names,
-    deterministically: first ``folder/name`` from the folder each came from, then a numeric
-    suffix _2, _3 ... in input order. A renamed trial gets a note. Returns the same list."""
+    """
+    Give trials that share a name distinct names, deterministically.
+
+    Give trials that share a name (e.g. turning.csv in two folders) distinct names,
+    deterministically: first ``folder/name`` from the folder each came from, then a numeric suffix
+    _2, _3 ... in input order. A renamed trial gets a note. Returns the same list.
+    """
     seen: dict[str, int] = {}
     for tr in trials:
         seen[tr.name] = seen.get(tr.name, 0) + 1

@@ -1,15 +1,14 @@
 """Synthetic trials: the core's manoeuvres with realistic sensor noise, as rosbag2 + CSV."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-import numpy as np
+import math
 
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, SimulationError
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -56,9 +55,13 @@ class SensorNoise:
 
 
 def parse_maneuver(text: str) -> tuple[str, float, float | None]:
-    """'turning:35', 'zigzag:20' or 'zigzag:20/10', 'pullout:20', 'random:30', and for a
-    low-speed family 'berthing:20' (helm of the approach; its sign is the berth's side) and
-    'random_astern:30' -> (manoeuvre, rudder_deg, check_deg)."""
+    """
+    Parse a manoeuvre such as 'zigzag:20/10' into (manoeuvre, rudder_deg, check_deg).
+
+    'turning:35', 'zigzag:20' or 'zigzag:20/10', 'pullout:20', 'random:30', and for a low-speed
+    family 'berthing:20' (helm of the approach; its sign is the berth's side) and
+    'random_astern:30' -> (manoeuvre, rudder_deg, check_deg).
+    """
     kind, _, arg = text.partition(':')
     if kind not in mv.ALL_MANEUVERS:
         raise SimulationError(f'unknown manoeuvre {text!r}; use e.g. turning:35, zigzag:20/20, '
@@ -88,9 +91,13 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
                    noise: SensorNoise, seed: int, name: str, approach_s: float = 10.0,
                    record_wind: bool = False, thruster_rps: float = 20.0
                    ) -> tuple[Trial, Trial]:
-    """(truth, measured) for one manoeuvre; truth is integrated with RK4 at <= 0.1 s.
-    record_wind: the trial carries the (steady) true wind as a measurement. thruster_rps:
-    the thrusters' speed of the low-speed manoeuvres [rev/s] (mv.LOWSPEED_MANEUVERS)."""
+    """
+    (truth, measured) for one manoeuvre.
+
+    Truth is integrated with RK4 at <= 0.1 s. record_wind: the trial carries the (steady) true wind
+    as a measurement. thruster_rps: the thrusters' speed of the low-speed manoeuvres [rev/s]
+    (mv.LOWSPEED_MANEUVERS).
+    """
     for what, v in (('rate_hz', rate_hz), ('duration_s', duration_s), ('rpm', rpm),
                     ('speed_ms', speed_ms)):
         if not (math.isfinite(v) and v > 0):

@@ -1,9 +1,13 @@
-"""The one door: any path (rosbag2 dir, .mcap, .csv, MARIN .dat, or a folder of them, searched
-recursively) -> list of trials."""
+"""
+The one door: any path -> list of trials.
+
+The one door: any path (rosbag2 dir, .mcap, .csv, MARIN .dat, or a folder of them, searched
+recursively) -> list of trials.
+"""
 from __future__ import annotations
 
-import math
 from dataclasses import replace
+import math
 from pathlib import Path
 
 from mmg_tuner.core.limits import InputLimits
@@ -109,8 +113,11 @@ def cut_at_event(trials: list[Trial], event: str, before_s: float = 5.0) -> list
 def load_trials(path: str | Path, tm: TopicMap | None = None,
                 time_ranges: list[tuple[float, float]] | None = None,
                 keep_astern: bool = False, limits: InputLimits | None = None) -> list[Trial]:
-    """Every trial in path (a folder: searched recursively, see :func:`find_inputs`),
-    validated and resampled on tm.dt (see :mod:`.assemble`).
+    """
+    Return every trial in path, validated and resampled on tm.dt.
+
+    Every trial in path (a folder: searched recursively, see :func:`find_inputs`), validated and
+    resampled on tm.dt (see :mod:`.assemble`).
 
     A CSV with the FRT-DS-ESSO columns goes to :mod:`.esso` (own 0.1 s rate). keep_astern
     keeps astern propeller and u <= 0 samples (for a family that covers them), in every
@@ -139,8 +146,12 @@ def load_trials(path: str | Path, tm: TopicMap | None = None,
 def load_many(paths: list[str | Path], tm: TopicMap | None = None,
               time_ranges: list[tuple[float, float]] | None = None,
               keep_astern: bool = False, limits: InputLimits | None = None) -> list[Trial]:
-    """load_trials over several paths, with trial names unique across all of them (two
-    turning.csv from different folders become folder/turning, deterministically)."""
+    """
+    load_trials over several paths.
+
+    With trial names unique across all of them (two turning.csv from different folders become
+    folder/turning, deterministically).
+    """
     trials: list[Trial] = []
     for p in paths:
         trials.extend(load_trials(p, tm, time_ranges, keep_astern, limits))
@@ -161,7 +172,7 @@ _CSV_TOPICS = {
 
 def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
              limits: InputLimits | None = None) -> list[Trial]:
-    """The trials of one input (a rosbag2 folder, .mcap, .csv or .dat), with safe names."""
+    """Return the trials of one input (a rosbag2 folder, .mcap, .csv or .dat), with safe names."""
     if not p.is_dir():
         check_regular_file(p, 'trial file')
     name = safe_name(p.name if p.is_dir() else p.stem)

@@ -1,4 +1,5 @@
-"""Reader for the SIMMAN 2008 / MARIN free-running ``.dat`` files (KVLCC2, full scale).
+"""
+Reader for the SIMMAN 2008 / MARIN free-running ``.dat`` files (KVLCC2, full scale).
 
 Format (see data/kvlcc2_simman2008_marin/README.md): 2 title lines, a blank line, then 11
 tab-separated columns: time [s], x0, y0 [m], phi [deg], psi [deg], u, v [m/s EARTH-fixed],
@@ -10,20 +11,22 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
-
 from mmg_tuner.core import frames
 from mmg_tuner.data.files import check_regular_file
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 MAX_DAT_BYTES = 256 << 20  # the SIMMAN files are ~200 kB each
 MARIN_DT_S = 0.13533  # 0.02 s model scale x sqrt(45.714)
 
 
 def read_marin_dat(path: str | Path) -> Trial:
-    """Read one MARIN .dat file into a full-scale Trial in the MMG frame (rudder sign flipped,
-    earth-fixed velocities turned into body velocities)."""
+    """
+    Read one MARIN .dat file into a full-scale Trial in the MMG frame.
+
+    (rudder sign flipped, earth-fixed velocities turned into body velocities).
+    """
     path = Path(path)
     check_regular_file(path, 'MARIN .dat file', MAX_DAT_BYTES)
     try:
@@ -55,7 +58,7 @@ MARIN_FILES = {
 
 
 def marin_data_dir() -> Path:
-    """The MARIN KVLCC2 data shipped in the repository (data/kvlcc2_simman2008_marin)."""
+    """Return the MARIN KVLCC2 data shipped in the repository (data/kvlcc2_simman2008_marin)."""
     here = Path(__file__).resolve()
     for parent in here.parents:
         cand = parent / 'data' / 'kvlcc2_simman2008_marin'
@@ -69,9 +72,13 @@ def marin_data_dir() -> Path:
 
 def compare_with_marin(ship, rpm_mode: str = 'hold_speed', data_dir: Path | None = None,
                        dt: float = 0.05) -> list[dict]:
-    """Simulate each MARIN manoeuvre with the ship (model scale) and put its indices beside the
+    """
+    Simulate each MARIN manoeuvre and put its indices beside the measured ones.
+
+    Simulate each MARIN manoeuvre with the ship (model scale) and put its indices beside the
     measured ones. rpm_mode: 'hold_speed' (the rpm holding the recorded approach speed) or
-    'recorded' (the recorded rpm, Froude-scaled). Lengths in L_pp, angles in degrees."""
+    'recorded' (the recorded rpm, Froude-scaled). Lengths in L_pp, angles in degrees.
+    """
     from mmg_tuner.core import indices as ix
     from mmg_tuner.core import maneuvers as mv
     from mmg_tuner.core.simulate import self_propulsion_rpm

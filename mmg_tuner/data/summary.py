@@ -1,11 +1,9 @@
 """What is in a recording: topics and rates, trials, detected manoeuvres, ranges, problems."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
-
-import numpy as np
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.limits import InputLimits
@@ -16,11 +14,15 @@ from mmg_tuner.data.load import cut_at_event, find_inputs, load_one
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
+import numpy as np
 
 
 def detect_maneuver(trial: Trial) -> str:
-    """'straight', 'turning', 'pull-out', 'zigzag' or 'mixed' (e.g. random manoeuvres), from
-    the rudder history and the heading change."""
+    """
+    'straight', 'turning', 'pull-out', 'zigzag' or 'mixed' (e.g. random manoeuvres).
+
+    From the rudder history and the heading change.
+    """
     rud = np.degrees(trial['rudder'])
     psi = np.degrees(frames.unwrap(trial['psi']))
     if np.abs(rud).max() < 3.0:
@@ -84,17 +86,21 @@ def summarize_trial(tr: Trial) -> TrialSummary:
 
 def summarize(path: str | Path, tm: TopicMap, limits: InputLimits | None = None,
               keep_astern: bool = False) -> tuple[list[RecordingSummary], list[Trial]]:
-    """What each recording in path holds (see summarize_many)."""
+    """Return what each recording in path holds (see summarize_many)."""
     return summarize_many([path], tm, limits, keep_astern)
 
 
 def summarize_many(paths: list[str | Path], tm: TopicMap, limits: InputLimits | None = None,
                    keep_astern: bool = False, cut: tuple[str, float] | None = None
                    ) -> tuple[list[RecordingSummary], list[Trial]]:
-    """What each recording in paths holds (one RecordingSummary each, a problem as its error)
-    and the usable trials, read as load_trials reads them, with names unique across all.
-    keep_astern: keep astern propeller and u <= 0 samples (a ship whose family covers them);
-    cut: (event, seconds before it) cuts each trial there (:func:`.load.cut_at_event`)."""
+    """
+    Return what each recording in paths holds and the usable trials.
+
+    What each recording in paths holds (one RecordingSummary each, a problem as its error) and the
+    usable trials, read as load_trials reads them, with names unique across all. keep_astern: keep
+    astern propeller and u <= 0 samples (a ship whose family covers them); cut: (event, seconds
+    before it) cuts each trial there (:func:`.load.cut_at_event`).
+    """
     out: list[RecordingSummary] = []
     per: list[list[Trial]] = []
     for path in paths:

@@ -1,17 +1,16 @@
 """Topic maps: which topics, message types, units and signs a recording uses (YAML)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import os
-import stat
-from dataclasses import dataclass
 from pathlib import Path
+import stat
 from typing import Any, Mapping
-
-import yaml
 
 from mmg_tuner.core.geodesy import Datum
 from mmg_tuner.errors import ConfigError
+import yaml
 
 NAVSATFIX = 'sensor_msgs/msg/NavSatFix'
 IMU = 'sensor_msgs/msg/Imu'
@@ -51,10 +50,12 @@ MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
 @dataclass(frozen=True)
 class TopicMap:
-    """Which topics a recording uses and how to read them (see config/topics.yaml).
+    """
+    Which topics a recording uses and how to read them (see config/topics.yaml).
 
     ``given`` holds the keys a user's map set: a topic not given may be found by message type
-    when that is unambiguous (one NavSatFix, one Imu, ...); a given one never is."""
+    when that is unambiguous (one NavSatFix, one Imu, ...); a given one never is.
+    """
 
     odom_topic: str = '/odom'
     odom_type: str = 'nav_msgs/msg/Odometry'
@@ -176,8 +177,12 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
 
 
 def _typed(source: str, key: str, v: Any, default: Any) -> Any:
-    """v as the type of the field's default: a string for topics, types, joints, units and
-    frames, a list of strings for frame tables, a finite number for sign, dt and max_gap_s."""
+    """
+    V as the type of the field's default.
+
+    A string for topics, types, joints, units and frames, a list of strings for frame tables, a
+    finite number for sign, dt and max_gap_s.
+    """
     if isinstance(default, tuple):
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
             raise ConfigError(f'{source}: {key} = {v!r} must be a list of frame_id strings')

@@ -1,5 +1,9 @@
-"""The trial type used everywhere downstream: one type for recorded and simulated histories,
-defined in the core (``mmg_tuner.core.trial``) and re-exported here."""
+"""
+The trial type used everywhere downstream.
+
+One type for recorded and simulated histories, defined in the core (``mmg_tuner.core.trial``) and
+re-exported here.
+"""
 from __future__ import annotations
 
 from mmg_tuner.core.layout import STATE_NAMES

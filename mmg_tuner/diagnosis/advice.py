@@ -1,4 +1,5 @@
-"""Advice: the trial that would settle what these trials cannot.
+"""
+Advice: the trial that would settle what these trials cannot.
 
 For an effect the trials barely see (its signature mimicked by the tuned coefficients) and for
 two causes reported as indistinguishable, two rival models explain the recorded trials about
@@ -29,11 +30,9 @@ the trials allow): what separates the two is exactly what these trials lacked.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields, replace
+import math
 from typing import Sequence
-
-import numpy as np
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
@@ -46,6 +45,7 @@ from mmg_tuner.diagnosis.lsq import local_least_squares
 from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
+import numpy as np
 
 SPEC_VERSION = 1
 MIN_SEPARATION = 1.0   # ... and by at least the unexplained error: below it the rivals'
@@ -56,14 +56,16 @@ SETTLES = 1.5   # an advised trial must separate the rivals this many times bett
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """A trial a crew can run (angles in degrees, as trials are specified).
+    """
+    A trial a crew can run (angles in degrees, as trials are specified).
 
     maneuver: 'zigzag', 'turning' or 'pullout'; rudder_deg: zigzag amplitude or turning /
     pull-out rudder (sign: first rudder direction, + starboard); check_deg: zigzag heading check
     angle; rpm: propeller speed [rev/min] from the start; rpm_after / step_at_s: an rpm step to
     rpm_after at step_at_s [s] (None: no step); rudder_rate_deg_s: steering-gear rate [deg/s];
     duration_s: recording length [s]; speed_ms: approach speed [m/s]; approach_s: straight run
-    before the rudder is executed [s]; pullout_s: how long a pull-out holds the rudder [s]."""
+    before the rudder is executed [s]; pullout_s: how long a pull-out holds the rudder [s].
+    """
 
     maneuver: str
     rudder_deg: float
@@ -120,7 +122,11 @@ class TrialSpec:
         return f'advice_{base}_{self.rpm:.0f}rpm{step}'
 
     def instruction(self) -> str:
-        """E.g. '20°/20° zigzag (starboard first) at 80 rpm, then step to 110 rpm at 200 s'."""
+        """
+        E.g.
+
+        '20°/20° zigzag (starboard first) at 80 rpm, then step to 110 rpm at 200 s'.
+        """
         side = 'starboard' if self.rudder_deg > 0 else 'port'
         a = abs(self.rudder_deg)
         if self.maneuver == 'zigzag':
@@ -138,9 +144,12 @@ class TrialSpec:
 
 def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float) -> tuple[np.ndarray, np.ndarray,
                                                                      np.ndarray, str]:
-    """The manoeuvre of spec by ship (all its effects acting), RK4 at <= 0.1 s:
-    (t (T,), observed states (T, 6), recorded controls (T, 2) rpm and actual rudder, status
-    ('' when it completed, else why it stopped))."""
+    """
+    Return the manoeuvre of spec by ship (all its effects acting), RK4 at <= 0.1 s.
+
+    (t (T,), observed states (T, 6), recorded controls (T, 2) rpm and actual rudder, status (''
+    when it completed, else why it stopped)).
+    """
     T = int(round(spec.duration_s / dt)) + 1
     t = np.arange(T) * dt
     rpm = np.full(T, float(spec.rpm))
@@ -173,8 +182,11 @@ def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float) -> tuple[np.ndarray, 
 def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
                     noise: SensorNoise | None = None, seed: int = 0,
                     name: str | None = None) -> tuple[Trial, Trial]:
-    """(truth, measured) trial of spec sailed by ``truth`` (its hidden effects acting), as
-    ``generate`` records one: command topics stamped time_offset early, sensor noise added."""
+    """
+    (truth, measured) trial of spec sailed by ``truth`` (its hidden effects acting).
+
+    As ``generate`` records one: command topics stamped time_offset early, sensor noise added.
+    """
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise DiagnosisError(f'rate_hz = {rate_hz}: must be a finite number > 0')
     t, states, controls, why = run_spec(truth, spec, 1.0 / rate_hz)
@@ -191,7 +203,7 @@ def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
 
 
 def specs_from_diagnosis(doc: dict) -> list[TrialSpec]:
-    """The advised trials of a diagnosis.json document (its 'advice' list), each once."""
+    """Return the advised trials of a diagnosis.json document (its 'advice' list), each once."""
     if not isinstance(doc, dict) or not isinstance(doc.get('advice'), list):
         raise DiagnosisError("no 'advice' list in the diagnosis document (a diagnosis.json of "
                              'this version, written by diagnose)')
@@ -211,10 +223,13 @@ def specs_from_diagnosis(doc: dict) -> list[TrialSpec]:
 # ------------------------------------------------------------------------------ repertoire
 def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
                ) -> list[TrialSpec]:
-    """Feasible trials around the recorded operating point (rpm0, speed0): zigzags of 10, 20
-    and the largest multiple of 5 deg within the rudder limit, turning circles and a pull-out,
-    at 0.8, 1 and 1.2 x rpm0, an rpm step from 0.8 to 1.2 x rpm0 half-way through a zigzag, and
-    a zigzag with the gear at half its rate. Speeds follow the rpm (propeller law)."""
+    """
+    Feasible trials around the recorded operating point (rpm0, speed0).
+
+    Zigzags of 10, 20 and the largest multiple of 5 deg within the rudder limit, turning circles
+    and a pull-out, at 0.8, 1 and 1.2 x rpm0, an rpm step from 0.8 to 1.2 x rpm0 half-way through a
+    zigzag, and a zigzag with the gear at half its rate. Speeds follow the rpm (propeller law).
+    """
     max_deg = math.degrees(ship.max_rudder_rad)
     rate = math.degrees(ship.rudder_rate_rad_s)
     big = min(35.0, 5.0 * math.floor(max_deg / 5.0))
@@ -238,8 +253,11 @@ def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
 
 def separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
                spec: TrialSpec, dt: float, sigma_pos: float, sigma_psi: float) -> float:
-    """Predicted separation (see the module) of two parameter vectors on spec; 0 when the
-    manoeuvre cannot be run, inf when one model diverges on it."""
+    """
+    Predicted separation (see the module) of two parameter vectors on spec.
+
+    0 when the manoeuvre cannot be run, inf when one model diverges on it.
+    """
     sa = replace(ship, params=np.asarray(params_a, float))
     t, states, controls, why = run_spec(sa, spec, dt)
     if why:
@@ -264,8 +282,12 @@ def _replay_separation(ship, params_a, params_b, states, controls, dt, sigma_pos
 
 def residual_scale(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
                    noise: SensorNoise | None = None) -> tuple[float, float]:
-    """(sigma_pos [m], sigma_psi [rad]): the RMS position and heading residual of params on
-    trials (replayed from their first sample), or the sensor noise when larger."""
+    """
+    (sigma_pos [m], sigma_psi [rad]).
+
+    The RMS position and heading residual of params on trials (replayed from their first sample),
+    or the sensor noise when larger.
+    """
     noise = SensorNoise() if noise is None else noise
     e_pos, e_psi = [], []
     for t in trials:
@@ -293,12 +315,17 @@ def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float
 
 def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
            sigma: tuple[float, float]) -> list[dict]:
-    """For each rival pair {'about', 'kind', 'params_a', 'params_b'} the repertoire's trial that
+    """
+    Return, for each rival pair, the repertoire's trial that separates them best.
+
+    For each rival pair {'about', 'kind', 'params_a', 'params_b'} the repertoire's trial that
     separates them best, against sigma = (position [m], heading [rad]) (see
+
     :func:`residual_scale`): {'about', 'kind', 'instruction', 'spec', 'separation',
     'separation_recorded' (the best recorded trial's), 'settles' (whether the trial separates
     them SETTLES x better than the recorded ones and by at least MIN_SEPARATION), 'runner_up',
-    'version'}."""
+    'version'}.
+    """
     rpm0, u0, dur, dt = operating_point(trials)
     sig_pos, sig_psi = sigma
     specs = repertoire(ship, rpm0, u0, dur)
@@ -327,9 +354,12 @@ def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
 
 def aliased_rival(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
                   obj: Objective, effect: str, max_sims: int = 300) -> dict:
-    """The rival of the tuned base model for a barely identifiable single-parameter effect:
-    the effect at its smallest magnitude worth finding, the base targets re-fitted to the
-    tuning trials (local least squares from the base optimum)."""
+    """
+    Return the rival of the tuned base model for a barely identifiable single-parameter effect.
+
+    The effect at its smallest magnitude worth finding, the base targets re-fitted to the tuning
+    trials (local least squares from the base optimum).
+    """
     e = EFFECTS[effect]
     p = e.params[0]
     value = EFFECT_NEUTRAL[p] + e.smallest_for(ship)[0]
@@ -346,7 +376,7 @@ def aliased_rival(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray
 
 
 def load_advice(path) -> list[TrialSpec]:
-    """The advised trials of a diagnosis.json file (errors name the file)."""
+    """Return the advised trials of a diagnosis.json file (errors name the file)."""
     import json
     from pathlib import Path
 

@@ -1,4 +1,5 @@
-"""Where the data was taken, and which effects are physically possible there.
+"""
+Where the data was taken, and which effects are physically possible there.
 
 A diagnosis names the effect that best explains held-out trials; but an effect that cannot
 exist where the trials were run (a wind indoors, a current in a towing tank, a GNSS antenna
@@ -31,10 +32,12 @@ POSITIONS = ('antenna', 'reference', 'unknown')
 
 @dataclass(frozen=True)
 class Setting:
-    """Where and how the trials were recorded.
+    """
+    Where and how the trials were recorded.
 
     venue: one of VENUES; position: one of POSITIONS; scale: 'model' or 'full' (from the ship's
-    scale_ratio: a model has scale_ratio > 1); source: who declared it (for the report)."""
+    scale_ratio: a model has scale_ratio > 1); source: who declared it (for the report).
+    """
 
     venue: str = 'unknown'
     position: str = 'unknown'
@@ -52,8 +55,12 @@ class Setting:
 
     @classmethod
     def parse(cls, value, source: str = 'given') -> 'Setting | None':
-        """A Setting from a Setting, None, 'tank' / 'tank,reference' / 'sea,antenna', or a
-        mapping {venue:, position:} (the ship YAML's ``setting:`` key)."""
+        """
+        Return a Setting from a Setting, None, a string or a mapping.
+
+        A Setting from a Setting, None, 'tank' / 'tank,reference' / 'sea,antenna', or a mapping
+        {venue:, position:} (the ship YAML's ``setting:`` key).
+        """
         if value is None or isinstance(value, Setting):
             return value
         if isinstance(value, str):
@@ -89,7 +96,7 @@ class Setting:
 
 
 def _from_trials(trials: Sequence[Trial]) -> dict:
-    """What the readers recorded about where the trials come from."""
+    """Return what the readers recorded about where the trials come from."""
     if trials and all(any(n.startswith('MARIN .dat') for n in t.notes) for t in trials):
         return {'venue': 'tank', 'position': 'reference'}
     if trials and all(any('FRT-DS-ESSO' in n for n in t.notes) for t in trials):
@@ -98,9 +105,13 @@ def _from_trials(trials: Sequence[Trial]) -> dict:
 
 
 def resolve(ship: ShipConfig, trials: Sequence[Trial], given=None) -> Setting:
-    """The setting of a diagnosis: the caller's, else the ship YAML's ``setting:``, else what
-    the trials' readers recorded; each part (venue, position) filled from the next source
-    when the earlier one leaves it unknown. The scale always follows ship.scale_ratio."""
+    """
+    Return the setting of a diagnosis.
+
+    The caller's, else the ship YAML's ``setting:``, else what the trials' readers recorded; each
+    part (venue, position) filled from the next source when the earlier one leaves it unknown. The
+    scale always follows ship.scale_ratio.
+    """
     scale = 'model' if ship.scale_ratio > 1.0 else 'full'
     s = Setting.parse(given, 'the caller') or Setting(source='default')
     yaml_s = Setting.parse(ship.extra.get('setting'), f'{ship.source or ship.name} (setting:)') \
@@ -124,8 +135,11 @@ def resolve(ship: ShipConfig, trials: Sequence[Trial], given=None) -> Setting:
 
 
 def impossible_effects(setting: Setting) -> dict[str, str]:
-    """{effect name: why it cannot exist in this setting}. Measured signals follow the same
-    rule as the effect they measure."""
+    """
+    {effect name: why it cannot exist in this setting}.
+
+    Measured signals follow the same rule as the effect they measure.
+    """
     out = {}
     if setting.venue in ('tank', 'basin'):
         out['wind'] = f'no wind indoors ({setting.venue})'

@@ -1,4 +1,5 @@
-"""Local bounded least squares for warm-started re-tunes.
+"""
+Local bounded least squares for warm-started re-tunes.
 
 Next to an optimum, a trust-region least-squares method on the weighted residuals needs far
 fewer simulations than CMA-ES: each iteration costs one batched simulation of the d
@@ -6,23 +7,24 @@ forward-difference vectors (one multi-core compiled call) plus one of the new po
 """
 from __future__ import annotations
 
-import numpy as np
-
 from mmg_tuner.tuning.identifiability import residuals
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
+import numpy as np
 
 
 def local_least_squares(space: ParameterSpace, obj: Objective, theta0: np.ndarray,
                         max_sims: int, h: float = 1e-4, ftol: float = 1e-4) -> np.ndarray:
-    """Bounded least squares (SciPy's trust-region reflective) on the objective's weighted
-    residuals, from theta0, in the unit box. The forward-difference Jacobian is one batched,
-    multi-core simulation of all d perturbed vectors (stepping inward at an upper bound).
-    max_sims caps the simulations (each iteration costs d + 1). ftol: stop when an iteration
-    lowers J by less than this fraction (on a benchmark case 1e-4 halved the re-tunes' time
-    against 1e-6, same name, estimate within 0.01 deg; gains are judged at the 10 % level).
-    Returns the better of the result and theta0 by J (a local method never makes a warm
-    start worse)."""
+    """
+    Bounded least squares (SciPy's trust-region reflective) on the objective's weighted residuals.
+
+    From theta0, in the unit box. The forward-difference Jacobian is one batched, multi-core
+    simulation of all d perturbed vectors (stepping inward at an upper bound). max_sims caps the
+    simulations (each iteration costs d + 1). ftol: stop when an iteration lowers J by less than
+    this fraction (on a benchmark case 1e-4 halved the re-tunes' time against 1e-6, same name,
+    estimate within 0.01 deg; gains are judged at the 10 % level). Returns the better of the result
+    and theta0 by J (a local method never makes a warm start worse).
+    """
     from scipy.optimize import least_squares
 
     d = space.dim

@@ -1,10 +1,12 @@
-"""diagnosis.json, diagnosis.md and the plots a naval architect would look at (returned as
-text and PNG bytes; the caller writes them)."""
+"""
+Write diagnosis.json, diagnosis.md and the plots a naval architect would look at.
+
+diagnosis.json, diagnosis.md and the plots a naval architect would look at (returned as text and
+PNG bytes; the caller writes them).
+"""
 from __future__ import annotations
 
 from dataclasses import asdict
-
-import numpy as np
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -12,7 +14,8 @@ from mmg_tuner.diagnosis.residuals import residual_series, simulate_trials, summ
 from mmg_tuner.diagnosis.select import Diagnosis
 from mmg_tuner.diagnosis.structure import markdown_lines as structure_lines
 from mmg_tuner.tuning.plots import INPUT_AXES, png_bytes
-from mmg_tuner.tuning.report import display_name, fmt_J, fmt_gain, unique_names
+from mmg_tuner.tuning.report import display_name, fmt_gain, fmt_J, unique_names
+import numpy as np
 
 
 def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
@@ -38,9 +41,9 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
             lines.append(f"- **{c['effect']}** — {c['summary']}. Held-out gain "
                          f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])} "
                          f"(jackknife over test trials). {c['description'].capitalize()}."
-                         + (f" These trials cannot tell it apart from "
+                         + (f' These trials cannot tell it apart from '
                             f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
-                            "their combined uncertainty)." if c.get('indistinguishable_from')
+                            'their combined uncertainty).' if c.get('indistinguishable_from')
                             else ''))
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
@@ -55,8 +58,8 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
             lines.append(f"- {x['effect']}: held-out gain {_pct(x['gain'])} ± "
                          f"{_pct(x['gain_se'])} (round {x['round']}) — {x['reason']}")
     lines += ['', '| held-out J (test trials) | value |', '|---|---|',
-              f"| base model, tuned | {_J(b)} |",
-              f"| final model | {_J(f)} |",
+              f'| base model, tuned | {_J(b)} |',
+              f'| final model | {_J(f)} |',
               f"| gain | {fmt_gain(b['J_test'], f['J_test'])} |"]
     for m in doc.get('measured_signals') or []:
         lines += ['', f"## Measured signal: {m['signal'].replace('_', ' ')} (round {m['round']})",
@@ -98,7 +101,7 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   'For each effect these trials barely see, and each pair of causes they cannot '
                   'tell apart, the feasible trial (zigzags, turning circles, pull-outs at several '
                   'rpm, an rpm step, a slower rudder; within the rudder limit and gear rate) '
-                  "whose predicted outputs differ most between the rival models, against the "
+                  'whose predicted outputs differ most between the rival models, against the '
                   'sensor noise (a ranking: residuals along a trajectory are correlated). '
                   '`generate --from-advice diagnosis.json` runs them.', '',
                   '| about | trial | separation (x unexplained error) | best recorded trial |',
@@ -142,14 +145,14 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
 
 
 def _pct(x: float | None) -> str:
-    """A fraction as a percentage; never 'nan %' (None and NaN: '—')."""
+    """Return a fraction as a percentage; never 'nan %' (None and NaN: '—')."""
     if x is None or not np.isfinite(x):
         return 'inf' if x is not None and x > 0 else '—'
     return f'{100 * x:.1f} %'
 
 
 def _J(m: dict) -> str:
-    """A model's held-out J, or where it diverged."""
+    """Return a model's held-out J, or where it diverged."""
     return m['diverged'] if m.get('diverged') else _fmt_J(m['J_test'])
 
 

@@ -1,15 +1,18 @@
-"""Residual analysis: per trial and state, when and how large the errors are, and what they
-correlate with (heading, speed, rudder, rudder rate, time)."""
+"""
+Residual analysis.
+
+Per trial and state, when and how large the errors are, and what they correlate with (heading,
+speed, rudder, rudder rate, time).
+"""
 from __future__ import annotations
 
 import math
-
-import numpy as np
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning.report import simulate_trial, unique_names
+import numpy as np
 
 
 def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
@@ -19,7 +22,7 @@ def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
 
 
 def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
-    """simulated - recorded, heading wrapped; (T, 6)."""
+    """Simulated - recorded, heading wrapped; (T, 6)."""
     e = sim - trial.states
     e[:, 2] = (e[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return e
@@ -33,8 +36,12 @@ def regressors(trial: Trial) -> dict[str, np.ndarray]:
 
 
 def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
-    """Per trial: RMS and maximum (with its time) of each state's error; pooled correlation
-    of the velocity residuals with each regressor."""
+    """
+    Return the error statistics per trial and the residuals' correlations.
+
+    Per trial: RMS and maximum (with its time) of each state's error; pooled correlation of the
+    velocity residuals with each regressor.
+    """
     per_trial = {}
     pooled_e, pooled_x = [], {k: [] for k in regressors(trials[0])}
     for tr, label, sim in zip(trials, unique_names(trials), sims):

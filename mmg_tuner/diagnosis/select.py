@@ -1,5 +1,8 @@
-"""Name the cause: extend the model with each candidate effect, re-tune (effect parameters plus
-the base targets, warm-started), and keep the effect whose held-out gain is significant.
+"""
+Name the cause.
+
+Extend the model with each candidate effect, re-tune (effect parameters plus the base targets,
+warm-started), and keep the effect whose held-out gain is significant.
 
 Selection rule (stepwise, like forward-backward regression):
 * held-out gain G = 1 - J_test(extended) / J_test(current model), summed over test trials;
@@ -51,29 +54,28 @@ Selection rule (stepwise, like forward-backward regression):
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field, replace
 import hashlib
 import logging
 import math
+from pathlib import Path
 import pickle
 import time
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Callable, Sequence, TypeVar
 
-import numpy as np
-
 from mmg_tuner._atomic import write_atomic
-from mmg_tuner.core.effects import EFFECTS, Effect, describe_values
+from mmg_tuner.core.effects import describe_values, Effect, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.diagnosis.context import Setting, impossible_effects, resolve
+from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
 from mmg_tuner.diagnosis.lsq import local_least_squares
 from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.tuner import Tuner
+import numpy as np
 
 logger = logging.getLogger(__name__)
 
@@ -164,10 +166,13 @@ class Candidate:
 
 @dataclass
 class Cause:
-    """A named cause: the effect, its estimated parameters (SI, radians) with Gauss-Newton
-    standard errors, and the held-out gain (1 - J_test(with it) / J_test(without)) with its
-    jackknife standard error over test trials. A measured signal used as a cause (e.g.
-    ``measured_wind``) has no parameters."""
+    """
+    A named cause.
+
+    The effect, its estimated parameters (SI, radians) with Gauss-Newton standard errors, and the
+    held-out gain (1 - J_test(with it) / J_test(without)) with its jackknife standard error over
+    test trials. A measured signal used as a cause (e.g. ``measured_wind``) has no parameters.
+    """
 
     effect: str
     parameters: dict[str, float]
@@ -179,7 +184,11 @@ class Cause:
 
     @property
     def summary(self) -> str:
-        """Human wording, e.g. 'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'."""
+        """
+        Human wording, e.g.
+
+        'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'.
+        """
         if self.effect in MEASURED:
             return self.effect.replace('_', ' ') + ' used'
         return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
@@ -232,15 +241,19 @@ class Verdict:
 
 def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
                s: DiagnosisSettings) -> Verdict:
-    """The one acceptance rule, used by the forward step (ref: the current model re-tuned,
-    new: with the candidate effect) and by the backward step (ref: the model without a named
-    effect, new: the model with it; not significant -> the effect is dropped).
+    """
+    Return the one acceptance rule, used by the forward and the backward step.
+
+    The one acceptance rule, used by the forward step (ref: the current model re-tuned, new: with
+    the candidate effect) and by the backward step (ref: the model without a named effect, new: the
+    model with it; not significant -> the effect is dropped).
 
     Significant when the gain exceeds min_gain + param_penalty x n_params and min_gain_z
     jackknife standard errors, the reduction is at least min_abs_gain of the base model's
     held-out error, and no test trial gets worse both by a factor above 1 + worse_tol and by
     more than worse_abs of the total held-out J without it (sum(J_ref)). A run that diverges
-    (infinite J) on either side is never significant."""
+    (infinite J) on either side is never significant.
+    """
     J_ref = np.asarray(J_ref, float)
     J_new = np.asarray(J_new, float)
     if not np.all(np.isfinite(J_new)) or not np.all(np.isfinite(J_ref)):
@@ -272,8 +285,12 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
 
 
 class SearchCheckpoint:
-    """Completed tunings of one diagnosis, pickled atomically after each: a resumed search
-    replays the same (deterministic) steps and takes every finished tuning from here."""
+    """
+    Completed tunings of one diagnosis, pickled atomically after each.
+
+    A resumed search replays the same (deterministic) steps and takes every finished tuning from
+    here.
+    """
 
     VERSION = 1
 
@@ -332,15 +349,18 @@ class SearchCheckpoint:
 
 def fingerprint(ship: ShipConfig, obj: Objective, obj_test: Objective,
                 s: DiagnosisSettings) -> str:
-    """What a checkpoint must match: ship parameters, trials, weights and settings."""
+    """Return what a checkpoint must match: ship parameters, trials, weights and settings."""
     return SearchCheckpoint.key(ship.model, ship.params, obj.batch.meas, obj.batch.ctrls,
                                 obj_test.batch.meas, obj_test.batch.ctrls,
                                 repr(sorted(asdict(s).items())))
 
 
 class _Model:
-    """A model structure under test: base targets + effect parameters with their boxes, and
-    whether the measured wind drives it."""
+    """
+    A model structure under test.
+
+    Base targets + effect parameters with their boxes, and whether the measured wind drives it.
+    """
 
     def __init__(self, ship: ShipConfig, base: ParameterSpace, effects: list[Effect],
                  measured_wind: bool = False):
@@ -359,8 +379,12 @@ class _Model:
 
 @dataclass(frozen=True, eq=False)
 class _Objectives:
-    """The tuning and test objectives without and (when trials carry one) with the measured
-    wind driving the model."""
+    """
+    Tuning and test objectives, without and with the measured wind.
+
+    The tuning and test objectives without and (when trials carry one) with the measured wind
+    driving the model.
+    """
 
     plain: tuple[Objective, Objective]
     wind: tuple[Objective, Objective] | None
@@ -371,8 +395,11 @@ class _Objectives:
 
 @dataclass(frozen=True, eq=False)
 class _Fit:
-    """One tuning of the search, self-contained so that a ``map_fn`` may run it in another
-    process: it touches neither the checkpoint nor the log."""
+    """
+    One tuning of the search, self-contained so that a ``map_fn`` may run it in another process.
+
+    It touches neither the checkpoint nor the log.
+    """
 
     ship: ShipConfig
     space: ParameterSpace
@@ -395,8 +422,9 @@ class _Fit:
 
 
 def _run_fit(f: _Fit) -> np.ndarray:
-    """Run one tuning; an interrupted CMA-ES run raises KeyboardInterrupt (never a truncated
-    result)."""
+    """
+    Run one tuning; an interrupted CMA-ES run raises KeyboardInterrupt (never a truncated result).
+    """
     space = f.space
     x0 = np.asarray(f.x0, float)
     if f.fixed_base:  # screening: the base held, the effect parameters (new and named) move
@@ -431,9 +459,13 @@ def _plain_map(fn, items):
 
 def _tune_many(fits: Sequence[_Fit], store: SearchCheckpoint | None,
                map_fn: MapFn | None) -> list[np.ndarray]:
-    """Every tuning, in input order: finished ones from the checkpoint, the rest through
-    map_fn (plain map by default: each stored as soon as it is done). The checkpoint is read
-    before and written after the mapping, here in the calling process."""
+    """
+    Every tuning, in input order.
+
+    Finished ones from the checkpoint, the rest through map_fn (plain map by default: each stored
+    as soon as it is done). The checkpoint is read before and written after the mapping, here in
+    the calling process.
+    """
     keys = [f.key() for f in fits]
     out: list[np.ndarray | None] = [store.get(k) if store is not None else None for k in keys]
     todo = [i for i, th in enumerate(out) if th is None]
@@ -466,8 +498,12 @@ _PERIODIC = {'current_dir', 'wind_dir'}
 
 def pinned_on_bound(space: ParameterSpace, theta: np.ndarray, names: Sequence[str],
                     tol: float) -> list[str]:
-    """Effect parameters whose estimate sits on a bound of its box (periodic angles and bounds
-    equal to the neutral value excepted: there the effect merely vanishes)."""
+    """
+    Return the effect parameters whose estimate sits on a bound of its box.
+
+    Effect parameters whose estimate sits on a bound of its box (periodic angles and bounds equal
+    to the neutral value excepted: there the effect merely vanishes).
+    """
     out = []
     for i, n in enumerate(space.names):
         if n not in names or n in _PERIODIC:
@@ -480,8 +516,12 @@ def pinned_on_bound(space: ParameterSpace, theta: np.ndarray, names: Sequence[st
 
 
 def jackknife_se(J_ref: np.ndarray, J_new: np.ndarray) -> float:
-    """Standard error of the pooled gain 1 - sum(J_new)/sum(J_ref), leaving out one test trial
-    at a time (trials weigh as much as their error). Infinite with fewer than two trials."""
+    """
+    Return the jackknife standard error of the pooled gain.
+
+    Standard error of the pooled gain 1 - sum(J_new)/sum(J_ref), leaving out one test trial at a
+    time (trials weigh as much as their error). Infinite with fewer than two trials.
+    """
     n = len(J_ref)
     if n < 2 or not (np.all(np.isfinite(J_ref)) and np.all(np.isfinite(J_new))):
         return float('inf')
@@ -507,7 +547,7 @@ def check_trial_sets(tune_trials: Sequence[Trial], test_trials: Sequence[Trial])
         raise DiagnosisError('the diagnosis needs tuning trials and held-out test trials')
     if len(test_trials) < 2:
         raise DiagnosisError(
-            f'only one held-out trial ({test_trials[0].name}): the held-out gain\'s jackknife '
+            f"only one held-out trial ({test_trials[0].name}): the held-out gain's jackknife "
             'standard error needs at least two, so no cause could ever be named; give two or '
             'more test trials (or at least four trials without --test)')
 
@@ -567,7 +607,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
              log: Callable[[str], None] | None = None, *,
              checkpoint: str | Path | None = None, resume: bool = False,
              map_fn: MapFn | None = None) -> Diagnosis:
-    """Tune the base model, search the effects library, name the cause(s).
+    """
+    Tune the base model, search the effects library, name the cause(s).
 
     checkpoint: a file where every completed tuning is stored; with resume=True the search
     continues from it (the result equals an uninterrupted run). Ctrl-C (KeyboardInterrupt)
@@ -653,7 +694,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     aliased = _aliased_effects(ship, base, theta, obj, effects)
     for name, a in aliased.items():
         log(f"   {name} is barely identifiable here: its standard error {a['se']:.3g} with the "
-            f"base targets free is over half the smallest magnitude worth finding "
+            f'base targets free is over half the smallest magnitude worth finding '
             f"({a['smallest']:.3g}); {', '.join(a['mimicked_by'])} mimic "
             f"{_pct(a['r2'])} of its signature")
 
@@ -865,11 +906,14 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
 def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives,
                    causes: list[Cause], s: DiagnosisSettings, J_base_test: float, log,
                    store: SearchCheckpoint | None, map_fn: MapFn | None):
-    """Stepwise regression's backward step: a named effect that the later ones made redundant
-    (e.g. a yaw moment bias named first, then the rudder offset that explains it better) is
-    dropped when it fails the same :func:`acceptance` rule as the forward step against the
-    model without it. Both sides are re-tuned with the same warm start and budget; the
-    removals of one pass are independent tunings, mapped together."""
+    """
+    Stepwise regression's backward step.
+
+    A named effect that the later ones made redundant (e.g. a yaw moment bias named first, then the
+    rudder offset that explains it better) is dropped when it fails the same :func:`acceptance`
+    rule as the forward step against the model without it. Both sides are re-tuned with the same
+    warm start and budget; the removals of one pass are independent tunings, mapped together.
+    """
     theta = _tune_many([_Fit(ship, model.space, 0, objs.of(model)[0], theta, s.effect_evals,
                              s.seed, False, s.retune)], store, map_fn)[0]
     J_full = _per_trial_J(objs.of(model)[1], ship, model.space, theta)
@@ -902,7 +946,7 @@ def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Obje
 
 
 def _pct(x: float) -> str:
-    """A fraction as a percentage for messages; never 'nan %'."""
+    """Return a fraction as a percentage for messages; never 'nan %'."""
     if math.isnan(x):
         return 'undefined'
     return f'{100 * x:.1f} %' if math.isfinite(x) else ('inf' if x > 0 else '-inf')
@@ -919,10 +963,14 @@ def _gain(ref: float, new: float) -> float:
 
 def _aliased_effects(ship, base: ParameterSpace, theta, obj: Objective, effects: list[str]
                      ) -> dict[str, dict]:
-    """Single-parameter effects the trials cannot see at a realistic magnitude while the base
-    targets are tuned: twice the parameter's standard error (base targets free, at the base
-    optimum) exceeds the smallest magnitude worth finding. They stay candidates (the gain
-    decides); the report says why one may go unnamed."""
+    """
+    Return the single-parameter effects the trials cannot see at a realistic magnitude.
+
+    Single-parameter effects the trials cannot see at a realistic magnitude while the base targets
+    are tuned: twice the parameter's standard error (base targets free, at the base optimum)
+    exceeds the smallest magnitude worth finding. They stay candidates (the gain decides); the
+    report says why one may go unnamed.
+    """
     probe = [e for e in effects if len(EFFECTS[e].params) == 1]
     if not probe:
         return {}

@@ -30,8 +30,6 @@ from __future__ import annotations
 import math
 from typing import Mapping, Sequence
 
-import numpy as np
-
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
@@ -39,6 +37,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import unique_names
+import numpy as np
 
 NEAR_BOUND = 0.10          # an effect estimate this close to its box's edge (fraction of width)
 REMAINING_LARGE = 0.30     # final / base held-out J at or above this: a large error remains
@@ -372,7 +371,9 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
 
 def _where_text(per_state: Mapping, regimes: Mapping) -> str:
     """
-    Say where the learnable structure lives, e.g. 'mostly in r and v ...; at high drift angle'.
+    Say where the learnable structure lives, e.g.
+
+    'mostly in r and v ...; at high drift angle'.
 
     The states with the largest gains and the regime bin holding the largest share of the gain.
     """

@@ -1,4 +1,5 @@
-"""Fleet scale: many ships, each with its trials, tuned and diagnosed on a Dask cluster.
+"""
+Fleet scale: many ships, each with its trials, tuned and diagnosed on a Dask cluster.
 
     >>> import mmg_tuner as mt
     >>> res = mt.fleet('fleet.yaml', 'fleet_out')                   # a LocalCluster here
@@ -13,9 +14,9 @@ a fleet runs, so ``import mmg_tuner`` stays light. See :mod:`.manifest` for the 
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 import sys
 import types
-from pathlib import Path
 from typing import Any, Callable
 
 from mmg_tuner.errors import ConfigError
@@ -44,9 +45,12 @@ def _require_dask():
 
 
 def local_cluster(n_workers: int | None = None, dashboard: bool = True):
-    """A LocalCluster on 127.0.0.1 that does not oversubscribe the cores: n_workers processes
-    (default: one per core) with one task thread each, and NUMBA_NUM_THREADS = cores //
-    n_workers in their environment."""
+    """
+    Return a LocalCluster on 127.0.0.1 that does not oversubscribe the cores.
+
+    n_workers processes (default: one per core) with one task thread each, and NUMBA_NUM_THREADS =
+    cores // n_workers in their environment.
+    """
     _require_dask()
     from distributed import LocalCluster
 
@@ -66,7 +70,9 @@ def local_cluster(n_workers: int | None = None, dashboard: bool = True):
 
 def fleet(manifest: Any, out: str | Path, client=None, *, n_workers: int | None = None,
           fan_out: bool = True, progress: Callable | None = None):
-    """Run a fleet: every ship of ``manifest`` (a YAML path, a dict, or a
+    """
+    Run a fleet: every ship of ``manifest`` (a YAML path, a dict, or a.
+
     :class:`~mmg_tuner.fleet.manifest.Manifest`) loaded, tuned, diagnosed and evaluated as
     Dask tasks, results in ``out``/<ship>/ and the fleet summary in ``out``/fleet.json,
     fleet.md, fleet.png.
@@ -104,9 +110,13 @@ def fleet(manifest: Any, out: str | Path, client=None, *, n_workers: int | None 
 
 
 class _CallableModule(types.ModuleType):
-    """``mt.fleet`` is this package once it is imported (Python binds a subpackage to its
-    parent's attribute), so the package itself calls :func:`fleet`: ``mt.fleet(manifest,
-    out)`` works either way."""
+    """
+    Make ``mt.fleet(manifest, out)`` callable although ``mt.fleet`` is a package.
+
+    ``mt.fleet`` is this package once it is imported (Python binds a subpackage to its parent's
+    attribute), so the package itself calls :func:`fleet`: ``mt.fleet(manifest, out)`` works either
+    way.
+    """
 
     def __call__(self, manifest: Any, out: str | Path, client=None, **kw):
         return fleet(manifest, out, client, **kw)

@@ -1,9 +1,10 @@
-"""The fleet as a Dask task graph, built as it runs (futures):
+r"""
+The fleet as a Dask task graph, built as it runs (futures).
 
     digest(ship) -> [up to date: skipped]
                  -> load(ship) -> tune(ship)     -> evaluate(ship) -> client writes OUT/<ship>/
-                              \\-> diagnose(ship) -/
-                                   \\-> re-tune candidate 1..k (when the diagnosis offers the
+                              \-> diagnose(ship) -/
+                                   \-> re-tune candidate 1..k (when the diagnosis offers the
                                        map_fn hook: each round's independent re-tunes are tasks)
 
 Tune and diagnose of a ship are independent and run side by side; ships run in any order.
@@ -17,20 +18,20 @@ thread per worker process and NUMBA_NUM_THREADS set in the workers' environment.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import datetime as _dt
 import logging
-import time
-import uuid
-from dataclasses import dataclass, field
 from pathlib import Path
+import time
 from typing import Callable
 from urllib.parse import urlparse
+import uuid
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.fleet import jobs
 from mmg_tuner.fleet.manifest import Manifest
-from mmg_tuner.fleet.resume import (FLEET_MARK, RECORD, ShipRecord, input_digest,
-                                    read_record, up_to_date)
+from mmg_tuner.fleet.resume import (FLEET_MARK, input_digest, read_record, RECORD, ShipRecord,
+                                    up_to_date)
 
 logger = logging.getLogger(__name__)
 
@@ -41,9 +42,13 @@ except ImportError:  # pragma: no cover - the fleet refuses to start without it
 
 
 class NumbaThreads(WorkerPlugin):
-    """Caps numba's threads per task on each worker: host cores // task threads on the host
-    (``host_threads``: the sum of the workers' nthreads per host, as the scheduler saw them
-    when the fleet started; a worker not in it counts its own threads)."""
+    """
+    Caps numba's threads per task on each worker.
+
+    Host cores // task threads on the host (``host_threads``: the sum of the workers' nthreads per
+    host, as the scheduler saw them when the fleet started; a worker not in it counts its own
+    threads).
+    """
 
     name = 'mmg-tuner-numba-threads'
 
@@ -99,9 +104,12 @@ class FleetResult:
 def run(manifest: Manifest, out: str | Path, client, *, fan_out: bool = True,
         progress: Callable[[ShipOutcome], None] | None = None, resumed: bool = False
         ) -> FleetResult:
-    """Run every ship of ``manifest`` on ``client``'s cluster into ``out`` (checked by the
-    caller: new, empty or an earlier fleet's output). Returns when every ship is done,
-    skipped or failed; the fleet summary is written last."""
+    """
+    Run every ship of ``manifest`` on ``client``'s cluster into ``out``.
+
+    (checked by the caller: new, empty or an earlier fleet's output). Returns when every ship is
+    done, skipped or failed; the fleet summary is written last.
+    """
     from distributed import as_completed
 
     t0 = time.perf_counter()

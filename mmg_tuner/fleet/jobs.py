@@ -1,4 +1,5 @@
-"""One ship's work, as the Dask tasks run it: load and inspect, tune, diagnose, evaluate.
+"""
+One ship's work, as the Dask tasks run it: load and inspect, tune, diagnose, evaluate.
 
 This module is the fleet's only door to the per-ship work (:mod:`mmg_tuner.api`, the same
 calls the ``tune`` and ``diagnose`` commands make, with the same defaults), so a fleet run
@@ -13,20 +14,18 @@ worker leaves no half-written folder.
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field
 import datetime as _dt
 import inspect
 import logging
 import math
 import os
+from pathlib import Path
 import shutil
 import tempfile
 import time
 import traceback
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Callable
-
-import numpy as np
 
 from mmg_tuner import api
 from mmg_tuner._outdir import LOCK_NAME
@@ -36,6 +35,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MmgTunerError, TrialDataError
 from mmg_tuner.fleet.manifest import ShipJob
 from mmg_tuner.tuning.report import json_text
+import numpy as np
 
 logger = logging.getLogger(__name__)
 
@@ -67,8 +67,11 @@ class Loaded:
 
 @dataclass
 class StepOutput:
-    """A step's summary (for the fleet report) and its files, in writing order: the file
-    whose presence means the set is complete comes last (report.json, diagnosis.json)."""
+    """
+    A step's summary (for the fleet report) and its files, in writing order.
+
+    The file whose presence means the set is complete comes last (report.json, diagnosis.json).
+    """
 
     summary: dict
     files: dict[str, bytes] = field(default_factory=dict)
@@ -97,15 +100,19 @@ def _guard(stage: str, fn: Callable, *args):
 
 # ----------------------------------------------------------------------------- stages
 def load(job: ShipJob) -> Loaded | Failure:
-    """Load the ship and its trials (each source separately, so dates stay with their
-    trials), and summarise them as ``inspect`` does."""
+    """
+    Load the ship and its trials and summarise them as ``inspect`` does.
+
+    Load the ship and its trials (each source separately, so dates stay with their trials), and
+    summarise them as ``inspect`` does.
+    """
     return _guard('load', _load, job)
 
 
 def _load(job: ShipJob) -> Loaded:
     t0 = time.perf_counter()
     ship = api.load_ship(job.ship, job.params)
-    kw = dict(ship=ship, dt=job.dt, topics=job.topics, trial_scale=job.trial_scale)
+    kw = {'ship': ship, 'dt': job.dt, 'topics': job.topics, 'trial_scale': job.trial_scale}
     sets = {'tune': [], 'test': []}
     dates: dict[int, str | None] = {}
     for which, sources in (('tune', job.tune), ('test', job.test)):
@@ -144,9 +151,12 @@ def _tune(job: ShipJob, ld: Loaded) -> StepOutput:
 
 def diagnose(job: ShipJob, loaded: Loaded | Failure, fan_out: bool = True
              ) -> StepOutput | Failure:
-    """``diagnose TUNE --test TEST`` with the ship's options; its files as ``diagnose`` writes
-    them. With ``fan_out`` on a Dask worker, the candidate re-tunes run as tasks of their own
-    when the diagnosis offers the hook."""
+    """
+    ``diagnose TUNE --test TEST`` with the ship's options; its files as ``diagnose`` writes them.
+
+    With ``fan_out`` on a Dask worker, the candidate re-tunes run as tasks of their own when the
+    diagnosis offers the hook.
+    """
     return _guard('diagnose', _diagnose, job, loaded, fan_out)
 
 
@@ -172,9 +182,13 @@ def _diagnose(job: ShipJob, ld: Loaded, fan_out: bool) -> StepOutput:
 
 def evaluate(job: ShipJob, loaded: Loaded | Failure, tuned: StepOutput | Failure | None,
              diagnosed: StepOutput | Failure | None) -> StepOutput | Failure:
-    """The ship's fleet record: inspection, held-out gains of each step, and, when its trials
-    carry two or more dates, ``trend_parameter`` fitted per date (a rising resistance R_0 is
-    hull fouling: the model degrades over time). Writes evaluation.json."""
+    """
+    Return the ship's fleet record.
+
+    inspection, held-out gains of each step, and, when its trials carry two or more dates,
+    ``trend_parameter`` fitted per date (a rising resistance R_0 is hull fouling: the model
+    degrades over time). Writes evaluation.json.
+    """
     for step in (tuned, diagnosed):
         if isinstance(step, Failure):
             return step
@@ -195,9 +209,12 @@ def _evaluate(job: ShipJob, ld: Loaded, tuned, diagnosed) -> StepOutput:
 
 def trend(job: ShipJob, ld: Loaded, params: dict[str, float], threshold: float = 0.05
           ) -> dict:
-    """``job.trend_parameter`` fitted alone on each dated group of trials, every other
-    parameter at the ship's final model; a linear trend over the dates. ``drifts`` when the
-    fitted change over the whole span exceeds ``threshold`` of the mean value."""
+    """
+    ``job.trend_parameter`` fitted alone on each dated group of trials.
+
+    Every other parameter at the ship's final model; a linear trend over the dates. ``drifts`` when
+    the fitted change over the whole span exceeds ``threshold`` of the mean value.
+    """
     name = job.trend_parameter
     ship = ld.ship.with_params(params)
     trials = ld.tune + ld.test
@@ -233,8 +250,11 @@ def _gain(before, after) -> float | None:
 
 
 def _capture(write: Callable[[Path], list[Path]]) -> dict[str, bytes]:
-    """Run a result's ``write`` into a private temporary folder and return its files (in the
-    order written: the completion marker last)."""
+    """
+    Run a result's ``write`` into a private temporary folder and return its files.
+
+    (in the order written: the completion marker last).
+    """
     tmp = Path(tempfile.mkdtemp(prefix='mmg_fleet_'))
     try:
         paths = write(tmp / 'out')
@@ -245,9 +265,12 @@ def _capture(write: Callable[[Path], list[Path]]) -> dict[str, bytes]:
 
 
 class _FanOut:
-    """``map_fn`` for the diagnosis on a Dask worker: the independent re-tunes become tasks
-    (the calling task secedes from the worker's thread pool while it waits, so the worker's
-    slot runs one of them instead of idling)."""
+    """
+    ``map_fn`` for the diagnosis on a Dask worker.
+
+    The independent re-tunes become tasks (the calling task secedes from the worker's thread pool
+    while it waits, so the worker's slot runs one of them instead of idling).
+    """
 
     def __enter__(self):
         from distributed import worker_client
@@ -274,7 +297,7 @@ def _threads_then(fn):
 
 
 def _fan_out_hook():
-    """The fan-out context when the diagnosis accepts the hook and this runs on a worker."""
+    """Return the fan-out context when the diagnosis accepts the hook and this runs on a worker."""
     if _DIAGNOSE_HOOK not in inspect.signature(api.diagnose).parameters:
         return None
     try:

@@ -1,7 +1,9 @@
-"""The fleet manifest: which ships, which trials, which options. Validated once, here, before
-any work starts (like SciPy's ``check_arguments``): every error names the manifest, the ship
-and the key. A missing or unreadable trial is *not* a manifest error: it fails that ship
-alone, with its reason, when the ship's task loads it.
+"""
+The fleet manifest: which ships, which trials, which options.
+
+Validated once, here, before any work starts (like SciPy's ``check_arguments``): every error names
+the manifest, the ship and the key. A missing or unreadable trial is *not* a manifest error: it
+fails that ship alone, with its reason, when the ship's task loads it.
 
 Example (relative paths are relative to the manifest's folder)::
 
@@ -26,21 +28,20 @@ whose defaults differ: euler for tune, rk4 for diagnose, as the commands have th
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
 import datetime as _dt
 import difflib
 import json
 import math
 import os
-import re
-from dataclasses import dataclass, fields
 from pathlib import Path
+import re
 from typing import Any, Mapping
-
-import yaml
 
 from mmg_tuner import api
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.errors import ConfigError, MmgTunerError
+import yaml
 
 STEPS = ('tune', 'diagnose')
 _TUNE_FIELDS = tuple(f.name for f in fields(api.TuneConfig))
@@ -55,8 +56,12 @@ RESERVED = ('fleet.json', 'fleet.md', 'fleet.png')
 
 @dataclass(frozen=True)
 class TrialSource:
-    """One trial input (a bag folder, .mcap, .csv, .dat or a folder of them), with the date it
-    was recorded when the manifest gives one (dated groups reveal a model that degrades)."""
+    """
+    One trial input (a bag folder, .mcap, .csv, .dat or a folder of them).
+
+    With the date it was recorded when the manifest gives one (dated groups reveal a model that
+    degrades).
+    """
 
     path: Path
     date: _dt.date | None = None
@@ -134,8 +139,11 @@ def load_manifest(path: str | Path) -> Manifest:
 
 
 def manifest_from_dict(doc: Any, path: str | Path | None = None) -> Manifest:
-    """Validate a manifest given as data; relative paths are taken from ``path``'s folder
-    (the working directory when None)."""
+    """
+    Validate a manifest given as data.
+
+    Relative paths are taken from ``path``'s folder (the working directory when None).
+    """
     where = f'manifest {path}' if path else 'manifest'
     base = Path(path).resolve().parent if path else Path.cwd()
     if not isinstance(doc, Mapping):

@@ -1,5 +1,8 @@
-"""Resuming a fleet: a ship is done when OUT/<ship>/fleet_ship.json records a finished run
-whose input digest equals the current one; everything else is (re)done.
+"""
+Resuming a fleet.
+
+A ship is done when OUT/<ship>/fleet_ship.json records a finished run whose input digest equals the
+current one; everything else is (re)done.
 
 The digest is a SHA-256 over the ship's options (the manifest entry with every default
 filled in), the ship config's and overlays' bytes, and the bytes of every file of every
@@ -10,9 +13,9 @@ ship's files: a run killed before it leaves the ship undone, and the next run re
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import hashlib
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 import mmg_tuner
@@ -32,9 +35,12 @@ def _file_digest(h, path: Path) -> None:
 
 
 def input_digest(job: ShipJob) -> str:
-    """Content hash of everything the ship's results depend on (see the module docstring).
-    A missing input hashes as missing: the ship then fails with its reason, and is retried
-    when the input appears."""
+    """
+    Content hash of everything the ship's results depend on (see the module docstring).
+
+    A missing input hashes as missing: the ship then fails with its reason, and is retried when the
+    input appears.
+    """
     h = hashlib.sha256()
     h.update(json.dumps({'version': mmg_tuner.__version__, 'options': job.options_doc()},
                         sort_keys=True, default=str).encode())
@@ -90,8 +96,12 @@ def _jsonable(o):
 
 
 def read_record(ship_dir: Path) -> ShipRecord | None:
-    """The ship's record, or None when there is none or it is unreadable (then the ship is
-    simply redone)."""
+    """
+    Return the ship's record, or None when there is none or it is unreadable.
+
+    The ship's record, or None when there is none or it is unreadable (then the ship is simply
+    redone).
+    """
     p = Path(ship_dir) / RECORD
     try:
         doc = json.loads(p.read_text())
@@ -101,7 +111,7 @@ def read_record(ship_dir: Path) -> ShipRecord | None:
 
 
 def up_to_date(ship_dir: Path, digest: str) -> ShipRecord | None:
-    """The record when the ship finished with these inputs and all its files are there."""
+    """Return the record when the ship finished with these inputs and all its files are there."""
     rec = read_record(ship_dir)
     if rec is None or rec.status != 'ok' or rec.digest != digest:
         return None
@@ -111,8 +121,11 @@ def up_to_date(ship_dir: Path, digest: str) -> ShipRecord | None:
 
 
 def check_fleet_dir(out: Path) -> bool:
-    """Whether ``out`` may be used: new, empty, or an earlier fleet's output (then it is
-    resumed). Anything else is refused: a fleet never writes among a user's files."""
+    """
+    Whether ``out`` may be used: new, empty, or an earlier fleet's output (then it is resumed).
+
+    Anything else is refused: a fleet never writes among a user's files.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OutputError(f'--out {out} is an existing file, not a folder')

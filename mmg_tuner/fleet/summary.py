@@ -1,4 +1,5 @@
-"""The fleet summary: fleet.json, fleet.md and fleet.png in OUT/.
+"""
+The fleet summary: fleet.json, fleet.md and fleet.png in OUT/.
 
 Which ships have which causes, the held-out gains of the tuned and of the diagnosed models,
 the ships whose model drifts over time (``trend_parameter`` fitted per trial date; a rising
@@ -89,8 +90,12 @@ def markdown(doc: dict) -> str:
 
 
 def figure(doc: dict) -> bytes:
-    """Causes per ship (left), held-out gains (middle), the drift parameter per date
-    (right, when trials carry dates)."""
+    """
+    Draw the fleet figure: causes, held-out gains and drift per date.
+
+    Causes per ship (left), held-out gains (middle), the drift parameter per date (right, when
+    trials carry dates).
+    """
     from matplotlib.figure import Figure
     names = list(doc['ships'])
     effects = sorted(doc['causes'])

@@ -1,4 +1,5 @@
-"""Model frame <-> ROS messages (REP-103/105: map ENU, base_link FLU).
+"""
+Model frame <-> ROS messages (REP-103/105: map ENU, base_link FLU).
 
 x_E (north) = y_map, y_E (east) = x_map, psi = pi/2 - yaw; u = twist.x, v = -twist.y,
 r = -twist.angular.z (conventions.md). The builders take ``msg`` to refill a preallocated
@@ -8,14 +9,13 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
-from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
-
 from mmg_tuner.core import frames
 from mmg_tuner.core.frames import enu_yaw_to_psi, psi_to_enu_yaw
+from nav_msgs.msg import Odometry
+import numpy as np
+from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
 G_MS2 = 9.80665  # [m/s^2] standard gravity: a level accelerometer at rest reads +G on z
 
@@ -32,8 +32,11 @@ def seconds_from_stamp(stamp) -> float:
 def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'map',
                         child_frame_id: str = 'base_link', msg: Odometry | None = None
                         ) -> Odometry:
-    """Odometry of a model-frame state; pass msg to refill a preallocated message (cheaper
-    than building one per tick in a 50 Hz loop)."""
+    """
+    Odometry of a model-frame state.
+
+    Pass msg to refill a preallocated message (cheaper than building one per tick in a 50 Hz loop).
+    """
     x, y, psi, u, v, r = (float(a) for a in state)
     yaw = psi_to_enu_yaw(psi)
     if msg is None:
@@ -67,8 +70,11 @@ def _stamp(header, t: float) -> None:
 def transform_from_state(state: np.ndarray, t: float, parent: str = 'odom',
                          child: str = 'base_link', msg: TransformStamped | None = None
                          ) -> TransformStamped:
-    """The transform parent (ENU) -> child (FLU) of a model-frame state: the same pose as
-    :func:`odometry_from_state` (TF's odom -> base_link)."""
+    """
+    Return the transform parent (ENU) -> child (FLU) of a model-frame state: the same pose as.
+
+    :func:`odometry_from_state` (TF's odom -> base_link).
+    """
     x, y, psi = float(state[0]), float(state[1]), float(state[2])
     yaw = psi_to_enu_yaw(psi)
     if msg is None:
@@ -84,7 +90,7 @@ def transform_from_state(state: np.ndarray, t: float, parent: str = 'odom',
 
 
 def identity_transform(t: float, parent: str, child: str) -> TransformStamped:
-    """parent -> child with no offset (TF's static map -> odom of a simulator)."""
+    """Parent -> child with no offset (TF's static map -> odom of a simulator)."""
     msg = TransformStamped()
     msg.header.frame_id = parent
     msg.child_frame_id = child
@@ -95,7 +101,7 @@ def identity_transform(t: float, parent: str, child: str) -> TransformStamped:
 
 def navsat_fix(lat_deg: float, lon_deg: float, alt_m: float, t: float, frame_id: str,
                sigma_h_m: float, sigma_v_m: float, msg: NavSatFix | None = None) -> NavSatFix:
-    """A GNSS fix (WGS84) with a diagonal covariance in ENU from 1-sigma noise [m]."""
+    """Return a GNSS fix (WGS84) with a diagonal covariance in ENU from 1-sigma noise [m]."""
     if msg is None:
         msg = NavSatFix()
         msg.status.status = NavSatStatus.STATUS_FIX
@@ -113,7 +119,8 @@ def imu_from_state(state: np.ndarray, accel_flu: tuple[float, float] | None, t: 
                    frame_id: str, yaw_noise_rad: float = 0.0, gyro_noise: float = 0.0,
                    sigmas: tuple[float, float, float] = (0.0, 0.0, 0.0),
                    msg: Imu | None = None) -> Imu:
-    """An IMU sample of a model-frame state (3 DOF: level, so roll = pitch = 0).
+    """
+    Return an IMU sample of a model-frame state (3 DOF: level, so roll = pitch = 0).
 
     orientation: yaw in ENU (REP-103) plus ``yaw_noise_rad``; angular_velocity.z = -r plus
     ``gyro_noise`` [rad/s]; linear_acceleration: ``accel_flu`` (x forward, y left [m/s^2],

@@ -1,4 +1,5 @@
-"""The simulator's health as diagnostic_msgs/DiagnosticArray (for ``/diagnostics``).
+"""
+The simulator's health as diagnostic_msgs/DiagnosticArray (for ``/diagnostics``).
 
 Three statuses, each with key/values and a level (REP-107 style names "<node>: <part>"):
 
@@ -14,8 +15,8 @@ A condition is a *state*: the node logs its transitions once; the array says it 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
@@ -56,8 +57,11 @@ class Health:
     waiting: bool = False
 
     def command(self, which: str, value: float | None, problem: str, now: float) -> None:
-        """A command arrived: applied as ``value`` (None: rejected), with ``problem`` when it
-        was clamped or rejected."""
+        """
+        A command arrived.
+
+        Applied as ``value`` (None: rejected), with ``problem`` when it was clamped or rejected.
+        """
         c = self.commands[which]
         c.last_rx = now
         if value is not None:

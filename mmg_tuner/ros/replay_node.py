@@ -1,4 +1,5 @@
-"""``replay_node``: plays a recorded trial through the model beside the recording.
+"""
+``replay_node``: plays a recorded trial through the model beside the recording.
 
 Publishes /clock (trial time), the recorded commands (rudder, rpm and any thrusters) on the
 topic map's topics in its message types, units and signs (as the recording had them), the
@@ -10,19 +11,11 @@ an MCAP that Foxglove opens.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import os
+from pathlib import Path
 import shutil
 import tempfile
-from dataclasses import replace
-from pathlib import Path
-
-import numpy as np
-from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
-from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float32, Float64
-from nav_msgs.msg import Odometry
 
 from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER
 from mmg_tuner.core.residual import simulate_hybrid
@@ -32,8 +25,15 @@ from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import load_topic_map, THRUSTER_ROLES, TopicMap
 from mmg_tuner.errors import MmgTunerError, OutputError
-from mmg_tuner.ros.run import Param, declare_parameters, spin_node
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
+from mmg_tuner.ros.run import declare_parameters, Param, spin_node
+from nav_msgs.msg import Odometry
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32, Float64
 
 # All read once at start-up: none can change while the node runs.
 PARAMS = {
@@ -64,8 +64,12 @@ def error_summary(recorded: np.ndarray, simulated: np.ndarray) -> dict[str, floa
 
 
 def check_new_output(path: str) -> Path:
-    """The output_mcap path, refused (like ``ros2 bag record -o``) if anything exists there
-    and checked writable before any work starts."""
+    """
+    Return the output_mcap path, refused if anything exists there.
+
+    The output_mcap path, refused (like ``ros2 bag record -o``) if anything exists there and
+    checked writable before any work starts.
+    """
     out = Path(path).expanduser()
     if os.path.lexists(out):
         kind = 'folder' if out.is_dir() else 'file'
@@ -80,8 +84,12 @@ def check_new_output(path: str) -> Path:
 
 
 def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
-    """Write the replay bag into a private temporary folder beside ``out`` and move it into
-    place only when complete (the path is checked again just before the move)."""
+    """
+    Write the replay bag beside ``out`` and move it into place when complete.
+
+    Write the replay bag into a private temporary folder beside ``out`` and move it into place only
+    when complete (the path is checked again just before the move).
+    """
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f'.{out.name}.'))
     try:
         staged = tmp / out.name  # rosbag2 names its file after the folder

@@ -1,27 +1,33 @@
-"""One way to run a node from a console script: declared, described parameters; errors a user
-can act on; a clean shutdown."""
+"""
+One way to run a node from a console script.
+
+declared, described parameters; errors a user can act on; a clean shutdown.
+"""
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
+import sys
 from typing import Any, Callable, Mapping
 
-import rclpy
+from mmg_tuner.errors import ConfigError, MmgTunerError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+import rclpy
 from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                               ParameterException)
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
-from mmg_tuner.errors import ConfigError, MmgTunerError
-
 
 @dataclass(frozen=True)
 class Param:
-    """A node parameter: default, description (with units), optional inclusive range and
-    whether it can change at run time (read_only: fixed once the node has started)."""
+    """
+    A node parameter.
+
+    default, description (with units), optional inclusive range and whether it can change at run
+    time (read_only: fixed once the node has started).
+    """
 
     default: Any
     description: str
@@ -45,8 +51,12 @@ class Param:
 
 
 def declare_parameters(node: Node, specs: Mapping[str, Param]) -> dict[str, Any]:
-    """Declare every parameter with its descriptor; a value given at start that the
-    descriptor refuses (type, range) becomes a one-line ConfigError naming it."""
+    """
+    Declare every parameter with its descriptor.
+
+    A value given at start that the descriptor refuses (type, range) becomes a one-line ConfigError
+    naming it.
+    """
     for name, spec in specs.items():
         try:
             node.declare_parameter(name, spec.default, spec.descriptor())
@@ -71,10 +81,13 @@ def _override(node: Node, name: str) -> Any:
 
 
 def spin_node(make_node: Callable[[], Node], args=None) -> None:
-    """Create and spin a node until shutdown; an MmgTunerError (bad ship, params or trial), a
-    parameter the node refuses or ROS arguments rcl cannot parse are printed as one ``ERROR:``
-    line with exit code 2, a node's own SystemExit keeps its code, Ctrl-C and external shutdown
-    end quietly."""
+    """
+    Create and spin a node until shutdown.
+
+    An MmgTunerError (bad ship, params or trial), a parameter the node refuses or ROS arguments rcl
+    cannot parse are printed as one ``ERROR:`` line with exit code 2, a node's own SystemExit keeps
+    its code, Ctrl-C and external shutdown end quietly.
+    """
     try:
         rclpy.init(args=args)
     except _rclpy.RCLError as exc:
@@ -108,8 +121,11 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
 
 
 def _explain_init_error(exc: Exception, argv: list[str]) -> str:
-    """rcl refuses the command line (typically a --params-file it cannot parse): say which
-    file and, for a tuned params.yaml given by reflex, what to do instead."""
+    """
+    Rcl refuses the command line (typically a --params-file it cannot parse).
+
+    Say which file and, for a tuned params.yaml given by reflex, what to do instead.
+    """
     files = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
     for f in files:
         if _is_tuned_params(f):

@@ -1,4 +1,5 @@
-"""Simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) of the simulated ship.
+"""
+Simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) of the simulated ship.
 
 Sampled on *simulated* time at their own rates: the node steps the simulation exactly to each
 sample's time (:meth:`SimulatedSensors.steps_to_next`), so stamps and values do not depend on
@@ -9,17 +10,20 @@ from __future__ import annotations
 
 from typing import Callable
 
-import numpy as np
-
 from mmg_tuner.core.geodesy import Datum, enu_to_geodetic
 from mmg_tuner.ros.conversions import imu_from_state, navsat_fix
+import numpy as np
 
 _NEVER = 1 << 62
 
 
 class _Channel:
-    """One sensor's schedule: sample k at simulated time k / rate, rounded to the nearest step
-    of dt (the exact rate holds on average); at most one sample per step."""
+    """
+    One sensor's schedule.
+
+    Sample k at simulated time k / rate, rounded to the nearest step of dt (the exact rate holds on
+    average); at most one sample per step.
+    """
 
     def __init__(self, rate_hz: float, dt: float, publish: Callable) -> None:
         self.rate_hz = rate_hz
@@ -39,7 +43,8 @@ class _Channel:
 
 
 class SimulatedSensors:
-    """The node's sensor channels; ``sample_due`` publishes the samples due at the current step.
+    """
+    The node's sensor channels; ``sample_due`` publishes the samples due at the current step.
 
     params: the node's parameter dict (read at each sample, so noise and datum changes apply
     to the next sample); publishers: 'gnss' and 'imu' -> publish callables or None (off).
@@ -71,13 +76,16 @@ class SimulatedSensors:
             ch.restart(step, dt)
 
     def steps_to_next(self, step: int) -> int:
-        """Steps from ``step`` to the next sample (at least 1)."""
+        """Step from ``step`` to the next sample (at least 1)."""
         nxt = min((ch.next_step for ch in self.channels.values()), default=_NEVER)
         return max(1, nxt - step)
 
     def sample_due(self, sim, stamp0: float) -> None:
-        """Publish every sample due at the simulator's current step (message stamp:
-        stamp0 + simulated time [s])."""
+        """
+        Publish every sample due at the simulator's current step.
+
+        (message stamp: stamp0 + simulated time [s]).
+        """
         step = sim.steps
         state = None
         for name, ch in self.channels.items():
@@ -123,6 +131,5 @@ class SimulatedSensors:
 
 
 def datum_from_params(p: dict) -> Datum:
-    """The GNSS datum of the node's parameters (a ConfigError names the bad one)."""
+    """Return the GNSS datum of the node's parameters (a ConfigError names the bad one)."""
     return Datum(p['datum_lat_deg'], p['datum_lon_deg'], p['datum_alt_m'])
-

@@ -1,4 +1,5 @@
-"""``sim_node``: the tuned ship as a ROS 2 simulator.
+"""
+``sim_node``: the tuned ship as a ROS 2 simulator.
 
 Subscribes rudder, propeller and (for a model with them) bow and stern thruster commands
 (last value holds; astern rpm where the model covers it), publishes nav_msgs/Odometry
@@ -13,12 +14,23 @@ namespace), so ``-r __ns:=/ship2`` runs a second ship. All model work is
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 import re
 import time
-from dataclasses import replace
 
 from diagnostic_msgs.msg import DiagnosticArray
+from mmg_tuner.core.frames import enu_yaw_to_psi
+from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, seconds_from_stamp,
+                                       stamp_from_seconds, transform_from_state)
+from mmg_tuner.ros.health import CommandHealth, Health
+from mmg_tuner.ros.run import declare_parameters, Param, spin_node
+from mmg_tuner.ros.sensors import datum_from_params, SimulatedSensors
+from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -27,19 +39,6 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
-from nav_msgs.msg import Odometry
-
-from mmg_tuner.core.frames import enu_yaw_to_psi
-from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
-from mmg_tuner.core.ship import load_ship
-from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
-from mmg_tuner.errors import MmgTunerError
-from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state,
-                                       seconds_from_stamp, stamp_from_seconds,
-                                       transform_from_state)
-from mmg_tuner.ros.health import CommandHealth, Health
-from mmg_tuner.ros.run import Param, declare_parameters, spin_node
-from mmg_tuner.ros.sensors import SimulatedSensors, datum_from_params
 
 try:  # no wheel on PyPI: scripts/build_tf2_msgs.py builds it; a ROS install has it
     from tf2_msgs.msg import TFMessage
@@ -71,9 +70,9 @@ PARAMS = {
     'initial_rpm': Param(106.0, 'propeller rpm until a command arrives; > 0 (>= 0 for a model '
                          "covering astern), at most the ship's plausible maximum", (0.0, 1e5)),
     'initial_rudder': Param(0.0, 'rudder angle until a command arrives [rad, + starboard]; '
-                            'within the steering gear\'s limit', (-math.pi / 2, math.pi / 2)),
+                            "within the steering gear's limit", (-math.pi / 2, math.pi / 2)),
     # relative names: /odom etc. in the root namespace, /ship2/odom under -r __ns:=/ship2
-    'odom_topic': Param('odom', 'published odometry (relative: in the node\'s namespace)',
+    'odom_topic': Param('odom', "published odometry (relative: in the node's namespace)",
                         read_only=True),
     'rudder_topic': Param('rudder_angle', 'std_msgs/Float64 rudder command [rad, + starboard]',
                           read_only=True),
@@ -88,11 +87,11 @@ PARAMS = {
                                   'with thrusters', read_only=True),
     'frame_id': Param('map', 'world frame of the odometry (ENU), shared by all ships: not '
                       'prefixed'),
-    'odom_frame_id': Param('odom', 'the ship\'s odometry frame (ENU; TF map -> odom is a static '
+    'odom_frame_id': Param('odom', "the ship's odometry frame (ENU; TF map -> odom is a static "
                            'identity); prefixed with frame_prefix'),
     'child_frame_id': Param('base_link', 'body frame (FLU); prefixed with frame_prefix'),
     'frame_prefix': Param('', 'prefix of the ship\'s own frames, joined with "/" (default: the '
-                          'node\'s namespace, e.g. ship2 -> ship2/base_link)'),
+                          "node's namespace, e.g. ship2 -> ship2/base_link)"),
     'publish_tf': Param(True, 'publish odom -> base_link on /tf and map -> odom on /tf_static '
                         '(needs tf2_msgs)', read_only=True),
     'gnss_topic': Param('fix', 'simulated sensor_msgs/NavSatFix (relative)', read_only=True),
@@ -263,7 +262,7 @@ class SimNode(Node):
         return time.monotonic()  # cheaper than rclpy's Clock.now() in a 50 Hz loop
 
     def _publish_static_tf(self) -> None:
-        """map -> odom, identity (the simulator knows its pose exactly: no drift to correct)."""
+        """Map -> odom, identity (the simulator knows its pose exactly: no drift to correct)."""
         world, odom, _ = self.frames
         if self.tf_static_pub is not None and world != odom:
             self.tf_static_pub.publish(TFMessage(transforms=[identity_transform(
@@ -322,8 +321,11 @@ class SimNode(Node):
 
     # ---- simulation ---------------------------------------------------------------------
     def _tick(self) -> None:
-        """Step the simulation to the wall clock (or as far as the time budget allows), then
-        publish odometry and TF; diagnostics once a second."""
+        """
+        Step the simulation to the wall clock (or as far as the time budget allows).
+
+        Then publish odometry and TF; diagnostics once a second.
+        """
         now = self._steady_s()
         if self.started:
             self._step(now)
@@ -343,10 +345,14 @@ class SimNode(Node):
             self.clock_pub.publish(self._clock_msg)
 
     def _step(self, now: float) -> None:
-        """The stepping per tick is bounded by BUSY_FRACTION of the period whatever dt and
-        real_time_factor ask for, so services and subscriptions are always served; a demand
-        beyond that is reported as a real-time-factor shortfall. With sensors on, the steps
-        stop exactly at each sample's simulated time."""
+        """
+        Step the simulation for one timer tick, within a bounded share of the period.
+
+        The stepping per tick is bounded by BUSY_FRACTION of the period whatever dt and
+        real_time_factor ask for, so services and subscriptions are always served; a demand beyond
+        that is reported as a real-time-factor shortfall. With sensors on, the steps stop exactly
+        at each sample's simulated time.
+        """
         rtf = self.p['real_time_factor']
         deadline = time.perf_counter() + BUSY_FRACTION * self._period
         if rtf > 0:
@@ -371,8 +377,12 @@ class SimNode(Node):
             self._behind(now, n, rtf)
 
     def _behind(self, now: float, n_left: int, rtf: float) -> None:
-        """Steps are still owed after this tick's budget: report the achieved real-time factor
-        and, when more than a second behind, drop the backlog (never catch up in a burst)."""
+        """
+        Step are still owed after this tick's budget.
+
+        Report the achieved real-time factor and, when more than a second behind, drop the backlog
+        (never catch up in a burst).
+        """
         behind_s = n_left * self.sim.dt / rtf  # wall time worth of steps still to do
         if behind_s <= 1.0:
             return
@@ -428,8 +438,12 @@ class SimNode(Node):
         return response
 
     def _validate(self, params) -> SetParametersResult:
-        """Refuse, with the reason, any change that cannot be applied (descriptor ranges and
-        read-only flags are checked by rclpy before this)."""
+        """
+        Refuse, with the reason, any parameter change that cannot be applied.
+
+        Refuse, with the reason, any change that cannot be applied (descriptor ranges and read-only
+        flags are checked by rclpy before this).
+        """
         trial = dict(self.p)
         trial.update({p.name: p.value for p in params})
         names = {p.name for p in params}
@@ -444,8 +458,12 @@ class SimNode(Node):
         return SetParametersResult(successful=True)
 
     def _apply(self, params) -> None:
-        """Apply an accepted change: a new simulator (restart), a new real-time anchor, new
-        frame names, datum or noise seed; nothing accepted is ignored."""
+        """
+        Apply an accepted change.
+
+        A new simulator (restart), a new real-time anchor, new frame names, datum or noise seed;
+        nothing accepted is ignored.
+        """
         names = {p.name for p in params}
         self.p.update({p.name: p.value for p in params})
         if names & RESTART_PARAMS:

@@ -1,7 +1,9 @@
-"""How good is a model on recorded trials: simulate each trial driven by its recorded inputs
-(and measured wind), restarting from the measured state every N seconds, and score it with the
-error index of Wakita et al. (2022, J. Mar. Sci. Technol. 27, eq. 26; the NN-identification
-paper of the Esso Osaka data):
+"""
+How good is a model on recorded trials.
+
+Simulate each trial driven by its recorded inputs (and measured wind), restarting from the measured
+state every N seconds, and score it with the error index of Wakita et al. (2022, J. Mar. Sci.
+Technol. 27, eq. 26; the NN-identification paper of the Esso Osaka data):
 
     index = 1 / T sum_k sum_i ((s_i,k - s^_i,k) / sigma_i)^2,   i in (x, u, y, v, psi, r)
 
@@ -24,12 +26,10 @@ one overlay plot per trial (states recorded vs model, rudder and rpm beside them
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
 from typing import Sequence
-
-import numpy as np
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.layout import STATE_NAMES
@@ -40,6 +40,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning.plots import png_bytes, trial_figure, trial_title
 from mmg_tuner.tuning.report import file_stem, json_text, unique_names
+import numpy as np
 
 INDEX_STATES = ('x', 'u', 'y', 'v', 'psi', 'r')
 """The six states of the paper's index, in its order."""
@@ -50,12 +51,15 @@ _COL = {n: STATE_NAMES.index(n) for n in INDEX_STATES}
 def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
             integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None
             ) -> tuple[np.ndarray, float | None, str]:
-    """The model's states (T, 6) for a recorded trial, restarted from the measured state at
-    t = 0, N, 2N, ... s (N = restart_every_s; 0: only at the start), driven by the recorded
-    inputs (rpm, rudder, measured wind, thrusters) held per sample; a ship with a residual
-    network (``ship.residual``) runs as the hybrid (or the pure network). Returns (states,
-    time of the first failure [s from the trial's start] or None, its reason); a segment that
-    failed is NaN from the failure to the next restart."""
+    """
+    Return the model's states (T, 6) for a recorded trial.
+
+    Restarted from the measured state at t = 0, N, 2N, ... s (N = restart_every_s; 0: only at the
+    start), driven by the recorded inputs (rpm, rudder, measured wind, thrusters) held per sample;
+    a ship with a residual network (``ship.residual``) runs as the hybrid (or the pure network).
+    Returns (states, time of the first failure [s from the trial's start] or None, its reason); a
+    segment that failed is NaN from the failure to the next restart.
+    """
     if ship.residual is not None:  # a hybrid (or pure network) from the params.yaml
         states, _, fail_t, why = simulate_segments(ship, ship.residual, trial, integrator,
                                                    float(restart_every_s or 0.0), substeps,
@@ -87,7 +91,7 @@ def model_kind(ship: ShipConfig) -> str:
 
 
 def pooled_sigma(trials: Sequence[Trial]) -> dict[str, float]:
-    """Standard deviation of each index state over all samples of all trials together."""
+    """Return standard deviation of each index state over all samples of all trials together."""
     st = np.concatenate([t.states for t in trials])
     sig = {n: float(np.std(st[:, _COL[n]])) for n in INDEX_STATES}
     flat = [n for n, s in sig.items() if not s > 0]
@@ -106,16 +110,24 @@ def errors(pred: np.ndarray, meas: np.ndarray) -> np.ndarray:
 
 
 def index_of(err: np.ndarray, sigma: dict[str, float]) -> float:
-    """The paper's index of an error history (T, 6): the squared standardised errors summed
-    over the six states, averaged over the samples (NaN if any error is NaN)."""
+    """
+    Return the paper's index of an error history (T, 6).
+
+    The squared standardised errors summed over the six states, averaged over the samples (NaN if
+    any error is NaN).
+    """
     z = np.column_stack([err[:, _COL[n]] / sigma[n] for n in INDEX_STATES])
     return float(np.mean(np.sum(z * z, axis=1)))
 
 
 @dataclass
 class TrialScore:
-    """One trial: the paper's index, the RMS error of each state [SI, psi rad], and where the
-    model failed (None: it did not); ``predicted`` holds the restarted simulation."""
+    """
+    One trial's index, RMS errors and failure, with the restarted simulation.
+
+    One trial: the paper's index, the RMS error of each state [SI, psi rad], and where the model
+    failed (None: it did not); ``predicted`` holds the restarted simulation.
+    """
 
     name: str
     index: float | None
@@ -195,8 +207,11 @@ class EvaluateResult:
         return images
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
-        """evaluate.md, the plots, and evaluate.json last (its presence means the set is
-        complete). ``out``: a new or empty folder, or an open :class:`OutputDir`."""
+        """
+        evaluate.md, the plots, and evaluate.json last (its presence means the set is complete).
+
+        ``out``: a new or empty folder, or an open :class:`OutputDir`.
+        """
         own = not isinstance(out, OutputDir)
         od = OutputDir.open(out) if own else out
         try:
@@ -213,9 +228,12 @@ class EvaluateResult:
 def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float = 100.0,
              integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None,
              sigma: dict[str, float] | None = None) -> EvaluateResult:
-    """Score ``ship`` (or the parameter vector ``params``) on recorded trials (see the module
-    docstring). ``sigma``: the standardising deviations to use (default: pooled over these
-    trials, as the paper does)."""
+    """
+    Score ``ship`` (or the parameter vector ``params``) on recorded trials.
+
+    (see the module docstring). ``sigma``: the standardising deviations to use (default: pooled
+    over these trials, as the paper does).
+    """
     trials = list(trials)
     if not trials:
         raise TuningError('evaluate: no trials given')
@@ -243,7 +261,7 @@ def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float =
 def compare_index(physics: ShipConfig, model: ShipConfig, trials: Sequence[Trial],
                   restart_every_s: float = 100.0, integrator: str = 'rk4') -> dict:
     """
-    The index over all ``trials`` of two models with one pooled sigma.
+    Return the index over all ``trials`` of two models with one pooled sigma.
 
     E.g. the tuned physics and the same with a residual network. Returns {'physics': index,
     'model': index, 'gain': 1 - model / physics} (None where a model failed).

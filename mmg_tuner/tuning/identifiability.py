@@ -1,4 +1,7 @@
-"""Which tuned parameters do the trials determine? Gauss-Newton standard errors at the optimum.
+"""
+Which tuned parameters do the trials determine.
+
+Gauss-Newton standard errors at the optimum.
 
 The weighted residuals r(theta) of all trials are linearised by central differences in the
 unit box; cov = s^2 (J'J)^-1 with s^2 = SSR / (n - p). A parameter whose standard error is a
@@ -9,16 +12,19 @@ not as confidence intervals.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from mmg_tuner.core.simulate import simulate_batch
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
+import numpy as np
 
 
 def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
-    """Weighted residual vectors (N, n) of each candidate over all trials (NaN-free: a failed
-    run gives large residuals)."""
+    """
+    Return the weighted residual vectors (N, n) of each candidate over all trials.
+
+    Weighted residual vectors (N, n) of each candidate over all trials (NaN-free: a failed run
+    gives large residuals).
+    """
     b = objective.batch
     x0s = np.ascontiguousarray(b.meas[:, 0, :])
     integ = {0: 'euler', 1: 'rk4'}[objective.method]
@@ -52,7 +58,7 @@ def _jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h:
 
 def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarray,
                     h: float = 1e-3) -> np.ndarray:
-    """Standard error of each tuned parameter (in its own units) at theta."""
+    """Return standard error of each tuned parameter (in its own units) at theta."""
     Jac, s2 = _jacobian(objective, space, theta, h)
     cov = s2 * np.linalg.pinv(Jac.T @ Jac)
     return np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
@@ -65,9 +71,12 @@ def identified(space: ParameterSpace, se: np.ndarray, frac: float = 0.05) -> lis
 
 def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndarray,
                      max_se: float = 0.02, h: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
-    """Parameter combinations the trials determine: unit-box eigen-directions of J'J whose
-    standard error is below max_se (fraction of the box). Returns (directions (k, d) as rows,
-    their standard errors (k,))."""
+    """
+    Parameter combinations the trials determine.
+
+    unit-box eigen-directions of J'J whose standard error is below max_se (fraction of the box).
+    Returns (directions (k, d) as rows, their standard errors (k,)).
+    """
     Jac, s2 = _jacobian(objective, space, theta, h)
     lam, V = np.linalg.eigh(Jac.T @ Jac)
     se = np.sqrt(s2 / np.clip(lam, 1e-300, None))
@@ -77,7 +86,8 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
 
 def aliasing(objective: Objective, space: ParameterSpace, theta: np.ndarray,
              probe: list[str], h: float = 1e-3) -> dict[str, dict]:
-    """How well the trials separate each probe parameter from the parameters not probed.
+    """
+    How well the trials separate each probe parameter from the parameters not probed.
 
     Probe parameter j's Jacobian column is split into the part the other parameters can mimic
     (least squares on their columns) and the rest; only the rest is evidence. Returns

@@ -1,17 +1,16 @@
 """The tuning objective J (Suyama et al. 2023, eq. 43), vectorised over candidates and trials."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 from typing import Sequence
-
-import numpy as np
 
 from mmg_tuner.core.mmg import cost_many
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
+import numpy as np
 
 
 @dataclass
@@ -26,9 +25,13 @@ class TrialBatch:
 
     @classmethod
     def from_trials(cls, trials: Sequence[Trial], x0_window_s: float = 10.0) -> 'TrialBatch':
-        """Pack trials. The first state, from which each simulation starts, is estimated by a
-        quadratic fit over the first x0_window_s seconds (0: the raw first sample): a noisy
-        start would otherwise drift the whole simulation and bias the tuned parameters."""
+        """
+        Pack trials.
+
+        The first state, from which each simulation starts, is estimated by a quadratic fit over
+        the first x0_window_s seconds (0: the raw first sample): a noisy start would otherwise
+        drift the whole simulation and bias the tuned parameters.
+        """
         if not trials:
             raise TuningError('no trials given')
         dts = {round(t.dt, 9) for t in trials}
@@ -92,16 +95,20 @@ class Prior:
     weight: float         # [J units] per unit squared scaled distance
 
     def __call__(self, params: np.ndarray) -> np.ndarray:
-        """The penalty (N,) of parameter vectors (N, N_PARAMS)."""
+        """Return the penalty (N,) of parameter vectors (N, N_PARAMS)."""
         z = (np.atleast_2d(params)[:, self.indices] - self.centre) / self.scale
         return self.weight * np.sum(z * z, axis=1)
 
 
 @dataclass(frozen=True)
 class TrialFailure:
-    """Where a simulation of one trial stopped: it diverged (non-finite state) or left the
-    model's range (u <= 0, rpm <= 0). Its J is infinite: the samples after it are unexplained,
-    so a partial sum would make a diverging model look better than a working one."""
+    """
+    Where a simulation of one trial stopped.
+
+    It diverged (non-finite state) or left the model's range (u <= 0, rpm <= 0). Its J is infinite:
+    the samples after it are unexplained, so a partial sum would make a diverging model look better
+    than a working one.
+    """
 
     trial: str
     sample: int | None   # first sample the model could not produce (None: not detected,
@@ -118,8 +125,12 @@ class TrialFailure:
 
 @dataclass(frozen=True, eq=False)
 class Evaluation:
-    """J of one parameter vector on a batch: per trial (inf where the run failed), the total
-    (inf when any trial failed) and the failures, first by trial order."""
+    """
+    J of one parameter vector on a batch.
+
+    Per trial (inf where the run failed), the total (inf when any trial failed) and the failures,
+    first by trial order.
+    """
 
     names: tuple[str, ...]
     J: np.ndarray                       # (M,) per trial [J units], inf for a failed trial
@@ -138,7 +149,7 @@ class Evaluation:
         return str(self.failures[0]) if self.failures else f'{self.total:.4g}'
 
     def total_json(self) -> float | None:
-        """The total for JSON (which has no inf): None when a trial failed."""
+        """Return the total for JSON (which has no inf): None when a trial failed."""
         return None if self.failures else self.total
 
     def per_trial_json(self) -> dict[str, dict]:
@@ -151,7 +162,8 @@ class Evaluation:
 
 
 class Objective:
-    """J(params) summed over a batch of trials; one compiled call per population.
+    """
+    J(params) summed over a batch of trials; one compiled call per population.
 
     ``per_trial`` and ``evaluate`` give a failed run (diverged or out of the model's range) an
     infinite J and say where it failed. The call used by the optimiser ranks such a candidate
@@ -183,8 +195,12 @@ class Objective:
         self.evaluations = 0
 
     def _raw(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The kernel's J (N, M), summed over the samples before a failure, and the failure
-        sample (N, M; == length when the run completed)."""
+        """
+        Return the kernel's J (N, M) and the failure sample (N, M).
+
+        The kernel's J (N, M), summed over the samples before a failure, and the failure sample (N,
+        M; == length when the run completed).
+        """
         params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
         N, M = params.shape[0], self.batch.meas.shape[0]
         J = np.empty((N, M))
@@ -196,16 +212,23 @@ class Objective:
         return J, k_fail
 
     def per_trial(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """J (N, M), inf where the run failed, and the failure sample (N, M; == the trial's
-        length when the run completed)."""
+        """
+        Return J (N, M), inf where the run failed, and the failure sample (N, M).
+
+        J (N, M), inf where the run failed, and the failure sample (N, M; == the trial's length
+        when the run completed).
+        """
         J, k_fail = self._raw(params)
         return np.where((k_fail < self.batch.lengths[None, :]) | ~np.isfinite(J), math.inf, J), \
             k_fail
 
     def failures(self, k_fail: np.ndarray, J: np.ndarray | None = None
                  ) -> tuple[TrialFailure, ...]:
-        """The failures in one candidate's rows of failure samples and J (M,), in trial
-        order; a non-finite J of a run that completed counts too (time unknown)."""
+        """
+        Return the failures in one candidate's rows of failure samples and J (M,), in trial order.
+
+        A non-finite J of a run that completed counts too (time unknown).
+        """
         J = np.zeros(len(k_fail)) if J is None else J
         return tuple(TrialFailure(n, int(k), float(k * self.batch.dt)) if k < T
                      else TrialFailure(n, None, None)

@@ -4,16 +4,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
-import numpy as np
-
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.errors import TuningError
+import numpy as np
 
 
 @dataclass(frozen=True)
 class ParameterSpace:
-    """Tuned parameters with their pre-determined values and box bounds.
+    """
+    Tuned parameters with their pre-determined values and box bounds.
 
     The optimiser works in the unit box: z = (theta - lower) / (upper - lower).
     """
@@ -27,11 +27,14 @@ class ParameterSpace:
     def around(cls, ship: ShipConfig, names: Sequence[str] | None = None, a_r: float | None = None,
                overrides: Mapping[str, float | tuple[float, float]] | None = None
                ) -> 'ParameterSpace':
-        """Box theta_pre +- a_r |theta_pre| per parameter (paper section 4), or the ship's own
-        absolute box where its YAML gives one (``tuning.bounds``, ``ship.tuning_bounds``: it
-        keeps a coefficient's physical sign, which +-a_r around a small value may not).
-        overrides maps a name to its own a_r, or to explicit (lower, upper) bounds; they win
-        over both."""
+        """
+        Return the box theta_pre +- a_r |theta_pre| per parameter, or the ship's own box.
+
+        Box theta_pre +- a_r |theta_pre| per parameter (paper section 4), or the ship's own
+        absolute box where its YAML gives one (``tuning.bounds``, ``ship.tuning_bounds``: it keeps
+        a coefficient's physical sign, which +-a_r around a small value may not). overrides maps a
+        name to its own a_r, or to explicit (lower, upper) bounds; they win over both.
+        """
         names = tuple(names or ship.tuning_targets)
         if not names:
             raise TuningError(f'{ship.name}: no tuning targets given or configured')
@@ -81,7 +84,9 @@ class ParameterSpace:
         return self.lower + np.clip(z, 0.0, 1.0) * (self.upper - self.lower)
 
     def full_params(self, base: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """Parameter vectors (N, N_PARAMS): base with the tuned entries replaced by theta (N, d)."""
+        """
+        Parameter vectors (N, N_PARAMS): base with the tuned entries replaced by theta (N, d).
+        """
         theta = np.atleast_2d(theta)
         out = np.tile(base, (theta.shape[0], 1))
         out[:, self.indices] = theta

@@ -1,5 +1,8 @@
-"""Tuning outputs: params.yaml, report.json, report.md and plots (recorded vs pre vs tuned),
-and the one way to simulate a recorded trial (:func:`simulate_recorded`).
+"""
+Tuning outputs.
+
+params.yaml, report.json, report.md and plots (recorded vs pre vs tuned), and the one way to
+simulate a recorded trial (:func:`simulate_recorded`).
 
 Text and images are returned as str/bytes; the caller writes them (an OutputDir in the CLI),
 so a failed write can say what was written. Plots use matplotlib's object API (Figure +
@@ -12,31 +15,36 @@ import math
 import re
 from typing import Mapping, Sequence
 
-import numpy as np
-import yaml
-
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import Trajectory, simulate
+from mmg_tuner.core.simulate import simulate, Trajectory
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning import plots
 from mmg_tuner.tuning.objective import TrialBatch
+import numpy as np
+import yaml
 
 
 def display_name(name: str) -> str:
-    """A trial name safe in UTF-8 text: undecodable bytes of a file name (surrogate escapes)
-    become \\xNN."""
+    r"""
+    Return a trial name safe in UTF-8 text.
+
+    Undecodable bytes of a file name (surrogate escapes) become \xNN.
+    """
     return name.encode('utf-8', 'surrogateescape').decode('utf-8', 'backslashreplace')
 
 
 def file_stem(name: str) -> str:
-    """A trial name safe as a file name part (ASCII letters, digits, ._+- kept)."""
+    """Return a trial name safe as a file name part (ASCII letters, digits, ._+- kept)."""
     return re.sub(r'[^A-Za-z0-9._+-]', '_', display_name(name)).lstrip('.') or 'trial'
 
 
 def unique_names(trials: Sequence[Trial]) -> list[str]:
-    """Display names, with ' (2)', ' (3)' added to repeats: trials of the same name from
-    different folders must not overwrite each other in a report."""
+    """
+    Display names, with ' (2)', ' (3)' added to repeats.
+
+    Trials of the same name from different folders must not overwrite each other in a report.
+    """
     seen: dict[str, int] = {}
     out = []
     for t in trials:
@@ -55,9 +63,12 @@ def params_yaml_text(ship: ShipConfig, values: dict[str, float], note: str) -> s
 
 
 def json_text(doc: dict) -> str:
-    """Strict JSON with NumPy scalars/arrays converted. JSON has no inf or NaN: a non-finite
-    number (a diverged run's J, a gain against it) is written as null; the document says why
-    beside it (e.g. per_trial's *_failed_at_s)."""
+    """
+    Strict JSON with NumPy scalars/arrays converted.
+
+    JSON has no inf or NaN: a non-finite number (a diverged run's J, a gain against it) is written
+    as null; the document says why beside it (e.g. per_trial's *_failed_at_s).
+    """
     return json.dumps(_finite(doc), indent=2, default=_jsonable, allow_nan=False) + '\n'
 
 
@@ -90,17 +101,24 @@ def _jsonable(o):
 
 
 def start_state(trial: Trial) -> np.ndarray:
-    """The state a simulation of a recorded trial starts from: the tuning objective's rule
-    (a quadratic fit over the first seconds, :func:`~mmg_tuner.tuning.objective.initial_state`
-    as TrialBatch packs it), so reports describe the run that was tuned."""
+    """
+    Return the state a simulation of a recorded trial starts from.
+
+    The tuning objective's rule (a quadratic fit over the first seconds,
+    :func:`~mmg_tuner.tuning.objective.initial_state` as TrialBatch packs it), so reports describe
+    the run that was tuned.
+    """
     return TrialBatch.from_trials([trial]).meas[0, 0].copy()
 
 
 def simulate_recorded(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
                       integrator: str = 'euler', substeps: int = 1) -> Trajectory:
-    """The one way to simulate a recorded trial: from :func:`start_state`, driven by the
-    recorded controls (and measured wind), zero-order hold; NaN after a failure, with
-    ``status`` and ``fail_time_s`` saying so."""
+    """
+    Return the one way to simulate a recorded trial.
+
+    From :func:`start_state`, driven by the recorded controls (and measured wind), zero-order hold;
+    NaN after a failure, with ``status`` and ``fail_time_s`` saying so.
+    """
     traj = simulate(ship, start_state(trial), trial.inputs, trial.dt, integrator, substeps,
                     t0=float(trial.t[0]), params=params, check=False)
     traj.t = trial.t.copy()

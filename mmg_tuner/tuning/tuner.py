@@ -1,25 +1,27 @@
-"""CMA-ES with IPOP restarts around the ask/tell state machine of ``cmaes`` (the caller owns the
-loop, as in cmaes' own examples), with checkpoints so a run can be interrupted and resumed.
+"""
+CMA-ES with IPOP restarts and checkpoints, around the ask/tell state machine of ``cmaes``.
+
+CMA-ES with IPOP restarts around the ask/tell state machine of ``cmaes`` (the caller owns the loop,
+as in cmaes' own examples), with checkpoints so a run can be interrupted and resumed.
 
 Paper setting (Suyama et al. 2023, section 4): population 12, doubled at each restart up to
 128; the search runs in the unit box of :class:`ParameterSpace`.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import math
+from pathlib import Path
 import pickle
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
-import numpy as np
 from cmaes import CMA
-
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.errors import OutputError, TuningError
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
+import numpy as np
 
 CHECKPOINT_VERSION = 1
 
@@ -69,7 +71,7 @@ def _rounded(a: np.ndarray | None) -> list | None:
 
 
 def _prior_key(prior) -> tuple | None:
-    """What identifies a prior in a checkpoint's fingerprint (None: no prior)."""
+    """Return what identifies a prior in a checkpoint's fingerprint (None: no prior)."""
     if prior is None:
         return None
     return (_rounded(prior.indices), _rounded(prior.centre), _rounded(prior.scale),
@@ -77,12 +79,15 @@ def _prior_key(prior) -> tuple | None:
 
 
 class Tuner:
-    """Minimise an :class:`Objective` over a :class:`ParameterSpace`.
+    """
+    Minimise an :class:`Objective` over a :class:`ParameterSpace`.
 
-    Example:
-        >>> tuner = Tuner(space, objective, seed=0)
-        >>> result = tuner.run()
-        >>> tuned = space.full_params(ship.params, result.theta)[0]
+    Examples
+    --------
+    >>> tuner = Tuner(space, objective, seed=0)
+    >>> result = tuner.run()
+    >>> tuned = space.full_params(ship.params, result.theta)[0]
+
     """
 
     def __init__(self, space: ParameterSpace, objective: Objective, *, popsize: int = 12,

@@ -1,4 +1,7 @@
-"""Model families: the registry. One family = one module here + one entry in :data:`REGISTRY`.
+"""
+Model families: the registry.
+
+One family = one module here + one entry in :data:`REGISTRY`.
 
 A family is the part of the MMG model that differs between ship models: the hull, propeller
 and rudder forces and the inputs they need. Everything else is shared and family-blind: the
@@ -49,8 +52,8 @@ never runs stale compiled code.
 from __future__ import annotations
 
 import ast
-import importlib
 from dataclasses import dataclass, field
+import importlib
 from pathlib import Path
 from typing import Any, Callable
 
@@ -77,7 +80,7 @@ class Family:
 
 
 def declared_params(name: str) -> tuple[str, ...]:
-    """A family's ``PARAMS`` read from its source without importing it."""
+    """Return a family's ``PARAMS`` read from its source without importing it."""
     path = Path(__file__).with_name(f'{name}.py')
     for node in ast.parse(path.read_text()).body:
         if (isinstance(node, ast.Assign) and len(node.targets) == 1
@@ -90,7 +93,7 @@ _CACHE: dict[str, Family] = {}
 
 
 def family(name: str) -> Family:
-    """The registered family called ``name`` (KeyError if there is none)."""
+    """Return the registered family called ``name`` (KeyError if there is none)."""
     if name not in _CACHE:
         code = REGISTRY.index(name) if name in REGISTRY else None
         if code is None:

@@ -1,4 +1,5 @@
-"""Pieces the container and standard families share (not a family: not in the registry).
+"""
+Pieces the container and standard families share (not a family: not in the registry).
 
 The polynomial hull model in v'_m, r' (paper eqs. 14-15; standard method eq. 8 with
 X_vvvr = 0), the propeller slipstream's speed-up, the rudder angle of attack and the rudder
@@ -8,10 +9,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from mmg_tuner.core._jit import FASTMATH, U_MIN
 from mmg_tuner.core.layout import PARAM_INDEX
+from numba import njit
 
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
@@ -43,8 +43,11 @@ _Nrrr = PARAM_INDEX['N_rrr']
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def hull(p, u, v, r):
-    """Hull force and moment [N, N, N m] and the kinematics the other parts reuse:
-    (X_H, Y_H, N_H, U, v'_m, r', beta)."""
+    """
+    Hull force and moment [N, N, N m] and the kinematics the other parts reuse.
+
+    (X_H, Y_H, N_H, U, v'_m, r', beta).
+    """
     L = p[_L]
     U = math.sqrt(u * u + v * v)
     if U < U_MIN:

@@ -1,4 +1,5 @@
-"""Family ``container``: Suyama et al. 2023 (arXiv 2312.04224) section 3, M.V. SUZAKU.
+"""
+Family ``container``: Suyama et al. 2023 (arXiv 2312.04224) section 3, M.V. SUZAKU.
 
 Polynomial hull (eqs. 14-15), a propeller model in the advance angle phi with side force and
 moment coefficients C_PY, C_PN (eqs. 16-24), a flapped rudder whose inflow is

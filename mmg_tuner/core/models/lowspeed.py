@@ -1,7 +1,9 @@
-"""Family ``lowspeed``: the low-speed, four-quadrant MMG model of the Osaka Univ. NAOE 5th lab
-(Esso Osaka 3 m): Yoshimura's hull forces (valid through U -> 0 and u < 0), four-quadrant
-propeller, rudder with the reverse-propeller inflow, bow/stern thrusters, and its own wind
-model, Fujiwara's regression on the apparent wind (acting even without true wind: the air drag
+"""
+Family ``lowspeed``: the low-speed, four-quadrant MMG model of the Osaka Univ.
+
+NAOE 5th lab (Esso Osaka 3 m): Yoshimura's hull forces (valid through U -> 0 and u < 0),
+four-quadrant propeller, rudder with the reverse-propeller inflow, bow/stern thrusters, and its own
+wind model, Fujiwara's regression on the apparent wind (acting even without true wind: the air drag
 of the ship's own motion is part of the model).
 
 Written from the reference restatement docs/reference/esso_osaka_lowspeed_mmg.md (section
@@ -55,11 +57,10 @@ DESCRIPTION = ('low-speed four-quadrant MMG with thrusters and Fujiwara wind, Os
 
 import math  # noqa: E402  (below the declarations the layout reads)
 
-import numpy as np  # noqa: E402
-from numba import njit  # noqa: E402
-
 from mmg_tuner.core.channels import ACT_BOW, ACT_DELTA, ACT_N, ACT_STERN  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
+from numba import njit  # noqa: E402
+import numpy as np  # noqa: E402
 
 # indices into the flat vector (module-level ints: numba folds them in as constants)
 I_L, I_D, I_RHO, I_RHOA, I_G = (PARAM_INDEX[k] for k in ('L_pp', 'd', 'rho', 'rho_air', 'g'))
@@ -100,9 +101,13 @@ def _sgn(x):
 
 @njit(cache=True)
 def cross_flow_integrals(a, b):
-    """(I_Y, I_N) = integrals over xi in [-1/2, 1/2] of |a + b xi| (a + b xi) and of the same
-    times xi [m^2/s^2], in closed form (reference §4; a = v, b = C r L). Without a sign change
-    inside the interval the integrand is sgn(a) (a + b xi)^2: exact and free of cancellation."""
+    """
+    Return the cross-flow integrals (I_Y, I_N) in closed form.
+
+    (I_Y, I_N) = integrals over xi in [-1/2, 1/2] of |a + b xi| (a + b xi) and of the same times xi
+    [m^2/s^2], in closed form (reference §4; a = v, b = C r L). Without a sign change inside the
+    interval the integrand is sgn(a) (a + b xi)^2: exact and free of cancellation.
+    """
     if abs(b) <= 2.0 * abs(a):
         s = _sgn(a)
         return s * (a * a + b * b / 12.0), s * a * b / 6.0
@@ -144,8 +149,11 @@ def hull_forces(p, u, v, r):
 
 @njit(cache=True)
 def propeller_forces(p, u, v, r, n):
-    """Four-quadrant propeller (X_P, Y_P, N_P, 1 - w_P) [N, N m, -] (§5). Quadrants:
-    Q1 n >= 0, u >= 0; Q2 n >= 0, u < 0; Q3 n < 0, u >= 0; Q4 n < 0, u < 0."""
+    """
+    Four-quadrant propeller (X_P, Y_P, N_P, 1 - w_P) [N, N m, -] (§5).
+
+    Quadrants: Q1 n >= 0, u >= 0; Q2 n >= 0, u < 0; Q3 n < 0, u >= 0; Q4 n < 0, u < 0.
+    """
     L, d, rho, D = p[I_L], p[I_D], p[I_RHO], p[I_DP]
     _, vn, rn = _speed(u, v, r, L)
     bp = vn + p[I_XP] * rn
@@ -230,8 +238,12 @@ def rudder_forces(p, ur, vr, delta):
 
 @njit(cache=True)
 def thruster_forces(p, u, n_bt, n_st):
-    """(Y_BT, N_BT, Y_ST, N_ST) [N, N m] (§7): thrust rho D^4 n^2 K (K by the sign of n),
-    reduced linearly with Fr = |u| / sqrt(g L), zero beyond |u| > u_T_max."""
+    """
+    (Y_BT, N_BT, Y_ST, N_ST) [N, N m] (§7).
+
+    Thrust rho D^4 n^2 K (K by the sign of n), reduced linearly with Fr = |u| / sqrt(g L), zero
+    beyond |u| > u_T_max.
+    """
     if abs(u) > p[I_UTMAX]:
         return 0.0, 0.0, 0.0, 0.0
     fr = abs(u) / math.sqrt(p[I_G] * p[I_L])
@@ -245,8 +257,12 @@ def thruster_forces(p, u, n_bt, n_st):
 
 @njit(cache=True)
 def wind_forces(p, wind_speed_rel, wind_angle_rel):
-    """Fujiwara wind loads (X_A, Y_A, N_A) [N, N m] from the apparent wind (speed, FROM-angle
-    clockwise from the bow) (§8); moment about midship on A_L L."""
+    """
+    Return Fujiwara's wind loads (X_A, Y_A, N_A) from the apparent wind.
+
+    Fujiwara wind loads (X_A, Y_A, N_A) [N, N m] from the apparent wind (speed, FROM-angle
+    clockwise from the bow) (§8); moment about midship on A_L L.
+    """
     g = wind_angle_rel
     q = 0.5 * p[I_RHOA] * wind_speed_rel * wind_speed_rel
     X = q * p[I_AT] * (p[I_XX0] + p[I_XX1] * math.cos(g) + p[I_XX3] * math.cos(3.0 * g)
@@ -260,9 +276,13 @@ def wind_forces(p, wind_speed_rel, wind_angle_rel):
 
 @njit(cache=True)
 def apparent_wind(true_speed, true_from, psi, u, v):
-    """Apparent wind (U_A [m/s], gamma_A [rad] in [0, 2 pi), FROM, clockwise from the bow) from
-    the true wind (speed, FROM-direction clockwise from x_E) and the ship's heading and
-    midship velocity. Vector form (§8, §13.9: no 0/0 when U_A = 0)."""
+    """
+    Return the apparent wind from the true wind and the ship's heading and velocity.
+
+    Apparent wind (U_A [m/s], gamma_A [rad] in [0, 2 pi), FROM, clockwise from the bow) from the
+    true wind (speed, FROM-direction clockwise from x_E) and the ship's heading and midship
+    velocity. Vector form (§8, §13.9: no 0/0 when U_A = 0).
+    """
     wx = -true_speed * math.cos(true_from - psi) - u
     wy = -true_speed * math.sin(true_from - psi) - v
     ga = math.atan2(-wy, -wx)
@@ -273,8 +293,12 @@ def apparent_wind(true_speed, true_from, psi, u, v):
 
 @njit(cache=True)
 def apparent_wind_ne(wind_n, wind_e, psi, u, v):
-    """As :func:`apparent_wind` from the true wind given as the air's velocity toward north
-    (x_E) and east (y_E) [m/s], the Trial.wind convention."""
+    """
+    Return the apparent wind from the true wind given as north/east air velocity.
+
+    As :func:`apparent_wind` from the true wind given as the air's velocity toward north (x_E) and
+    east (y_E) [m/s], the Trial.wind convention.
+    """
     return apparent_wind(math.sqrt(wind_n * wind_n + wind_e * wind_e),
                          math.atan2(-wind_e, -wind_n), psi, u, v)
 
@@ -290,8 +314,12 @@ def actuator_rate(cmd, actual, time_const_s, max_rate):
 
 @njit(cache=True)
 def force_terms(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
-    """Every contribution as a (6, 3) array: rows :data:`FORCE_TERMS` (hull, propeller, rudder,
-    bow thruster, stern thruster, wind), columns X [N], Y [N], N [N m] about midship."""
+    """
+    Every contribution as a (6, 3) array.
+
+    Rows :data:`FORCE_TERMS` (hull, propeller, rudder, bow thruster, stern thruster, wind), columns
+    X [N], Y [N], N [N m] about midship.
+    """
     out = np.zeros((6, 3))
     out[0, 0], out[0, 1], out[0, 2] = hull_forces(p, u, v, r)
     xp, yp, np_, omw = propeller_forces(p, u, v, r, n_rps)
@@ -318,8 +346,7 @@ def total_forces(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angl
 
 @njit(cache=True)
 def mass_terms(p):
-    """(m [kg], m_x, m_y [kg], I_zG + J_z [kg m^2], x_G [m]); added masses from the primes
-    (§3)."""
+    """(m [kg], m_x, m_y [kg], I_zG + J_z [kg m^2], x_G [m]); added masses from the primes (§3)."""
     L, d, rho = p[I_L], p[I_D], p[I_RHO]
     q = 0.5 * rho * L * L * d
     return p[I_M], p[I_MX] * q, p[I_MY] * q, p[I_IZG] + p[I_JZ] * q * L * L, p[I_XG]
@@ -327,8 +354,10 @@ def mass_terms(p):
 
 @njit(cache=True)
 def accelerations(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
-    """(du/dt, dv/dt [m/s^2], dr/dt [rad/s^2]) of the midship velocities through the water,
-    body axes, from the equations of motion about midship (§3):
+    """
+    (du/dt, dv/dt [m/s^2], dr/dt [rad/s^2]) of the midship velocities through the water, body axes.
+
+    From the equations of motion about midship (§3):
 
         (m + m_x) u' - (m + m_y) v r - x_G m r^2 = X
         (m + m_y) v' + x_G m r' + (m + m_x) u r = Y
@@ -353,9 +382,12 @@ def accelerations(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_ang
 
 @njit(cache=True)
 def forces(p, u, v, r, act):
-    """Hull + propeller + rudder + thrusters (X [N], Y [N], N [N m]) about midship, for the
-    generic kernels: act = (n_P [rev/s, signed], rudder [rad], bow, stern thruster [rev/s]).
-    No wind here: the kernels add :func:`wind` on the apparent wind."""
+    """
+    Hull + propeller + rudder + thrusters (X [N], Y [N], N [N m]) about midship.
+
+    For the generic kernels: act = (n_P [rev/s, signed], rudder [rad], bow, stern thruster
+    [rev/s]). No wind here: the kernels add :func:`wind` on the apparent wind.
+    """
     n = act[ACT_N]
     xh, yh, nh = hull_forces(p, u, v, r)
     xp, yp, np_, omw = propeller_forces(p, u, v, r, n)
@@ -367,7 +399,11 @@ def forces(p, u, v, r, act):
 
 @njit(cache=True)
 def wind(p, wx, wy):
-    """Fujiwara wind loads (X [N], Y [N], N [N m]) from the apparent wind given as the air's
-    velocity relative to the ship in body axes (wx forward, wy starboard) [m/s]."""
+    """
+    Return Fujiwara's wind loads from the air's velocity relative to the ship.
+
+    Fujiwara wind loads (X [N], Y [N], N [N m]) from the apparent wind given as the air's velocity
+    relative to the ship in body axes (wx forward, wy starboard) [m/s].
+    """
     ga = math.atan2(-wy, -wx)   # the direction it blows FROM, clockwise from the bow
     return wind_forces(p, math.sqrt(wx * wx + wy * wy), ga)

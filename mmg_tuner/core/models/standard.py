@@ -1,4 +1,5 @@
-"""Family ``standard``: the MMG standard method, Yasukawa & Yoshimura 2015 (KVLCC2).
+"""
+Family ``standard``: the MMG standard method, Yasukawa & Yoshimura 2015 (KVLCC2).
 
 Polynomial hull (eq. 8), propeller thrust from K_T(J_P) with the wake fraction's drift-angle
 dependence (eqs. 11-16), rudder inflow and normal force (eqs. 17-26). Ahead revolutions and

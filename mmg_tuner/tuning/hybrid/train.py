@@ -225,7 +225,6 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         fit = train_residual(ship, trials[:6], validation=trials[6:],
                              config=ResidualConfig(epochs=50, seed=1))
         fit.net.save('residual.npz')
-
     """
     require_jax()
     import equinox as eqx
