@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
+from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402, I100
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate, simulate_batch  # noqa: E402
 

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.core import maneuvers as mv  # noqa: E402
+from mmg_tuner.core import maneuvers as mv  # noqa: E402, I100
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.data.bag import write_trial_bag  # noqa: E402
 from mmg_tuner.data.load import load_trials  # noqa: E402

@@ -37,7 +37,8 @@ def main() -> None:
           f'({steps / wall / 1e6:.1f} M ship-steps/s)')
     print(f'J tuning trials: pre {obj(ship.params[None])[0]:.4g} -> tuned {res.J:.4g}')
     print(f'J test trials:   pre {obj_test(ship.params[None])[0]:.4g} -> tuned '
-          f'{obj_test(tuned)[0]:.4g} (truth {obj_test(space.full_params(ship.params, theta))[0]:.4g})')
+          f'{obj_test(tuned)[0]:.4g} '
+          f'(truth {obj_test(space.full_params(ship.params, theta))[0]:.4g})')
     print(f'on a bound: {space.on_bound(res.theta)}')
     print(f'peak memory (RSS): {peak_mb:.0f} MB')
 

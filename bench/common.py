@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.core import maneuvers as mv  # noqa: E402
+from mmg_tuner.core import maneuvers as mv  # noqa: E402, I100
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.data.generate import SensorNoise  # noqa: E402
 from mmg_tuner.data.trial import Trial  # noqa: E402
@@ -19,7 +19,7 @@ PAPER_TEST = (-10, 20, -35, 40)
 
 def paper_turning_trials(truth, angles, duration_s=800.0, seed=0, noise=None):
     """
-    Turning tests at 6 kn, 106 rpm, sampled at 1 s (as the paper's data).
+    Return turning tests at 6 kn, 106 rpm, sampled at 1 s (as the paper's data).
 
     With the steering gear's rate limit and sensor noise.
     """

@@ -39,7 +39,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_osaka import KINDS, read, RESTART_S, runs_by_kind, split  # noqa: E402
+from esso_osaka import KINDS, read, RESTART_S, runs_by_kind, split  # noqa: E402, I100
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402

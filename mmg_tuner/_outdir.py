@@ -42,7 +42,7 @@ class OutputDir:
         self.written: list[Path] = []
 
     @classmethod
-    def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out'
+    def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out'  # noqa: A003
              ) -> 'OutputDir':
         """
         Create or reuse ``path`` as this run's output folder.

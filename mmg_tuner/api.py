@@ -268,12 +268,12 @@ class Fit:
 
     @property
     def tune(self) -> float:
-        """Summed over the tuning trials."""
+        """Return J summed over the tuning trials."""
         return self._sum('tune')
 
     @property
     def test(self) -> float | None:
-        """Summed over the test trials (None without any)."""
+        """Return J summed over the test trials (None without any)."""
         return self._sum('test')
 
 

@@ -82,7 +82,7 @@ def build(gen: Path, out: Path) -> None:
     c_dir = gen / 'c' / 'msg' / 'detail'
     steps = [
         ('gcc', [str(c_dir / f) for f in ('tf_message__functions.c', 'tf_message__description.c',
-                                           'tf_message__type_support.c')],
+                                          'tf_message__type_support.c')],
          f'lib{PKG}__rosidl_generator_c.so',
          ['-lgeometry_msgs__rosidl_generator_c', '-lstd_msgs__rosidl_generator_c',
           '-lbuiltin_interfaces__rosidl_generator_c']),
@@ -127,8 +127,8 @@ def install(src: Path, gen: Path, out: Path) -> None:
     shutil.copy2(src / 'msg' / 'TFMessage.msg', share / 'msg' / 'TFMessage.msg')
     shutil.copy2(gen / 'c' / 'tmp' / 'msg' / 'TFMessage.idl', share / 'msg' / 'TFMessage.idl')
     index = prefix / 'share' / 'ament_index' / 'resource_index'
-    for kind, text in (('packages', ''), ('rosidl_interfaces', 'msg/TFMessage.idl\n'
-                                                             'msg/TFMessage.msg\n')):
+    for kind, text in (('packages', ''),
+                       ('rosidl_interfaces', 'msg/TFMessage.idl\nmsg/TFMessage.msg\n')):
         (index / kind).mkdir(parents=True, exist_ok=True)
         (index / kind / PKG).write_text(text)
     stage = site / f'.{PKG}.tmp'

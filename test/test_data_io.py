@@ -55,11 +55,11 @@ def _rec(t_odom, odom_vals, t_cmd, rud, rpm):
     ns = lambda t: (np.asarray(t) * 1e9).astype(np.int64)  # noqa: E731
     series = {
         'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns(t_odom), np.asarray(odom_vals, float),
-                        ns(t_odom)),
+                       ns(t_odom)),
         'rudder': Series('/rudder_angle', 'std_msgs/msg/Float64', ns(t_cmd),
-                                np.asarray(rud, float)[:, None], ns(t_cmd)),
+                         np.asarray(rud, float)[:, None], ns(t_cmd)),
         'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns(t_cmd),
-                                 np.asarray(rpm, float)[:, None], ns(t_cmd)),
+                      np.asarray(rpm, float)[:, None], ns(t_cmd)),
     }
     return RawRecording('fake.mcap', series, {s.topic: (s.msgtype, len(s.stamps_ns))
                                               for s in series.values()})
@@ -190,7 +190,7 @@ def test_generate_command(tmp_path, capsys):
 
 def _write_custom_bag(path, t, trial_states, rudder_deg, rpm_rps, pose_only=True):
     """
-    A bag as another ship's logger might write it.
+    Write a bag as another ship's logger might write it.
 
     PoseStamped (no twist), JointState actuators in degrees and rev/s.
     """

@@ -16,7 +16,8 @@ import pytest
 
 SPECS = [('turning', 35, None), ('turning', -25, None), ('zigzag', 20, None), ('random', 30, None),
          ('zigzag', -15, None), ('turning', -35, None), ('random', 25, None), ('zigzag', 10, None)]
-QUICK = dict(base_evals=6000, screen_evals=300, effect_evals=3000, screen=3, max_effects=2)
+QUICK = {'base_evals': 6000, 'screen_evals': 300, 'effect_evals': 3000, 'screen': 3,
+         'max_effects': 2}
 
 
 def hidden(suzaku, effect: dict, seed: int = 3, targets=None):

@@ -20,7 +20,8 @@ import pytest
 
 SPECS = [('turning', 35, None), ('turning', -25, None), ('zigzag', 20, None), ('random', 30, None),
          ('zigzag', -15, None), ('turning', -35, None), ('random', 25, None), ('zigzag', 10, None)]
-QUICK = dict(base_evals=6000, screen_evals=300, effect_evals=3000, screen=3, max_effects=2)
+QUICK = {'base_evals': 6000, 'screen_evals': 300, 'effect_evals': 3000, 'screen': 3,
+         'max_effects': 2}
 
 
 def _truth(suzaku, effect: dict, seed: int = 3):
@@ -165,8 +166,8 @@ def test_map_fn_runs_the_independent_tunings_in_order_without_the_store(suzaku, 
     import pickle
     tune, test = _trials(_truth(suzaku, {'rudder_offset': math.radians(3.0),
                                          'current_speed': 0.3, 'current_dir': 2.0}))
-    kw = dict(effects=['current', 'rudder_offset', 'yaw_moment_bias'], max_effects=2,
-              base_evals=1500, screen_evals=100, effect_evals=600, advice=False)
+    kw = {'effects': ['current', 'rudder_offset', 'yaw_moment_bias'], 'max_effects': 2,
+          'base_evals': 1500, 'screen_evals': 100, 'effect_evals': 600, 'advice': False}
     plain = _diagnose(suzaku, tune, test, **kw)
     ck = tmp_path / 'ck.pkl'
     batches = []
@@ -222,7 +223,7 @@ def test_advice_specs_read_back_and_generate_runs_them(suzaku, tmp_path):
 # ------------------------------------------------------------------------ MARIN, real data
 def test_marin_towing_tank_names_no_physically_impossible_cause(kvlcc2):
     """
-    MARIN's towing-tank runs name no physically impossible cause.
+    The MARIN towing-tank runs name no physically impossible cause.
 
     MARIN's KVLCC2 free-running runs (a towing tank; positions of the model's reference point, as
     the reader notes). Before issue 15 the diagnosis named an antenna offset, a wind and a time

@@ -98,7 +98,7 @@ def test_command_on_two_esso_runs(tmp_path, capsys):
     assert 'index' in capsys.readouterr().out
     # a bad option: one ERROR line, exit 2, nothing written
     rc = run_command(command, [str(runs[0]), '--ship', 'esso_osaka_3m', '--restart-every', '-5',
-                  '--out', str(tmp_path / 'x')])
+                               '--out', str(tmp_path / 'x')])
     assert rc == 2 and 'ERROR' in capsys.readouterr().err
     assert not (tmp_path / 'x').exists()
 

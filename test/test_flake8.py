@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LINT_ENFORCED = False
+LINT_ENFORCED = True
 """Flipped to True once the tree has been brought to the ament style (the lead's step)."""
 
 

@@ -159,7 +159,7 @@ def _free_port() -> int:
 
 @contextlib.contextmanager
 def dask_cluster(n_workers: int = 2, timeout_s: float = 60.0):
-    """A `dask scheduler` and n `dask worker` processes on 127.0.0.1; always shut down."""
+    """Run a `dask scheduler` and n `dask worker` processes on 127.0.0.1; always shut down."""
     from distributed import Client
     port = _free_port()
     addr = f'tcp://127.0.0.1:{port}'
@@ -212,7 +212,7 @@ def _generate(out: Path, extra: list[str], seed: int = 0, maneuvers=MANEUVERS) -
 
 def _sequential(trials: Path, out: Path) -> None:
     """
-    The same ship with the sequential commands, as a user would run them.
+    Run the same ship with the sequential commands, as a user would run them.
 
     Each command a fresh process (as the dask workers are), not this test process, whose numba and
     BLAS state earlier tests may have changed.

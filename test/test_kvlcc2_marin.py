@@ -42,7 +42,7 @@ def test_turning_circles_within_explained_bounds(rows):
 
 def test_asymmetry_is_real_model_error(rows):
     """
-    MARIN's starboard circle is ~8 % larger; the standard model turns almost symmetrically.
+    The MARIN starboard circle is ~8 % larger; the standard model turns almost symmetrically.
 
     Not tuned away: the diagnosis must find it.
     """

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
-from conftest import installed_executable  # noqa: E402
+from conftest import installed_executable  # noqa: E402, I100
 from mmg_tuner.core.limits import input_limits  # noqa: E402
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate  # noqa: E402
@@ -31,7 +31,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """A private ROS graph: random domain, localhost only, logs in a temp dir."""
+    """Provide a private ROS graph: random domain, localhost only, logs in a temp dir."""
     env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid()).randint(1, 100)),
            'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
            'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}

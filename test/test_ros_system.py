@@ -25,7 +25,7 @@ import pytest
 
 # ---- message builders and health (rclpy messages, no processes) ---------------------------
 rclpy = pytest.importorskip('rclpy')
-from conftest import installed_executable  # noqa: E402
+from conftest import installed_executable  # noqa: E402, I100
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate  # noqa: E402
@@ -160,7 +160,7 @@ def test_replay_publishes_recorded_thrusters_in_the_maps_units():
 # ---- node processes -----------------------------------------------------------------------
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """A private ROS graph: random domain, localhost only, logs in a temp dir."""
+    """Provide a private ROS graph: random domain, localhost only, logs in a temp dir."""
     env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid() + 13).randint(101, 200)),
            'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
            'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}
@@ -186,7 +186,7 @@ def ros(tmp_path_factory):
 @contextlib.contextmanager
 def running(exe: str, env: dict, *ros_args: str, params: tuple = ()):
     """
-    A node process for the duration of the block.
+    Run a node process for the duration of the block.
 
     Always stopped afterwards (SIGINT, then SIGKILL after 10 s). ``proc.output`` holds what it
     printed.

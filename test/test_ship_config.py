@@ -78,8 +78,8 @@ def test_bad_ship_values_are_named(tmp_path, section, key, value, words):
     assert str(f) in str(e.value) and words in str(e.value)
 
 
-@pytest.mark.parametrize('content', [b'\x00\x01\x02\xff\xfe binary', b'caf\xe9: 1\n', b'- 1\n- 2\n',
-                                     b'just a string', b'model: [container]\n',
+@pytest.mark.parametrize('content', [b'\x00\x01\x02\xff\xfe binary', b'caf\xe9: 1\n',
+                                     b'- 1\n- 2\n', b'just a string', b'model: [container]\n',
                                      b'model: container\nhull: [1, 2]\n',
                                      b'model: container\nsteering: {rate_deg_s: fast}\n'])
 def test_unreadable_or_non_mapping_ship_files(tmp_path, content):

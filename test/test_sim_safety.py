@@ -244,6 +244,8 @@ def test_any_lowspeed_command_sequence_keeps_the_state_finite(esso, cmds):
 
 def test_a_division_by_zero_in_the_model_is_a_failure_not_a_crash(esso):
     """
+    Treat a division by zero in the model as a failure, not a crash.
+
     A rudder of 1e-300 rad made the lowspeed kernel raise ZeroDivisionError (compiled code raises
     it for x / 0.0), which would kill the node: it is a reset with a reason.
     """

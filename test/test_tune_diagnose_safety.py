@@ -20,8 +20,8 @@ from mmg_tuner.tuning import tuner as tuner_mod
 import numpy as np
 import pytest
 
-TINY_DX = dict(effects=('current', 'rudder_offset'), max_effects=1, base_evals=600,
-               screen_evals=60, effect_evals=300)
+TINY_DX = {'effects': ('current', 'rudder_offset'), 'max_effects': 1, 'base_evals': 600,
+           'screen_evals': 60, 'effect_evals': 300}
 
 
 @pytest.fixture(scope='module')

@@ -86,8 +86,9 @@ def command(argv: list[str] | None = None) -> int:
         for n in notes:
             log.warning('resume: %s', n)
         ship = api.load_ship(args.ship, args.params)
-        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale,
-                    cut_from_event=getattr(args, 'cut_from_event', None))  # (older runs: none)
+        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
+                'trial_scale': args.trial_scale,
+                'cut_from_event': getattr(args, 'cut_from_event', None)}  # (older runs: none)
         trials = api.load_trials(args.trials, **load)
         test = api.load_trials(args.test, **load) if args.test else None
         if test is None:

@@ -210,7 +210,7 @@ def command(argv: list[str] | None = None) -> int:
 
 def _write(out: OutputDir, trial, name: str, storage: str) -> None:
     """
-    The bag, then the CSV.
+    Write the bag, then the CSV.
 
     A bag left half-written by a failure (ours, of this run) is removed so that no corrupt
     recording stays behind.

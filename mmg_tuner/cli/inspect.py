@@ -10,7 +10,7 @@ Examples
 --------
 inspect trials/turning_p35 trials/zigzag_p20 --csv out/
 
-"""
+"""  # noqa: A005  module name is the public command name (inspect), kept
 from __future__ import annotations
 
 import argparse

@@ -127,7 +127,8 @@ def command(argv: list[str] | None = None) -> int:
                                  else args.rudder_deg))
         zi = ix.zigzag_indices(traj['psi'], traj['rudder'], check, k_exec)
         print(f'  zigzag, first rudder to {zi.direction}: first overshoot '
-              f'{zi.first_overshoot_deg:.1f} deg, second overshoot {zi.second_overshoot_deg:.1f} deg')
+              f'{zi.first_overshoot_deg:.1f} deg, '
+              f'second overshoot {zi.second_overshoot_deg:.1f} deg')
     final = traj.states[-1]
     print(f'  final: u = {final[3]:.3f} m/s, v = {final[4]:.3f} m/s, '
           f'r = {math.degrees(final[5]):.3f} deg/s')
@@ -161,8 +162,8 @@ def hybrid_maneuver(ship: ShipConfig, spec: mv.ManeuverSpec) -> Trial:
         np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
         net.x_mean, net.x_std, net.y_scale, bool(net.physics), out, res)
-    kw = {} if status == OK else dict(status=STATUS_TEXT[status],
-                                      fail_time_s=float(phys.t[min(k_fail, T - 1)]))
+    kw = {} if status == OK else {'status': STATUS_TEXT[status],
+                                  'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
     return Trial(phys.t.copy(), out, phys.controls.copy(), name=spec.maneuver, wind=phys.wind,
                  thrusters=phys.thrusters, **kw)
 
@@ -216,8 +217,8 @@ def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Tria
             break
         observe(p, s, out[k + 1])
         rudder[k + 1] = delta
-    kw = {} if status == OK else dict(status=STATUS_TEXT[status],
-                                      fail_time_s=float(phys.t[min(k_fail, T - 1)]))
+    kw = {} if status == OK else {'status': STATUS_TEXT[status],
+                                  'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
     return Trial(phys.t.copy(), out, np.column_stack([rpm, rudder]), name=spec.maneuver, **kw)
 
 

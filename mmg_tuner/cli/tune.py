@@ -246,7 +246,7 @@ def store_args(out: OutputDir, command: str, args: argparse.Namespace) -> None:
 
 @contextlib.contextmanager
 def sigterm_as_interrupt():
-    """A kill (SIGTERM) stops like Ctrl-C: what is done is kept, the run is resumable."""
+    """Make a kill (SIGTERM) stop like Ctrl-C: what is done is kept, the run is resumable."""
     def interrupt(signum, frame):
         raise KeyboardInterrupt
     try:
@@ -311,8 +311,9 @@ def command(argv: list[str] | None = None) -> int:
         for n in notes:
             logging.getLogger(__name__).warning('resume: %s', n)
         ship = api.load_ship(args.ship, args.params)
-        load = dict(ship=ship, dt=args.dt, topics=args.topics, trial_scale=args.trial_scale,
-                    cut_from_event=getattr(args, 'cut_from_event', None))
+        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
+                'trial_scale': args.trial_scale,
+                'cut_from_event': getattr(args, 'cut_from_event', None)}
         tune_trials = api.load_trials(args.trials, **load)
         test_trials = api.load_trials(args.test, **load) if args.test else []
         if not resume:

@@ -169,7 +169,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            'delay between the command topics and the state topic (commands act time_offset '
            'seconds after their stamps)',
            smallest=(0.5,), neutral=(0.0,), boxes=((-3.0, 3.0),), periodic=(False,),
-           words=lambda v, e: f"commands lag the state by {_pm(v, e, 'time_offset', fmt='.2f')} s"),
+           words=lambda v, e: ('commands lag the state by '
+                               f"{_pm(v, e, 'time_offset', fmt='.2f')} s")),
     Effect('prop_side_force', ('prop_side_force',), ('-',),
            'propeller side force (paddle-wheel effect) Y = C_YPS rho n^2 D_P^4 at the stern: '
            'a turning asymmetry that grows with the propeller load, not with speed',

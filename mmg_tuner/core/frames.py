@@ -38,7 +38,7 @@ def wrap_pi(a):
 
 
 def wrap_angle(a):
-    """NumPy version of :func:`wrap_pi` for arrays: into [-pi, pi)."""
+    """Wrap array angles into [-pi, pi) (the NumPy version of :func:`wrap_pi`)."""
     return (np.asarray(a, dtype=float) + math.pi) % TWO_PI - math.pi
 
 
@@ -79,9 +79,7 @@ def mmg_to_enu_position(x_e, y_e):
 
 
 def flu_to_mmg_body(vx, vy, wz):
-    """
-    base_link (forward, left, up) velocities -> MMG body (u forward, v starboard, r clockwise).
-    """
+    """Turn base_link (forward, left, up) velocities into MMG body (u fwd, v stbd, r cw)."""
     return vx, -vy, -wz
 
 
@@ -96,7 +94,7 @@ def enu_vector_to_ne(vx_enu, vy_enu):
 
 
 def body_to_ne(psi, fwd, stbd):
-    """A body-axis vector (forward, starboard) -> (north, east) components at heading psi."""
+    """Turn a body-axis vector (forward, starboard) into (north, east) at heading psi."""
     c, s = np.cos(psi), np.sin(psi)
     return fwd * c - stbd * s, fwd * s + stbd * c
 

@@ -175,7 +175,7 @@ class InputLimits:
 
 def input_limits(ship: ShipConfig) -> InputLimits:
     """
-    The plausibility ranges of ``ship`` (cached per model, parameter vector and rudder limit).
+    Return the plausibility ranges of ``ship`` (cached per model, parameters, rudder limit).
 
     Examples
     --------

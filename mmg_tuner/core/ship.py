@@ -117,7 +117,7 @@ class ShipConfig:
 
     def with_params(self, values: Mapping[str, float], source: str = '') -> 'ShipConfig':
         """
-        A copy with some parameters replaced (e.g. tuned values), validated like a ship file.
+        Return a copy with some parameters replaced (e.g. tuned), validated like a ship file.
 
         ``source`` names where the values came from in errors.
         """
@@ -311,7 +311,9 @@ def _section(doc: Mapping[str, Any], sec: str, source: str) -> Mapping[str, Any]
 
 def _derive_mass(values: dict[str, Any], source: str) -> None:
     """
-    M and I_zG given as 'derived': m = rho C_b L B d (or rho * displacement), I_zG = m (L/4)^2.
+    Fill in m and I_zG given as 'derived'.
+
+    m = rho C_b L B d (or rho * displacement), I_zG = m (L/4)^2.
     """
     rho, L = float(values['rho']), float(values['L_pp'])
     if values.get('m', 'derived') == 'derived':

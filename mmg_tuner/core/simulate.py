@@ -66,15 +66,28 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
 
     Parameters
     ----------
-    ship: the ship config (its parameter vector is used unless ``params`` is given).
-    x0: first observed state (x, y, psi, u, v, r), velocities over ground.
-    controls: (T, n) input channels (``core/channels.CHANNELS`` order) at each sample;
+    ship : ShipConfig
+        The ship config (its parameter vector is used unless ``params`` is given).
+    x0 : array_like, shape (6,)
+        First observed state (x, y, psi, u, v, r), velocities over ground.
+    controls : array_like, shape (T, n)
+        Input channels (``core/channels.CHANNELS`` order) at each sample;
         sample k is held until k+1. (T, 2): rpm and rudder [rad]; two more columns are the
         measured true wind's north/east components [m/s] (the air's velocity), which
         replace the wind parameters (NaN: not measured); two more the bow and stern
         thrusters [rev/s].
-    dt: sample spacing [s]; each sample interval is split into ``substeps`` steps.
-    integrator: 'euler' (the paper's) or 'rk4'.
+    dt : float
+        Sample spacing [s]; each sample interval is split into ``substeps`` steps.
+    integrator : str
+        'euler' (the paper's) or 'rk4'.
+    substeps : int
+        Integration steps per sample interval.
+    t0 : float
+        Time of the first sample [s].
+    params : ndarray, optional
+        Parameter vector to use instead of ``ship.params``.
+    check : bool
+        Refuse inputs outside the model's range first (:func:`check_inputs`).
 
     Returns a :class:`~mmg_tuner.core.trial.Trial` (inputs as given). A run that leaves the
     model's range or diverges is returned with ``status`` saying so and NaN after
@@ -112,11 +125,22 @@ def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.
 
     Parameters
     ----------
-    kind: model structure code (``ShipConfig.kind``).
-    params: (N, N_PARAMS) parameter vectors.
-    x0s: (M, 6) first states; controls: (M, T, n) input channels (see
-        ``core/channels.py``), padded to the longest trial;
-    lengths: (M,) samples per trial (default all T).
+    kind : int
+        Model structure code (``ShipConfig.kind``).
+    params : ndarray, shape (N, N_PARAMS)
+        Parameter vectors.
+    x0s : ndarray, shape (M, 6)
+        First states.
+    controls : ndarray, shape (M, T, n)
+        Input channels (see ``core/channels.py``), padded to the longest trial.
+    dt : float
+        Sample spacing [s].
+    lengths : ndarray, shape (M,), optional
+        Samples per trial (default all T).
+    integrator : str
+        'euler' or 'rk4'.
+    substeps : int
+        Integration steps per sample interval.
 
     Returns
     -------

@@ -46,8 +46,9 @@ class Trial:
         self.controls = np.asarray(self.controls, dtype=float)
         T = self.t.size
         if self.states.shape != (T, 6) or self.controls.shape != (T, 2):
-            raise TrialDataError(f'{self.source or self.name}: inconsistent shapes t {self.t.shape},'
-                                 f' states {self.states.shape}, controls {self.controls.shape}')
+            raise TrialDataError(f'{self.source or self.name}: inconsistent shapes '
+                                 f't {self.t.shape}, states {self.states.shape}, '
+                                 f'controls {self.controls.shape}')
         for what in ('wind', 'thrusters'):
             a = getattr(self, what)
             if a is not None:
@@ -118,7 +119,8 @@ class Trial:
         return {k: None if getattr(self, k) is None else fn(getattr(self, k))
                 for k in ('wind', 'thrusters')}
 
-    def slice(self, start_s: float, end_s: float | None = None, name: str | None = None
+    def slice(self, start_s: float, end_s: float | None = None,  # noqa: A003  public API name
+              name: str | None = None
               ) -> 'Trial':
         """Return the part between start_s and end_s (trial time, inclusive)."""
         end_s = self.t[-1] if end_s is None else end_s
@@ -146,7 +148,7 @@ class Trial:
                        notes=self.notes + [f'Froude-scaled by 1/{ratio:g}'])
 
     def resampled(self, dt: float) -> 'Trial':
-        """The trial on a uniform grid of step dt (linear interpolation, heading unwrapped)."""
+        """Return the trial resampled to step dt (linear interpolation, heading unwrapped)."""
         n = int(math.floor(self.duration_s / dt + 1e-9)) + 1
         grid = self.t[0] + dt * np.arange(n)
 

@@ -434,8 +434,8 @@ def local_poly_fit(t: np.ndarray, y: np.ndarray, window_s: float, order: int = 2
             ok = det > 1e-12
             c1 = np.where(ok, (m[0][lin] * b[1][lin] - m[1][lin] * b[0][lin])
                           / np.where(ok, det, 1.0), np.nan)
-            c0_ = np.where(ok, (b[0][lin] - c1 * m[1][lin]) / np.where(cnt[lin] > 0,
-                                                                        cnt[lin], 1.0), np.nan)
+            c0_ = np.where(ok, (b[0][lin] - c1 * m[1][lin])
+                           / np.where(cnt[lin] > 0, cnt[lin], 1.0), np.nan)
             coef[lin, 0], coef[lin, 1] = c0_, c1
         val[rows], der[rows] = coef[:, 0], coef[:, 1] / half
     bad = ~np.isfinite(der)
@@ -495,7 +495,7 @@ def _heading(s: Series, role: str, tm: TopicMap, path: str, notes: list[str]
 def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_ns: int,
                 path: str) -> tuple[Kinematics, list[str]]:
     """
-    The motion from whichever sources the map gives, plus how it was read (for notes and inspect).
+    Return the motion from the sources the map gives, plus how it was read (notes, inspect).
 
     Pose and heading, velocities (recorded, turned by the heading when in an earth frame, or
     derived by a local linear fit over resample.smooth_s), yaw rate (IMU, a body twist, or derived
@@ -504,15 +504,17 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
     od = ser['odom']
     t_od = _t(od, t0_ns)
     how: list[str] = []
-    frame_text = ', '.join(f'{s.topic} ' + ' -> '.join(next(iter(s.frame_ids[k]))
-                                                    for k in ('frame_id', 'child_frame_id')
-                                                    if s.frame_ids.get(k))
-                       for s in ser.values() if s.frame_ids.get('frame_id'))
+    frame_text = ', '.join(
+        f'{s.topic} ' + ' -> '.join(next(iter(s.frame_ids[k]))
+                                    for k in ('frame_id', 'child_frame_id')
+                                    if s.frame_ids.get(k))
+        for s in ser.values() if s.frame_ids.get('frame_id'))
     win = f'local linear least-squares fit over {tm.smooth_s:g} s'
     imu = ser.get('imu')
     vel_src = rate_src = None
     if od.msgtype == 'nav_msgs/msg/Odometry':
-        k = Kinematics(t_od, od.values[:, 0], od.values[:, 1], t_od, frames.unwrap(od.values[:, 2]),
+        k = Kinematics(t_od, od.values[:, 0], od.values[:, 1],
+                       t_od, frames.unwrap(od.values[:, 2]),
                        t_od, od.values[:, 3], od.values[:, 4], t_od, od.values[:, 5])
         how.append(f'pose source: {od.topic} (Odometry: pose, body twist)')
     else:

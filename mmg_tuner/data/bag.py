@@ -197,7 +197,7 @@ def _is_auto(tm: TopicMap, key: str) -> bool:
 def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
                       ) -> tuple[TopicMap, list[str]]:
     """
-    The topic map with the topics it leaves open found by message type, where that is unambiguous.
+    Return the topic map with its open topics found by message type, where unambiguous.
 
     The pose source (/odom, else the one Odometry or NavSatFix topic), and for a NavSatFix the one
     Imu (yaw rate, and heading), the one QuaternionStamped (heading, before the Imu's orientation)
@@ -697,7 +697,8 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
                      lever_arm_m: tuple[float, float] = (0.0, 0.0), heading: str = 'imu',
                      twist_frame: str = '', gnss_frame: str = 'gps', imu_frame: str = 'imu_link',
                      state_stamp_offset_s: float = 0.0, sim_time: bool = False,
-                     write_clock: bool = True, storage: str = 'mcap', start_ns: int = 1_700_000_000_000_000_000) -> None:
+                     write_clock: bool = True, storage: str = 'mcap',
+                     start_ns: int = 1_700_000_000_000_000_000) -> None:
     """
     Write a trial as a ship's sensors record it.
 

@@ -154,14 +154,14 @@ def csv_recording(path: str | Path):
     header, data, notes = read_csv_table(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     ns = np.round(col['t'] * 1e9).astype(np.int64)
-    odom = np.column_stack([col['y'], col['x'], frames.psi_to_enu_yaw(col['psi']), col['u'], -col['v'],
-                            -col['r']])
+    odom = np.column_stack([col['y'], col['x'], frames.psi_to_enu_yaw(col['psi']), col['u'],
+                            -col['v'], -col['r']])
     series = {
         'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns, odom, ns),
         'rudder': Series('/rudder_angle', 'std_msgs/msg/Float64', ns,
-                                col['rudder'][:, None], ns),
+                         col['rudder'][:, None], ns),
         'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns,
-                                 col['rpm'][:, None], ns),
+                      col['rpm'][:, None], ns),
     }
     if all(c in header for c in WIND_COLUMNS):  # as true wind in ENU: (east, north)
         enu = np.column_stack([data[:, header.index('wind_e')], data[:, header.index('wind_n')]])

@@ -142,8 +142,8 @@ class TrialSpec:
                 f'{self.rudder_rate_deg_s:.1f}°/s, record {self.duration_s:.0f} s')
 
 
-def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float) -> tuple[np.ndarray, np.ndarray,
-                                                                     np.ndarray, str]:
+def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """
     Return the manoeuvre of spec by ship (all its effects acting), RK4 at <= 0.1 s.
 
@@ -254,7 +254,7 @@ def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
 def separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
                spec: TrialSpec, dt: float, sigma_pos: float, sigma_psi: float) -> float:
     """
-    Predicted separation (see the module) of two parameter vectors on spec.
+    Return the predicted separation of two parameter vectors on spec (see the module).
 
     0 when the manoeuvre cannot be run, inf when one model diverges on it.
     """

@@ -31,8 +31,8 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     lines = [f'# Diagnosis: {ship.name}', '']
     if doc.get('setting'):
         lines += [f"Setting: {doc['setting']['description']}." + (
-            ' Impossible here: ' + '; '.join(f'{e} ({w})' for e, w in
-                                            doc.get('impossible_here', {}).items()) + '.'
+            ' Impossible here: ' + '; '.join(
+                f'{e} ({w})' for e, w in doc.get('impossible_here', {}).items()) + '.'
             if doc.get('impossible_here') else ''), '']
     if doc['causes']:
         lines.append('**What was wrong, and why:**')

@@ -22,7 +22,7 @@ def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
 
 
 def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
-    """Simulated - recorded, heading wrapped; (T, 6)."""
+    """Return simulated - recorded, heading wrapped; (T, 6)."""
     e = sim - trial.states
     e[:, 2] = (e[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return e

@@ -51,7 +51,7 @@ Selection rule (stepwise, like forward-backward regression):
   the base model (the paper's method; here stopped on stagnation and polished by the same
   least squares, see DiagnosisSettings.base_*) and screens the effects (directions are
   multimodal).
-"""
+"""  # noqa: A005
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
@@ -423,7 +423,9 @@ class _Fit:
 
 def _run_fit(f: _Fit) -> np.ndarray:
     """
-    Run one tuning; an interrupted CMA-ES run raises KeyboardInterrupt (never a truncated result).
+    Run one tuning.
+
+    An interrupted CMA-ES run raises KeyboardInterrupt (never a truncated result).
     """
     space = f.space
     x0 = np.asarray(f.x0, float)
@@ -895,7 +897,7 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
         log(f"   advice ({a['kind']}: {a['about']}): " + (
             f"{a['instruction']} -- predicted separation {a['separation']:.3g} x the "
             'unexplained error' + (f' (best recorded trial {rec:.3g})' if rec is not None
-                                    else '') if a['settles'] else
+                                   else '') if a['settles'] else
             'no trial of the repertoire separates them by more than the unexplained error and '
             f"clearly better than the recorded ones (best: {a['instruction']}, "
             f"{a['separation']:.3g} vs {'-' if rec is None else f'{rec:.3g}'}): degenerate for "

@@ -8,8 +8,9 @@ The digest is a SHA-256 over the ship's options (the manifest entry with every d
 filled in), the ship config's and overlays' bytes, and the bytes of every file of every
 trial source (folders walked in sorted order, names relative to the source), plus the
 package version. Changing a bag, an option or the ship config redoes that ship alone; so
-does moving its trials (their absolute paths are options too). The record is written last, atomically, after the
-ship's files: a run killed before it leaves the ship undone, and the next run redoes it.
+does moving its trials (their absolute paths are options too). The record is written last,
+atomically, after the ship's files: a run killed before it leaves the ship undone, and the next
+run redoes it.
 """
 from __future__ import annotations
 

@@ -58,7 +58,7 @@ class Health:
 
     def command(self, which: str, value: float | None, problem: str, now: float) -> None:
         """
-        A command arrived.
+        Record that a command arrived.
 
         Applied as ``value`` (None: rejected), with ``problem`` when it was clamped or rejected.
         """

@@ -31,7 +31,7 @@ class Param:
 
     default: Any
     description: str
-    range: tuple[float, float] | None = None
+    range: tuple[float, float] | None = None  # noqa: A003
     read_only: bool = False
     constraints: str = ''
 

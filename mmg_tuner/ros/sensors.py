@@ -70,7 +70,7 @@ class SimulatedSensors:
         self.rng = np.random.default_rng(seed)
 
     def restart(self, step: int, dt: float) -> None:
-        """The simulation restarted (reset, new ship or dt): samples from ``step`` on."""
+        """Note the simulation restarted (reset, new ship or dt): samples from ``step`` on."""
         self._prev_imu = None
         for ch in self.channels.values():
             ch.restart(step, dt)

@@ -208,7 +208,11 @@ class SimNode(Node):
     # ---- set-up -------------------------------------------------------------------------
     @staticmethod
     def _build(p: dict) -> ShipSimulator:
-        """The simulator for parameters p; a SimulationError/ConfigError says what is wrong."""
+        """
+        Build the simulator for parameters p.
+
+        A SimulationError/ConfigError says what is wrong.
+        """
         ship = load_ship(p['ship'], p['params_file'] or None)
         psi = enu_yaw_to_psi(p['initial_yaw'])
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]

@@ -174,8 +174,8 @@ class EvaluateResult:
                  f'Restart from the measured state every {self.restart_every_s:g} s '
                  f'({self.integrator}, {self.substeps} substep(s)); index = Wakita et al. '
                  '(2022) eq. 26 with sigma pooled over these trials.', '',
-                 '| trial | index | ' + ' | '.join(f'rms {n} [{UNITS[n]}]'
-                                                    for n in INDEX_STATES) + ' |',
+                 '| trial | index | ' + ' | '.join(
+                     f'rms {n} [{UNITS[n]}]' for n in INDEX_STATES) + ' |',
                  '|---|---' + '|---' * len(INDEX_STATES) + '|']
         for n, s in self.trials.items():
             idx = 'failed' if s.index is None else f'{s.index:.4g}'

@@ -64,7 +64,8 @@ class ParameterSpace:
             lo.append(low)
             hi.append(up)
         if overrides:
-            raise TuningError(f'bounds given for parameters that are not tuned: {sorted(overrides)}')
+            raise TuningError('bounds given for parameters that are not tuned: '
+                              f'{sorted(overrides)}')
         if len(set(names)) != len(names):
             raise TuningError(f'duplicate tuning targets in {names}')
         return cls(names, np.array(pre), np.array(lo), np.array(hi))
@@ -85,7 +86,9 @@ class ParameterSpace:
 
     def full_params(self, base: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """
-        Parameter vectors (N, N_PARAMS): base with the tuned entries replaced by theta (N, d).
+        Return parameter vectors (N, N_PARAMS).
+
+        They are base with the tuned entries replaced by theta (N, d).
         """
         theta = np.atleast_2d(theta)
         out = np.tile(base, (theta.shape[0], 1))

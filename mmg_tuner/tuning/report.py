@@ -184,7 +184,8 @@ def markdown_report(doc: dict) -> str:
     J = doc['J']
     lines = [f"# Tuning report: {doc['ship']}", '',
              f"{doc['evaluations']} evaluations, {doc['restarts']} restarts, "
-             f"{doc['wall_s']:.1f} s{' (interrupted: best so far)' if doc['interrupted'] else ''}.",
+             f"{doc['wall_s']:.1f} s"
+             f"{' (interrupted: best so far)' if doc['interrupted'] else ''}.",
              '', '| J | tuning trials | test trials |', '|---|---|---|',
              f"| pre-determined | {fmt_J(J['pre']['tune'])} | {fmt_J(J['pre']['test'])} |",
              f"| tuned | {fmt_J(J['tuned']['tune'])} | {fmt_J(J['tuned']['test'])} |",

@@ -27,7 +27,7 @@ ASTERN_RPM = False
 ASTERN_SURGE = False
 DESCRIPTION = 'container ship with flapped rudder, Suyama et al. 2023 (SUZAKU)'
 
-from mmg_tuner.core._jit import FASTMATH  # noqa: E402  (below the declarations the layout reads)
+from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declarations layout reads)
 from mmg_tuner.core.channels import ACT_DELTA, ACT_N  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from mmg_tuner.core.models._mmg_hull import hull, rudder_forces  # noqa: E402

@@ -74,8 +74,8 @@ I_M, I_XG, I_MX, I_MY, I_IZG, I_JZ = (PARAM_INDEX[k] for k in
                              'k_0', 'k_1', 'k_2'))
 I_A1, I_A2, I_A3, I_A4, I_A5, I_A6, I_A7, I_A8 = (PARAM_INDEX[f'A_{i}'] for i in range(1, 9))
 I_B1, I_B2, I_B3, I_B4, I_B5, I_B6, I_B7, I_B8 = (PARAM_INDEX[f'B_{i}'] for i in range(1, 9))
-I_C3, I_C6, I_C7, I_C10, I_JSYN, I_JSYN0 = (PARAM_INDEX[k] for k in
-                                           ('C_3', 'C_6', 'C_7', 'C_10', 'J_syn', 'J_syn0'))
+I_C3, I_C6, I_C7, I_C10, I_JSYN, I_JSYN0 = (
+    PARAM_INDEX[k] for k in ('C_3', 'C_6', 'C_7', 'C_10', 'J_syn', 'J_syn0'))
 (I_AR, I_HR, I_LAM, I_XR, I_TR, I_AH, I_XH, I_LR, I_KX, I_KXREV, I_EPS, I_CPR, I_GN,
  I_GP) = (PARAM_INDEX[k] for k in ('A_R', 'H_R', 'aspect_R', 'x_R', 't_R', 'a_H', 'x_H', 'l_R',
                                    'k_x', 'k_x_rev', 'epsilon', 'c_PR', 'gamma_N', 'gamma_P'))
