@@ -38,7 +38,7 @@ from mmg_tuner.core.layout import EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE, STAT
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.simulate import simulate as _simulate
-from mmg_tuner.core.trial import Trial
+from mmg_tuner.core.trial import fitted_first_state, Trial
 from mmg_tuner.errors import ConfigError, SimulationError
 from numba import njit
 import numpy as np
@@ -438,20 +438,8 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
 
 # --------------------------------------------------------------------------- Python entries
 def fitted_start(trial: Trial, window_s: float = X0_WINDOW_S) -> np.ndarray:
-    """
-    Return the state ``mt.simulate`` starts a recorded trial from.
-
-    A quadratic least-squares fit of each state over the first window_s seconds, at t0: the
-    tuning objective's rule (``tuning.objective.initial_state``), restated here because the
-    core may not import the tuning layer; a test holds the two equal.
-    """
-    k = int(np.searchsorted(trial.t, trial.t[0] + window_s, side='right'))
-    if window_s <= 0 or k < 4:
-        return trial.states[0].copy()
-    t = trial.t[:k] - trial.t[0]
-    A = np.column_stack([np.ones(k), t, t * t])
-    coef, *_ = np.linalg.lstsq(A, trial.states[:k], rcond=None)
-    return coef[0]
+    """Return the state ``mt.simulate`` starts a recorded trial from (the objective's rule)."""
+    return fitted_first_state(trial, window_s)
 
 
 def trial_rows(ship: ShipConfig, trial: Trial) -> tuple[np.ndarray, np.ndarray]:

@@ -162,3 +162,20 @@ class Trial:
 
 Trajectory = Trial
 """The former name of a simulated history (same type)."""
+
+
+def fitted_first_state(trial: Trial, window_s: float) -> np.ndarray:
+    """
+    Return the state a simulation of a recorded trial starts from.
+
+    A quadratic least-squares fit of each state over the first window_s seconds, evaluated at
+    t0 (the raw first sample when window_s <= 0 or fewer than 4 samples lie in the window): the
+    one initial-state rule of the objective, the reports, ``mt.simulate`` and the hybrid.
+    """
+    k = int(np.searchsorted(trial.t, trial.t[0] + window_s, side='right'))
+    if window_s <= 0 or k < 4:
+        return trial.states[0].copy()
+    t = trial.t[:k] - trial.t[0]
+    A = np.column_stack([np.ones(k), t, t * t])
+    coef, *_ = np.linalg.lstsq(A, trial.states[:k], rcond=None)
+    return coef[0]

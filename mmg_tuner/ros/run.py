@@ -1,7 +1,7 @@
 """
 One way to run a node from a console script.
 
-declared, described parameters; errors a user can act on; a clean shutdown.
+Declared, described parameters; errors a user can act on; a clean shutdown.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ class Param:
     """
     A node parameter.
 
-    default, description (with units), optional inclusive range and whether it can change at run
+    Default, description (with units), optional inclusive range and whether it can change at run
     time (read_only: fixed once the node has started).
     """
 

@@ -8,6 +8,7 @@ from typing import Sequence
 from mmg_tuner.core.mmg import cost_many
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
+from mmg_tuner.core.trial import fitted_first_state
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 import numpy as np
@@ -64,14 +65,8 @@ class TrialBatch:
 
 
 def initial_state(trial: Trial, window_s: float) -> np.ndarray:
-    """Quadratic least-squares fit of each state over the first window_s seconds, at t0."""
-    k = int(np.searchsorted(trial.t, trial.t[0] + window_s, side='right'))
-    if window_s <= 0 or k < 4:
-        return trial.states[0].copy()
-    t = trial.t[:k] - trial.t[0]
-    A = np.column_stack([np.ones(k), t, t * t])
-    coef, *_ = np.linalg.lstsq(A, trial.states[:k], rcond=None)
-    return coef[0]
+    """Fit the start state over the first window_s seconds (``core.trial.fitted_first_state``)."""
+    return fitted_first_state(trial, window_s)
 
 
 def paper_weights(L_pp: float) -> np.ndarray:
