@@ -3,6 +3,7 @@ Tune the low-speed model on the real Esso Osaka pond data and score it on held-o
 
   python bench/esso_osaka.py [--max-evals 4000] [--segment 100] [--balance group]
                              [--prior 0.05] [--targets yaml|lowspeed] [--seed 0]
+                             [--out bench/out/esso_osaka/params.yaml]
 
 Data: the 33 FRT-DS-ESSO runs in data/esso_osaka_frt (CC BY-NC-SA 4.0), read whole with
 astern propeller and u <= 0 kept (the lowspeed family covers them), measured true wind driving
@@ -33,28 +34,39 @@ sample, the old objective), plus a prior pulling each target toward its publishe
 
 Evaluation: ``mmg_tuner.evaluate`` on the held-out runs together (sigma pooled over them),
 RK4 at 10 Hz, restart every 100 s, for the published and the tuned parameters.
+
+Output: the tuned parameters, written atomically to ``--out`` (default
+bench/out/esso_osaka/params.yaml; bench/esso_hybrid.py reads it), with a ``provenance`` key:
+the options and a SHA-256 fingerprint of the inputs (the ship config and every run file), so a
+reader can refuse parameters tuned on other data (:func:`check_provenance`).
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 from pathlib import Path
 import sys
 import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import mmg_tuner as mt  # noqa: E402
+from mmg_tuner._atomic import write_atomic  # noqa: E402
 from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.data.esso import cut_from_event, esso_data_dir, read_esso_csv  # noqa: E402
 from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402
 from mmg_tuner.tuning.objective import Objective, Prior, TrialBatch  # noqa: E402
 from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
+from mmg_tuner.tuning.report import params_yaml_text  # noqa: E402
 from mmg_tuner.tuning.segments import segment_weights, split_trials  # noqa: E402
 from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
 import numpy as np  # noqa: E402
+import yaml  # noqa: E402
 
 KINDS = ('turning', 'zigzag', 'random', 'berthing')
 RESTART_S = 100.0
 LOWSPEED_EXTRA = ('X_vr', 'Y_r', 'N_v', 'C_rY', 'C_rN', 'C_6', 'C_7', 'XX1', 'YY1', 'NN2')
+PARAMS_OUT = Path(__file__).resolve().parent / 'out' / 'esso_osaka' / 'params.yaml'
+PARAMS_COMMAND = 'python bench/esso_osaka.py'
 
 
 def runs_by_kind() -> dict[str, list[Path]]:
@@ -71,6 +83,52 @@ def runs_by_kind() -> dict[str, list[Path]]:
 def split(files: list[Path]) -> tuple[list[Path], list[Path]]:
     held = [f for i, f in enumerate(files) if i % 3 == 1]
     return [f for f in files if f not in held], held
+
+
+def fail(message: str) -> None:
+    """Print ``ERROR: message`` to stderr and exit 2 (as the CLIs do)."""
+    print(f'ERROR: {message}', file=sys.stderr)
+    sys.exit(2)
+
+
+def inputs_fingerprint(ship_source: str | Path) -> str:
+    """
+    Return the SHA-256 (hex) of the tuning's inputs: the ship config and every run file.
+
+    Names (kind/file) and bytes, in the split's order, so adding, removing, renaming or
+    editing a run or the config changes it.
+    """
+    h = hashlib.sha256()
+    h.update(Path(ship_source).read_bytes())
+    for kind, files in runs_by_kind().items():
+        for f in files:
+            h.update(f'{kind}/{f.name}\0'.encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def check_provenance(path: Path, ship_source: str | Path) -> dict:
+    """
+    Return the ``provenance`` of a params.yaml this script wrote, if its inputs are today's.
+
+    Exits with a message naming the file and the command to rebuild it when the file is
+    missing, was not written by this script, or was tuned on other inputs (a changed ship
+    config or run file): tuned parameters are never reused silently.
+    """
+    redo = f'produce it with: {PARAMS_COMMAND} --out {path}'
+    if not path.is_file():
+        fail(f'tuned params file {path} does not exist; {redo}')
+    doc = yaml.safe_load(path.read_text())
+    prov = doc.get('provenance') if isinstance(doc, dict) else None
+    if not isinstance(prov, dict) or 'inputs_sha256' not in prov:
+        fail(f'{path} has no provenance.inputs_sha256 (not written by '
+             f'{PARAMS_COMMAND}); {redo}')
+    now = inputs_fingerprint(ship_source)
+    if prov['inputs_sha256'] != now:
+        fail(f'{path} was tuned on other inputs (provenance.inputs_sha256 '
+             f'{prov["inputs_sha256"][:12]}..., the ship config and runs now give '
+             f'{now[:12]}...); {redo}')
+    return prov
 
 
 def read(path: Path, kind: str):
@@ -92,7 +150,15 @@ def main() -> None:
     ap.add_argument('--prior', type=float, default=0.05,
                     help='pull toward the published values (0: none)')
     ap.add_argument('--targets', choices=('yaml', 'lowspeed'), default='lowspeed')
+    ap.add_argument('--out', type=Path, default=PARAMS_OUT,
+                    help='write the tuned params.yaml here (atomically; a previous output of '
+                    'this script is replaced, any other file refused)')
     args = ap.parse_args()
+    if args.out.is_dir():
+        fail(f'--out {args.out} is a folder; give a file name (e.g. params.yaml)')
+    if args.out.exists() and f'command: {PARAMS_COMMAND}' not in args.out.read_text():
+        fail(f'--out {args.out} exists and was not written by {PARAMS_COMMAND}: '
+             'not overwriting it; give another file')
     t_all = time.perf_counter()
     ship = mt.load_ship('esso_osaka_3m')
     train, test, kind_of = [], [], {}
@@ -134,7 +200,16 @@ def main() -> None:
     tuner = Tuner(space, obj, popsize=12, max_popsize=48, max_evaluations=args.max_evals,
                   seed=args.seed)
     res = tuner.run()
-    tuned = ship.with_params(dict(zip(space.names, map(float, res.theta))))
+    values = dict(zip(space.names, map(float, res.theta)))
+    tuned = ship.with_params(values)
+    text = params_yaml_text(ship, values, f'{PARAMS_COMMAND}: CMA-ES, {res.evaluations} '
+                            'evaluations')
+    prov = {'command': PARAMS_COMMAND, 'options': {k: (str(v) if isinstance(v, Path) else v)
+                                                   for k, v in vars(args).items()},
+            'evaluations': int(res.evaluations), 'training_runs': [t.name for t in train],
+            'held_out_runs': [t.name for t in test],
+            'inputs_sha256': inputs_fingerprint(ship.source)}
+    write_atomic(args.out, text + yaml.safe_dump({'provenance': prov}, sort_keys=False))
     print(f'CMA-ES: {res.evaluations} evaluations, {res.restarts} restart(s), '
           f'{res.wall_s:.0f} s; training objective per sample {J0 / n_samples:.4f} -> '
           f'{res.J / n_samples:.4f}')
@@ -164,6 +239,7 @@ def main() -> None:
           f'{tun.index_all:.4f} | {ch:+.0f} % |')
     for kind in KINDS:
         print(f'{kind}: tuned better on {sum(better[kind])} of {len(better[kind])} held-out runs')
+    print(f'tuned parameters: {args.out}')
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
 
 

@@ -132,3 +132,37 @@ def test_tune_options_segments_balance_prior(ship):
         mt.TuneConfig(prior=-1.0)
     with pytest.raises(TuningError, match='segment_s'):
         mt.TuneConfig(segment_s=math.nan)
+
+
+def test_bench_params_file_is_refused_when_its_inputs_changed(tmp_path, monkeypatch, capsys):
+    """bench/esso_osaka.py's params file: esso_hybrid.py must not reuse it on other inputs."""
+    import importlib.util
+    from pathlib import Path
+    src = Path(__file__).resolve().parents[1] / 'bench' / 'esso_osaka.py'
+    spec = importlib.util.spec_from_file_location('esso_osaka_bench', src)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    cfg, run = tmp_path / 'ship.yaml', tmp_path / 'a.csv'
+    cfg.write_text('ship: x\n')
+    run.write_text('t,x\n0,1\n')
+    monkeypatch.setattr(bench, 'runs_by_kind', lambda: {'zigzag': [run]})
+    params = tmp_path / 'params.yaml'
+
+    def refused(what):
+        with pytest.raises(SystemExit) as exc:
+            bench.check_provenance(params, cfg)
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and str(params) in err and bench.PARAMS_COMMAND in err, err
+        assert what in err, err
+
+    refused('does not exist')
+    params.write_text('params: {C_D: 0.8}\n')
+    refused('no provenance')
+    params.write_text('params: {C_D: 0.8}\nprovenance: {inputs_sha256: '
+                      f'{bench.inputs_fingerprint(cfg)}, evaluations: 10}}\n')
+    assert bench.check_provenance(params, cfg)['evaluations'] == 10
+    run.write_text('t,x\n0,2\n')          # a run file edited
+    refused('other inputs')
+    run.write_text('t,x\n0,1\n')
+    cfg.write_text('ship: y\n')           # the ship config edited
+    refused('other inputs')

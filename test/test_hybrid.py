@@ -188,7 +188,8 @@ def test_config_names_the_bad_option():
     from mmg_tuner.tuning.hybrid import ResidualConfig
     for kw, name in (({'window': 0}, 'window'), ({'hidden': ()}, 'hidden'),
                      ({'integrator': 'rk45'}, 'integrator'), ({'l2': -1.0}, 'l2'),
-                     ({'horizon_s': math.nan}, 'horizon_s')):
+                     ({'horizon_s': math.nan}, 'horizon_s'), ({'balance': 'kind'}, 'balance'),
+                     ({'select': 'worst'}, 'select')):
         with pytest.raises(ConfigError, match=name):
             ResidualConfig(**kw)
 
@@ -394,3 +395,81 @@ def test_residual_finds_nothing_on_clean_data(suzaku):
     physics, hybrid = _heldout_index(suzaku, None, test), _heldout_index(suzaku, fit.net, test)
     assert fit.share < 0.1
     assert abs(hybrid / physics - 1.0) < 0.1, (physics, hybrid)
+
+
+# ------------------------------------------------------- balance and selection (kinds alike)
+def test_window_weights_balance_trials_and_groups():
+    from mmg_tuner.errors import TuningError
+    from mmg_tuner.tuning.hybrid.train import window_weights
+    names = ['long'] * 6 + ['short'] * 2 + ['other'] * 4
+    groups = {'long': 'turning', 'short': 'zigzag', 'other': 'zigzag'}
+    assert np.array_equal(window_weights(names, 'window'), np.ones(12))
+    w = window_weights(names, 'trial')
+    tot = {n: w[[i for i, m in enumerate(names) if m == n]].sum() for n in set(names)}
+    assert tot['long'] == pytest.approx(tot['short']) == pytest.approx(tot['other'])
+    w = window_weights(names, 'group', groups)
+    assert w.mean() == pytest.approx(1.0)
+    assert w[:6].sum() == pytest.approx(w[6:].sum())        # turning = zigzag
+    assert w[6:8].sum() == pytest.approx(w[8:].sum())       # the zigzag trials alike
+    with pytest.raises(TuningError, match='other'):
+        window_weights(names, 'group', {'long': 'a', 'short': 'b'})
+
+
+def test_every_group_selection_refuses_a_gain_bought_on_one_group():
+    from mmg_tuner.tuning.hybrid.train import group_losses, selection_score
+    labels = np.array(['a', 'a', 'b', 'b'])
+    w = np.ones(4)
+    phys = group_losses(np.ones(4), w, labels, ['a', 'b'])
+    lopsided = np.array([0.2, 0.2, 1.2, 1.2])         # better on the mean, worse on b
+    even = np.array([0.9, 0.9, 0.9, 0.9])
+    g1, g2 = (group_losses(x, w, labels, ['a', 'b']) for x in (lopsided, even))
+    assert selection_score('mean', 0.7, g1, phys) < selection_score('mean', 0.9, g2, phys)
+    assert selection_score('every_group', 0.7, g1, phys) > 1.0     # the physics (1) stays
+    assert selection_score('every_group', 0.9, g2, phys) == pytest.approx(0.9)
+    # weights count within a group: a heavy window dominates its group's loss
+    assert group_losses(lopsided, np.array([3.0, 1.0, 1.0, 1.0]), labels, ['a'])[0] == \
+        pytest.approx(0.2)
+    assert group_losses(np.array([0.0, 1.0]), np.array([3.0, 1.0]), labels[:2],
+                        ['a'])[0] == pytest.approx(0.25)
+
+
+def test_kept_network_beats_the_physics_on_every_group(suzaku, hidden_fit):
+    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    _, trials = hidden_fit
+    groups = {t.name: t.name.rstrip('+-0123456789') for t in trials[:4]}
+    cfg = ResidualConfig(**{**CI, 'epochs': 15}, seed=0, balance='group', select='every_group')
+    fit = train_residual(suzaku, trials[:4], groups=groups, config=cfg)
+    assert set(fit.val_by_group) == set(groups.values()) == set(fit.share_by_group)
+    assert all(0.0 <= s <= 1.0 for s in fit.share_by_group.values())
+    if fit.best_epoch > 0:   # the rule: kept only when better on each group
+        assert all(v['hybrid'] < v['physics'] for v in fit.val_by_group.values())
+    else:
+        assert all(v['hybrid'] == v['physics'] for v in fit.val_by_group.values())
+    crit = [h['criterion'] for h in fit.history]
+    assert crit[0] == 1.0 and fit.history[fit.best_epoch]['criterion'] == min(crit)
+    from mmg_tuner.errors import TuningError
+    with pytest.raises(TuningError, match='groups'):
+        train_residual(suzaku, trials[:4], config=cfg)
+
+
+def _forward(net, x):
+    from mmg_tuner.core.residual import mlp_forward
+    sizes, flat = net.packed()
+    n = int(sizes.max())
+    return mlp_forward(sizes, flat, x, np.empty(n), np.empty(n))[:3].copy()
+
+
+def test_ensemble_is_the_mean_of_its_members():
+    from mmg_tuner.tuning.hybrid import ensemble
+    nets = [random_net(hidden=(8, 6), seed=s) for s in (1, 2, 3)]
+    nets = [replace(n, x_mean=nets[0].x_mean, x_std=nets[0].x_std) for n in nets]
+    ens = ensemble(nets)
+    assert [w.shape for w in ens.weights] == [(24, 3 * N_FEATURES), (18, 24), (3, 18)]
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        x = rng.normal(0, 1, 3 * N_FEATURES)
+        want = np.mean([_forward(n, x) for n in nets], axis=0)
+        assert np.allclose(_forward(ens, x), want, rtol=1e-12, atol=1e-15)
+    assert ens.meta['ensemble_of_seeds'] == [1, 2, 3]
+    with pytest.raises(ConfigError, match='network 1'):
+        ensemble([nets[0], random_net(hidden=(8, 6), seed=5)])   # other standardisation

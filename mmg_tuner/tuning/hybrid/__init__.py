@@ -5,6 +5,7 @@ Importing this package needs no JAX; :func:`train_residual` imports JAX, equinox
 first use and raises :class:`~mmg_tuner.errors.MissingDependencyError` (saying how to install
 them) when they are missing. Inference needs none of them: ``mmg_tuner.core.residual``.
 """
-from mmg_tuner.tuning.hybrid.train import require_jax, ResidualConfig, ResidualFit, train_residual
+from mmg_tuner.tuning.hybrid.train import (
+    ensemble, require_jax, ResidualConfig, ResidualFit, train_residual)
 
-__all__ = ['ResidualConfig', 'ResidualFit', 'require_jax', 'train_residual']
+__all__ = ['ResidualConfig', 'ResidualFit', 'ensemble', 'require_jax', 'train_residual']

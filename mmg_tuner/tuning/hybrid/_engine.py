@@ -171,8 +171,9 @@ def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
 
     The data loss is the mean over windows, steps and the six states of
     ((simulated - measured) / sigma)^2 (Wakita et al. 2022's simulation-based loss, heading
-    wrapped); the total adds l2 x the mean squared residual in y_scale units (hybrid: keeps
-    it small where the physics is right) or x the mean squared weight (pure network).
+    wrapped), each window weighted by w; the total adds l2 x the mean squared residual in
+    y_scale units, weighted alike (hybrid: keeps it small where the physics is right) or x the
+    mean squared weight (pure network).
     """
     inv = jnp.asarray(1.0 / np.asarray(sigma))
     inv_y2 = jnp.asarray(1.0 / np.asarray(y_scale) ** 2)
@@ -186,8 +187,9 @@ def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
 
     def total(model, b, w):
         d, res, _ = data_loss(model, b, w)
-        if physics:
-            reg = jnp.sum(jnp.mean(res ** 2, axis=(0, 1)) * inv_y2) / 3.0
+        if physics:   # weighted as the data loss: a window weighing more is held closer
+            per = jnp.mean(res ** 2, axis=1) @ inv_y2 / 3.0
+            reg = jnp.sum(per * w) / jnp.sum(w)
         else:
             leaves = [la.weight for la in model.layers]
             reg = sum(jnp.sum(x ** 2) for x in leaves) / sum(x.size for x in leaves)

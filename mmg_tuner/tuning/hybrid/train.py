@@ -16,16 +16,18 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 import math
 import time
-from typing import Sequence
+from typing import Mapping, Sequence
 
 from mmg_tuner.core.residual import FEATURES, N_FEATURES, ResidualNet
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
-from mmg_tuner.tuning.hybrid._windows import cut, prepare, Windows
+from mmg_tuner.tuning.hybrid._windows import cut, prepare, starts, Windows
 import numpy as np
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
+BALANCE = ('window', 'trial', 'group')
+SELECT = ('mean', 'every_group')
 
 
 def require_jax() -> None:
@@ -67,6 +69,16 @@ class ResidualConfig:
     significance: the best epoch's residual is kept only when its validation loss beats the
     physics alone by this many standard errors of the paired per-window differences (0: any
     improvement); otherwise the residual is zero, so noise is not learned.
+    balance: how windows weigh in the training and validation losses (and the regulariser):
+    'window' every window alike (a long trial counts by its length), 'trial' every trial the
+    same total, 'group' every group the same total (``groups`` of :func:`train_residual`, e.g.
+    the manoeuvre kind), its trials alike within it: as the physics tuning's segments
+    (tuning/segments.py), so a kind with few short runs is not drowned.
+    select: which epoch is kept (and when to stop early): 'mean' the lowest (balanced)
+    validation loss; 'every_group' the lowest worst ratio, over the groups (without
+    ``groups``: over the trials), of a group's validation loss to the physics' alone, so an
+    epoch that helps on average but hurts one regime is not kept: the residual stays zero
+    unless the validation says it helps on every group.
     """
 
     window: int = 5
@@ -84,6 +96,8 @@ class ResidualConfig:
     validation_fraction: float = 0.25
     max_seconds: float | None = None
     significance: float = 2.0
+    balance: str = 'window'
+    select: str = 'mean'
 
     def __post_init__(self) -> None:
         def whole(x, lo):
@@ -115,7 +129,9 @@ class ResidualConfig:
                 ('max_seconds', self.max_seconds is None or pos(self.max_seconds),
                  'a positive number of seconds or None'),
                 ('significance', pos(self.significance) or self.significance == 0,
-                 'a number of standard errors >= 0')):
+                 'a number of standard errors >= 0'),
+                ('balance', self.balance in BALANCE, f'one of {list(BALANCE)}'),
+                ('select', self.select in SELECT, f'one of {list(SELECT)}')):
             if not ok:
                 raise _bad(name, getattr(self, name), what)
 
@@ -131,7 +147,10 @@ class ResidualFit:
     windows; share: the residual's share of the total acceleration on the training trials
     (RMS ratio, 0..1; 1 for the pure network); seconds: wall time; epochs: epochs run;
     physics_train_loss, physics_val_loss: the same losses of the physics part alone (zero
-    residual; None for the pure network), so the gain is 1 - val_loss / physics_val_loss.
+    residual; None for the pure network), so the gain is 1 - val_loss / physics_val_loss;
+    val_by_group: per group (``groups``; else per trial) the validation loss of the physics
+    alone and of the kept network ({'physics': .., 'hybrid': ..}); share_by_group: the share
+    on each group's training trials.
     """
 
     net: ResidualNet
@@ -146,6 +165,8 @@ class ResidualFit:
     physics_val_loss: float | None = None
     best_epoch: int = 0
     notes: list[str] = field(default_factory=list)
+    val_by_group: dict[str, dict[str, float]] = field(default_factory=dict)
+    share_by_group: dict[str, float] = field(default_factory=dict)
 
     @property
     def val_gain(self) -> float | None:
@@ -157,6 +178,64 @@ class ResidualFit:
         if self.physics_val_loss is None or not self.physics_val_loss > 0:
             return None
         return 1.0 - self.val_loss / self.physics_val_loss
+
+
+def window_weights(names: Sequence[str], balance: str,
+                   groups: Mapping[str, str] | None = None) -> np.ndarray:
+    """
+    Return the weight of each window (its trial's name given), scaled to mean 1.
+
+    balance 'window': all 1; 'trial': every trial the same total; 'group': every group
+    (``groups``: trial name -> group) the same total, its trials alike within it.
+    """
+    names = list(names)
+    if balance not in BALANCE:
+        raise _bad('balance', balance, f'one of {list(BALANCE)}')
+    if not names or balance == 'window':
+        return np.ones(len(names))
+    count: dict[str, int] = {}
+    for n in names:
+        count[n] = count.get(n, 0) + 1
+    if balance == 'trial':
+        share = {n: 1.0 / len(count) for n in count}
+    else:
+        members: dict[str, list[str]] = {}
+        for n in count:
+            members.setdefault(_group(n, groups), []).append(n)
+        share = {n: 1.0 / (len(members) * len(ns)) for ns in members.values() for n in ns}
+    w = np.array([share[n] / count[n] for n in names])
+    return w / w.mean()
+
+
+def group_losses(losses: np.ndarray, weights: np.ndarray, labels: np.ndarray,
+                 names: Sequence[str]) -> np.ndarray:
+    """Return the weighted mean loss of the windows of each group in ``names``."""
+    lw = np.asarray(losses) * np.asarray(weights)
+    return np.array([lw[labels == g].sum() / np.asarray(weights)[labels == g].sum()
+                     for g in names])
+
+
+def selection_score(select: str, mean: float, groups: np.ndarray,
+                    physics_groups: np.ndarray) -> float:
+    """
+    Return the validation score an epoch is kept by (lower is better; the physics alone).
+
+    'mean': the (balanced) mean validation loss; 'every_group': the worst ratio over the
+    groups of the loss to the physics' alone (1 for the physics itself), so only an epoch
+    better than the physics on every group can replace it.
+    """
+    if select == 'mean':
+        return float(mean)
+    return float(np.max(np.asarray(groups) / np.maximum(physics_groups, 1e-300)))
+
+
+def _group(name: str, groups: Mapping[str, str] | None) -> str:
+    if groups is None:
+        return name
+    if name not in groups:
+        raise TuningError(f'train_residual: trial {name!r} has no group in groups (known: '
+                          f'{sorted(groups)[:5]}...); give every trial its group')
+    return str(groups[name])
 
 
 def _significant(gain: np.ndarray, z: float) -> bool:
@@ -206,6 +285,7 @@ def _versions() -> dict[str, str]:
 
 def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                    validation: Sequence[Trial] | None = None,
+                   groups: Mapping[str, str] | None = None,
                    config: ResidualConfig = ResidualConfig()) -> ResidualFit:
     """
     Train the residual (or the pure network) of ``ship`` on recorded trials.
@@ -218,7 +298,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     coefficients trade off against each other, undoing the tuning's meaning.
 
     trials: the training set (one sample interval); validation: held-out trials for early
-    stopping (default: the last ``validation_fraction`` of each training trial).
+    stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
+    name -> group (e.g. the manoeuvre kind) for ``balance='group'`` and
+    ``select='every_group'`` (default: each trial its own group).
 
     Example::
 
@@ -253,6 +335,18 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     va_arrs = [prepare(ship, t) for t in val_trials]
     w_tr = cut(tr_arrs, cfg.window, H, stride)
     w_va = cut(va_arrs, cfg.window, H, stride)
+    if cfg.balance == 'group' and groups is None:
+        raise TuningError("train_residual: balance 'group' needs groups (trial name -> group)")
+
+    def names_of(ts, arrs):
+        return [t.name for t, a in zip(ts, arrs)
+                for _ in starts(a.rows.shape[0], cfg.window, H, stride)]
+
+    n_tr, n_va = names_of(train_trials, tr_arrs), names_of(val_trials, va_arrs)
+    wt_tr = window_weights(n_tr, cfg.balance, groups)
+    wt_va = window_weights(n_va, cfg.balance, groups)
+    g_va = np.array([_group(n, groups) for n in n_va])
+    group_names = list(dict.fromkeys(g_va))
     for what, w, ts in (('training', w_tr, train_trials), ('validation', w_va, val_trials)):
         if len(w) == 0:
             raise TuningError(f'train_residual: the {what} trials ({", ".join(t.name for t in ts)}'
@@ -312,18 +406,28 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             out.append(np.asarray(window_losses(model, as_batch(w, idx), wt))[:int(wt.sum())])
         return np.concatenate(out)
 
-    def mean_loss(model, w: Windows) -> float:
-        return float(np.mean(per_window(model, w)))
+    def mean_loss(model, w: Windows, wt: np.ndarray) -> float:
+        return float(np.mean(per_window(model, w) * wt))
+
+    def by_group(losses: np.ndarray) -> np.ndarray:
+        return group_losses(losses, wt_va, g_va, group_names)
 
     rng = np.random.default_rng(cfg.seed)
-    ones = np.ones(B)
     initial = model
     physics_windows = per_window(model, w_va)   # the zero-initialised output: physics alone
-    physics_val = float(np.mean(physics_windows))
-    physics_train = mean_loss(model, w_tr)
-    best = (physics_val, model, 0, physics_windows)
+    physics_val = float(np.mean(physics_windows * wt_va))
+    physics_train = mean_loss(model, w_tr, wt_tr)
+    physics_groups = by_group(physics_windows)
+
+    def criterion(val: float, losses: np.ndarray) -> float:
+        if not cfg.physics:
+            return val
+        return selection_score(cfg.select, val, by_group(losses), physics_groups)
+
+    crit0 = criterion(physics_val, physics_windows)
+    best = (crit0, model, 0, physics_windows, physics_val)
     z = cfg.significance if cfg.physics else 0.0
-    history = [{'epoch': 0, 'train': physics_train, 'val': physics_val,
+    history = [{'epoch': 0, 'train': physics_train, 'val': physics_val, 'criterion': crit0,
                 'seconds': time.perf_counter() - t_start}]
     notes = [val_note]
     skipped = 0
@@ -333,7 +437,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         losses = []
         for a in range(0, len(perm), B):
             idx = perm[a:a + B] if a + B <= len(perm) else perm[-B:]
-            new_model, new_state, d = train_step(model, opt_state, as_batch(w_tr, idx), ones)
+            new_model, new_state, d = train_step(model, opt_state, as_batch(w_tr, idx),
+                                                 wt_tr[idx])
             d = float(d)
             if not math.isfinite(d):  # a diverging window: skip the step, keep going
                 skipped += 1
@@ -341,11 +446,12 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             model, opt_state = new_model, new_state
             losses.append(d)
         val_windows = per_window(model, w_va)
-        val = float(np.mean(val_windows))
+        val = float(np.mean(val_windows * wt_va))
+        crit = criterion(val, val_windows)
         history.append({'epoch': epoch, 'train': float(np.mean(losses)) if losses else math.nan,
-                        'val': val, 'seconds': time.perf_counter() - t_start})
-        if val < best[0]:
-            best = (val, model, epoch, val_windows)
+                        'val': val, 'criterion': crit, 'seconds': time.perf_counter() - t_start})
+        if crit < best[0]:
+            best = (crit, model, epoch, val_windows, val)
         elif epoch - best[2] >= cfg.patience:
             notes.append(f'early stop at epoch {epoch}: no better validation loss for '
                          f'{cfg.patience} epochs')
@@ -353,18 +459,31 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         if cfg.max_seconds is not None and time.perf_counter() - t_start > cfg.max_seconds:
             notes.append(f'stopped at epoch {epoch}: max_seconds = {cfg.max_seconds:g} s')
             break
-    if best[2] > 0 and not _significant(physics_windows - best[3], z):
+    if best[2] > 0 and not _significant((physics_windows - best[3]) * wt_va, z):
         notes.append(f'the best epoch ({best[2]}) did not beat the physics alone by {z:g} '
                      'standard errors of the paired validation windows: the residual is zero')
-        best = (physics_val, initial, 0, physics_windows)
+        best = (crit0, initial, 0, physics_windows, physics_val)
+    elif best[2] == 0 and cfg.physics and cfg.select == 'every_group':
+        notes.append('no epoch beat the physics alone on every validation group: the residual '
+                     'is zero')
     if skipped:
         notes.append(f'{skipped} minibatch step(s) skipped: a simulated window diverged')
-    val_loss, model, best_epoch, _ = best
-    train_loss = mean_loss(model, w_tr)
+    _, model, best_epoch, best_windows, val_loss = best
+    val_by_group = ({g: {'physics': float(a), 'hybrid': float(b)} for g, a, b in
+                     zip(group_names, by_group(physics_windows), by_group(best_windows))}
+                    if cfg.physics else {})
+    train_loss = mean_loss(model, w_tr, wt_tr)
     weights, biases = model.export()
     net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
                       cfg.seed)
     share, parts = _share(net, tr_arrs, F, teacher_residuals)
+    share_by_group = {}
+    if groups is not None:
+        off = np.cumsum([0] + [a.rows.shape[0] for a in tr_arrs])
+        for g in dict.fromkeys(_group(t.name, groups) for t in train_trials):
+            ks = [i for i, t in enumerate(train_trials) if _group(t.name, groups) == g]
+            Fg = np.concatenate([F[off[i]:off[i + 1]] for i in ks])
+            share_by_group[g] = _share(net, [tr_arrs[i] for i in ks], Fg, teacher_residuals)[0]
     seconds = time.perf_counter() - t_start
     meta = {'ship': ship.name, 'model': ship.model, 'features': list(FEATURES),
             'trials': [t.name for t in train_trials],
@@ -374,7 +493,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             'val_loss': val_loss,
             'physics_train_loss': physics_train if cfg.physics else None,
             'physics_val_loss': physics_val if cfg.physics else None,
-            'share': share, 'share_by_component': parts, 'seconds': seconds,
+            'share': share, 'share_by_component': parts, 'share_by_group': share_by_group,
+            'val_by_group': val_by_group, 'seconds': seconds,
             'seed': cfg.seed, 'config': asdict(cfg), 'sigma': sigma.tolist(),
             'versions': _versions(), 'notes': notes,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
@@ -383,7 +503,56 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                       cfg.seed, meta)
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,
                        physics_train if cfg.physics else None,
-                       physics_val if cfg.physics else None, best_epoch, notes)
+                       physics_val if cfg.physics else None, best_epoch, notes, val_by_group,
+                       share_by_group)
+
+
+def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
+    """
+    Return one network whose output is the mean of the outputs of ``nets``.
+
+    The nets (e.g. one per seed, trained on the same trials) must share the window, sample
+    interval, mode, standardisation and depth. Exact, not a distillation: the hidden layers
+    are stacked side by side (first layer: rows stacked; deeper ones: block-diagonal) and
+    the output layer averages them, so inference runs it as any other network.
+    """
+    nets = list(nets)
+    if not nets:
+        raise ConfigError('ensemble: no networks given')
+    a = nets[0]
+    for i, n in enumerate(nets[1:], 1):
+        same = (n.window == a.window and n.dt_s == a.dt_s and n.physics == a.physics
+                and len(n.weights) == len(a.weights)
+                and all(np.array_equal(x, y) for x, y in ((n.x_mean, a.x_mean),
+                                                          (n.x_std, a.x_std),
+                                                          (n.y_scale, a.y_scale))))
+        if not same:
+            raise ConfigError(f'ensemble: network {i} (seed {n.seed}) differs from network 0 '
+                              'in window, dt_s, physics, depth or standardisation: train them '
+                              'on the same trials with the same options')
+    k, L = len(nets), len(a.weights)
+    ws, bs = [], []
+    for layer in range(L):
+        W = [n.weights[layer] for n in nets]
+        b = [n.biases[layer] for n in nets]
+        if layer == L - 1:
+            ws.append(np.hstack(W) / k if L > 1 else sum(W) / k)
+            bs.append(sum(b) / k)
+        elif layer == 0:
+            ws.append(np.vstack(W))
+            bs.append(np.concatenate(b))
+        else:
+            out = np.zeros((sum(w.shape[0] for w in W), sum(w.shape[1] for w in W)))
+            r = c = 0
+            for w in W:
+                out[r:r + w.shape[0], c:c + w.shape[1]] = w
+                r, c = r + w.shape[0], c + w.shape[1]
+            ws.append(out)
+            bs.append(np.concatenate(b))
+    meta = {'ensemble_of_seeds': [n.seed for n in nets],
+            'members': [n.meta for n in nets]}
+    return ResidualNet(a.window, a.dt_s, tuple(ws), tuple(bs), a.x_mean, a.x_std, a.y_scale,
+                       a.physics, a.seed, meta)
 
 
 def _share(net: ResidualNet, arrs, F_phys: np.ndarray, teacher_residuals
