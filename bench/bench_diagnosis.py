@@ -12,20 +12,23 @@ the public API (mt.diagnose). A case is correct when exactly the hidden effect i
 (nothing, for clean data).
 
 The advice loop: for every case the plain diagnosis misses (and every clean case, to check
-that an added trial raises no false alarm), the advised trial (diagnosis.json's advice: the
-one whose predicted separation beats the recorded trials' by the largest factor) is sailed by
-the hidden truth as ``generate --from-advice`` does (trial_from_spec, sensor noise), added to
-the tuning trials, and the case is diagnosed again.
+that an added trial raises no false alarm), the advised trial (diagnosis.json's advice, the
+diagnosis' own order: the first that settles something) is sailed twice by the hidden truth,
+once to each side (its spec and its ``pair``), as ``generate --from-advice`` does
+(trial_from_spec, sensor noise); one run is added to the tuning trials, the other to the
+held-out ones (the rule names an effect on its held-out gain only), and the case is diagnosed
+again.
 
     python bench/bench_diagnosis.py [--cases 5] [--seed0 0] [--budget standard]
                                     [--effects ...] [--retune lsq|cmaes] [--no-advice]
-                                    [--quick] [--fresh]
+                                    [--quick] [--fresh] [--name NAME]
 
 --quick: one case per class of the classes given (default all), quick budget: a few minutes.
-Results are appended per case to bench/out/diagnosis_cases_<retune>[_quick].jsonl (an
-interrupted run resumes where it stopped; --fresh starts over) and summarised in
-bench/out/diagnosis_summary_<retune>[_quick].md, with the median wall time per stage (base
-tune, screen, re-tunes, backward step, identifiability, advice, residual model, report).
+Results are appended per case to bench/out/diagnosis_cases_<name>[_quick].jsonl (name:
+--name, default the --retune method; an interrupted run resumes where it stopped; --fresh
+starts over) and summarised in bench/out/diagnosis_summary_<name>[_quick].md, with the
+median wall time per stage (base tune, screen, re-tunes, backward step, identifiability,
+advice, residual model, report).
 Targets: >= 95 % correct names with one advised trial, no false positive on clean data,
 median <= 30 s per diagnosis of 10 trials (issue 15).
 """
@@ -168,10 +171,16 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
     pick = best_advice(d.advice)
     if advice and pick is not None and (not row['correct'] or cls == 'clean'):
         spec = TrialSpec.from_dict(pick['spec'])
-        # sailed by the hidden truth, recorded at the trials' rate with sensor noise
+        # sailed by the hidden truth, recorded at the trials' rate with sensor noise; the pair
+        # (the same trial to the other side): one run tuned on, one held out
         _, extra = trial_from_spec(truth, spec, 1.0, SensorNoise(), seed * 100 + 99)
-        d2, wall2 = _diagnose(ship, tune + [extra], test, budget, seed, retune)
-        row['advice'] = {'about': pick['about'], 'instruction': pick['instruction'],
+        held = []
+        if pick.get('pair'):
+            held = [trial_from_spec(truth, TrialSpec.from_dict(pick['pair']), 1.0,
+                                    SensorNoise(), seed * 100 + 98)[1]]
+        d2, wall2 = _diagnose(ship, tune + [extra], test + held, budget, seed, retune)
+        row['advice'] = {'about': pick['about'], 'kind': pick['kind'],
+                         'instruction': pick['instruction'],
                          'all': [(a['about'], a['instruction'], a['separation'],
                                   a['separation_recorded'], a['settles']) for a in d.advice],
                          'settles': pick['settles'], 'separation': pick['separation'],
@@ -221,15 +230,17 @@ def summarise(rows: list[dict]) -> str:
                             'columns: first effect named; "clean" = nothing named; a case is '
                             'correct only when exactly the hidden effect is named)')
     adv = [_with_advice(r) for r in rows]
-    more, _, _ = confusion(adv, 'Confusion matrix with one advised trial (added to the tuning '
-                           'trials of every missed case and every clean case)')
+    more, _, _ = confusion(adv, 'Confusion matrix with one advised trial (sailed to both sides, '
+                           'one run added to the tuning trials, one to the held-out ones, in '
+                           'every missed case and every clean case)')
     lines += more
     tried = [r for r in rows if 'advice' in r]
     for r in tried:
         a = r['advice']
         lines.append(f"- {r['class']} seed {r['seed']}: plain {r['named'] or 'nothing'} -> "
                      f"{a['named'] or 'nothing'} with '{a['instruction']}' (for {a['about']}; "
-                     f"separation {a['separation']:.3g} vs recorded "
+                     f"{'resolution' if 'barely' in a.get('kind', '') else 'separation'} "
+                     f"{a['separation']:.3g} vs recorded "
                      f"{a['separation_recorded'] or 0:.3g}"
                      f"{'' if a['settles'] else ', degenerate'})")
     missed_no_advice = [r for r in rows if not r['correct'] and 'advice' not in r]
@@ -276,13 +287,15 @@ def main() -> None:
     ap.add_argument('--retune', choices=('lsq', 'cmaes'), default='lsq',
                     help="the candidates' re-tunes (lsq: local least squares; cmaes: as before)")
     ap.add_argument('--no-advice', action='store_true', help='skip the advice loop')
+    ap.add_argument('--name', default=None,
+                    help='output file tag (default: the --retune method)')
     ap.add_argument('--quick', action='store_true',
                     help='one case per class, quick budget (a development check)')
     args = ap.parse_args()
     if args.quick:
         args.cases, args.budget = 1, 'quick'
     OUT.mkdir(parents=True, exist_ok=True)
-    tag = args.retune + ('_quick' if args.quick else '')
+    tag = (args.name or args.retune) + ('_quick' if args.quick else '')
     path = OUT / f'diagnosis_cases_{tag}.jsonl'
     if args.fresh and path.exists():
         path.unlink()

@@ -98,21 +98,27 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                          f"{_pct(a['r2'])} | {', '.join(a['mimicked_by'])} |")
     if doc.get('advice'):
         lines += ['', '## The trial that would settle it', '',
-                  'For each effect these trials barely see, and each pair of causes they cannot '
-                  'tell apart, the feasible trial (zigzags, turning circles, pull-outs at several '
-                  'rpm, an rpm step, a slower rudder; within the rudder limit and gear rate) '
-                  'whose predicted outputs differ most between the rival models, against the '
-                  'sensor noise (a ranking: residuals along a trajectory are correlated). '
-                  '`generate --from-advice diagnosis.json` runs them.', '',
-                  '| about | trial | separation (x unexplained error) | best recorded trial |',
+                  'From the feasible trials (zigzags, turning circles, pull-outs at several rpm, '
+                  'rpm steps up and down, a slower rudder; within the rudder limit and gear '
+                  'rate): for a pair of causes these trials cannot tell apart, the one whose '
+                  'predicted outputs differ most between the rival models, against the '
+                  'unexplained error (separation); for an effect they barely see, the one that '
+                  'adds most information: its smallest magnitude worth finding over twice its '
+                  'standard error with the base targets free (resolution; 1 lifts the flag). '
+                  'Rankings, not probabilities (residuals along a trajectory are correlated). '
+                  'Sail each twice, once to each side: tune on one run, hold the other out '
+                  '(an effect is named on its held-out gain). '
+                  '`generate --from-advice diagnosis.json` runs both.', '',
+                  '| about | trial | separation / resolution | recorded trials |',
                   '|---|---|---|---|']
         for a in doc['advice']:
             rec = a.get('separation_recorded')
             lines.append(f"| {a['about']} ({a['kind']}) | {a['instruction']}"
-                         + ('' if a.get('settles', True) else ' — *no trial separates them '
-                            'by more than the unexplained error and clearly better than the '
-                            'recorded ones: degenerate for these manoeuvres*')
-                         + f" | {a['separation']:.3g} | {'—' if rec is None else f'{rec:.3g}'} |")
+                         + ('' if a.get('settles', True) else ' — *no trial of the repertoire '
+                            'reaches 1 and clearly beats the recorded ones: degenerate for '
+                            'these manoeuvres*')
+                         + f" | {a['separation']:.3g} | "
+                         + f"{'—' if rec is None else f'{rec:.3g}'} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',
               '| trial | position rms [m] | psi rms [deg] | u rms [m/s] | v rms [m/s] | '
               'r rms [deg/s] |', '|---|---|---|---|---|---|']

@@ -852,7 +852,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     if s.advice and (aliased or rival_pairs):
         clock('advice')
         advice = _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs,
-                         list(tune_trials) + list(test_trials), log, first_screen)
+                         list(tune_trials) + list(test_trials), log, first_screen, effects)
     clock(None)
     J_test = np.atleast_1d(J_test)
     final = {'J_tune': float(_per_trial_J(o_fin, ship, model.space, theta).sum()),
@@ -872,7 +872,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
 
 
 def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trials, log,
-            screen_drop: dict[str, float] | None = None) -> list[dict]:
+            screen_drop: dict[str, float] | None = None,
+            effects: Sequence[str] = ()) -> list[dict]:
     """
     Advise the trial that would settle each barely identifiable effect and rival pair.
 
@@ -880,7 +881,7 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
     each alone lowered the tuning error in the first screen (the suspects first; a trial for
     an effect that explains nothing is the least worth sailing).
     """
-    from mmg_tuner.diagnosis.advice import advise, aliased_rival, residual_scale
+    from mmg_tuner.diagnosis.advice import advise, advise_information, residual_scale
 
     drop = screen_drop or {}
 
@@ -888,20 +889,27 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
         d = drop.get(e, -math.inf)
         return -d if math.isfinite(d) else math.inf
 
-    suspects = sorted((e for e in aliased if e not in impossible), key=rank)
-    rivals = rival_pairs + [aliased_rival(ship, base, base_theta, obj, e) for e in suspects]
+    # rival causes by the separation of their outputs; a barely identifiable effect by the
+    # information a trial adds (a trial the base targets mimic once tuned on settles nothing)
     tuned = base.full_params(ship.params, base_theta)[0]
-    out = advise(ship, rivals, trials, residual_scale(ship, tuned, trials))
+    out = advise(ship, rival_pairs, trials, residual_scale(ship, tuned, trials)) \
+        if rival_pairs else []
+    suspects = [e for e in aliased if e not in impossible]
+    # linearised where the flag was raised: every single-parameter effect at its smallest
+    probe = [e for e in effects if len(EFFECTS[e].params) == 1]
+    out += sorted(advise_information(ship, base, base_theta, obj, probe, trials, suspects),
+                  key=lambda a: rank(a['about']))
     for a in out:
         rec = a['separation_recorded']
+        what = ('resolution (smallest worth finding / 2 standard errors)'
+                if 'se_with' in a else 'separation')
         log(f"   advice ({a['kind']}: {a['about']}): " + (
-            f"{a['instruction']} -- predicted separation {a['separation']:.3g} x the "
-            'unexplained error' + (f' (best recorded trial {rec:.3g})' if rec is not None
-                                   else '') if a['settles'] else
-            'no trial of the repertoire separates them by more than the unexplained error and '
-            f"clearly better than the recorded ones (best: {a['instruction']}, "
-            f"{a['separation']:.3g} vs {'-' if rec is None else f'{rec:.3g}'}): degenerate for "
-            'these manoeuvres; fix one from another source'))
+            f"{a['instruction']} -- predicted {what} {a['separation']:.3g}"
+            + (f' (recorded trials {rec:.3g})' if rec is not None else '') if a['settles'] else
+            f'no trial of the repertoire raises the {what} above 1 and clearly above the '
+            f"recorded trials' (best: {a['instruction']}, {a['separation']:.3g} vs "
+            f"{'-' if rec is None else f'{rec:.3g}'}): degenerate for these manoeuvres; fix "
+            'one from another source'))
     return out
 
 
