@@ -123,6 +123,24 @@ def test_status_checks_follow_the_family(suzaku):
     assert rpm_status(suzaku.kind, 1.0) == OK
 
 
+def test_non_finite_state_is_caught_inside_the_inlined_step(suzaku):
+    """
+    The finite-state check, inlined into fast-math kernels, still sees an overflow.
+
+    (R_0 = -1e300 pushes u past the largest float within two steps; the run must stop there
+    as diverged, not run on with u = inf or report ok.)
+    """
+    p = suzaku.params.copy()
+    p[PARAM_INDEX['R_0']] = -1e300
+    ctrl = np.tile([106.0, math.radians(10.0)], (20, 1))
+    for integrator in ('euler', 'rk4'):
+        run = simulate(suzaku, [0, 0, 0, 3.086, 0, 0], ctrl, 1.0, integrator, params=p)
+        assert run.status == 'diverged (non-finite state)'
+        k = int(round(run.fail_time_s))
+        assert 1 <= k <= 2
+        assert np.isnan(run.states[k:]).all() and np.isfinite(run.states[:k]).all()
+
+
 def test_simulate_returns_the_one_trial_type(suzaku):
     from mmg_tuner.data.trial import Trial
     T = 50

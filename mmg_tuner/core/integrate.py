@@ -14,6 +14,10 @@ points (``simulate_one``, ``simulate_many``, ``run_maneuver``, ``trajectory_cost
 ``cost_many``) take the code and run the kernel compiled for its family. Batching over
 candidates and trials is a ``prange`` over independent trajectories, which numba spreads over
 cores. Input arrays ``ctrl`` (T, n) hold the channels of ``core/channels.py`` in order.
+The per-sample path (``advance``, the right-hand side ``dynamics.rhs``, the status checks,
+``observe_row``) is inlined into the whole-run loops (numba ``inline='always'``) and indexes
+rows instead of taking row views: every compiled call or view of an array costs atomic
+reference-count updates, which took ~40 % of an Euler step.
 The effects that act on inputs and observations are hooks here (rpm_scale, rudder_offset,
 rudder_lag_tau, time_offset, antenna offset, current in the observed velocities).
 """
@@ -21,15 +25,22 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 
 from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER, WIND_E, WIND_N
-from mmg_tuner.core.dynamics import astern_rpm, astern_surge, derivative, family_tag
+from mmg_tuner.core.dynamics import astern_rpm, astern_surge, family_tag, rhs
 from mmg_tuner.core.frames import wrap_pi
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
                                    SURGE_NOT_POSITIVE)
 from numba import njit, prange
+from numba.core.errors import NumbaIRAssumptionWarning
 import numpy as np
+
+# Inlining advance (which inlines the family's overload-inlined forces) trips a pedantic
+# check of numba's IR inliner about renamed variables; the compiled code is checked
+# against the non-inlined kernels by test/test_core_dispatch.py.
+warnings.filterwarnings('ignore', 'variable .* is not in scope', NumbaIRAssumptionWarning)
 
 _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
@@ -46,25 +57,25 @@ _dirw = PARAM_INDEX['wind_dir']
 @njit(cache=True, fastmath=FASTMATH)
 def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp):
     """Advance s in place by one step h (Euler or classic RK4), inputs held over the step."""
-    derivative(kind, p, s, act, k1)
+    rhs(kind, p, s, act, k1)
     if method == EULER:
         for i in range(6):
             s[i] += h * k1[i]
         return
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k1[i]
-    derivative(kind, p, tmp, act, k2)
+    rhs(kind, p, tmp, act, k2)
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k2[i]
-    derivative(kind, p, tmp, act, k3)
+    rhs(kind, p, tmp, act, k3)
     for i in range(6):
         tmp[i] = s[i] + h * k3[i]
-    derivative(kind, p, tmp, act, k4)
+    rhs(kind, p, tmp, act, k4)
     for i in range(6):
         s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, inline='always')
 def _control_at(ctrl, k, j, frac_shift, T):
     """Control channel j at sample k delayed by frac_shift samples (linear interpolation)."""
     if frac_shift == 0.0:
@@ -89,14 +100,32 @@ def to_water(p, s):
         s[4] -= Vc * math.sin(rel)
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def observe(p, s, out):
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def observe_row(p, s, out, k):
     """
-    Measured quantities from the model state.
+    Measured quantities from the model state, written to row k of out (n, 6).
 
     Position at the antenna, velocities over ground (the model integrates velocities through the
-    water).
+    water). The whole-run loops pass a row index, not a row view: a view per sample costs two
+    atomic reference-count updates.
     """
+    for i in range(6):
+        out[k, i] = s[i]
+    psi = s[2]
+    if p[_ax] != 0.0 or p[_ay] != 0.0:
+        c = math.cos(psi)
+        sn = math.sin(psi)
+        out[k, 0] += p[_ax] * c - p[_ay] * sn
+        out[k, 1] += p[_ax] * sn + p[_ay] * c
+    if p[_Vc] != 0.0:
+        rel = p[_dirc] - psi
+        out[k, 3] += p[_Vc] * math.cos(rel)
+        out[k, 4] += p[_Vc] * math.sin(rel)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def observe(p, s, out):
+    """Measured quantities from the model state into out (6,) (as :func:`observe_row`)."""
     for i in range(6):
         out[i] = s[i]
     psi = s[2]
@@ -111,7 +140,7 @@ def observe(p, s, out):
         out[4] += p[_Vc] * math.sin(rel)
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, inline='always')
 def rpm_status(kind, n_rps):
     """OK or RPM_NOT_POSITIVE: n_P <= 0 (or NaN) is refused unless the family covers astern."""
     if n_rps > 0.0 or (astern_rpm(kind) and n_rps == n_rps):
@@ -119,9 +148,14 @@ def rpm_status(kind, n_rps):
     return RPM_NOT_POSITIVE
 
 
-@njit(cache=True)  # no fastmath: with nsz + reassoc LLVM may fold isfinite(a + b) to True
+@njit(cache=True, fastmath=FASTMATH, inline='always')
 def state_status(kind, s):
-    """OK, DIVERGED (non-finite) or SURGE_NOT_POSITIVE (u <= 0 in a family without astern)."""
+    """
+    OK, DIVERGED (non-finite) or SURGE_NOT_POSITIVE (u <= 0 in a family without astern).
+
+    Each element is tested on its own, never a sum: FASTMATH has no 'nnan'/'ninf', so a
+    test of a loaded value stays, but with nsz + reassoc LLVM may fold isfinite(a + b) to True.
+    """
     for i in range(6):
         if not math.isfinite(s[i]):
             return DIVERGED
@@ -130,7 +164,7 @@ def state_status(kind, s):
     return OK
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, inline='always')
 def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4, tmp,
             bow=0.0, stern=0.0):
     """
@@ -154,7 +188,7 @@ def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3
         delta_act = delta_cmd + (delta_act - delta_cmd) * decay
         act = (n_rps, delta_act, bow, stern)
         if method == EULER:  # the tuning hot path: keep the call chain shallow for inlining
-            derivative(kind, p, s, act, k1)
+            rhs(kind, p, s, act, k1)
             for i in range(6):
                 s[i] += h * k1[i]
         else:
@@ -212,7 +246,7 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     k4 = np.empty(6)
     tmp = np.empty(6)
     start_state(p, x0, s)
-    observe(p, s, out[0])
+    observe_row(p, s, out, 0)
     shift = p[_toff] / dt
     delta_act = _control_at(ctrl, 0, RUDDER, shift, T) + p[_doff]
     # optional channels, decided once per run (a per-sample wrapper costs ~30 % in Euler)
@@ -225,18 +259,17 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
             _use_measured_wind(p, ctrl, k)
         rpm = _control_at(ctrl, k, RPM, shift, T)
         rudder = _control_at(ctrl, k, RUDDER, shift, T)
+        bow = 0.0
+        stern = 0.0
         if thrusters:
-            status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                        method, k1, k2, k3, k4, tmp,
-                                        _control_at(ctrl, k, BOW_THRUSTER, shift, T),
-                                        _control_at(ctrl, k, STERN_THRUSTER, shift, T))
-        else:  # thrusters absent: constant zeros the compiler folds away
-            status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                        method, k1, k2, k3, k4, tmp)
+            bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T)
+            stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T)
+        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
+                                    method, k1, k2, k3, k4, tmp, bow, stern)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
-        observe(p, s, out[k + 1])
+        observe_row(p, s, out, k + 1)
     if status != OK:
         for k in range(k_fail, T):
             for i in range(6):
@@ -367,7 +400,7 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
     """
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
-    o = np.empty(6)
+    o = np.empty((1, 6))
     k1 = np.empty(6)
     k2 = np.empty(6)
     k3 = np.empty(6)
@@ -386,27 +419,26 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
             _use_measured_wind(p, ctrl, k)
         rpm = _control_at(ctrl, k, RPM, shift, T)
         rudder = _control_at(ctrl, k, RUDDER, shift, T)
+        bow = 0.0
+        stern = 0.0
         if thrusters:
-            status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                        method, k1, k2, k3, k4, tmp,
-                                        _control_at(ctrl, k, BOW_THRUSTER, shift, T),
-                                        _control_at(ctrl, k, STERN_THRUSTER, shift, T))
-        else:  # thrusters absent: constant zeros the compiler folds away
-            status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                        method, k1, k2, k3, k4, tmp)
+            bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T)
+            stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T)
+        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
+                                    method, k1, k2, k3, k4, tmp, bow, stern)
         if status != OK:
             return J, (k if status == RPM_NOT_POSITIVE else k + 1)
-        observe(p, s, o)
-        m = meas[k + 1]
-        e = o[0] - m[0]
+        observe_row(p, s, o, 0)
+        m = k + 1  # meas[m, i], not a row view (see observe_row)
+        e = o[0, 0] - meas[m, 0]
         J += weights[0] * e * e
-        e = o[1] - m[1]
+        e = o[0, 1] - meas[m, 1]
         J += weights[1] * e * e
-        e = wrap_pi(o[2] - m[2])
+        e = wrap_pi(o[0, 2] - meas[m, 2])
         J += weights[2] * e * e
         if weights[3] != 0.0 or weights[4] != 0.0 or weights[5] != 0.0:
             for i in range(3, 6):
-                e = o[i] - m[i]
+                e = o[0, i] - meas[m, i]
                 J += weights[i] * e * e
     return J, T
 
