@@ -42,8 +42,8 @@ class OutputDir:
         self.written: list[Path] = []
 
     @classmethod
-    def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out'  # noqa: A003
-             ) -> 'OutputDir':
+    def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out',  # noqa: A003
+             resumable: bool = True) -> 'OutputDir':
         """
         Create or reuse ``path`` as this run's output folder.
 
@@ -60,7 +60,8 @@ class OutputDir:
                 raise OutputError(
                     f'{option} {path} exists and is not empty ({len(others)} entries, e.g. '
                     f'{sorted(others)[0]!r}); nothing is overwritten: choose a new folder'
-                    + (' or continue it with --resume' if option == '--out' else ''))
+                    + (' or continue it with --resume' if option == '--out' and resumable
+                       else ''))
         try:
             path.mkdir(parents=True, exist_ok=True)
             probe_fd, probe = tempfile.mkstemp(dir=path, prefix='.write_probe.')

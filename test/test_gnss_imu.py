@@ -242,6 +242,23 @@ def test_command_offset_is_detected_and_inspect_shows_the_reading(tmp_path, suza
     assert 'beyond time.max_lag_s' not in capsys.readouterr().out
 
 
+@pytest.mark.parametrize('seed', [0, 2])
+def test_a_turn_put_over_at_the_start_claims_no_command_offset(tmp_path, suzaku, seed):
+    """
+    A clean 200 s turn with the helm put over at t = 0 has no lag to find.
+
+    The fit window moved with the lag, dropping the yaw transient at large lags, so such a trial
+    "followed the rudder by +18.1 s" and was reported as a suspected clock offset.
+    """
+    from mmg_tuner.data.csv_io import write_trial_csv
+    _, meas = generate_trial(suzaku, 'turning', 35, None, 106.0, 3.086, 200.0, 2.0,
+                             SensorNoise(), seed, 'tp')
+    write_trial_csv(meas, tmp_path / 'tp.csv')
+    (tr,) = load_trials(tmp_path / 'tp.csv')
+    assert command_lag_s(tr) is None
+    assert not any('max_lag_s' in n for n in tr.notes), tr.notes
+
+
 def test_local_poly_fit_is_exact_for_quadratics_and_smooths_noise():
     rng = np.random.default_rng(0)
     t = np.sort(rng.uniform(0, 100, 800))  # irregular stamps

@@ -132,6 +132,38 @@ def test_health_of_thruster_commands():
     assert 'bow_thruster' not in status(h, 100.0).message  # it stopped coming: no state
 
 
+def test_misspelt_parameter_is_named_not_dropped_and_ranges_read_in_full():
+    """
+    A -p value no declared parameter takes is logged with the likely intended name.
+
+    rclpy drops it silently, so ``-p intial_speed:=5.0`` ran the node at the default speed.
+    """
+    from mmg_tuner.errors import ConfigError
+    from mmg_tuner.ros.run import declare_parameters, Param, unknown_overrides
+    specs = {'initial_speed': Param(3.0, 'initial surge speed [m/s]', (0.0, 10.0)),
+             'noise_seed': Param(0, 'seed', (0, 2 ** 31 - 1))}
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, args=[])
+    try:
+        node = rclpy.create_node('typo_node', context=ctx, cli_args=[
+            '--ros-args', '-p', 'intial_speed:=5.0', '-p', 'use_sim_time:=false'])
+        logged = []
+        node.get_logger().warn = logged.append
+        p = declare_parameters(node, specs)
+        assert p['initial_speed'] == 3.0
+        assert unknown_overrides(node) == ['intial_speed']  # use_sim_time is the node's own
+        assert len(logged) == 1 and 'intial_speed' in logged[0], logged
+        assert 'did you mean initial_speed?' in logged[0]
+        node.destroy_node()
+        node = rclpy.create_node('seed_node', context=ctx,
+                                 cli_args=['--ros-args', '-p', 'noise_seed:=-3'])
+        with pytest.raises(ConfigError, match=r'outside \[0, 2147483647\]'):
+            declare_parameters(node, specs)
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
 def test_replay_publishes_recorded_thrusters_in_the_maps_units():
     """Publish a recording's thrusters as its topic map describes them (topic, unit, sign)."""
     from mmg_tuner.data.topics import topic_map_from_dict

@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     config = api.EvaluateConfig(args.restart_every, args.integrator, args.substeps)
-    with show_log(args.quiet), OutputDir.open(args.out) as out:
+    with show_log(args.quiet), OutputDir.open(args.out, resumable=False) as out:
         ship = api.load_ship(args.ship, args.params)
         # astern and u <= 0 kept when the ship's family covers them (load_trials' default)
         trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,

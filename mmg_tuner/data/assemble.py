@@ -341,21 +341,24 @@ def command_lag_s(trial: Trial, max_lag_s: float = 30.0, window_s: float = 10.0
     fitted by least squares (the b r term takes the yaw damping, which biases a plain cross-
     correlation of delta and r' by several seconds); the best L is refined by a parabola. Positive:
     the recorded rudder leads the motion (commands stamped early). About 0 (a second or two) in a
-    consistent recording. window_s: the local quadratic fit that gives r'. None when the rudder
-    hardly moves or the trial is too short to tell.
+    consistent recording. window_s: the local quadratic fit that gives r'. Every lag is fitted
+    on the same samples of r' (all but max_lag_s at either end): a window that moved with the
+    lag dropped the yaw transient of a turn put over in the first seconds and made a clean
+    200 s turning trial "follow the rudder by +20 s". None when the rudder hardly moves within
+    those samples or the trial is too short to tell.
     """
     dt = trial.dt
     n = len(trial)
     k_max = int(min(max_lag_s, trial.duration_s / 4) / dt)
     rud = trial['rudder']
-    if k_max < 2 or np.std(rud) < math.radians(1.0):
+    if k_max < 2 or np.std(rud[k_max:n - k_max]) < math.radians(1.0):
         return None
     r = trial['r']
     _, rdot = local_poly_fit(trial.t, r, max(3 * dt, window_s))  # symmetric: no shift
     lags = np.arange(-k_max, k_max + 1)
     r2 = np.empty(lags.size)
+    j = np.arange(k_max, n - k_max)  # the same r' samples for every lag
     for i, k in enumerate(lags):  # pairs r'(t_j) with delta(t_j - k dt)
-        j = np.arange(max(k, 0), n + min(k, 0))
         A = np.column_stack([rud[j - k], r[j], np.ones(j.size)])
         y = rdot[j]
         coef, *_ = np.linalg.lstsq(A, y, rcond=None)

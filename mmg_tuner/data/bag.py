@@ -130,9 +130,10 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
                   topic: str, path: str
                   ) -> tuple[np.ndarray | None, np.ndarray, dict[str, dict[str, int]]]:
     """
-    (header stamps [ns] or None for a type without header, values, frame_ids) of one topic.
+    Decode one topic's messages: header stamps, values and frame_ids.
 
-    column-wise when the layout allows, else one by one.
+    Returns (header stamps [ns], or None for a type without a header; values; frame_id counts),
+    decoded column-wise when the message layout allows, else one message at a time.
     """
     cols = decode_columns(raws, msgtype)
     if cols is not None:

@@ -185,9 +185,9 @@ def evaluate(job: ShipJob, loaded: Loaded | Failure, tuned: StepOutput | Failure
     """
     Return the ship's fleet record.
 
-    inspection, held-out gains of each step, and, when its trials carry two or more dates,
-    ``trend_parameter`` fitted per date (a rising resistance R_0 is hull fouling: the model
-    degrades over time). Writes evaluation.json.
+    The record holds the inspection, the held-out gains of each step and, when its trials carry
+    two or more dates, ``trend_parameter`` fitted per date (a rising resistance R_0 is hull
+    fouling: the model degrades over time). Writes evaluation.json.
     """
     for step in (tuned, diagnosed):
         if isinstance(step, Failure):

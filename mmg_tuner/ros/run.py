@@ -6,6 +6,7 @@ Declared, described parameters; errors a user can act on; a clean shutdown.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import difflib
 from pathlib import Path
 import sys
 from typing import Any, Callable, Mapping
@@ -70,9 +71,36 @@ def declare_parameters(node: Node, specs: Mapping[str, Param]) -> dict[str, Any]
         except InvalidParameterValueException:
             given = _override(node, name)
             lo, hi = spec.range if spec.range is not None else (None, None)
-            raise ConfigError(f'parameter {name} := {given!r} is outside [{lo:g}, {hi:g}]; '
+            raise ConfigError(f'parameter {name} := {given!r} is outside '
+                              f'[{_fmt_bound(lo)}, {_fmt_bound(hi)}]; '
                               f'{spec.description}') from None
+    for name in unknown_overrides(node):
+        node.get_logger().warn(_unknown_message(node, name, specs))
     return {n: node.get_parameter(n).value for n in specs}
+
+
+def unknown_overrides(node: Node) -> list[str]:
+    """
+    Name the -p / --params-file values no declared parameter takes.
+
+    rclpy drops them without a word, so a typo (initial_sped) ran on the default.
+    """
+    return sorted(n for n in node._parameter_overrides
+                  if not node.has_parameter(n) and not n.startswith('qos_overrides.'))
+
+
+def _unknown_message(node: Node, name: str, specs: Mapping[str, Param]) -> str:
+    close = difflib.get_close_matches(name, list(specs), n=1)
+    hint = f'did you mean {close[0]}?' if close else 'ros2 param list shows the parameters'
+    value = _override(node, name)
+    return (f'parameter {name} := {value!r} is not a parameter of {node.get_name()} and is '
+            f'ignored: {hint}')
+
+
+def _fmt_bound(x) -> str:
+    """Return a range bound as written: integers in full (2147483647, not 2.14748e+09)."""
+    whole = isinstance(x, int) or (isinstance(x, float) and x.is_integer() and abs(x) < 1e15)
+    return str(int(x)) if whole else f'{x:g}'
 
 
 def _override(node: Node, name: str) -> Any:

@@ -140,16 +140,24 @@ class Tuner:
                            self.space.to_unit(start), pre_J, 1, 0.0)
         t_start = time.perf_counter() - state.wall_s
         interrupted = False
+        # the state after the last whole generation: Ctrl-C can land inside one (evaluations
+        # counted, the optimizer not yet told), and resuming from that half would not continue
+        # as the uninterrupted run does (no checkpoint: nothing to resume, no snapshots)
+        keep = self.checkpoint is not None
+        whole = pickle.dumps(state) if keep else None
         try:
             while not state.done:
                 self._generation(state)
                 state.wall_s = time.perf_counter() - t_start
+                whole = pickle.dumps(state) if keep else None
                 if progress:
                     progress(Progress(state.restart, state.popsize, state.optimizer.generation,
                                       state.evaluations, state.best_J))
-                self._save(state)
+                self._save(state, whole)
         except KeyboardInterrupt:
             interrupted = True
+            if whole is not None:
+                state = pickle.loads(whole)
             state.wall_s = time.perf_counter() - t_start
             self._save(state)
         return TuningResult(self.space.from_unit(state.best_z), state.best_J, state.evaluations,
@@ -190,10 +198,10 @@ class Tuner:
             state.flat_gens = 0
             state.last_best_run = math.inf
 
-    def _save(self, state: _State) -> None:
+    def _save(self, state: _State, blob: bytes | None = None) -> None:
         if self.checkpoint is not None:
             try:
-                write_atomic(self.checkpoint, pickle.dumps(state))
+                write_atomic(self.checkpoint, pickle.dumps(state) if blob is None else blob)
             except OSError as exc:
                 raise OutputError(f'writing the checkpoint {self.checkpoint} failed '
                                   f'({exc.strerror or exc}); the run stopped there') from None
@@ -209,5 +217,7 @@ class Tuner:
             raise TuningError(f'{self.checkpoint}: not a checkpoint of this version')
         if state.fingerprint != self.fingerprint():
             raise TuningError(f'{self.checkpoint}: checkpoint belongs to another problem '
-                              '(trials, targets, bounds or weights differ)')
+                              '(trials, targets, bounds, weights, pieces, balance or prior '
+                              'differ, or an older mmg_tuner wrote it) and cannot be resumed: '
+                              'start a new run in a new output folder')
         return state
