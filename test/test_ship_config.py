@@ -44,8 +44,11 @@ def test_config_errors_name_file_and_key(tmp_path):
     f.write_text(yaml.safe_dump(doc))
     with pytest.raises(ConfigError, match='B must be positive'):
         load_ship(f)
-    with pytest.raises(ConfigError, match='unknown ship'):
+    with pytest.raises(ConfigError, match='unknown ship') as err:
         load_ship('titanic')
+    # the list offers ships only, not the node, topic or demo configs beside them
+    assert 'suzaku' in str(err.value) and 'sim_node' not in str(err.value)
+    assert 'topics' not in str(err.value) and 'demo_truth' not in str(err.value)
 
 
 # --- issue 10: every bad ship file or overlay gives a ConfigError naming file, key and value

@@ -202,7 +202,7 @@ def command(argv: list[str] | None = None) -> int:
             written.append(name)
             moved = f' ({base} is taken: written beside it)' if name != base else ''
             print(f'{name}: {len(measured)} samples at {args.rate_hz:g} Hz -> '
-                  f'{out.path / name}/ and csv/{name}.csv{moved}'
+                  f'{out.path / name}/ and {out.path / "csv" / name}.csv{moved}'
                   f'{" (effects: " + str(dict(args.effect)) + ")" if args.effect else ""}')
     finally:
         out.close()
@@ -240,7 +240,8 @@ def _from_advice(args, ship) -> int:
                                           name)
             _write(out, measured, name, args.storage)
             written.append(name)
-            print(f'{name}: {spec.instruction()} -> {out.path / name}/ and csv/{name}.csv')
+            print(f'{name}: {spec.instruction()} -> {out.path / name}/ and '
+                  f'{out.path / "csv" / name}.csv')
     finally:
         out.close()
     return 0

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import math
 from pathlib import Path
+import re
 from typing import Any, Mapping
 
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX, PARAM_NAMES
@@ -43,7 +44,9 @@ def resolve_config_path(name_or_path: str | Path) -> Path:
         cand = d / f'{name_or_path}.yaml'
         if cand.is_file():
             return cand
-    known = sorted({f.stem for d in config_dirs() for f in d.glob('*.yaml')})
+    # only ship files (they declare a model family), not the node, topic or demo configs
+    known = sorted({f.stem for d in config_dirs() for f in d.glob('*.yaml')
+                    if re.search(r'^model:', f.read_text(encoding='utf-8'), re.M)})
     raise ConfigError(f'unknown ship {name_or_path!r}: give a YAML path or one of {known}')
 
 
