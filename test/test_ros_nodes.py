@@ -242,7 +242,7 @@ def test_work_per_tick_is_bounded(ros):
     sub = node.create_subscription(Odometry, '/wedge/odom', lambda m: got.append(
         time.monotonic()), 50)
     try:
-        assert spin_until(ex, lambda: len(got) > 5, 30), stop(proc)
+        assert spin_until(ex, lambda: len(got) > 5, 120), stop(proc)  # a cold cache compiles
         t0 = time.monotonic()
         got.clear()
         spin_until(ex, lambda: time.monotonic() - t0 > 2.0, 5)
@@ -272,7 +272,7 @@ def test_divergence_resets_and_never_publishes_nan(ros):
     got = []
     sub = node.create_subscription(Odometry, '/diverge/odom', lambda m: got.append(m), 50)
     try:
-        assert spin_until(ex, lambda: len(got) > 100, 30), stop(proc)
+        assert spin_until(ex, lambda: len(got) > 100, 120), stop(proc)  # a cold cache compiles
     finally:
         node.destroy_subscription(sub)
         out = stop(proc)

@@ -55,7 +55,7 @@ from mmg_tuner.core.simulate import integrator_code, simulate_batch
 from mmg_tuner.data.generate import SensorNoise
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import DiagnosisError
-from mmg_tuner.tuning.identifiability import residuals
+from mmg_tuner.tuning.identifiability import jacobian
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
@@ -386,26 +386,6 @@ def _twice(spec: TrialSpec) -> str:
             'held out)')
 
 
-def _jacobian(obj: Objective, space: ParameterSpace, theta: np.ndarray, h: float = 1e-3
-              ) -> tuple[np.ndarray, float]:
-    """
-    Return the central-difference Jacobian of obj's weighted residuals in the unit box and s^2.
-
-    As tuning.identifiability computes it (s^2 = SSR / (n - p) at theta), in one batched call.
-    """
-    z0 = space.to_unit(theta)
-    Z = [z0]
-    for i in range(space.dim):
-        for sgn in (1, -1):
-            z = z0.copy()
-            z[i] += sgn * h
-            Z.append(z)
-    theta_all = space.lower + np.array(Z) * (space.upper - space.lower)
-    R = residuals(obj, space.full_params(obj.ship.params, theta_all))
-    jac = np.column_stack([(R[1 + 2 * i] - R[2 + 2 * i]) / (2 * h) for i in range(space.dim)])
-    return jac, float(R[0] @ R[0]) / max(jac.shape[0] - jac.shape[1], 1)
-
-
 def _effect_se(jac: np.ndarray, s2: float, n_base: int, j: int, width: float) -> float:
     """
     Return the standard error of parameter j (own units) with the n_base first ones free.
@@ -455,7 +435,7 @@ def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.nd
     theta = np.array(value)
     width = space.upper - space.lower
     integ = {0: 'euler', 1: 'rk4'}[obj.method]
-    jac, s2 = _jacobian(obj, space, theta)
+    jac, s2 = jacobian(obj, space, theta, 1e-3)
     # the recorded trials' Jacobian reduced to its R factor: the same least-squares geometry
     # (information adds over trials) in as many rows as parameters
     r_rec = np.linalg.qr(jac, mode='r')
@@ -472,7 +452,7 @@ def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.nd
             continue
         o = Objective(ship, TrialBatch.from_trials([Trial(t, states, controls, name=spec.name)]),
                       obj.weights, 0.0, integ, obj.substeps)
-        jc, _ = _jacobian(o, space, theta)
+        jc, _ = jacobian(o, space, theta, 1e-3)
         both = np.vstack([r_rec, jc])
         res = {e: smallest[e] / max(2 * _effect_se(both, s2, n, col[e], width[col[e]]), 1e-300)
                for e in about}

@@ -39,8 +39,8 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     return err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
 
 
-def _jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h: float
-              ) -> tuple[np.ndarray, float]:
+def jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h: float
+             ) -> tuple[np.ndarray, float]:
     """Central-difference Jacobian of the weighted residuals in the unit box, and s^2."""
     z0 = space.to_unit(theta)
     Z = [z0]
@@ -59,7 +59,7 @@ def _jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h:
 def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarray,
                     h: float = 1e-3) -> np.ndarray:
     """Return standard error of each tuned parameter (in its own units) at theta."""
-    Jac, s2 = _jacobian(objective, space, theta, h)
+    Jac, s2 = jacobian(objective, space, theta, h)
     cov = s2 * np.linalg.pinv(Jac.T @ Jac)
     return np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
 
@@ -77,7 +77,7 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
     unit-box eigen-directions of J'J whose standard error is below max_se (fraction of the box).
     Returns (directions (k, d) as rows, their standard errors (k,)).
     """
-    Jac, s2 = _jacobian(objective, space, theta, h)
+    Jac, s2 = jacobian(objective, space, theta, h)
     lam, V = np.linalg.eigh(Jac.T @ Jac)
     se = np.sqrt(s2 / np.clip(lam, 1e-300, None))
     keep = se < max_se
@@ -96,7 +96,7 @@ def aliasing(objective: Objective, space: ParameterSpace, theta: np.ndarray,
     worth finding means the trials cannot identify the parameter while the others are tuned
     (e.g. an rpm scale error against wake fraction and thrust deduction).
     """
-    Jac, s2 = _jacobian(objective, space, theta, h)
+    Jac, s2 = jacobian(objective, space, theta, h)
     others = [i for i, n in enumerate(space.names) if n not in probe]
     A = Jac[:, others]
     width = space.upper - space.lower
