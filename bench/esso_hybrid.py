@@ -53,7 +53,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from esso_osaka import (  # noqa: E402, I100
-    check_provenance, fail, KINDS, PARAMS_OUT, read, RESTART_S, runs_by_kind, split)
+    check_provenance, fail, KINDS, load_split, PARAMS_OUT, RESTART_S)
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
 from mmg_tuner.tuning.hybrid import ensemble, ResidualConfig, train_residual  # noqa: E402
@@ -63,18 +63,6 @@ OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid'
 # the paper's Table 9 for comparison: MMG (captive tests) and Type-1 (mean, std)
 PAPER = {'random': (0.272, 0.236), 'turning': (0.858, 0.713), 'zigzag': (1.015, 0.086),
          'berthing': ('0.036-0.189', '0.052-0.138')}
-
-
-def load_split():
-    """(training runs, held-out runs, kind of each run by name): esso_osaka.py's rule."""
-    train, test, kind_of = [], [], {}
-    for kind, files in runs_by_kind().items():
-        a, b = split(files)
-        for f in a + b:
-            tr = read(f, kind)
-            kind_of[tr.name] = kind
-            (train if f in a else test).append(tr)
-    return train, test, kind_of
 
 
 def tuned_ship(ship, test, path: Path, default: bool):

@@ -138,6 +138,18 @@ def read(path: Path, kind: str):
     return tr
 
 
+def load_split():
+    """(training runs, held-out runs, kind of each run by name): both Esso benches split so."""
+    train, test, kind_of = [], [], {}
+    for kind, files in runs_by_kind().items():
+        a, b = split(files)
+        for f in a + b:
+            tr = read(f, kind)
+            kind_of[tr.name] = kind
+            (train if f in a else test).append(tr)
+    return train, test, kind_of
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--max-evals', type=int, default=4000)
@@ -161,13 +173,7 @@ def main() -> None:
              'not overwriting it; give another file')
     t_all = time.perf_counter()
     ship = mt.load_ship('esso_osaka_3m')
-    train, test, kind_of = [], [], {}
-    for kind, files in runs_by_kind().items():
-        a, b = split(files)
-        for f in a + b:
-            tr = read(f, kind)
-            kind_of[tr.name] = kind
-            (train if f in a else test).append(tr)
+    train, test, kind_of = load_split()
     print(f'training runs: {len(train)} ({sum(t.duration_s for t in train):.0f} s), held out: '
           f'{len(test)} ({sum(t.duration_s for t in test):.0f} s)')
     for kind in KINDS:
