@@ -44,6 +44,7 @@ setup(
             'diagnose = mmg_tuner.cli.diagnose:main',
             'evaluate = mmg_tuner.cli.evaluate:main',
             'fleet = mmg_tuner.cli.fleet:main',
+            'precompile = mmg_tuner.cli.precompile:main',
             'sim_node = mmg_tuner.ros.sim_node:main',
             'replay_node = mmg_tuner.ros.replay_node:main',
         ],

@@ -86,7 +86,8 @@ def tuned_ship(ship, test, path: Path, default: bool):
     return mt.load_ship('esso_osaka_3m', path)
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """Return the command line of this bench (its defaults are the settings of the models)."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--dt', type=float, default=0.5, help='grid of the networks [s]')
     ap.add_argument('--seeds', type=int, nargs='+', default=[0])
@@ -116,17 +117,62 @@ def main() -> None:
     ap.add_argument('--skip', nargs='*', default=[], choices=('network', 'hybrid'))
     ap.add_argument('--hybrid-base', choices=('tuned', 'published'), default='tuned',
                     help='the physics under the residual')
-    args = ap.parse_args()
-    t_all = time.perf_counter()
+    return ap
+
+
+def bench_runs(dt: float, tuned_path: Path):
+    """
+    Return the published ship, the tuned one, the training and held-out runs on ``dt``, kinds.
+
+    The split is bench/esso_osaka.py's; the tuned ship is checked by :func:`tuned_ship`.
+    """
     ship = mt.load_ship('esso_osaka_3m')
     train, test, kind_of = load_split()
     print(f'training runs: {len(train)} ({sum(t.duration_s for t in train):.0f} s), held out: '
           f'{len(test)} ({sum(t.duration_s for t in test):.0f} s)')
-    tuned = tuned_ship(ship, test, args.tuned, args.tuned == PARAMS_OUT)
-    train_g = [t.resampled(args.dt) for t in train]
-    test_g = [t.resampled(args.dt) for t in test]
-    repeated = train_g + [t for t in train_g if kind_of[t.name] == 'berthing'] * (
-        args.berthing_weight - 1)
+    tuned = tuned_ship(ship, test, tuned_path, tuned_path == PARAMS_OUT)
+    return (ship, tuned, [t.resampled(dt) for t in train], [t.resampled(dt) for t in test],
+            kind_of)
+
+
+def train_network(base, train_g: list, kind_of: dict, args, physics: bool, seed: int):
+    """
+    Train base's residual (physics True) or the pure network on the training runs.
+
+    The options are the command line's (``args``, see :func:`parser`): with balance
+    ``window`` the berthing runs are repeated ``--berthing-weight`` times. Returns the fit.
+    """
+    balance = args.balance if physics else args.network_balance
+    fit_set = train_g
+    if balance == 'window':
+        fit_set = train_g + [t for t in train_g if kind_of[t.name] == 'berthing'] * (
+            args.berthing_weight - 1)
+    cfg = ResidualConfig(window=args.window, hidden=tuple(args.hidden),
+                         horizon_s=args.horizon, epochs=args.epochs,
+                         l2=args.l2 if physics else args.network_l2,
+                         seed=seed, physics=physics, integrator=args.integrator,
+                         max_seconds=args.max_seconds, balance=balance,
+                         select=args.select)
+    return train_residual(base, fit_set, groups=kind_of, config=cfg)
+
+
+def held_out_scores(ships: list, test_g: list) -> dict:
+    """
+    Return the eq. 26 index of each ship on each held-out run, and 'all': {name: [per ship]}.
+
+    ``mt.evaluate`` at the runs' grid, RK4, restart every RESTART_S, sigma pooled over them.
+    """
+    runs = [mt.evaluate(s, test_g, restart_every_s=RESTART_S, integrator='rk4')
+            for s in ships]
+    scores = {tr.name: [r.trials[tr.name].index for r in runs] for tr in test_g}
+    scores['all'] = [r.index_all for r in runs]
+    return scores
+
+
+def main() -> None:
+    args = parser().parse_args()
+    t_all = time.perf_counter()
+    ship, tuned, train_g, test_g, kind_of = bench_runs(args.dt, args.tuned)
     models = {'published': [ship], 'tuned': [tuned]}
     seconds, shares = {}, {}
     for name, physics in (('network', False), ('hybrid', True)):
@@ -135,16 +181,9 @@ def main() -> None:
         base = (tuned if args.hybrid_base == 'tuned' else ship) if physics else ship
         models[name], seconds[name] = [], []
         balance = args.balance if physics else args.network_balance
-        fit_set = repeated if balance == 'window' else train_g
         bw = args.berthing_weight if balance == 'window' else 1
         for seed in args.seeds:
-            cfg = ResidualConfig(window=args.window, hidden=tuple(args.hidden),
-                                 horizon_s=args.horizon, epochs=args.epochs,
-                                 l2=args.l2 if physics else args.network_l2,
-                                 seed=seed, physics=physics, integrator=args.integrator,
-                                 max_seconds=args.max_seconds, balance=balance,
-                                 select=args.select)
-            fit = train_residual(base, fit_set, groups=kind_of, config=cfg)
+            fit = train_network(base, train_g, kind_of, args, physics, seed)
             seconds[name].append(fit.seconds)
             on = f'_{args.hybrid_base}' if physics else ''
             net_file = (OUT / f'{name}{on}_bw{bw}_{balance}_'
@@ -169,10 +208,7 @@ def main() -> None:
             models['ensemble'] = [dataclasses.replace(base, residual=ens)]
     scores = {}
     for name, ships in models.items():
-        runs = [mt.evaluate(s, test_g, restart_every_s=RESTART_S, integrator='rk4')
-                for s in ships]
-        scores[name] = {tr.name: [r.trials[tr.name].index for r in runs] for tr in test_g}
-        scores[name]['all'] = [r.index_all for r in runs]
+        scores[name] = held_out_scores(ships, test_g)
     cols = list(models)
     print(f'\nheld-out index (Wakita et al. 2022 eq. 26, sigma pooled over the {len(test_g)} '
           f'held-out runs, RK4 on a {args.dt:g} s grid, restart every {RESTART_S:g} s; '

@@ -5,76 +5,28 @@ Driven over ROS topics from this test (no launch here: PyPI rclpy has none). Nee
 without it.
 """
 import math
-import os
-import random
-import signal
 import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
-from conftest import installed_executable  # noqa: E402, I100
-from mmg_tuner.core.limits import input_limits  # noqa: E402
+from mmg_tuner.core.limits import input_limits  # noqa: E402, I100
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate  # noqa: E402
 from mmg_tuner.ros.conversions import seconds_from_stamp, state_from_odometry  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from ros_harness import ros_graph, spin_until, start, stop  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """Provide a private ROS graph: random domain, localhost only, logs in a temp dir."""
-    env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid()).randint(1, 100)),
-           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-           'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node('test_driver', context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    yield dict(os.environ), node, ex
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
-
-
-def start(exe: str, env: dict, *params: str) -> subprocess.Popen:
-    path = installed_executable(exe)
-    cmd = [path] if path else [sys.executable, '-m', f'mmg_tuner.ros.{exe}']
-    args = ['--ros-args'] + [a for p in params for a in ('-p', p)]
-    return subprocess.Popen(cmd + args, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-
-
-def stop(proc: subprocess.Popen) -> str:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-    return proc.stdout.read()
-
-
-def spin_until(ex, cond, timeout=30.0):
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end and not cond():
-        ex.spin_once(timeout_sec=0.05)
-    return cond()
+    yield from ros_graph(tmp_path_factory, 'test_driver', (1, 100), 0)
 
 
 @pytest.fixture
@@ -83,8 +35,7 @@ def sim_proc(ros):
     proc = start('sim_node', env, 'publish_clock:=true', 'wait_for_commands:=true',
                  'real_time_factor:=20.0', 'rate_hz:=50.0', 'dt:=0.1', 'initial_speed:=3.0')
     yield proc
-    out = stop(proc)
-    proc.output = out
+    stop(proc)
 
 
 def test_sim_node_equals_offline_simulation(ros, sim_proc):
@@ -204,22 +155,17 @@ def test_bad_start_parameters_exit_2_with_one_error_line(ros, tmp_path):
     keep.mkdir()
     (keep / 'recording.mcap').write_text('precious')
     runs = {f'{n}:={v}': start('sim_node', env, f'{n}:={v}') for n, v in BAD_PARAMS}
-    path = installed_executable('sim_node')
-    cmd = [path] if path else [sys.executable, '-m', 'mmg_tuner.ros.sim_node']
-    runs['--params-file'] = subprocess.Popen(
-        cmd + ['--ros-args', '--params-file', str(tuned)], env=env, stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT, text=True)
+    runs['--params-file'] = start('sim_node', env, ros_args=('--params-file', str(tuned)))
     # replay_node with output_mcap at an existing folder deleted it
     runs['output_mcap'] = start('replay_node', env, f'trial:={tmp_path / "none"}',
                                 f'output_mcap:={keep}')
     for what, proc in runs.items():
         try:
-            # 180 s: seven processes start at once, and on a fresh clone with a cold numba
-            # cache (NUMBA_CPU_NAME=generic) one took over 60 s to exit after its error line
-            out, _ = proc.communicate(timeout=180)
+            # 180 s: fifteen processes start at once on 2 cores
+            proc.wait(timeout=180)
+            out = stop(proc)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            out = proc.communicate()[0] + '\n(still running after 180 s)'
+            out = stop(proc) + '\n(still running after 180 s)'
         assert proc.returncode == 2, f'{what}:\n{out}'
         errors = [line for line in out.splitlines() if line.startswith('ERROR: ')]
         assert len(errors) == 1 and 'Traceback' not in out, f'{what}:\n{out}'

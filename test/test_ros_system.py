@@ -8,15 +8,8 @@ test_geodesy.py.
 Every node process is started by ``running`` and always stopped (SIGINT, then kill) however
 the test ends, so a failure never leaves a node burning CPU.
 """
-import contextlib
 import math
-import os
 from pathlib import Path
-import random
-import signal
-import subprocess
-import sys
-import time
 
 from mmg_tuner.core.geodesy import Datum, geodetic_to_enu
 import numpy as np
@@ -25,8 +18,7 @@ import pytest
 
 # ---- message builders and health (rclpy messages, no processes) ---------------------------
 rclpy = pytest.importorskip('rclpy')
-from conftest import installed_executable  # noqa: E402, I100
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402, I100
 from mmg_tuner.core.ship import load_ship  # noqa: E402
 from mmg_tuner.core.simulate import simulate  # noqa: E402
 from mmg_tuner.ros.conversions import (imu_from_state, odometry_from_state,  # noqa: E402
@@ -36,8 +28,8 @@ from mmg_tuner.ros.health import CommandHealth, Health  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
+from ros_harness import ros_graph, running, spin_until  # noqa: E402
 from sensor_msgs.msg import Imu, JointState, NavSatFix  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
@@ -192,62 +184,7 @@ def test_replay_publishes_recorded_thrusters_in_the_maps_units():
 # ---- node processes -----------------------------------------------------------------------
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """Provide a private ROS graph: random domain, localhost only, logs in a temp dir."""
-    env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid() + 13).randint(101, 200)),
-           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-           'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node('test_system_driver', context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    try:
-        yield dict(os.environ), node, ex
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-@contextlib.contextmanager
-def running(exe: str, env: dict, *ros_args: str, params: tuple = ()):
-    """
-    Run a node process for the duration of the block.
-
-    Always stopped afterwards (SIGINT, then SIGKILL after 10 s). ``proc.output`` holds what it
-    printed.
-    """
-    path = installed_executable(exe)
-    cmd = [path] if path else [sys.executable, '-m', f'mmg_tuner.ros.{exe}']
-    args = ['--ros-args', *ros_args] + [a for p in params for a in ('-p', p)]
-    proc = subprocess.Popen(cmd + args, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-    proc.output = ''
-    try:
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            proc.output, _ = proc.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.output = proc.communicate()[0]
-
-
-def spin_until(ex, cond, timeout=30.0, every=None):
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end and not cond():
-        if every is not None:
-            every()
-        ex.spin_once(timeout_sec=0.05)
-    return cond()
+    yield from ros_graph(tmp_path_factory, 'test_system_driver', (101, 200), 13)
 
 
 def collect(node, msgtype, topic, qos=50):
@@ -513,9 +450,11 @@ def test_replay_publishes_commands_in_the_topic_maps_units_and_sign(ros, tmp_pat
         'unit: rps}\n')
     rud, s1 = collect(node, Float64, '/replay_test/rudder_deg', 100)
     shaft, s2 = collect(node, JointState, '/replay_test/shaft', 100)
+    # wait_for_subscribers: at 20x the replay lasts 2 s, less than discovery can take under load
     with running('replay_node', env, params=(f"trial:={tmp_path / 'trial.csv'}",
                                              f"topics:={tmp_path / 'topics.yaml'}",
-                                             'speed:=20.0', 'exit_at_end:=false')) as proc:
+                                             'speed:=20.0', 'exit_at_end:=false',
+                                             'wait_for_subscribers:=true')) as proc:
         # 120 s: a node's first start on a cold numba cache compiles its kernels (~16 s alone)
         assert spin_until(ex, lambda: len(rud) >= T - 5 and len(shaft) >= T - 5, 120), \
             proc.output

@@ -9,26 +9,19 @@ received (std_msgs/Float64, receive times on the wall clock) and ``/clock``. The
 with no topic map (topics found by type) and tuned from the config's values: the tuned
 coefficients must land near the node's, far from where they started (issue 13).
 """
-import contextlib
 import math
-import os
-import random
-import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')  # the ROS imports below need it: skipped without
-from conftest import installed_executable  # noqa: E402, I100
-import mmg_tuner.api as mt  # noqa: E402
+import mmg_tuner.api as mt  # noqa: E402, I100
 from mmg_tuner.core.frames import enu_yaw_to_psi  # noqa: E402
 from mmg_tuner.ros.conversions import seconds_from_stamp, yaw_from_quaternion  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
+from ros_harness import ros_graph, running  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
@@ -43,47 +36,7 @@ RECORDED = {'/fix': NavSatFix, '/imu/data': Imu, '/rudder_angle': Float64,
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """Run a private ROS graph: random domain, localhost only, logs in a temp dir."""
-    env = {'ROS_DOMAIN_ID': str(random.Random(os.getpid() + 29).randint(1, 100)),
-           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-           'ROS_LOG_DIR': str(tmp_path_factory.mktemp('roslog'))}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node('round_trip_driver', context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    try:
-        yield dict(os.environ), node, ex
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-@contextlib.contextmanager
-def sim_node(env: dict, *params: str):
-    """Run the node for the block; always stopped afterwards (SIGINT, then SIGKILL)."""
-    path = installed_executable('sim_node')
-    cmd = [path] if path else [sys.executable, '-m', 'mmg_tuner.ros.sim_node']
-    proc = subprocess.Popen(cmd + ['--ros-args'] + [a for p in params for a in ('-p', p)],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    proc.output = ''
-    try:
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            proc.output, _ = proc.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.output = proc.communicate()[0]
+    yield from ros_graph(tmp_path_factory, 'round_trip_driver', (1, 100), 29)
 
 
 class Helmsman:
@@ -160,7 +113,7 @@ def test_tuning_on_the_nodes_recording_recovers_its_parameters(ros, tmp_path):
               'real_time_factor:=25.0', 'initial_speed:=3.086', f'initial_rpm:={RPM}',
               'gnss_rate_hz:=5.0', 'imu_rate_hz:=10.0', 'noise_seed:=3')
     try:
-        with sim_node(env, *params) as proc:
+        with running('sim_node', env, params=params) as proc:
             t_end = time.monotonic() + 60.0
             next_call = 0.0
             while time.monotonic() < t_end and helm.t < END_S and proc.poll() is None:

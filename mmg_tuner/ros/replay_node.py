@@ -51,6 +51,9 @@ PARAMS = {
                          'rosbag2 MCAP directory (empty: none); an existing path is refused, '
                          'never overwritten', read_only=True),
     'exit_at_end': Param(True, 'shut down after the last sample', read_only=True),
+    'wait_for_subscribers': Param(False, 'hold the first sample until every command topic has '
+                                  'a subscriber (nothing is lost to a late viewer or logger)',
+                                  read_only=True),
 }
 
 
@@ -139,6 +142,10 @@ class CommandPublisher:
             JointState if typ == self.JOINT else self.SCALARS[typ], topic, 10)
             for topic, (typ, _) in types.items()}
 
+    def subscribed(self) -> bool:
+        """Whether every command topic has at least one matched subscription."""
+        return all(pub.get_subscription_count() > 0 for pub in self.pubs.values())
+
     def publish(self, inputs, stamp) -> None:
         """
         Publish one sample.
@@ -202,16 +209,23 @@ class ReplayNode(Node):
         self.inputs = self.trial.inputs
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.wall0 = self.steady.now().nanoseconds * 1e-9
+        self.wall0: float | None = None  # steady time of the first sample [s]; None: not started
+        self.wait_for_subscribers = bool(p['wait_for_subscribers'])
         self.k = 0
         self.done = False
         period = max(0.005, min(0.1, self.trial.dt / self.speed))
         self.create_timer(period, self._tick, clock=self.steady)
+        wait = ', once every command topic has a subscriber' if self.wait_for_subscribers else ''
         self.get_logger().info(f'replaying {self.trial.name} ({len(self.trial)} samples, '
-                               f'{self.trial.duration_s:.0f} s) at {self.speed:g}x')
+                               f'{self.trial.duration_s:.0f} s) at {self.speed:g}x{wait}')
 
     def _tick(self) -> None:
-        elapsed = (self.steady.now().nanoseconds * 1e-9 - self.wall0) * self.speed
+        now = self.steady.now().nanoseconds * 1e-9
+        if self.wall0 is None:
+            if self.wait_for_subscribers and not self.pub_cmd.subscribed():
+                return
+            self.wall0 = now
+        elapsed = (now - self.wall0) * self.speed
         tr = self.trial
         while self.k < len(tr) and tr.t[self.k] - tr.t[0] <= elapsed:
             t = float(tr.t[self.k] - tr.t[0])

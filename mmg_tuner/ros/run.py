@@ -7,8 +7,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import difflib
+import faulthandler
 from pathlib import Path
+import signal
 import sys
+import threading
 from typing import Any, Callable, Mapping
 
 from mmg_tuner.errors import ConfigError, MmgTunerError
@@ -19,6 +22,9 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+
+
+SHUTDOWN_TIMEOUT_S = 20.0  # destroying the node, shutting ROS down and leaving Python
 
 
 @dataclass(frozen=True)
@@ -116,6 +122,16 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
     cannot parse are printed as one ``ERROR:`` line with exit code 2, a node's own SystemExit keeps
     its code, Ctrl-C and external shutdown end quietly.
     """
+    # Ctrl-C raises KeyboardInterrupt wherever Python runs; inside rclpy's message conversion
+    # that surfaces as a RuntimeError ("Unable to convert call argument") before the context is
+    # shut down, so remember the interrupt to tell it from a real failure.
+    interrupted = threading.Event()
+
+    def on_sigint(signum, frame):
+        interrupted.set()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, on_sigint)  # before rclpy.init, which chains to it
     try:
         rclpy.init(args=args)
     except _rclpy.RCLError as exc:
@@ -138,9 +154,12 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:  # rclpy taking a message while Ctrl-C shuts the context down
-        if rclpy.ok():
+        if rclpy.ok() and not interrupted.is_set():
             raise
     finally:
+        # a shutdown that hangs (seen once, after a start-up error, never reproduced) must not
+        # keep the process: after SHUTDOWN_TIMEOUT_S print every thread's stack and exit 1
+        faulthandler.dump_traceback_later(SHUTDOWN_TIMEOUT_S, exit=True)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():

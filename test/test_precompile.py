@@ -1,0 +1,21 @@
+"""precompile fills the cache the nodes read: every family's whole-run kernel and the stepper."""
+from mmg_tuner.cli.precompile import command
+from mmg_tuner.core._numba_cache import cache_dir
+from mmg_tuner.core.models import REGISTRY
+from mmg_tuner.core.precompile import ships_by_family
+from mmg_tuner.core.ship import load_ship
+
+
+def test_every_family_has_an_embedded_ship_to_precompile_with():
+    ships = ships_by_family()
+    assert set(ships) == set(REGISTRY)
+    assert all(load_ship(f).model == family for family, f in ships.items())
+
+
+def test_precompile_leaves_the_kernels_in_the_installations_cache(capsys):
+    assert command([]) == 0
+    out = capsys.readouterr().out
+    assert str(cache_dir()) in out
+    assert all(f'{family} family' in out for family in REGISTRY) and 'stepper' in out
+    index = {f.name.split('-')[0] for f in cache_dir().rglob('*.nbi')}
+    assert {'stepper._advance_checked', 'integrate._simulate_one'} <= index, sorted(index)
