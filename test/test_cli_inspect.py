@@ -49,3 +49,16 @@ def test_installed_executables_answer_help():
             pytest.skip('package not installed with colcon (run through scripts/test.sh)')
         res = subprocess.run([path, '--help'], capture_output=True, text=True, timeout=120)
         assert res.returncode == 0 and 'usage' in res.stdout
+
+
+@pytest.mark.parametrize('name', ['simulate', 'generate', 'inspect', 'tune', 'diagnose',
+                                  'evaluate', 'fleet', 'precompile'])
+def test_help_states_each_default_once_and_never_none(name):
+    import importlib
+    import re
+    text = importlib.import_module(f'mmg_tuner.cli.{name}').build_parser().format_help()
+    assert 'usage' in text and '(default: None)' not in text and '(default: False)' not in text
+    # one option's help, from its flag to the next option: at most one default stated
+    for help_of_option in re.split(r'\n  -', text):
+        assert len(re.findall(r'\(default', ' '.join(help_of_option.split()))) <= 1, \
+            help_of_option

@@ -337,7 +337,7 @@ def test_implausible_samples_are_dropped_with_a_note(tmp_path, short_trial, suza
     write_trial_csv(tr, f)
     (back,) = load_trials(f)
     assert np.abs(back['rudder']).max() < np.radians(46)
-    assert any('/rudder_angle' in n and 'implausible' in n and 't = 5.000 s' in n
+    assert any('column rudder' in n and 'implausible' in n and 't = 5.000 s' in n
                for n in back.notes)
     # with the ship, its own limits: 5000 rpm is a unit error for SUZAKU (not for a model)
     tr.controls[:, 1] = short_trial.controls[:, 1]
@@ -346,11 +346,11 @@ def test_implausible_samples_are_dropped_with_a_note(tmp_path, short_trial, suza
     (back,) = load_trials(f)
     assert back['rpm'].max() == 5000.0
     (back,) = load_trials(f, limits=input_limits(suzaku))
-    assert back['rpm'].max() < 200 and any('/propeller_rpm' in n for n in back.notes)
-    # nothing plausible left: refused, naming file and topic
+    assert back['rpm'].max() < 200 and any('column rpm' in n for n in back.notes)
+    # nothing plausible left: refused, naming file and column
     tr.controls[:, 1] = 1e308
     write_trial_csv(tr, f)
-    with pytest.raises(TrialDataError, match=r'x\.csv.*/rudder_angle.*implausible'):
+    with pytest.raises(TrialDataError, match=r'x\.csv.*column rudder.*implausible'):
         load_trials(f)
 
 

@@ -135,7 +135,7 @@ def test_damaged_thruster_columns_never_traceback(tmp_path):
         assert np.all(np.isfinite(back.thrusters)), name
         assert np.abs(back.thrusters).max() <= 12.0 + 1e-9, name
     notes = ' '.join(load_trials(tmp_path / 'nan_thruster.csv')[0].notes)
-    assert '/stern_thruster: dropped 1 non-finite sample' in notes
+    assert 'column stern_thruster: dropped 1 non-finite sample' in notes
     notes = ' '.join(load_trials(tmp_path / 'huge.csv')[0].notes)
     assert 'implausible' in notes and 'stern_thruster' in notes
 

@@ -29,8 +29,28 @@ class UsageError(MmgTunerError):
     """A command-line option is malformed or out of range."""
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """
+    Append ``(default: X)`` to an option's help only when it says something.
+
+    Not when the help already states its default in words, nor for None, an empty list or a
+    flag's False (``--help`` used to print both, e.g. "(default: the ship's) (default: None)").
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ''
+        d = action.default
+        if 'default' in text or d is None or d is argparse.SUPPRESS or d == [] or d is False:
+            return text
+        return super()._get_help_string(action)
+
+
 class Parser(argparse.ArgumentParser):
     """Argparse whose errors become one ``ERROR: ...`` line with exit status 2 (run_command)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault('formatter_class', HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')

@@ -31,8 +31,7 @@ CHECKPOINT = 'checkpoint.pkl'
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='diagnose', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='diagnose', description=__doc__.strip().split('\n')[0])
     ap.add_argument('trials', nargs='*', help='trials: bags, .mcap, .csv, .dat, or folders')
     ap.add_argument('--test', nargs='*', default=[],
                     help='held-out trials, at least two (default: every second trial is held '

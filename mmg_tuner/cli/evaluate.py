@@ -27,8 +27,7 @@ SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='evaluate', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='evaluate', description=__doc__.strip().split('\n')[0])
     ap.add_argument('trials', nargs='+', help='recorded trials: bags, .mcap, .csv, .dat, folders')
     ap.add_argument('--ship', default='suzaku')
     ap.add_argument('--params', help='params.yaml overlay (e.g. a tuned one)')

@@ -21,8 +21,7 @@ from mmg_tuner.cli.common import Parser, run_command, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='fleet', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='fleet', description=__doc__.strip().split('\n')[0])
     ap.add_argument('manifest', help='fleet manifest YAML (ships, their trials and options)')
     ap.add_argument('--out', required=True,
                     help='output folder: new, empty, or an earlier fleet run (then resumed)')

@@ -73,8 +73,7 @@ def effect_spec(s: str) -> tuple[str, float]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='generate', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='generate', description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ship', default='suzaku')
     ap.add_argument('--params', help='params.yaml overlay (e.g. true parameters moved)')
     ap.add_argument('--out', required=True,

@@ -30,8 +30,7 @@ DT = bounded(float, 1e-3, 3600.0, 'resampling step dt [s]')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='inspect', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='inspect', description=__doc__.strip().split('\n')[0])
     ap.add_argument('inputs', nargs='+', help='rosbag2 dirs, .mcap, .csv, .dat, or folders')
     ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics; a topic '
                                      'left open is found by type when unambiguous)')

@@ -42,8 +42,7 @@ def check_angle(s: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='simulate', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='simulate', description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ship', default='suzaku', help='ship config name or YAML path')
     ap.add_argument('--params', help='params.yaml with tuned values to overlay')
     ap.add_argument('--maneuver', choices=mv.MANEUVERS, default='turning')

@@ -55,8 +55,7 @@ def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog='tune', description=__doc__.strip().split('\n')[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = Parser(prog='tune', description=__doc__.strip().split('\n')[0])
     ap.add_argument('trials', nargs='*', help='tuning trials: bags, .mcap, .csv, .dat, folders')
     ap.add_argument('--test', nargs='*', default=[], help='held-out test trials')
     ap.add_argument('--ship', default='suzaku')

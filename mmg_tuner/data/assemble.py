@@ -101,8 +101,11 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
         mask, what = _implausible(s, role, tm or TopicMap(), limits or GENERIC_LIMITS)
         if mask.any():
             bad = np.nonzero(mask)[0]
+            # an odometry vector is ENU/FLU whatever was read (a CSV's x is north): say so
+            order = ' (ENU x, y, yaw; FLU u, v, r)' if s.msgtype == 'nav_msgs/msg/Odometry' \
+                else ''
             s.notes.append(f'{s.topic}: dropped {bad.size} implausible sample(s) ({what}), '
-                           f'first at t = {t(s.stamps_ns[bad[0]]):.3f} s, value '
+                           f'first at t = {t(s.stamps_ns[bad[0]]):.3f} s, value{order} '
                            f'{s.values[bad[0]].tolist()}')
             s.stamps_ns, s.values = s.stamps_ns[~mask], s.values[~mask]
     if s.stamps_ns.size and np.any(np.diff(s.stamps_ns) < 0):

@@ -22,6 +22,11 @@ import numpy as np
 
 WIND_COLUMNS = ('wind_n', 'wind_e')
 THRUSTER_COLUMNS = ('bow_thruster', 'stern_thruster')  # rev/s, the channels' own names
+# what the notes name for each role of a CSV read as a recording: its columns, not the topics
+# a bag would have (a CSV has no /odom)
+CSV_FIELDS = {'odom': 'columns x, y, psi, u, v, r', 'rudder': 'column rudder',
+              'rpm': 'column rpm', 'wind': 'columns wind_n, wind_e',
+              **{c: f'column {c}' for c in THRUSTER_COLUMNS}}
 
 
 def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray,
@@ -157,19 +162,18 @@ def csv_recording(path: str | Path):
     odom = np.column_stack([col['y'], col['x'], frames.psi_to_enu_yaw(col['psi']), col['u'],
                             -col['v'], -col['r']])
     series = {
-        'odom': Series('/odom', 'nav_msgs/msg/Odometry', ns, odom, ns),
-        'rudder': Series('/rudder_angle', 'std_msgs/msg/Float64', ns,
+        'odom': Series(CSV_FIELDS['odom'], 'nav_msgs/msg/Odometry', ns, odom, ns),
+        'rudder': Series(CSV_FIELDS['rudder'], 'std_msgs/msg/Float64', ns,
                          col['rudder'][:, None], ns),
-        'rpm': Series('/propeller_rpm', 'std_msgs/msg/Float64', ns,
-                      col['rpm'][:, None], ns),
+        'rpm': Series(CSV_FIELDS['rpm'], 'std_msgs/msg/Float64', ns, col['rpm'][:, None], ns),
     }
     if all(c in header for c in WIND_COLUMNS):  # as true wind in ENU: (east, north)
         enu = np.column_stack([data[:, header.index('wind_e')], data[:, header.index('wind_n')]])
-        series['wind'] = Series('/wind', 'geometry_msgs/msg/Vector3Stamped', ns, enu, ns,
-                                frame='true_enu')
+        series['wind'] = Series(CSV_FIELDS['wind'], 'geometry_msgs/msg/Vector3Stamped', ns,
+                                enu, ns, frame='true_enu')
     for c in THRUSTER_COLUMNS:  # rev/s, read as the default thruster topics (unit rps)
         if c in header:
-            series[c] = Series(f'/{c}', 'std_msgs/msg/Float64', ns,
+            series[c] = Series(CSV_FIELDS[c], 'std_msgs/msg/Float64', ns,
                                data[:, header.index(c)][:, None], ns)
     return RawRecording(str(path), series, {v.topic: (v.msgtype, len(ns))
                                             for v in series.values()},

@@ -13,7 +13,7 @@ from pathlib import Path
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
-from mmg_tuner.data.csv_io import csv_recording
+from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording
 from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
 from mmg_tuner.data.marin import read_marin_dat
@@ -158,14 +158,15 @@ def load_many(paths: list[str | Path], tm: TopicMap | None = None,
     return unique_names(trials)
 
 
-# a model-frame CSV is read through the default topics, whatever the user's map says
+# a model-frame CSV is read in its own units and names (its columns), whatever the user's map says
 _CSV_TOPICS = {
-    'odom_topic': '/odom', 'odom_type': 'nav_msgs/msg/Odometry',
-    'rudder_topic': '/rudder_angle', 'rudder_type': 'std_msgs/msg/Float64', 'rudder_unit': 'rad',
-    'rudder_sign': 1.0, 'rpm_topic': '/propeller_rpm', 'rpm_type': 'std_msgs/msg/Float64',
-    'rpm_unit': 'rpm', 'bow_thruster_topic': '/bow_thruster',
+    'odom_topic': CSV_FIELDS['odom'], 'odom_type': 'nav_msgs/msg/Odometry',
+    'rudder_topic': CSV_FIELDS['rudder'], 'rudder_type': 'std_msgs/msg/Float64',
+    'rudder_unit': 'rad', 'rudder_sign': 1.0, 'rpm_topic': CSV_FIELDS['rpm'],
+    'rpm_type': 'std_msgs/msg/Float64', 'rpm_unit': 'rpm',
+    'bow_thruster_topic': CSV_FIELDS['bow_thruster'],
     'bow_thruster_type': 'std_msgs/msg/Float64', 'bow_thruster_unit': 'rps',
-    'bow_thruster_sign': 1.0, 'stern_thruster_topic': '/stern_thruster',
+    'bow_thruster_sign': 1.0, 'stern_thruster_topic': CSV_FIELDS['stern_thruster'],
     'stern_thruster_type': 'std_msgs/msg/Float64', 'stern_thruster_unit': 'rps',
     'stern_thruster_sign': 1.0}
 
