@@ -199,9 +199,10 @@ class ShipSimulator:
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
         """
-        Non-finite or beyond the plausible cap (a unit error, garbage).
+        Check a rudder command [rad].
 
-        ignored; beyond the steering gear's limit: clamped to it.
+        Non-finite or beyond the plausible cap (a unit error, garbage): ignored; beyond the
+        steering gear's limit: clamped to it.
         """
         lim = self.limits
         try:
