@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from functools import partial
 from pathlib import Path
-import re
 import time
 from typing import Callable
 
@@ -21,12 +20,10 @@ import numpy as np
 
 def ships_by_family() -> dict[str, Path]:
     """One embedded ship YAML per model family (the first by name in the config folders)."""
-    from mmg_tuner.core.ship import config_dirs, load_ship
+    from mmg_tuner.core.ship import embedded_ship_files, load_ship
     found: dict[str, Path] = {}
-    for d in config_dirs():
-        for f in sorted(d.glob('*.yaml')):
-            if re.search(r'^model:', f.read_text(encoding='utf-8'), re.M):  # a ship file
-                found.setdefault(load_ship(f).model, f)
+    for f in embedded_ship_files():
+        found.setdefault(load_ship(f).model, f)
     return found
 
 

@@ -44,10 +44,18 @@ def resolve_config_path(name_or_path: str | Path) -> Path:
         cand = d / f'{name_or_path}.yaml'
         if cand.is_file():
             return cand
-    # only ship files (they declare a model family), not the node, topic or demo configs
-    known = sorted({f.stem for d in config_dirs() for f in d.glob('*.yaml')
-                    if re.search(r'^model:', f.read_text(encoding='utf-8'), re.M)})
+    known = sorted({f.stem for f in embedded_ship_files()})
     raise ConfigError(f'unknown ship {name_or_path!r}: give a YAML path or one of {known}')
+
+
+def embedded_ship_files() -> list[Path]:
+    """
+    Return the ship YAMLs in the config folders, by folder then name.
+
+    Only ship files (they declare a model family), not the node, topic or demo configs.
+    """
+    return [f for d in config_dirs() for f in sorted(d.glob('*.yaml'))
+            if re.search(r'^model:', f.read_text(encoding='utf-8'), re.M)]
 
 
 @dataclass(frozen=True)
