@@ -339,6 +339,13 @@ def test_implausible_samples_are_dropped_with_a_note(tmp_path, short_trial, suza
     assert np.abs(back['rudder']).max() < np.radians(46)
     assert any('column rudder' in n and 'implausible' in n and 't = 5.000 s' in n
                for n in back.notes)
+    # a dropped position is not a time base: a CSV has one time column, no header stamps
+    states = short_trial.states.copy()
+    states[12, 0] = 1e12
+    write_trial_csv(Trial(short_trial.t, states, short_trial.controls, name='x'), f)
+    (back,) = load_trials(f)
+    assert any('columns x, y, psi, u, v, r: dropped 1 implausible' in n for n in back.notes)
+    assert not any('header stamps' in n for n in back.notes), back.notes
     # with the ship, its own limits: 5000 rpm is a unit error for SUZAKU (not for a model)
     tr.controls[:, 1] = short_trial.controls[:, 1]
     tr.controls[40:, 0] = 5000.0
