@@ -34,6 +34,30 @@ def test_marin_data_through_the_same_door(capsys):
     assert out.count(': zigzag,') == 4 and out.count(': pull-out,') == 2
 
 
+@pytest.mark.parametrize('amp', [10.0, 35.0])
+def test_a_short_zigzag_is_a_zigzag(amp):
+    # 100 s holds one rudder reversal; at 35 deg the gear slews a third of the time. Both were
+    # called 'mixed' before the slewing samples were set aside and one reversal was enough
+    from mmg_tuner.core.ship import load_ship
+    from mmg_tuner.data.generate import generate_trial, SensorNoise
+    from mmg_tuner.data.summary import detect_maneuver
+    _, measured = generate_trial(load_ship('suzaku'), 'zigzag', amp, amp, 100.0, 3.0, 100.0,
+                                 10.0, SensorNoise(), 0, 'short')
+    assert detect_maneuver(measured) == 'zigzag'
+
+
+def test_pond_runs_are_told_apart():
+    # one reversal is a zigzag only at one rpm: the berthing runs (ahead and astern) stay mixed
+    from mmg_tuner.data.esso import esso_data_dir, read_esso
+    from mmg_tuner.data.summary import detect_maneuver
+    root = esso_data_dir()
+    kinds = {f.parent.name: [] for f in root.glob('*/*.csv')}
+    for f in sorted(root.glob('*/*.csv')):
+        kinds[f.parent.name].append(detect_maneuver(read_esso(f, keep_astern=True)[0]))
+    assert set(kinds['zigzag']) == {'zigzag'}
+    assert 'zigzag' not in kinds['berthing'] + kinds['random'] + kinds['turning']
+
+
 def test_nothing_usable_exits_nonzero(tmp_path, capsys):
     bad = tmp_path / 'bad.mcap'
     bad.write_bytes(b'not an mcap file at all')
