@@ -12,8 +12,10 @@ the public API (mt.diagnose). A case is correct when exactly the hidden effect i
 (nothing, for clean data).
 
 The advice loop: for every case the plain diagnosis misses (and every clean case, to check
-that an added trial raises no false alarm), the advised trial (diagnosis.json's advice, the
-diagnosis' own order: the first that settles something) is sailed twice by the hidden truth,
+that an added trial raises no false alarm), the advised trial (diagnosis.json's advice: the
+one trial chosen for all suspects jointly when there is one, else the diagnosis' own order,
+the first that settles something; never a trial for a degenerate effect, whose advice is a
+measurement) is sailed twice by the hidden truth,
 once to each side (its spec and its ``pair``), as ``generate --from-advice`` does
 (trial_from_spec, sensor noise); one run is added to the tuning trials, the other to the
 held-out ones (the rule names an effect on its held-out gain only), and the case is diagnosed
@@ -152,13 +154,17 @@ def best_advice(advice: list[dict]) -> dict | None:
     """
     Return the advised trial a crew would sail first.
 
-    The diagnosis lists its advice most pressing first (rival causes, then barely identifiable
-    effects by how much each explained alone); the first that settles something (else the first).
-    Chosen without knowing the truth.
+    The diagnosis puts first the one trial chosen for all its suspects jointly (kind 'joint',
+    when two or more can be settled by a trial); else its advice is most pressing first (rival
+    causes, then barely identifiable effects by how much each explained alone): the first that
+    settles something, else the first a trial could settle. None when every entry is
+    degenerate (no trial settles it: the advice is a measurement). Chosen without the truth.
     """
-    if not advice:
+    trials = [a for a in advice if not a.get('degenerate')]
+    if not trials:
         return None
-    return next((a for a in advice if a['settles']), advice[0])
+    return next((a for a in trials if a['kind'] == 'joint'),
+                next((a for a in trials if a['settles']), trials[0]))
 
 
 def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float,
@@ -169,6 +175,8 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
     row = {'class': cls, 'seed': seed, 'truth': effect, **_outcome(cls, effect, d, wall),
            'retune': retune, 'budget': budget}
     pick = best_advice(d.advice)
+    row['measure_instead'] = {a['about']: a['settle_by'] for a in d.advice
+                              if a.get('degenerate')}
     if advice and pick is not None and (not row['correct'] or cls == 'clean'):
         spec = TrialSpec.from_dict(pick['spec'])
         # sailed by the hidden truth, recorded at the trials' rate with sensor noise; the pair
@@ -182,7 +190,8 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
         row['advice'] = {'about': pick['about'], 'kind': pick['kind'],
                          'instruction': pick['instruction'],
                          'all': [(a['about'], a['instruction'], a['separation'],
-                                  a['separation_recorded'], a['settles']) for a in d.advice],
+                                  a['separation_recorded'], a['settles'], a['kind'],
+                                  a.get('figures')) for a in d.advice],
                          'settles': pick['settles'], 'separation': pick['separation'],
                          'separation_recorded': pick['separation_recorded'],
                          **_outcome(cls, effect, d2, wall2)}
@@ -237,15 +246,22 @@ def summarise(rows: list[dict]) -> str:
     tried = [r for r in rows if 'advice' in r]
     for r in tried:
         a = r['advice']
+        what = ('joint' if a.get('kind') == 'joint' else 'resolution'
+                if 'barely' in a.get('kind', '') else 'separation')
         lines.append(f"- {r['class']} seed {r['seed']}: plain {r['named'] or 'nothing'} -> "
                      f"{a['named'] or 'nothing'} with '{a['instruction']}' (for {a['about']}; "
-                     f"{'resolution' if 'barely' in a.get('kind', '') else 'separation'} "
-                     f"{a['separation']:.3g} vs recorded "
+                     f"{what} {a['separation']:.3g} vs recorded "
                      f"{a['separation_recorded'] or 0:.3g}"
-                     f"{'' if a['settles'] else ', degenerate'})")
+                     f"{'' if a['settles'] else ', settles nothing'})")
     missed_no_advice = [r for r in rows if not r['correct'] and 'advice' not in r]
     for r in missed_no_advice:
         lines.append(f"- {r['class']} seed {r['seed']}: missed, no advice given")
+    no_trial = Counter(e for r in rows if not _with_advice(r)['correct']
+                       for e in r.get('measure_instead', {}) if e == r['class'])
+    for e, k in sorted(no_trial.items()):
+        lines.append(f'- {e}: missed {k}x and no trial of the repertoire can settle it; the '
+                     'advice says: ' + next(r['measure_instead'][e] for r in rows
+                                            if e in r.get('measure_instead', {})))
     lines += ['', '| hidden effect | parameter | median abs error | max abs error | cases |',
               '|---|---|---|---|---|']
     by = defaultdict(list)

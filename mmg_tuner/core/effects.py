@@ -59,6 +59,9 @@ class Effect:
     boxes: search box of each parameter (see :data:`Box`).
     periodic: whether the parameter is a direction (wraps at +-pi).
     words: formats values (and optional standard errors) for people.
+    settle_by: the independent measurement that settles the effect when no manoeuvre can
+        (it is degenerate with the base targets for every trial); the diagnosis' advice
+        quotes it. Empty: a trial is the way.
 
     """
 
@@ -71,6 +74,7 @@ class Effect:
     boxes: tuple[Box, ...]
     periodic: tuple[bool, ...]
     words: Callable[[dict, dict], str]
+    settle_by: str = ''
 
     def __post_init__(self) -> None:
         n = len(self.params)
@@ -143,20 +147,31 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            smallest=(math.radians(1.0),), neutral=(0.0,),
            boxes=((-math.radians(5), math.radians(5)),), periodic=(False,),
            words=lambda v, e: f"rudder offset {_pm(v, e, 'rudder_offset', math.degrees(1), '.2f')}"
-                              ' deg'),
+                              ' deg',
+           settle_by='check the rudder indicator against the blade (amidships and hard over '
+                     'each side) in port'),
     Effect('rudder_lag', ('rudder_lag_tau',), ('s',),
            'first-order steering-gear lag between the recorded rudder and the actual angle',
            smallest=(2.0,), neutral=(0.0,), boxes=((0.0, 20.0),), periodic=(False,),
-           words=lambda v, e: f"steering-gear lag {_pm(v, e, 'rudder_lag_tau', fmt='.1f')} s"),
+           words=lambda v, e: f"steering-gear lag {_pm(v, e, 'rudder_lag_tau', fmt='.1f')} s",
+           settle_by='log the rudder-angle feedback (the actual blade angle) beside the '
+                     'order, or time a hard-over test of the steering gear'),
     Effect('rpm_scale', ('rpm_scale',), ('-',),
            'shaft-speed measurement scale error (actual = scale x recorded)',
            smallest=(0.03,), neutral=(1.0,), boxes=((0.85, 1.15),), periodic=(False,),
-           words=lambda v, e: f"rpm scale {_pm(v, e, 'rpm_scale', fmt='.3f')}"),
+           words=lambda v, e: f"rpm scale {_pm(v, e, 'rpm_scale', fmt='.3f')}",
+           # n -> k n is reproduced by 1 - w_P -> (1 - w_P) / k, 1 - t_P -> k^2 (1 - t_P),
+           # epsilon -> k epsilon: only the propulsion coefficients fixed elsewhere separate it
+           settle_by='compare the logged rpm with a shaft tachometer (or an optical counter on '
+                     'the shaft) over the rpm range, or fix t_P and w_P0 from a '
+                     'self-propulsion test so the tuning cannot absorb the scale'),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "
            'propeller side force',
            smallest=(0.0005,), neutral=(0.0,), boxes=((-0.005, 0.005),), periodic=(False,),
-           words=lambda v, e: f"yaw moment bias N'_0 = {_pm(v, e, 'yaw_moment_bias', fmt='.2e')}"),
+           words=lambda v, e: f"yaw moment bias N'_0 = {_pm(v, e, 'yaw_moment_bias', fmt='.2e')}",
+           settle_by='hold a straight course with the rudder free at several speeds and rpm: '
+                     'the mean rudder angle needed, against speed and rpm, measures the bias'),
     Effect('antenna_offset', ('antenna_x', 'antenna_y'), ('m', 'm'),
            'positions recorded at a GNSS antenna away from midship and not moved there',
            smallest=(5.0, 1.0), neutral=(0.0, 0.0),
@@ -170,7 +185,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            'seconds after their stamps)',
            smallest=(0.5,), neutral=(0.0,), boxes=((-3.0, 3.0),), periodic=(False,),
            words=lambda v, e: ('commands lag the state by '
-                               f"{_pm(v, e, 'time_offset', fmt='.2f')} s")),
+                               f"{_pm(v, e, 'time_offset', fmt='.2f')} s"),
+           settle_by='put commands and positions on one clock (GNSS or PTP time stamps on '
+                     'every topic), or log the rudder-angle feedback so the delay is measured '
+                     'between the order and the blade'),
     Effect('prop_side_force', ('prop_side_force',), ('-',),
            'propeller side force (paddle-wheel effect) Y = C_YPS rho n^2 D_P^4 at the stern: '
            'a turning asymmetry that grows with the propeller load, not with speed',
@@ -179,7 +197,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            periodic=(False,),
            words=lambda v, e: (f'propeller side force C_YPS = '
                                f"{_pm(v, e, 'prop_side_force', fmt='.2e')} "
-                               '(+: stern pushed to starboard)')),
+                               '(+: stern pushed to starboard)'),
+           settle_by='measure the mean rudder angle that holds a straight course at several '
+                     'rpm from the same speed (a side force grows with n^2, a yaw bias with '
+                     'U^2), or the side force in a bollard-pull or open-water test'),
     Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
            'steady true wind on the above-water ship; loads from the windage areas with '
            "the family's wind model",

@@ -36,6 +36,20 @@ base targets free is recomputed. Its figure, reported as the separation, is the 
 which is below 1 exactly when the effect is flagged barely identifiable: a trial reaching 1
 would lift the flag.
 
+An effect whose best resolution stays below DEGENERATE_BELOW is degenerate with the base
+targets for every manoeuvre of the repertoire: its advice says so and quotes the independent
+measurement that settles it (the effect library's ``settle_by``). rpm_scale is the clear case:
+n -> k n is reproduced exactly by 1 - w_P -> (1 - w_P) / k, 1 - t_P -> k^2 (1 - t_P) and
+epsilon -> k epsilon; only the propeller side force and moment (scaling with n^2), the drift
+shape of the wake and the u_R** floor differ (tested).
+
+A crew sails one trial, and the diagnosis does not know which suspect is real: when two or
+more things can be settled by a trial (rival pairs, and flagged effects that are not
+degenerate), :func:`advise_all` puts first the one trial chosen for all of them jointly
+(:func:`joint_choice`: most settled, then most information added to all; each effect judged
+with the other such suspects free too, as the trial must tell them apart from each other),
+then the per-pair and per-effect advice.
+
 Every advised trial is to be sailed twice, once to each side (:func:`mirrored`; the ``pair``
 spec): one goes to the tuning trials, the other is held out. The diagnosis names an effect
 only on its held-out gain, so a trial that only the tuning set contains can make an effect
@@ -45,7 +59,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
@@ -65,6 +79,10 @@ MIN_SEPARATION = 1.0   # ... and by at least the unexplained error: below it the
 #                        difference drowns in what the model misses anyway
 SETTLES = 1.5   # an advised trial must separate the rivals this many times better than the
 #                 best recorded one to be worth sailing
+DEGENERATE_BELOW = 0.5   # an effect whose best resolution with one trial stays below this is
+#   degenerate with the base targets for the repertoire: resolution grows as the square root
+#   of the information, so reaching 1 would take more than 4x the best trial's information (4
+#   sailings of it, each mimicked in the same way) -- no trial plan, a measurement settles it
 
 
 @dataclass(frozen=True)
@@ -216,12 +234,19 @@ def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
 
 
 def specs_from_diagnosis(doc: dict) -> list[TrialSpec]:
-    """Return the advised trials of a diagnosis.json document (its 'advice' list), each once."""
+    """
+    Return the advised trials of a diagnosis.json document (its 'advice' list), each once.
+
+    In the document's order (the joint trial first), each followed by its twin; entries marked
+    'degenerate' (no trial settles them) are skipped.
+    """
     if not isinstance(doc, dict) or not isinstance(doc.get('advice'), list):
         raise DiagnosisError("no 'advice' list in the diagnosis document (a diagnosis.json of "
                              'this version, written by diagnose)')
     out: list[TrialSpec] = []
     for i, a in enumerate(doc['advice']):
+        if isinstance(a, dict) and a.get('degenerate'):
+            continue   # no trial settles it: its best trial is a record, not advice
         if not isinstance(a, dict) or not isinstance(a.get('spec'), dict):
             raise DiagnosisError(f'advice[{i}]: no spec')
         if a.get('version', SPEC_VERSION) != SPEC_VERSION:
@@ -341,6 +366,24 @@ def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float
     return rpm, max(u, 1e-3), dur, float(trials[0].dt)
 
 
+def _rival_figures(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
+                   sigma: tuple[float, float], specs: Sequence[TrialSpec], dt: float
+                   ) -> list[_Item]:
+    """Return each rival pair's predicted separation on every spec (0: cannot be run)."""
+    sig_pos, sig_psi = sigma
+    out = []
+    for r in rivals:
+        pa, pb = np.asarray(r['params_a'], float), np.asarray(r['params_b'], float)
+        seps = np.array([separation(ship, pa, pb, s, dt, sig_pos, sig_psi) for s in specs])
+        seps[~np.isfinite(seps)] = 0.0   # a model diverging on it: not a trial to advise
+        recorded = max((_replay_separation(ship, pa, pb, t.states, t.controls, t.dt, sig_pos,
+                                           sig_psi) for t in trials if abs(t.dt - dt) < 1e-9),
+                       default=0.0)
+        out.append(_Item(r['about'], r['kind'], seps,
+                         recorded if math.isfinite(recorded) else None))
+    return out
+
+
 def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
            sigma: tuple[float, float]) -> list[dict]:
     """
@@ -348,37 +391,26 @@ def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
 
     For each rival pair {'about', 'kind', 'params_a', 'params_b'} the repertoire's trial that
     separates them best, against sigma = (position [m], heading [rad]) (see
-
     :func:`residual_scale`): {'about', 'kind', 'instruction', 'spec', 'separation',
-    'separation_recorded' (the best recorded trial's), 'settles' (whether the trial separates
-    them SETTLES x better than the recorded ones and by at least MIN_SEPARATION), 'runner_up',
-    'version'}.
+    'separation_recorded' (the best recorded trial's; None when a rival diverges on one),
+    'settles' (whether the trial separates them SETTLES x better than the recorded ones and by
+    at least MIN_SEPARATION), 'runner_up', 'version'}.
     """
     rpm0, u0, dur, dt = operating_point(trials)
-    sig_pos, sig_psi = sigma
     specs = repertoire(ship, rpm0, u0, dur)
-    out = []
-    for r in rivals:
-        pa, pb = np.asarray(r['params_a'], float), np.asarray(r['params_b'], float)
-        seps = [separation(ship, pa, pb, s, dt, sig_pos, sig_psi) for s in specs]
-        finite = [(x, s) for x, s in zip(seps, specs) if math.isfinite(x) and x > 0]
-        if not finite:
-            continue
-        finite.sort(key=lambda x: -x[0])
-        best, spec = finite[0]
-        recorded = max((_replay_separation(ship, pa, pb, t.states, t.controls, t.dt, sig_pos,
-                                           sig_psi) for t in trials if abs(t.dt - dt) < 1e-9),
-                       default=0.0)
-        better = not math.isfinite(recorded) or best > SETTLES * recorded
-        settles = best >= MIN_SEPARATION and better
-        out.append({'about': r['about'], 'kind': r['kind'], 'instruction': _twice(spec),
-                    'spec': spec.to_dict(), 'pair': mirrored(spec).to_dict(),
-                    'separation': best,
-                    'separation_recorded': recorded if math.isfinite(recorded) else None,
-                    'settles': bool(settles),
-                    'runner_up': finite[1][1].instruction() if len(finite) > 1 else '',
-                    'version': SPEC_VERSION})
-    return out
+    items = _rival_figures(ship, rivals, trials, sigma, specs, dt)
+    return [_rival_entry(it, specs) for it in items if np.any(it.figures > 0)]
+
+
+def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict:
+    order = np.argsort(-it.figures, kind='stable')
+    spec, best = specs[order[0]], float(it.figures[order[0]])
+    return {'about': it.about, 'kind': it.kind, 'instruction': _twice(spec),
+            'spec': spec.to_dict(), 'pair': mirrored(spec).to_dict(), 'separation': best,
+            'separation_recorded': it.recorded, 'settles': _settles(best, it.recorded),
+            'runner_up': specs[order[1]].instruction()
+            if len(order) > 1 and it.figures[order[1]] > 0 else '',
+            'version': SPEC_VERSION}
 
 
 def _twice(spec: TrialSpec) -> str:
@@ -386,18 +418,127 @@ def _twice(spec: TrialSpec) -> str:
             'held out)')
 
 
-def _effect_se(jac: np.ndarray, s2: float, n_base: int, j: int, width: float) -> float:
+def _effect_se(jac: np.ndarray, s2: float, n_base: int, j: int, width: float,
+               others: Sequence[int] = ()) -> float:
     """
     Return the standard error of parameter j (own units) with the n_base first ones free.
 
-    As tuning.identifiability.aliasing: column j regressed on the base columns by least squares
-    on the Jacobian itself (the normal equations would square a condition number that aliasing
-    makes large); only the part they cannot mimic is evidence.
+    As tuning.identifiability.aliasing: column j regressed on the base columns (and the columns
+    ``others``, also free) by least squares on the Jacobian itself (the normal equations would
+    square a condition number that aliasing makes large); only the part they cannot mimic is
+    evidence.
     """
-    y, a = jac[:, j], jac[:, :n_base]
+    y = jac[:, j]
+    a = jac[:, list(range(n_base)) + [k for k in others if k != j]]
     coef, *_ = np.linalg.lstsq(a, y, rcond=None)
     rr = float(np.sum((y - a @ coef) ** 2))
     return float(math.sqrt(s2 / max(rr, 1e-300)) * width)
+
+
+@dataclass
+class _Item:
+    """One thing to settle and its figure on every spec of the repertoire (0: not run)."""
+
+    about: str
+    kind: str
+    figures: np.ndarray
+    recorded: float | None
+
+
+@dataclass
+class _Information:
+    """
+    The Gauss-Newton geometry of the flag, with each repertoire trial added.
+
+    r_rec: R factor of the tuning trials' Jacobian; r_with[i]: with spec i added (None: it
+    cannot be run); columns: the base targets, then each probed effect (col).
+    """
+
+    specs: list[TrialSpec]
+    r_rec: np.ndarray
+    r_with: list[np.ndarray | None]
+    s2: float
+    n_base: int
+    col: dict[str, int]
+    width: np.ndarray
+    smallest: dict[str, float]
+
+    def resolution(self, r: np.ndarray | None, e: str, others: Sequence[str] = ()) -> float:
+        """Return smallest / (2 SE) of effect e with the base targets (and others) free."""
+        if r is None:
+            return 0.0
+        j = self.col[e]
+        se = _effect_se(r, self.s2, self.n_base, j, self.width[j],
+                        [self.col[o] for o in others])
+        return self.smallest[e] / max(2 * se, 1e-300)
+
+    def item(self, e: str, others: Sequence[str] = ()) -> _Item:
+        kind = 'barely identifiable' + (' (others free)' if others else '')
+        return _Item(e, kind, np.array([self.resolution(r, e, others) for r in self.r_with]),
+                     self.resolution(self.r_rec, e, others))
+
+
+def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
+                 obj: Objective, effects: Sequence[str], trials: Sequence[Trial],
+                 specs: Sequence[TrialSpec] | None = None) -> _Information:
+    """
+    Linearise where the flag is raised and add each repertoire trial (see the module).
+
+    specs: the repertoire at the trials' operating point unless given.
+    """
+    names, lo, hi, pre, value = list(base.names), list(base.lower), list(base.upper), \
+        list(base.pre), list(base_theta)
+    smallest = {}
+    for e in effects:
+        p = EFFECTS[e].params[0]
+        (a, b), = EFFECTS[e].bounds(ship)
+        smallest[e] = EFFECTS[e].smallest_for(ship)[0]
+        names.append(p)
+        lo.append(a)
+        hi.append(b)
+        pre.append(min(max(EFFECT_NEUTRAL[p], a), b))
+        value.append(min(max(EFFECT_NEUTRAL[p] + smallest[e], a), b))
+    space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
+    theta = np.array(value)
+    integ = {0: 'euler', 1: 'rk4'}[obj.method]
+    jac, s2 = jacobian(obj, space, theta, 1e-3)
+    # the recorded trials' Jacobian reduced to its R factor: the same least-squares geometry
+    # (information adds over trials) in as many rows as parameters
+    r_rec = np.linalg.qr(jac, mode='r')
+    sailer = replace(ship, params=space.full_params(ship.params, theta)[0])
+    rpm0, u0, dur, dt = operating_point(trials)
+    specs = list(repertoire(ship, rpm0, u0, dur) if specs is None else specs)
+    r_with: list[np.ndarray | None] = []
+    for spec in specs:
+        t, states, controls, why = run_spec(sailer, spec, dt)
+        if why or not np.all(np.isfinite(states)):
+            r_with.append(None)
+            continue
+        o = Objective(ship, TrialBatch.from_trials([Trial(t, states, controls, name=spec.name)]),
+                      obj.weights, 0.0, integ, obj.substeps)
+        jc, _ = jacobian(o, space, theta, 1e-3)
+        r_with.append(np.linalg.qr(np.vstack([r_rec, jc]), mode='r'))
+    n = base.dim
+    return _Information(specs, r_rec, r_with, s2, n, {e: n + k for k, e in enumerate(effects)},
+                        space.upper - space.lower, smallest)
+
+
+def _information_entry(info: _Information, it: _Item) -> dict:
+    """Return the advice entry of a barely identifiable effect (degenerate ones say so)."""
+    e = it.about
+    k = int(np.argmax(it.figures))
+    spec, res, rec = info.specs[k], float(it.figures[k]), float(it.recorded)
+    out = {'about': e, 'kind': it.kind, 'instruction': _twice(spec), 'spec': spec.to_dict(),
+           'pair': mirrored(spec).to_dict(), 'separation': res, 'separation_recorded': rec,
+           'settles': _settles(res, rec), 'se_with': info.smallest[e] / (2 * res),
+           'se_recorded': info.smallest[e] / (2 * rec), 'smallest': info.smallest[e],
+           'runner_up': '', 'version': SPEC_VERSION}
+    if res < DEGENERATE_BELOW:
+        settle_by = EFFECTS[e].settle_by or 'fix it from a measurement outside these trials'
+        out.update(degenerate=True, settle_by=settle_by, best_trial=out['instruction'],
+                   instruction=f'no trial can settle it (the best of the repertoire reaches '
+                               f'resolution {res:.2g} of the 1 needed); instead: {settle_by}')
+    return out
 
 
 def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
@@ -413,66 +554,123 @@ def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.nd
     gets its standard error with the base targets free and the resolution smallest / (2 x SE)
     (see the module). Entries as :func:`advise`, with 'separation' the resolution with the
     trial, 'separation_recorded' without it, and 'se_with' / 'se_recorded' / 'smallest' in the
-    parameter's units.
+    parameter's units. An effect whose best resolution stays below DEGENERATE_BELOW is marked
+    'degenerate': its 'instruction' says no trial settles it and quotes the effect library's
+    ``settle_by`` (also a field); the best trial stays in 'spec' and 'best_trial' as a record,
+    and ``generate --from-advice`` skips it.
     """
     effects = [e for e in effects if len(EFFECTS[e].params) == 1]
     about = [e for e in (effects if about is None else about) if e in effects]
     if not about:
         return []
-    names, lo, hi, pre, value = list(base.names), list(base.lower), list(base.upper), \
-        list(base.pre), list(base_theta)
-    smallest = {}
-    for e in effects:
-        p = EFFECTS[e].params[0]
-        (a, b), = EFFECTS[e].bounds(ship)
-        smallest[e] = EFFECTS[e].smallest_for(ship)[0]
-        names.append(p)
-        lo.append(a)
-        hi.append(b)
-        pre.append(min(max(EFFECT_NEUTRAL[p], a), b))
-        value.append(min(max(EFFECT_NEUTRAL[p] + smallest[e], a), b))
-    space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
-    theta = np.array(value)
-    width = space.upper - space.lower
-    integ = {0: 'euler', 1: 'rk4'}[obj.method]
-    jac, s2 = jacobian(obj, space, theta, 1e-3)
-    # the recorded trials' Jacobian reduced to its R factor: the same least-squares geometry
-    # (information adds over trials) in as many rows as parameters
-    r_rec = np.linalg.qr(jac, mode='r')
-    sailer = replace(ship, params=space.full_params(ship.params, theta)[0])
+    info = _information(ship, base, base_theta, obj, effects, trials)
+    return [_information_entry(info, info.item(e)) for e in about
+            if np.any(info.item(e).figures > 0)]
+
+
+def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
+               obj: Objective, effects: Sequence[str], trials: Sequence[Trial],
+               about: Sequence[str], rivals: list[dict],
+               sigma: tuple[float, float] | None = None,
+               rank: Callable[[str], float] | None = None) -> list[dict]:
+    """
+    Return one trial for the whole diagnosis, then the advice per rival pair and per effect.
+
+    ``about``: the barely identifiable effects (probed with every single-parameter effect of
+    ``effects`` at its smallest, as :func:`advise_information`); ``rivals``: the rival pairs
+    (as :func:`advise`, against sigma). When two or more things are to be settled by a trial
+    (rival pairs, and flagged effects that are not degenerate: see DEGENERATE_BELOW), the first
+    entry ('kind': 'joint') is the one trial chosen for all of them jointly
+    (:func:`joint_choice`): a crew sails one trial, and the diagnosis does not know which
+    suspect is real. Per-pair entries follow, then per-effect ones ordered by ``rank`` (low
+    first; default: as given).
+    """
     rpm0, u0, dur, dt = operating_point(trials)
-    n = base.dim
-    col = {e: n + k for k, e in enumerate(effects)}
-    rec = {e: smallest[e] / max(2 * _effect_se(r_rec, s2, n, col[e], width[col[e]]), 1e-300)
-           for e in about}
-    best: dict[str, tuple[float, TrialSpec | None]] = {e: (0.0, None) for e in about}
-    for spec in repertoire(ship, rpm0, u0, dur):
-        t, states, controls, why = run_spec(sailer, spec, dt)
-        if why or not np.all(np.isfinite(states)):
+    specs = repertoire(ship, rpm0, u0, dur)
+    pairs = _rival_figures(ship, rivals, trials, sigma, specs, dt) if rivals else []
+    out = [_rival_entry(it, specs) for it in pairs if np.any(it.figures > 0)]
+    probe = [e for e in effects if len(EFFECTS[e].params) == 1]
+    about = [e for e in about if e in probe]
+    items: list[_Item] = []
+    if about:
+        info = _information(ship, base, base_theta, obj, probe, trials, specs)
+        alone = {e: info.item(e) for e in about}
+        per = [_information_entry(info, alone[e]) for e in about
+               if np.any(alone[e].figures > 0)]
+        out += sorted(per, key=lambda a: rank(a['about'])) if rank else per
+        settleable = [e for e in about if float(np.max(alone[e].figures)) >= DEGENERATE_BELOW]
+        # each against the base and the other settleable suspects: the trial must tell them
+        # apart from each other too, not only from the base coefficients
+        items = [info.item(e, [o for o in settleable if o != e]) for e in settleable]
+    joint = joint_choice(pairs + items, specs)
+    if joint is not None:
+        joint['not_settled_by_a_trial'] = {a['about']: a['settle_by'] for a in out
+                                           if a.get('degenerate')}
+        out.insert(0, joint)
+    return out
+
+
+def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | None:
+    """
+    Return the one trial for all items (None: fewer than two).
+
+    Chosen by the number of items it settles (figure >= MIN_SEPARATION and SETTLES x the
+    recorded one), then by the sum over the items of log(figure with / figure recorded): the
+    information it adds to all of them at once. Its 'separation' / 'separation_recorded' /
+    'settles' are those of its lead item (the settled one it improves most, else the most
+    improved), 'figures' lists every item's.
+    """
+    if len(items) < 2:
+        return None
+
+    def ratio(f: float, rec: float | None) -> float:
+        if f <= 0:
+            return -math.inf
+        return math.log(f / rec) if rec is not None and rec > 0 else 0.0
+
+    best, best_key = None, None
+    for k, spec in enumerate(specs):
+        figs = [float(it.figures[k]) for it in items]
+        if not any(f > 0 for f in figs):
             continue
-        o = Objective(ship, TrialBatch.from_trials([Trial(t, states, controls, name=spec.name)]),
-                      obj.weights, 0.0, integ, obj.substeps)
-        jc, _ = jacobian(o, space, theta, 1e-3)
-        both = np.vstack([r_rec, jc])
-        res = {e: smallest[e] / max(2 * _effect_se(both, s2, n, col[e], width[col[e]]), 1e-300)
-               for e in about}
-        for e in about:
-            if res[e] > best[e][0]:
-                best[e] = (res[e], spec)
+        lifts = sum(_settles(f, it.recorded) for f, it in zip(figs, items))
+        gain = sum(max(ratio(f, it.recorded), -50.0) for f, it in zip(figs, items))
+        if best_key is None or (lifts, gain) > best_key:
+            best, best_key = k, (lifts, gain)
+    if best is None:
+        return None
+    spec = specs[best]
+    figs = {it.about: (float(it.figures[best]), it.recorded) for it in items}
+    settled = [a for a, (f, r) in figs.items() if _settles(f, r)]
+    lead = max(settled or list(figs), key=lambda a: ratio(*figs[a]))
+    f, r = figs[lead]
+    return {'about': ', '.join(figs), 'kind': 'joint', 'instruction': _twice(spec),
+            'spec': spec.to_dict(), 'pair': mirrored(spec).to_dict(), 'separation': f,
+            'separation_recorded': r, 'settles': _settles(f, r), 'lead': lead,
+            'lifts': settled,
+            'figures': {it.about: {'with': figs[it.about][0], 'recorded': it.recorded,
+                                   'settles': it.about in settled, 'kind': it.kind}
+                        for it in items},
+            'runner_up': '', 'version': SPEC_VERSION}
 
-    def entry(e: str, res: float, spec: TrialSpec, kind: str) -> dict:
-        return {'about': e, 'kind': kind, 'instruction': _twice(spec), 'spec': spec.to_dict(),
-                'pair': mirrored(spec).to_dict(), 'separation': res,
-                'separation_recorded': rec[e], 'settles': _settles(res, rec[e]),
-                'se_with': smallest[e] / (2 * res), 'se_recorded': smallest[e] / (2 * rec[e]),
-                'smallest': smallest[e], 'runner_up': '', 'version': SPEC_VERSION}
 
-    return [entry(e, best[e][0], best[e][1], 'barely identifiable') for e in about
-            if best[e][1] is not None]
+def joint_text(a: dict) -> str:
+    """
+    Say what the joint trial settles, e.g.
+
+    'settles prop_side_force; with (recorded): prop_side_force 1.3 (0.52), rudder_lag 0.8 (0.3)'.
+    """
+    def rec(x: float | None) -> str:
+        return '-' if x is None else f'{x:.3g}'
+
+    return ('settles ' + (', '.join(a['lifts']) or 'none of them') + '; with (recorded): '
+            + ', '.join(f"{k} {v['with']:.3g} ({rec(v['recorded'])})"
+                        for k, v in a['figures'].items()))
 
 
-def _settles(res: float, rec: float) -> bool:
-    return bool(res >= MIN_SEPARATION and res > SETTLES * rec)
+def _settles(res: float, rec: float | None) -> bool:
+    """Whether a figure settles: at least 1 and SETTLES x the recorded one (if finite)."""
+    return bool(res >= MIN_SEPARATION and (rec is None or res > SETTLES * rec))
 
 
 def load_advice(path) -> list[TrialSpec]:
@@ -494,6 +692,9 @@ def load_advice(path) -> list[TrialSpec]:
     except DiagnosisError as exc:
         raise DiagnosisError(f'{p}: {exc}') from None
     if not specs:
-        raise DiagnosisError(f'{p}: the diagnosis advises no trial (nothing was barely '
-                             'identifiable or indistinguishable)')
+        instead = '; '.join(f"{a.get('about')}: {a.get('settle_by')}" for a in doc['advice']
+                            if isinstance(a, dict) and a.get('degenerate'))
+        raise DiagnosisError(f'{p}: the diagnosis advises no trial (' + (
+            f'no trial can settle what it could not: {instead})' if instead else
+            'nothing was barely identifiable or indistinguishable)'))
     return specs

@@ -10,6 +10,7 @@ from dataclasses import asdict
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.advice import joint_text
 from mmg_tuner.diagnosis.residuals import residual_series, simulate_trials, summarize
 from mmg_tuner.diagnosis.select import Diagnosis
 from mmg_tuner.diagnosis.structure import markdown_lines as structure_lines
@@ -108,15 +109,26 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   'Rankings, not probabilities (residuals along a trajectory are correlated). '
                   'Sail each twice, once to each side: tune on one run, hold the other out '
                   '(an effect is named on its held-out gain). '
-                  '`generate --from-advice diagnosis.json` runs both.', '',
-                  '| about | trial | separation / resolution | recorded trials |',
+                  '`generate --from-advice diagnosis.json` runs both (the trial to sail '
+                  'first, then the others; never those no trial can settle).', '']
+        joint = [a for a in doc['advice'] if a.get('kind') == 'joint']
+        for a in joint:   # one trial for all the suspects: which one is real is unknown
+            lines += [f"**Sail first** (one trial for all of {a['about']}, chosen by how many "
+                      'it settles, then by the information it adds to all of them; each '
+                      'judged with the others free): ' + a['instruction'] + '. It '
+                      + joint_text(a) + '.', '']
+            lines += [f'- {e}: no trial can settle it; instead: {m}'
+                      for e, m in a.get('not_settled_by_a_trial', {}).items()]
+            lines += [''] if a.get('not_settled_by_a_trial') else []
+        lines += ['| about | trial | separation / resolution | recorded trials |',
                   '|---|---|---|---|']
         for a in doc['advice']:
             rec = a.get('separation_recorded')
             lines.append(f"| {a['about']} ({a['kind']}) | {a['instruction']}"
-                         + ('' if a.get('settles', True) else ' — *no trial of the repertoire '
-                            'reaches 1 and clearly beats the recorded ones: degenerate for '
-                            'these manoeuvres*')
+                         + ('' if a.get('settles', True) or a.get('degenerate')
+                            or a.get('kind') == 'joint' else
+                            ' — *no trial of the repertoire reaches 1 and clearly beats the '
+                            'recorded ones: degenerate for these manoeuvres*')
                          + f" | {a['separation']:.3g} | "
                          + f"{'—' if rec is None else f'{rec:.3g}'} |")
     lines += ['', '## Residuals of the tuned base model (test trials)', '',

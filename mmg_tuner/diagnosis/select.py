@@ -877,11 +877,13 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
     """
     Advise the trial that would settle each barely identifiable effect and rival pair.
 
-    Most pressing first: rival causes named, then the barely identifiable effects by how much
-    each alone lowered the tuning error in the first screen (the suspects first; a trial for
-    an effect that explains nothing is the least worth sailing).
+    First one trial for all of them jointly (advice.advise_all: a crew sails one, and which
+    suspect is real is unknown), then most pressing first: rival causes named, then the barely
+    identifiable effects by how much each alone lowered the tuning error in the first screen
+    (the suspects first; a trial for an effect that explains nothing is the least worth
+    sailing). An effect no trial can settle says so, with the measurement that would.
     """
-    from mmg_tuner.diagnosis.advice import advise, advise_information, residual_scale
+    from mmg_tuner.diagnosis.advice import advise_all, joint_text, residual_scale
 
     drop = screen_drop or {}
 
@@ -890,26 +892,30 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
         return -d if math.isfinite(d) else math.inf
 
     # rival causes by the separation of their outputs; a barely identifiable effect by the
-    # information a trial adds (a trial the base targets mimic once tuned on settles nothing)
-    tuned = base.full_params(ship.params, base_theta)[0]
-    out = advise(ship, rival_pairs, trials, residual_scale(ship, tuned, trials)) \
-        if rival_pairs else []
-    suspects = [e for e in aliased if e not in impossible]
+    # information a trial adds (a trial the base targets mimic once tuned on settles nothing),
     # linearised where the flag was raised: every single-parameter effect at its smallest
-    probe = [e for e in effects if len(EFFECTS[e].params) == 1]
-    out += sorted(advise_information(ship, base, base_theta, obj, probe, trials, suspects),
-                  key=lambda a: rank(a['about']))
+    tuned = base.full_params(ship.params, base_theta)[0]
+    sigma = residual_scale(ship, tuned, trials) if rival_pairs else None
+    suspects = [e for e in aliased if e not in impossible]
+    out = advise_all(ship, base, base_theta, obj, effects, trials, suspects, rival_pairs, sigma,
+                     rank)
     for a in out:
         rec = a['separation_recorded']
         what = ('resolution (smallest worth finding / 2 standard errors)'
                 if 'se_with' in a else 'separation')
-        log(f"   advice ({a['kind']}: {a['about']}): " + (
-            f"{a['instruction']} -- predicted {what} {a['separation']:.3g}"
-            + (f' (recorded trials {rec:.3g})' if rec is not None else '') if a['settles'] else
-            f'no trial of the repertoire raises the {what} above 1 and clearly above the '
-            f"recorded trials' (best: {a['instruction']}, {a['separation']:.3g} vs "
-            f"{'-' if rec is None else f'{rec:.3g}'}): degenerate for these manoeuvres; fix "
-            'one from another source'))
+        if a['kind'] == 'joint':
+            log(f"   advice (one trial for all: {a['about']}): {a['instruction']} -- "
+                + joint_text(a))
+        elif a.get('degenerate'):
+            log(f"   advice ({a['kind']}: {a['about']}): {a['instruction']}")
+        else:
+            log(f"   advice ({a['kind']}: {a['about']}): " + (
+                f"{a['instruction']} -- predicted {what} {a['separation']:.3g}"
+                + (f' (recorded trials {rec:.3g})' if rec is not None else '') if a['settles']
+                else f'no trial of the repertoire raises the {what} above 1 and clearly above '
+                f"the recorded trials' (best: {a['instruction']}, {a['separation']:.3g} vs "
+                f"{'-' if rec is None else f'{rec:.3g}'}): degenerate for these manoeuvres; "
+                'fix one from another source'))
     return out
 
 
