@@ -51,7 +51,7 @@ from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
-from mmg_tuner.tuning.hybrid import require_jax, ResidualConfig, train_residual
+from mmg_tuner.tuning.hybrid import ensemble, require_jax, ResidualConfig, train_residual
 from mmg_tuner.tuning.objective import Objective, paper_weights, Prior, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
@@ -186,10 +186,13 @@ class TuneConfig:
     tuning, train a neural residual on the tuning trials: ``tune --residual``) or 'network'
     (the pure network, no physics tuning: ``--residual-only``); residual_options: fields of
     :class:`~mmg_tuner.tuning.hybrid.ResidualConfig` (epochs, window, hidden, ...; the seed
-    defaults to this config's, the integrator to 'rk4', as ``evaluate`` runs the hybrid).
-    What CMA-ES minimises (the reported J keeps shoot_every_s): segment_s: cut the tuning
-    trials into pieces of this many s, each started from the measured state (0: whole trials;
-    ``tuning/segments.py``); balance: 'sample' (every sample alike) or 'trial' (every trial
+    defaults to this config's, the integrator to 'rk4', as ``evaluate`` runs the hybrid);
+    residual_seeds: train that many residuals (seeds seed, seed + 1, ...) and keep their mean,
+    one exact ensemble network (``tuning.hybrid.ensemble``): less dependence on one seed's
+    initial weights, at that many times the training time. What CMA-ES minimises (the
+    reported J keeps shoot_every_s): segment_s: cut the tuning trials into pieces of this
+    many s, each started from the measured state (0: whole trials; ``tuning/segments.py``);
+    balance: 'sample' (every sample alike) or 'trial' (every trial
     the same total weight); prior: pull toward the pre-determined values, in J per sample per
     squared box width (0: none).
     """
@@ -207,6 +210,7 @@ class TuneConfig:
     seed: int = 0
     residual: str | None = None
     residual_options: Mapping[str, object] = field(default_factory=dict)
+    residual_seeds: int = 1
     segment_s: float = 0.0
     balance: str = 'sample'
     prior: float = 0.0
@@ -519,6 +523,9 @@ def _check_residual(cfg: TuneConfig, error) -> None:
            f'None or one of {list(RESIDUAL_KINDS)}', error)
     _check_residual_options(cfg.residual_options, error)
     _residual_config(cfg)   # ResidualConfig validates the values (ConfigError naming them)
+    n = cfg.residual_seeds
+    _check('residual_seeds', n, isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 32,
+           'a whole number from 1 to 32', error)
 
 
 def _check_residual_options(options, error) -> None:
@@ -557,6 +564,7 @@ class ResidualResult:
     epochs: int
     seed: int
     config: dict
+    seeds: int = 1   # residuals averaged (seeds seed .. seed + seeds - 1; 1: one network)
 
     def npz_bytes(self) -> bytes:
         """Return the network as the portable .npz ResidualNet.save writes."""
@@ -574,7 +582,10 @@ class ResidualResult:
 
     def markdown(self) -> str:
         lines = ['', f'## Neural residual ({self.kind})', '',
-                 f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, seed {self.seed}); '
+                 f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, '
+                 + (f'seed {self.seed}' if self.seeds == 1 else
+                    f'the mean of {self.seeds} networks, seeds {self.seed} to '
+                    f'{self.seed + self.seeds - 1}') + '); '
                  f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
                  + (f'Share of the total acceleration: {100 * self.share:.1f} %. '
                     if self.kind == 'hybrid' else 'The network alone gives the '
@@ -609,19 +620,31 @@ def _train_residual(result: TuneResult) -> ResidualResult:
     physics = result.ship.with_params(result.params)
     logger.info('training the %s network on %d trial(s) (seed %d, up to %d epochs)',
                 'residual' if rc.physics else 'pure', len(result.trials), rc.seed, rc.epochs)
-    fit = train_residual(physics, result.trials, config=rc)
-    model = replace(physics, residual=fit.net)
+    fits = []
+    for k in range(cfg.residual_seeds):
+        if k:
+            logger.info('   seed %d of %d', rc.seed + k, rc.seed + cfg.residual_seeds - 1)
+        fits.append(train_residual(physics, result.trials, config=replace(rc, seed=rc.seed + k)))
+    fit = fits[0]
+    net = fit.net if len(fits) == 1 else ensemble([f.net for f in fits])
+    model = replace(physics, residual=net)
     index = {}
     for which, trials in (('tune', result.trials), ('test', result.test)):
         if trials:
             index[which] = compare_index(physics, model, trials, integrator=rc.integrator)
     held = index.get('test', {}).get('gain')
+    # with several seeds: the members' mean share and validation gain (the ensemble's own
+    # would need another pass over the trials), their total time, the longest training
+    seconds = float(sum(f.seconds for f in fits))
+    share = float(np.mean([f.share for f in fits]))
+    gains = [f.val_gain for f in fits if f.val_gain is not None]
+    val_gain = float(np.mean(gains)) if gains else None
     logger.info('   %s network: %.1f s, %d epochs; share %.1f %%; held-out index gain %s',
-                'residual' if rc.physics else 'pure', fit.seconds, fit.epochs,
-                100 * fit.share, _fmt_gain_frac(held))
-    return ResidualResult(fit.net, 'hybrid' if rc.physics else 'pure network',
-                          float(fit.share), fit.val_gain, index, held, float(fit.seconds),
-                          int(fit.epochs), int(fit.seed), asdict(rc))
+                'residual' if rc.physics else 'pure', seconds, max(f.epochs for f in fits),
+                100 * share, _fmt_gain_frac(held))
+    return ResidualResult(net, 'hybrid' if rc.physics else 'pure network', share, val_gain,
+                          index, held, seconds, int(max(f.epochs for f in fits)),
+                          int(fit.seed), asdict(rc), len(fits))
 
 
 # ---------------------------------------------------------------------------------- diagnose

@@ -4,6 +4,7 @@ Test the hybrid model's application side.
 params.yaml naming a residual, tune --residual, the message without JAX, the node's stepper,
 and the diagnosis's structure verdict and learnable structure.
 """
+from dataclasses import replace
 import json
 import math
 import sys
@@ -143,11 +144,37 @@ def test_tune_residual_end_to_end(trial_dir, tmp_path, capsys):
     assert ev['index_all'] == pytest.approx(r['index']['test']['model'], rel=1e-6)
 
 
+def test_tune_residual_seeds_keep_the_mean_of_their_networks(trial_dir, tmp_path):
+    # --residual-seeds 2: the saved network is the exact mean of the seeds' networks, each
+    # trained as a single-seed run with that seed would train it
+    pytest.importorskip('jax')
+    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    trials = [mt.load_trials(trial_dir / t)[0] for t in TUNE]
+    cfg = mt.TuneConfig(max_evals=100, residual='hybrid', residual_seeds=2,
+                        residual_options={'epochs': 4, 'hidden': (6,)})
+    res = mt.tune(mt.load_ship('suzaku'), trials, config=cfg)
+    r = res.residual
+    assert r.seeds == 2 and r.seed == 0 and 'the mean of 2 networks' in r.markdown()
+    physics = res.ship.with_params(res.params)
+    rc = ResidualConfig(**{**r.config, 'hidden': tuple(r.config['hidden'])})
+    alone = [train_residual(physics, trials, config=replace(rc, seed=k)).net for k in (0, 1)]
+    assert r.net.meta['ensemble_of_seeds'] == [0, 1]
+    # hidden units side by side, the output layer averaging them
+    np.testing.assert_allclose(r.net.weights[0], np.vstack([n.weights[0] for n in alone]))
+    np.testing.assert_allclose(r.net.weights[-1],
+                               np.hstack([n.weights[-1] for n in alone]) / 2)
+    np.testing.assert_allclose(r.net.biases[-1], (alone[0].biases[-1] + alone[1].biases[-1]) / 2)
+    with pytest.raises(mt.MmgTunerError, match='residual_seeds'):
+        mt.TuneConfig(residual='hybrid', residual_seeds=0)
+
+
 def test_tune_residual_options_are_checked(trial_dir, tmp_path, capsys):
     from mmg_tuner.cli.tune import main
     base = [str(trial_dir / 'turning_p35'), '--out', str(tmp_path / 'x')]
     for argv, what in ((['--residual', '--residual-only'], 'not allowed with'),
                        (['--residual-epochs', '3'], 'only with --residual'),
+                       (['--residual-seeds', '2'], '--residual-seeds: only with'),
+                       (['--residual', '--residual-seeds', '0'], 'residual seeds'),
                        (['--residual', '--residual-window', '0'], '--residual-window')):
         with pytest.raises(SystemExit) as e:
             main(base + argv)

@@ -110,6 +110,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='residual: length of each simulated training window [s] (default 10)')
     ap.add_argument('--residual-max-seconds', type=positive_float, metavar='S',
                     help='residual: stop training after this wall time [s]')
+    ap.add_argument('--residual-seeds', type=bounded(int, 1, 32, 'residual seeds'), metavar='N',
+                    help='residual: train N networks (seeds --seed, --seed + 1, ...) and keep '
+                    'their mean, one exact ensemble (default 1; N times the training time)')
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
     return ap
@@ -287,8 +290,10 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
             'hybrid' if getattr(args, 'residual', False) else None)
     opts = {field: getattr(args, dest) for dest, field in RESIDUAL_OPTIONS.items()
             if getattr(args, dest, None) is not None}
-    if opts and kind is None:
-        given = [d for d in RESIDUAL_OPTIONS if getattr(args, d, None) is not None]
+    seeds = getattr(args, 'residual_seeds', None)
+    if (opts or seeds is not None) and kind is None:
+        given = [d for d in (*RESIDUAL_OPTIONS, 'residual_seeds')
+                 if getattr(args, d, None) is not None]
         raise UsageError(', '.join('--' + d.replace('_', '-') for d in given)
                          + ': only with --residual or --residual-only')
     if 'hidden' in opts:
@@ -300,7 +305,8 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
                           max_popsize=args.max_popsize, max_evals=args.max_evals,
                           seed=args.seed, segment_s=getattr(args, 'segment', 0.0),
                           balance=getattr(args, 'balance', 'sample'),
-                          prior=getattr(args, 'prior', 0.0), residual=kind, residual_options=opts)
+                          prior=getattr(args, 'prior', 0.0), residual=kind, residual_options=opts,
+                          residual_seeds=1 if seeds is None else seeds)
 
 
 def command(argv: list[str] | None = None) -> int:
@@ -353,8 +359,10 @@ def _residual_line(r) -> str:
             f'{r.index["test"]["model"]:.4g} ({100 * r.heldout_gain:+.1f} % gain)')
     share = f'share of the acceleration {100 * r.share:.1f} %' if r.kind == 'hybrid' \
         else 'the network alone'
+    seeds = (f'seed {r.seed}' if r.seeds == 1 else
+             f'mean of {r.seeds} networks, seeds {r.seed}-{r.seed + r.seeds - 1}')
     return (f'{r.kind} network: {share}{held}; trained in {r.seconds:.1f} s ({r.epochs} '
-            f'epochs, seed {r.seed}); weights in {api.RESIDUAL_FILE}')
+            f'epochs, {seeds}); weights in {api.RESIDUAL_FILE}')
 
 
 def _progress_bar(total: int):
