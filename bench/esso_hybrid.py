@@ -287,7 +287,7 @@ def main() -> None:
 
 
 def _variant(args, physics: bool) -> str:
-    """Return the file-name suffix of a non-default window length or shrink ('' if none)."""
+    """Return the file-name suffix of a window other than 10 s, or of a shrink ('' if none)."""
     horizon = args.horizon if physics else args.network_horizon
     return ((f'_h{horizon:g}' if horizon != 10.0 else '')
             + (f'_x{args.shrink:g}' if physics and args.shrink != 1.0 else ''))

@@ -522,10 +522,14 @@ def _check_residual(cfg: TuneConfig, error) -> None:
     _check('residual', cfg.residual, cfg.residual is None or cfg.residual in RESIDUAL_KINDS,
            f'None or one of {list(RESIDUAL_KINDS)}', error)
     _check_residual_options(cfg.residual_options, error)
-    _residual_config(cfg)   # ResidualConfig validates the values (ConfigError naming them)
+    rc = _residual_config(cfg)   # ResidualConfig validates the values (ConfigError naming them)
     n = cfg.residual_seeds
     _check('residual_seeds', n, isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 32,
            'a whole number from 1 to 32', error)
+    # checked here, not after the tuning: the last seed must be a seed too
+    _check('residual_seeds', n, rc.seed + n - 1 < 2 ** 31,
+           f'at most {2 ** 31 - rc.seed} with seed {rc.seed} (seeds seed .. seed + n - 1 must '
+           'be < 2**31)', error)
 
 
 def _check_residual_options(options, error) -> None:
@@ -581,17 +585,18 @@ class ResidualResult:
         return d
 
     def markdown(self) -> str:
+        mean = '' if self.seeds == 1 else f' (mean over the {self.seeds} networks)'
         lines = ['', f'## Neural residual ({self.kind})', '',
                  f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, '
                  + (f'seed {self.seed}' if self.seeds == 1 else
                     f'the mean of {self.seeds} networks, seeds {self.seed} to '
                     f'{self.seed + self.seeds - 1}') + '); '
                  f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
-                 + (f'Share of the total acceleration: {100 * self.share:.1f} %. '
+                 + (f'Share of the total acceleration{mean}: {100 * self.share:.1f} %. '
                     if self.kind == 'hybrid' else 'The network alone gives the '
                     'accelerations (no physics). ')
                  + ('' if self.val_gain is None else
-                    f'Gain on its validation windows: {100 * self.val_gain:.1f} %.'), '',
+                    f'Gain on its validation windows{mean}: {100 * self.val_gain:.1f} %.'), '',
                  '| trials | index, tuned physics | index, with the network | gain |',
                  '|---|---|---|---|']
         for which, v in self.index.items():
@@ -623,7 +628,7 @@ def _train_residual(result: TuneResult) -> ResidualResult:
     fits = []
     for k in range(cfg.residual_seeds):
         if k:
-            logger.info('   seed %d of %d', rc.seed + k, rc.seed + cfg.residual_seeds - 1)
+            logger.info('   seed %d (%d of %d)', rc.seed + k, k + 1, cfg.residual_seeds)
         fits.append(train_residual(physics, result.trials, config=replace(rc, seed=rc.seed + k)))
     fit = fits[0]
     net = fit.net if len(fits) == 1 else ensemble([f.net for f in fits])

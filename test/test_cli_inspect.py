@@ -46,6 +46,18 @@ def test_a_short_zigzag_is_a_zigzag(amp):
     assert detect_maneuver(measured) == 'zigzag'
 
 
+def test_slewing_is_found_when_the_record_starts_with_the_rudder_over():
+    # held at +20 deg, slewing at 2.3 deg/s to -20, held: the edges of the record must not
+    # read as a jump (a zero-padded smoothing made them the fastest rate and hid the slewing)
+    import numpy as np
+    from mmg_tuner.data.summary import _slewing
+    t = np.arange(0.0, 60.0, 0.1)
+    rud = np.clip(20.0 - 2.3 * (t - 20.0), -20.0, 20.0)
+    moving = (t > 20.5) & (t < 20.0 + 40.0 / 2.3 - 0.5)
+    flagged = _slewing(t, rud)
+    assert flagged[moving].mean() > 0.9 and flagged[~moving].mean() < 0.05
+
+
 def test_pond_runs_are_told_apart():
     # one reversal is a zigzag only at one rpm: the berthing runs (ahead and astern) stay mixed
     from mmg_tuner.data.esso import esso_data_dir, read_esso

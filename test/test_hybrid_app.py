@@ -166,6 +166,8 @@ def test_tune_residual_seeds_keep_the_mean_of_their_networks(trial_dir, tmp_path
     np.testing.assert_allclose(r.net.biases[-1], (alone[0].biases[-1] + alone[1].biases[-1]) / 2)
     with pytest.raises(mt.MmgTunerError, match='residual_seeds'):
         mt.TuneConfig(residual='hybrid', residual_seeds=0)
+    with pytest.raises(mt.MmgTunerError, match='residual_seeds'):   # before any tuning
+        mt.TuneConfig(residual='hybrid', residual_seeds=2, seed=2 ** 31 - 1)
 
 
 def test_tune_residual_options_are_checked(trial_dir, tmp_path, capsys):

@@ -170,8 +170,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            'propeller side force',
            smallest=(0.0005,), neutral=(0.0,), boxes=((-0.005, 0.005),), periodic=(False,),
            words=lambda v, e: f"yaw moment bias N'_0 = {_pm(v, e, 'yaw_moment_bias', fmt='.2e')}",
-           settle_by='hold a straight course with the rudder free at several speeds and rpm: '
-                     'the mean rudder angle needed, against speed and rpm, measures the bias'),
+           settle_by='hold a straight course at several speeds and rpm: the mean rudder '
+                     'angle it takes, against speed and rpm, measures the bias'),
     Effect('antenna_offset', ('antenna_x', 'antenna_y'), ('m', 'm'),
            'positions recorded at a GNSS antenna away from midship and not moved there',
            smallest=(5.0, 1.0), neutral=(0.0, 0.0),

@@ -56,7 +56,9 @@ def _slewing(t: np.ndarray, rud_deg: np.ndarray) -> np.ndarray:
     """Return where the rudder moves at more than half its fastest rate (1 s smoothed)."""
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     k = max(1, int(round(1.0 / dt)))
-    smooth = np.convolve(rud_deg, np.ones(k) / k, mode='same') if k > 1 else rud_deg
+    # edge-padded: zeros beyond the record would read as a jump off a rudder held over
+    smooth = np.convolve(np.pad(rud_deg, (k // 2, k - 1 - k // 2), mode='edge'),
+                         np.ones(k) / k, mode='valid') if k > 1 else rud_deg
     rate = np.abs(np.gradient(smooth, t)) if t.size > 1 else np.zeros_like(t)
     fastest = float(np.percentile(rate, 99))
     return rate > 0.5 * fastest if fastest > 0.5 else np.zeros(t.size, bool)

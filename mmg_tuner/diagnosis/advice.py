@@ -587,8 +587,12 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     """
     rpm0, u0, dur, dt = operating_point(trials)
     specs = repertoire(ship, rpm0, u0, dur)
+    if rivals and sigma is None:
+        raise DiagnosisError('advise_all: rival pairs are judged against sigma = (position [m], '
+                             'heading [rad]); pass residual_scale(...)')
     pairs = _rival_figures(ship, rivals, trials, sigma, specs, dt) if rivals else []
-    out = [_rival_entry(it, specs) for it in pairs if np.any(it.figures > 0)]
+    pairs = [it for it in pairs if np.any(it.figures > 0)]   # no trial of them can be run
+    out = [_rival_entry(it, specs) for it in pairs]
     probe = [e for e in effects if len(EFFECTS[e].params) == 1]
     about = [e for e in about if e in probe]
     items: list[_Item] = []

@@ -116,9 +116,12 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
             lines += [f"**Sail first** (one trial for all of {a['about']}, chosen by how many "
                       'it settles, then by the information it adds to all of them; each '
                       'judged with the others free): ' + a['instruction'] + '. It '
-                      + joint_text(a) + '.', '']
-            lines += [f'- {e}: no trial can settle it; instead: {m}'
-                      for e, m in a.get('not_settled_by_a_trial', {}).items()]
+                      + joint_text(a) + '.'
+                      + ('' if a.get('lifts') else ' No single trial settles them all apart '
+                         'here; this one adds the most information to all of them, and each '
+                         "effect's own trial below may settle it alone."), '']
+            lines += [f'- {e}: no trial can settle it against the base coefficients; '
+                      f'instead: {m}' for e, m in a.get('not_settled_by_a_trial', {}).items()]
             lines += [''] if a.get('not_settled_by_a_trial') else []
         lines += ['| about | trial | separation / resolution | recorded trials |',
                   '|---|---|---|---|']
