@@ -58,7 +58,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from esso_osaka import (  # noqa: E402, I100
-    check_provenance, fail, KINDS, load_split, PARAMS_OUT, RESTART_S)
+    check_provenance, fail, FOLDS, KINDS, load_split, params_path, RESTART_S)
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
 from mmg_tuner.core.residual import ResidualNet  # noqa: E402
@@ -71,7 +71,7 @@ PAPER = {'random': (0.272, 0.236), 'turning': (0.858, 0.713), 'zigzag': (1.015, 
          'berthing': ('0.036-0.189', '0.052-0.138')}
 
 
-def tuned_ship(ship, test, path: Path, default: bool):
+def tuned_ship(ship, test, path: Path, default: bool, fold: int = 1):
     """
     Load the tuned low-speed MMG bench/esso_osaka.py wrote, refusing stale or foreign files.
 
@@ -84,7 +84,7 @@ def tuned_ship(ship, test, path: Path, default: bool):
         if prov.get('held_out_runs') != held:
             fail(f'{path} was tuned with another split (held out: '
                  f'{prov.get("held_out_runs")}; this bench holds out {held}); rebuild it '
-                 f'with: python bench/esso_osaka.py --out {path}')
+                 f'with: python bench/esso_osaka.py --fold {fold} --out {path}')
         print(f'tuned low-speed MMG: {path} ({prov["evaluations"]} evaluations, inputs '
               f'{prov["inputs_sha256"][:12]}... match)')
     else:
@@ -127,25 +127,32 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument('--select', choices=SELECT, default='mean',
                     help='the epoch kept: best on the mean validation loss, or on the worst '
                     'kind (every_group)')
-    ap.add_argument('--tuned', type=Path, default=PARAMS_OUT,
-                    help='the tuned params.yaml (written by bench/esso_osaka.py)')
+    ap.add_argument('--fold', type=int, choices=FOLDS, default=1,
+                    help="bench/esso_osaka.py's split with this held-out offset (1: the split "
+                    'of every table; 0, 2: cross-validation folds, outputs under '
+                    'bench/out/esso_hybrid/foldF)')
+    ap.add_argument('--tuned', type=Path, default=None,
+                    help='the tuned params.yaml (written by bench/esso_osaka.py; default its '
+                    'output for --fold)')
     ap.add_argument('--skip', nargs='*', default=[], choices=('network', 'hybrid'))
     ap.add_argument('--hybrid-base', choices=('tuned', 'published'), default='tuned',
                     help='the physics under the residual')
     return ap
 
 
-def bench_runs(dt: float, tuned_path: Path):
+def bench_runs(dt: float, tuned_path: Path, fold: int = 1):
     """
     Return the published ship, the tuned one, the training and held-out runs on ``dt``, kinds.
 
-    The split is bench/esso_osaka.py's; the tuned ship is checked by :func:`tuned_ship`.
+    The split is bench/esso_osaka.py's (held-out offset ``fold``); the tuned ship is checked by
+    :func:`tuned_ship`.
     """
     ship = mt.load_ship('esso_osaka_3m')
-    train, test, kind_of = load_split()
-    print(f'training runs: {len(train)} ({sum(t.duration_s for t in train):.0f} s), held out: '
+    train, test, kind_of = load_split(fold)
+    print(f'fold {fold}: training runs: {len(train)} '
+          f'({sum(t.duration_s for t in train):.0f} s), held out: '
           f'{len(test)} ({sum(t.duration_s for t in test):.0f} s)')
-    tuned = tuned_ship(ship, test, tuned_path, tuned_path == PARAMS_OUT)
+    tuned = tuned_ship(ship, test, tuned_path, tuned_path == params_path(fold), fold)
     return (ship, tuned, [t.resampled(dt) for t in train], [t.resampled(dt) for t in test],
             kind_of)
 
@@ -205,8 +212,11 @@ def held_out_scores(ships: list, test_g: list) -> dict:
 
 def main() -> None:
     args = parser().parse_args()
+    if args.tuned is None:
+        args.tuned = params_path(args.fold)
+    out = out_dir(args.fold)
     t_all = time.perf_counter()
-    ship, tuned, train_g, test_g, kind_of = bench_runs(args.dt, args.tuned)
+    ship, tuned, train_g, test_g, kind_of = bench_runs(args.dt, args.tuned, args.fold)
     models = {'published': [ship], 'tuned': [tuned]}
     seconds, shares = {}, {}
     for name, physics in (('network', False), ('hybrid', True)):
@@ -221,9 +231,9 @@ def main() -> None:
             seconds[name].append(fit.seconds)
             on = f'_{args.hybrid_base}' if physics else ''
             net = shrunk(fit.net, args.shrink) if physics else fit.net
-            net_file = (OUT / f'{name}{on}_bw{bw}_{balance}_'
+            net_file = (out / f'{name}{on}_bw{bw}_{balance}_'
                         f'{args.select}{_variant(args, physics)}_seed{seed}.npz')
-            OUT.mkdir(parents=True, exist_ok=True)
+            out.mkdir(parents=True, exist_ok=True)
             net.save(net_file)
             print(f'{name} seed {seed}: {fit.seconds:.0f} s, {fit.epochs} epochs (best '
                   f'{fit.best_epoch}), share {100 * fit.share:.1f} %, validation gain '
@@ -239,7 +249,7 @@ def main() -> None:
             models[name].append(dataclasses.replace(base, residual=net))
         if physics and len(args.seeds) > 1:   # one network averaging the seeds' residuals
             ens = ensemble([m.residual for m in models[name]])
-            ens.save(OUT / f'hybrid_ensemble_{args.balance}_{args.select}'
+            ens.save(out / f'hybrid_ensemble_{args.balance}_{args.select}'
                      f'{_variant(args, True)}.npz')
             models['ensemble'] = [dataclasses.replace(base, residual=ens)]
     scores = {}
@@ -280,10 +290,16 @@ def main() -> None:
                   + ', '.join(f'{100 * x:.1f} %' for x in s) + f' (seeds {args.seeds})')
     summary = {'dt': args.dt, 'seeds': args.seeds, 'options': {
         k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-        'scores': scores, 'seconds': seconds, 'share': shares, 'kind_of': kind_of}
-    OUT.mkdir(parents=True, exist_ok=True)
-    write_atomic(OUT / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
+        'scores': scores, 'seconds': seconds, 'share': shares, 'kind_of': kind_of,
+        'held_out_runs': [t.name for t in test_g], 'fold': args.fold}
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
+
+
+def out_dir(fold: int) -> Path:
+    """Return where a fold's networks and summary go (fold 1: OUT itself, as always)."""
+    return OUT if fold == 1 else OUT / f'fold{fold}'
 
 
 def _variant(args, physics: bool) -> str:

@@ -2,7 +2,7 @@
 Tune the low-speed model on the real Esso Osaka pond data and score it on held-out runs.
 
   python bench/esso_osaka.py [--max-evals 4000] [--segment 100] [--balance group]
-                             [--prior 0.05] [--targets yaml|lowspeed] [--seed 0]
+                             [--prior 0.05] [--targets yaml|lowspeed] [--seed 0] [--fold 1]
                              [--out bench/out/esso_osaka/params.yaml]
 
 Data: the 33 FRT-DS-ESSO runs in data/esso_osaka_frt (CC BY-NC-SA 4.0), read whole with
@@ -18,7 +18,9 @@ Split, a fixed rule chosen before any tuning and not changed since: within each 
 are sorted by file name; the second and then every third (positions 1, 4, 7, ... counting from
 0) are held out, the rest tune (held out: 4 turning, 2 zigzag, 3 random, 2 berthing). A
 ``turn_cut_X`` file is a trimmed copy of ``turn_X``: it is dropped when ``turn_X`` is present
-(it would put the same data on both sides of the split).
+(it would put the same data on both sides of the split). ``--fold 0`` or ``2`` holds out the
+positions i with i mod 3 == 0 or 2 instead, for the cross-validation of
+bench/esso_hybrid_cv.py (every run held out exactly once over the three folds).
 
 Tuning: CMA-ES from the published values within the YAML's absolute boxes
 (config/esso_osaka_3m.yaml ``tuning.bounds``) on the targets: ``lowspeed`` (default) = the
@@ -80,9 +82,20 @@ def runs_by_kind() -> dict[str, list[Path]]:
     return out
 
 
-def split(files: list[Path]) -> tuple[list[Path], list[Path]]:
-    held = [f for i, f in enumerate(files) if i % 3 == 1]
+FOLDS = (0, 1, 2)
+"""Held-out offsets of the split rule; fold 1 is the split every table uses unless a fold is
+named (bench/esso_hybrid_cv.py scores all three: each run is held out exactly once)."""
+
+
+def split(files: list[Path], fold: int = 1) -> tuple[list[Path], list[Path]]:
+    """Return (tuning files, held-out files): positions i with i mod 3 == fold are held out."""
+    held = [f for i, f in enumerate(files) if i % 3 == fold]
     return [f for f in files if f not in held], held
+
+
+def params_path(fold: int) -> Path:
+    """Return the default params file of a fold (fold 1: PARAMS_OUT, as always)."""
+    return PARAMS_OUT if fold == 1 else PARAMS_OUT.with_name(f'params_fold{fold}.yaml')
 
 
 def fail(message: str) -> None:
@@ -138,11 +151,11 @@ def read(path: Path, kind: str):
     return tr
 
 
-def load_split():
+def load_split(fold: int = 1):
     """(training runs, held-out runs, kind of each run by name): both Esso benches split so."""
     train, test, kind_of = [], [], {}
     for kind, files in runs_by_kind().items():
-        a, b = split(files)
+        a, b = split(files, fold)
         for f in a + b:
             tr = read(f, kind)
             kind_of[tr.name] = kind
@@ -162,10 +175,16 @@ def main() -> None:
     ap.add_argument('--prior', type=float, default=0.05,
                     help='pull toward the published values (0: none)')
     ap.add_argument('--targets', choices=('yaml', 'lowspeed'), default='lowspeed')
-    ap.add_argument('--out', type=Path, default=PARAMS_OUT,
+    ap.add_argument('--fold', type=int, choices=FOLDS, default=1,
+                    help='hold out the runs at positions i mod 3 == FOLD of each kind (1: the '
+                    'split of every table; 0 and 2: the cross-validation folds)')
+    ap.add_argument('--out', type=Path, default=None,
                     help='write the tuned params.yaml here (atomically; a previous output of '
-                    'this script is replaced, any other file refused)')
+                    'this script is replaced, any other file refused; default '
+                    'bench/out/esso_osaka/params.yaml, params_foldF.yaml for fold 0 or 2)')
     args = ap.parse_args()
+    if args.out is None:
+        args.out = params_path(args.fold)
     if args.out.is_dir():
         fail(f'--out {args.out} is a folder; give a file name (e.g. params.yaml)')
     if args.out.exists() and f'command: {PARAMS_COMMAND}' not in args.out.read_text():
@@ -173,8 +192,9 @@ def main() -> None:
              'not overwriting it; give another file')
     t_all = time.perf_counter()
     ship = mt.load_ship('esso_osaka_3m')
-    train, test, kind_of = load_split()
-    print(f'training runs: {len(train)} ({sum(t.duration_s for t in train):.0f} s), held out: '
+    train, test, kind_of = load_split(args.fold)
+    print(f'fold {args.fold}: training runs: {len(train)} '
+          f'({sum(t.duration_s for t in train):.0f} s), held out: '
           f'{len(test)} ({sum(t.duration_s for t in test):.0f} s)')
     for kind in KINDS:
         print(f'  {kind:9s} held out: '
@@ -213,7 +233,7 @@ def main() -> None:
     prov = {'command': PARAMS_COMMAND, 'options': {k: (str(v) if isinstance(v, Path) else v)
                                                    for k, v in vars(args).items()},
             'evaluations': int(res.evaluations), 'training_runs': [t.name for t in train],
-            'held_out_runs': [t.name for t in test],
+            'held_out_runs': [t.name for t in test], 'fold': args.fold,
             'inputs_sha256': inputs_fingerprint(ship.source)}
     write_atomic(args.out, text + yaml.safe_dump({'provenance': prov}, sort_keys=False))
     print(f'CMA-ES: {res.evaluations} evaluations, {res.restarts} restart(s), '

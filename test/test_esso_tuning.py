@@ -166,3 +166,21 @@ def test_bench_params_file_is_refused_when_its_inputs_changed(tmp_path, monkeypa
     run.write_text('t,x\n0,1\n')
     cfg.write_text('ship: y\n')           # the ship config edited
     refused('other inputs')
+
+
+def test_bench_folds_hold_out_every_run_exactly_once():
+    """The cross-validation folds of bench/esso_osaka.py: fold 1 is the tables' split."""
+    import importlib.util
+    from pathlib import Path
+    src = Path(__file__).resolve().parents[1] / 'bench' / 'esso_osaka.py'
+    spec = importlib.util.spec_from_file_location('esso_osaka_bench_folds', src)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    for kind, files in bench.runs_by_kind().items():
+        held = [bench.split(files, f)[1] for f in bench.FOLDS]
+        assert sorted(f for h in held for f in h) == sorted(files), kind   # each once
+        assert bench.split(files)[1] == files[1::3], kind                  # the old rule
+        for f, h in zip(bench.FOLDS, held):
+            assert bench.split(files, f)[0] == [x for x in files if x not in h]
+    assert bench.params_path(1) == bench.PARAMS_OUT
+    assert bench.params_path(0) != bench.params_path(2) != bench.PARAMS_OUT
