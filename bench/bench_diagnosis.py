@@ -21,6 +21,18 @@ once to each side (its spec and its ``pair``), as ``generate --from-advice`` doe
 held-out ones (the rule names an effect on its held-out gain only), and the case is diagnosed
 again.
 
+The measurement loop: an effect no trial can settle is advised a measurement; when it fixes base
+coefficients (the advice's 'pinned_by': rpm_scale -> R_0, t_P, w_P0 from resistance and
+self-propulsion tests), every case still missed after the advised trial (or given none), and
+every clean case (no false alarm from the measurement's error), is diagnosed again as the
+advice says: the trials so far (with the advised pair if it was sailed), those coefficients set
+on the ship at their measured values and dropped from the targets (the advice's
+'targets_pinned'). The measurement is simulated from the hidden truth with a 2 % relative
+normal error (1 sigma, independent per coefficient, seeded by the case seed): the order of a
+towing tank's repeatability for resistance and thrust; the derived wake fraction and thrust
+deduction are less certain, so this is the optimistic end (a 2 % error of w_P0 = 0.42 alone
+mimics an rpm scale of ~1.4 %, half the smallest worth finding). Nothing else uses the truth.
+
     python bench/bench_diagnosis.py [--cases 5] [--seed0 0] [--budget standard]
                                     [--effects ...] [--retune lsq|cmaes] [--no-advice]
                                     [--quick] [--fresh] [--name NAME]
@@ -57,6 +69,7 @@ OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
            'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force')
 # the stages of a diagnosis, in the order they run (timings_s keys; others are appended)
+MEASUREMENT_ERROR = 0.02   # relative, 1 sigma: see the module docstring
 STAGES = ('setup', 'base_tune', 'identifiability', 'screen', 'retune', 'backward', 'advice',
           'residual_model', 'report')
 
@@ -132,10 +145,27 @@ def make_case(ship, cls: str, seed: int, n_trials: int, duration_s: float):
     return truth, effect, random_trials(truth, rng, n_trials, duration_s, seed)
 
 
-def _diagnose(ship, tune, test, budget: str, seed: int, retune: str) -> tuple:
+def _diagnose(ship, tune, test, budget: str, seed: int, retune: str, targets=None) -> tuple:
     t0 = time.perf_counter()
-    d = mt.diagnose(ship, tune, test, budget=budget, seed=seed, retune=retune)
+    d = mt.diagnose(ship, tune, test, budget=budget, seed=seed, retune=retune, targets=targets)
     return d, time.perf_counter() - t0
+
+
+def pin_advice(advice: list[dict]) -> dict | None:
+    """
+    Return the first degenerate advice entry whose measurement fixes base targets.
+
+    (It names them: 'pinned_by', and the run's targets without them: 'targets_pinned'.) None
+    when there is none. Chosen without the truth.
+    """
+    return next((a for a in advice if a.get('degenerate') and a.get('pinned_by')), None)
+
+
+def measure(truth, names, seed: int) -> dict[str, float]:
+    """Return the truth's coefficients as a test would measure them (MEASUREMENT_ERROR)."""
+    rng = np.random.default_rng(20_000 + seed)
+    return {p: float(truth[p] * (1.0 + MEASUREMENT_ERROR * rng.standard_normal()))
+            for p in names}
 
 
 def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
@@ -177,16 +207,17 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
     pick = best_advice(d.advice)
     row['measure_instead'] = {a['about']: a['settle_by'] for a in d.advice
                               if a.get('degenerate')}
+    last, extra, held = d, [], []
     if advice and pick is not None and (not row['correct'] or cls == 'clean'):
         spec = TrialSpec.from_dict(pick['spec'])
         # sailed by the hidden truth, recorded at the trials' rate with sensor noise; the pair
         # (the same trial to the other side): one run tuned on, one held out
-        _, extra = trial_from_spec(truth, spec, 1.0, SensorNoise(), seed * 100 + 99)
-        held = []
+        extra = [trial_from_spec(truth, spec, 1.0, SensorNoise(), seed * 100 + 99)[1]]
         if pick.get('pair'):
             held = [trial_from_spec(truth, TrialSpec.from_dict(pick['pair']), 1.0,
                                     SensorNoise(), seed * 100 + 98)[1]]
-        d2, wall2 = _diagnose(ship, tune + [extra], test + held, budget, seed, retune)
+        d2, wall2 = _diagnose(ship, tune + extra, test + held, budget, seed, retune)
+        last = d2
         row['advice'] = {'about': pick['about'], 'kind': pick['kind'],
                          'instruction': pick['instruction'],
                          'all': [(a['about'], a['instruction'], a['separation'],
@@ -195,6 +226,18 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
                          'settles': pick['settles'], 'separation': pick['separation'],
                          'separation_recorded': pick['separation_recorded'],
                          **_outcome(cls, effect, d2, wall2)}
+    pin = pin_advice(last.advice)   # the advice of the latest diagnosis the crew has
+    if advice and pin is not None and (not _with_advice(row)['correct'] or cls == 'clean'):
+        measured = measure(truth, pin['pinned_by'], seed)
+        d3, wall3 = _diagnose(ship.with_params(measured), tune + extra, test + held, budget,
+                              seed, retune, pin['targets_pinned'])
+        row['measured'] = {'about': pin['about'], 'pinned': measured,
+                           'truth_pinned': {p: float(truth[p]) for p in measured},
+                           'targets': list(pin['targets_pinned']),
+                           'with_trial': bool(extra),
+                           'resolution_pinned': pin.get('resolution_pinned'),
+                           'resolution_pinned_trial': pin.get('resolution_pinned_trial'),
+                           **_outcome(cls, effect, d3, wall3)}
     return row
 
 
@@ -203,6 +246,13 @@ def _with_advice(r: dict) -> dict:
     return {**r, **{k: v for k, v in r['advice'].items() if k in (
         'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
         if 'advice' in r else r
+
+
+def _with_measurement(r: dict) -> dict:
+    """Return the case's outcome once the advised measurement was used (else as advised)."""
+    return {**r, **{k: v for k, v in r['measured'].items() if k in (
+        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
+        if 'measured' in r else _with_advice(r)
 
 
 def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
@@ -243,6 +293,27 @@ def summarise(rows: list[dict]) -> str:
                            'one run added to the tuning trials, one to the held-out ones, in '
                            'every missed case and every clean case)')
     lines += more
+    meas = [_with_measurement(r) for r in rows]
+    more, _, _ = confusion(meas, 'Confusion matrix with the advised trial or measurement (where '
+                           'the advice names a measurement that fixes base coefficients: '
+                           'those set to the truth with a '
+                           f'{100 * MEASUREMENT_ERROR:.0f} % relative error and dropped from '
+                           'the targets, in every case still missed and every clean case)')
+    lines += more
+    for r in rows:
+        if 'measured' not in r:
+            continue
+        m = r['measured']
+        res = m.get('resolution_pinned')
+        lines.append(f"- {r['class']} seed {r['seed']}: {_with_advice(r)['named'] or 'nothing'}"
+                     f" -> {m['named'] or 'nothing'} with "
+                     + ', '.join(f'{p} {v:.4g} (true {m["truth_pinned"][p]:.4g})'
+                                 for p, v in m['pinned'].items())
+                     + f" held (for {m['about']}"
+                     + ('' if res is None else f'; predicted resolution {res:.3g}')
+                     + (', with the advised pair' if m['with_trial'] else '') + ')'
+                     + (f"; estimate {m['estimates']}" if m['estimates'] else ''))
+    lines.append('')
     tried = [r for r in rows if 'advice' in r]
     for r in tried:
         a = r['advice']
@@ -265,7 +336,7 @@ def summarise(rows: list[dict]) -> str:
     lines += ['', '| hidden effect | parameter | median abs error | max abs error | cases |',
               '|---|---|---|---|---|']
     by = defaultdict(list)
-    for r in adv:
+    for r in meas:   # the final estimate: with the advised trial or measurement if used
         by[r['class']].append(r)
     for cls in CLASSES:
         errs = defaultdict(list)
@@ -288,6 +359,11 @@ def summarise(rows: list[dict]) -> str:
             lines.append(f'Re-diagnosis with the advised trial: median '
                          f"{np.median([r['advice']['wall_s'] for r in tried]):.1f} s over "
                          f'{len(tried)} cases')
+        pinned = [r for r in rows if 'measured' in r]
+        if pinned:
+            lines.append(f'Re-diagnosis with the advised measurement: median '
+                         f"{np.median([r['measured']['wall_s'] for r in pinned]):.1f} s over "
+                         f'{len(pinned)} cases')
     return '\n'.join(lines)
 
 
@@ -328,14 +404,18 @@ def main() -> None:
             rows.append(r)
             with path.open('a') as f:
                 f.write(json.dumps(r) + '\n')
-            adv = r.get('advice')
+            adv, mea = r.get('advice'), r.get('measured')
             print(f"{cls:16s} seed {seed}: named {r['named'] or 'nothing'} "
                   f"{'ok' if r['correct'] else 'WRONG'}  {r['wall_s']:.0f} s  "
                   f"truth {r['truth']}  est {r['estimates']}  stages "
                   + ', '.join(f'{k} {v:.1f}' for k, v in r['timings_s'].items())
                   + (f"\n{'':16s} with advice ({adv['instruction']}): named "
                      f"{adv['named'] or 'nothing'} {'ok' if adv['correct'] else 'WRONG'} "
-                     f"{adv['wall_s']:.0f} s" if adv else ''), flush=True)
+                     f"{adv['wall_s']:.0f} s" if adv else '')
+                  + (f"\n{'':16s} with {', '.join(mea['pinned'])} measured: named "
+                     f"{mea['named'] or 'nothing'} {'ok' if mea['correct'] else 'WRONG'} "
+                     f"est {mea['estimates']} {mea['wall_s']:.0f} s" if mea else ''),
+                  flush=True)
     sel = [r for r in rows if r['class'] in args.effects
            and args.seed0 <= r['seed'] < args.seed0 + args.cases]
     text = summarise(sel)

@@ -28,8 +28,8 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_hybrid import out_dir, parser  # noqa: E402
-from esso_osaka import FOLDS, KINDS, runs_by_kind, split  # noqa: E402, I100
+from esso_hybrid import out_dir, parser  # noqa: E402, I100
+from esso_osaka import FOLDS, KINDS, runs_by_kind, split  # noqa: E402
 
 VERDICT_FOLDS = (0, 2)
 SEEDS = [0, 1, 2]
@@ -127,7 +127,7 @@ def main() -> None:
             + ' |')
     h1, lost1 = verdict(table, 'hybrid', RIVALS)
     h2, lost2 = verdict(table, 'ensemble', RIVALS)
-    print(f'\nH1 (primary): the single hybrid below published, tuned and network on every kind: '
+    print('\nH1 (primary): the single hybrid below published, tuned and network on every kind: '
           + ('HOLDS' if h1 else f'FAILS (not best on: {", ".join(lost1)})'))
     print('H2 (secondary): the 3-seed ensemble below published, tuned and network on every '
           'kind: ' + ('HOLDS' if h2 else f'FAILS (not best on: {", ".join(lost2)})'))

@@ -197,3 +197,53 @@ def test_rpm_scale_is_reproduced_exactly_by_the_propulsion_coefficients(suzaku):
                 assert np.all(rel < 1e-9), rel
             else:
                 assert np.max(rel) > 1e-3, rel
+
+
+def test_a_measurement_that_pins_base_targets_comes_with_the_re_run_and_settles_rpm_scale(
+        suzaku):
+    """
+    rpm_scale's measurement fixes R_0, t_P and w_P0: the advice says how to re-run without them.
+
+    With them held the recorded trials resolve rpm_scale (~4.6 here, from ~0.04 with them
+    tuned). t_P and w_P0 alone are not enough (~0.14): under the propeller law thrust and
+    resistance both go with u^2, so a tuned R_0 absorbs the k^2 -- why R_0 is in pinned_by.
+    time_offset's measurement (one clock, the blade angle) settles the delay itself and pins
+    no coefficient.
+    """
+    trials = [generate_trial(suzaku, m, a, None, 106.0, 3.086, 200.0, 1.0, SensorNoise(),
+                             i, f'{m}{a:+d}')[1]
+              for i, (m, a) in enumerate([('zigzag', 10), ('turning', 20)])]
+    obj = Objective(suzaku, TrialBatch.from_trials(trials), integrator='rk4')
+    base = ParameterSpace.around(suzaku)
+    effects = ['rpm_scale', 'time_offset']
+    assert EFFECTS['rpm_scale'].pinned_by == ('R_0', 't_P', 'w_P0')
+    assert EFFECTS['time_offset'].pinned_by == ()
+    out = advise_all(suzaku, base, base.pre, obj, effects, trials, effects, [])
+    per = {a['about']: a for a in out}
+    rpm, toff = per['rpm_scale'], per['time_offset']
+    assert rpm['degenerate'] and toff['degenerate']
+    assert rpm['pinned_by'] == ['R_0', 't_P', 'w_P0']
+    rest = [n for n in base.names if n not in ('R_0', 't_P', 'w_P0')]
+    assert rpm['targets_pinned'] == rest and len(rest) == base.dim - 3
+    assert '--targets ' + ' '.join(rest) in rpm['instruction']
+    assert 'held at the measured values' in rpm['instruction'] and '--params' in rpm['instruction']
+    assert EFFECTS['rpm_scale'].settle_by in rpm['instruction']
+    assert 'pinned_by' not in toff and '--targets' not in toff['instruction']
+    # the pin makes it settleable on the recorded trials, far from the 1 needed either way
+    assert rpm['resolution_pinned'] > 2.0
+    assert rpm['resolution_pinned'] > 20 * rpm['separation_recorded']
+    assert rpm['resolution_pinned_trial'] >= rpm['resolution_pinned'] * (1 - 1e-9)
+    assert 'these trials resolve it' in rpm['instruction']
+    # without R_0 held the tuned resistance still absorbs the scale
+    from mmg_tuner.diagnosis.advice import _information
+    info = _information(suzaku, base, base.pre, obj, effects, trials)
+    assert info.resolution(info.r_rec, 'rpm_scale', held=['t_P', 'w_P0']) < 0.5
+    assert info.resolution(info.r_rec, 'rpm_scale', held=['R_0', 't_P', 'w_P0']) \
+        == pytest.approx(rpm['resolution_pinned'], rel=1e-9)
+    # the report repeats the re-run where it lists what no trial can settle
+    from mmg_tuner.diagnosis.report import markdown
+    md = markdown({'baseline': {'J_test': 1.0}, 'final': {'J_test': 0.5}, 'causes': [],
+                   'candidates': [], 'advice': out,
+                   'residuals': {'base_model': {'per_trial': {}, 'correlation': {}},
+                                 'final_model': {'per_trial': {}}}}, suzaku)
+    assert '--targets ' + ' '.join(rest) in md[md.index('## The trial that would settle it'):]

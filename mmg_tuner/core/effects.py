@@ -62,6 +62,10 @@ class Effect:
     settle_by: the independent measurement that settles the effect when no manoeuvre can
         (it is degenerate with the base targets for every trial); the diagnosis' advice
         quotes it. Empty: a trial is the way.
+    pinned_by: the base coefficients that measurement fixes, when it is one (rpm_scale: a
+        self-propulsion test gives t_P and w_P0): held at the measured values and dropped from
+        the tuning targets, they can no longer absorb the effect. Empty when the measurement
+        settles the effect itself (a tachometer, a common clock) rather than a coefficient.
 
     """
 
@@ -75,6 +79,7 @@ class Effect:
     periodic: tuple[bool, ...]
     words: Callable[[dict, dict], str]
     settle_by: str = ''
+    pinned_by: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.params)
@@ -163,8 +168,13 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            # n -> k n is reproduced by 1 - w_P -> (1 - w_P) / k, 1 - t_P -> k^2 (1 - t_P),
            # epsilon -> k epsilon: only the propulsion coefficients fixed elsewhere separate it
            settle_by='compare the logged rpm with a shaft tachometer (or an optical counter on '
-                     'the shaft) over the rpm range, or fix t_P and w_P0 from a '
-                     'self-propulsion test so the tuning cannot absorb the scale'),
+                     'the shaft) over the rpm range, or fix R_0, t_P and w_P0 from resistance '
+                     'and self-propulsion tests so the tuning cannot absorb the scale',
+           # what those tests fix: the resistance, thrust deduction and wake at straight running.
+           # t_P and w_P0 alone are not enough: with the propeller law (u ~ n) thrust and
+           # resistance both go with u^2, so a tuned R_0 absorbs k^2 (resolution 0.14 -> 4.6 on
+           # two trials when R_0 is held too); epsilon stays tuned: it maps only the rudder inflow
+           pinned_by=('R_0', 't_P', 'w_P0')),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "
            'propeller side force',

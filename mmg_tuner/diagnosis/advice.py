@@ -41,7 +41,11 @@ targets for every manoeuvre of the repertoire: its advice says so and quotes the
 measurement that settles it (the effect library's ``settle_by``). rpm_scale is the clear case:
 n -> k n is reproduced exactly by 1 - w_P -> (1 - w_P) / k, 1 - t_P -> k^2 (1 - t_P) and
 epsilon -> k epsilon; only the propeller side force and moment (scaling with n^2), the drift
-shape of the wake and the u_R** floor differ (tested).
+shape of the wake and the u_R** floor differ (tested). When that measurement fixes base
+coefficients (``Effect.pinned_by``; rpm_scale: R_0, t_P, w_P0 from resistance and
+self-propulsion tests), the advice gives the re-run: those held at the measured values
+(``--params``), the run's other targets tuned (``--targets``), and the resolution the recorded
+trials (and the best trial) reach with them held, from the same linearisation.
 
 A crew sails one trial, and the diagnosis does not know which suspect is real: when two or
 more things can be settled by a trial (rival pairs, and flagged effects that are not
@@ -419,17 +423,17 @@ def _twice(spec: TrialSpec) -> str:
 
 
 def _effect_se(jac: np.ndarray, s2: float, n_base: int, j: int, width: float,
-               others: Sequence[int] = ()) -> float:
+               others: Sequence[int] = (), held: Sequence[int] = ()) -> float:
     """
     Return the standard error of parameter j (own units) with the n_base first ones free.
 
     As tuning.identifiability.aliasing: column j regressed on the base columns (and the columns
     ``others``, also free) by least squares on the Jacobian itself (the normal equations would
     square a condition number that aliasing makes large); only the part they cannot mimic is
-    evidence.
+    evidence. ``held``: base columns held fixed (known from a measurement), left out.
     """
     y = jac[:, j]
-    a = jac[:, list(range(n_base)) + [k for k in others if k != j]]
+    a = jac[:, [k for k in range(n_base) if k not in held] + [k for k in others if k != j]]
     coef, *_ = np.linalg.lstsq(a, y, rcond=None)
     rr = float(np.sum((y - a @ coef) ** 2))
     return float(math.sqrt(s2 / max(rr, 1e-300)) * width)
@@ -451,7 +455,7 @@ class _Information:
     The Gauss-Newton geometry of the flag, with each repertoire trial added.
 
     r_rec: R factor of the tuning trials' Jacobian; r_with[i]: with spec i added (None: it
-    cannot be run); columns: the base targets, then each probed effect (col).
+    cannot be run); columns: the base targets (``base_names``), then each probed effect (col).
     """
 
     specs: list[TrialSpec]
@@ -462,14 +466,21 @@ class _Information:
     col: dict[str, int]
     width: np.ndarray
     smallest: dict[str, float]
+    base_names: tuple[str, ...] = ()
 
-    def resolution(self, r: np.ndarray | None, e: str, others: Sequence[str] = ()) -> float:
-        """Return smallest / (2 SE) of effect e with the base targets (and others) free."""
+    def resolution(self, r: np.ndarray | None, e: str, others: Sequence[str] = (),
+                   held: Sequence[str] = ()) -> float:
+        """
+        Return smallest / (2 SE) of effect e with the base targets (and others) free.
+
+        held: base targets held at known values instead (a measurement pinned them).
+        """
         if r is None:
             return 0.0
         j = self.col[e]
         se = _effect_se(r, self.s2, self.n_base, j, self.width[j],
-                        [self.col[o] for o in others])
+                        [self.col[o] for o in others],
+                        [k for k, n in enumerate(self.base_names) if n in held])
         return self.smallest[e] / max(2 * se, 1e-300)
 
     def item(self, e: str, others: Sequence[str] = ()) -> _Item:
@@ -520,7 +531,7 @@ def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
         r_with.append(np.linalg.qr(np.vstack([r_rec, jc]), mode='r'))
     n = base.dim
     return _Information(specs, r_rec, r_with, s2, n, {e: n + k for k, e in enumerate(effects)},
-                        space.upper - space.lower, smallest)
+                        space.upper - space.lower, smallest, tuple(base.names))
 
 
 def _information_entry(info: _Information, it: _Item) -> dict:
@@ -536,9 +547,43 @@ def _information_entry(info: _Information, it: _Item) -> dict:
     if res < DEGENERATE_BELOW:
         settle_by = EFFECTS[e].settle_by or 'fix it from a measurement outside these trials'
         out.update(degenerate=True, settle_by=settle_by, best_trial=out['instruction'],
-                   instruction=f'no trial can settle it (the best of the repertoire reaches '
-                               f'resolution {res:.2g} of the 1 needed); instead: {settle_by}')
+                   measure=settle_by + _pinned(info, it, out))
+        out['instruction'] = (f'no trial can settle it (the best of the repertoire reaches '
+                              f"resolution {res:.2g} of the 1 needed); instead: {out['measure']}")
     return out
+
+
+def _pinned(info: _Information, it: _Item, out: dict) -> str:
+    """
+    Add what re-running with the measured coefficients held needs and gives; return its text.
+
+    For an effect whose measurement fixes base targets of this run (``Effect.pinned_by``):
+    'pinned_by' (those targets), 'targets_pinned' (this run's targets without them, for
+    ``--targets``), 'resolution_pinned' (the recorded trials' resolution with them held, same
+    linearisation) and 'resolution_pinned_trial' (the best repertoire trial's, also held).
+    '' (nothing added) when the measurement pins none of this run's targets.
+    """
+    pins = [p for p in EFFECTS[it.about].pinned_by if p in info.base_names]
+    if not pins:
+        return ''
+    rest = [n for n in info.base_names if n not in pins]
+    rec = info.resolution(info.r_rec, it.about, held=pins)
+    figs = [info.resolution(r, it.about, held=pins) for r in info.r_with]
+    k = int(np.argmax(figs)) if figs else -1
+    best = float(figs[k]) if figs else 0.0
+    out.update(pinned_by=pins, targets_pinned=rest, resolution_pinned=rec,
+               resolution_pinned_trial=best)
+    held = ', '.join(pins)
+    text = (f'; then re-run the diagnosis with {held} held at the measured values: --params '
+            f'<params.yaml with {held} under params:> --targets '
+            + (' '.join(rest) if rest else '<none left: every target was pinned>'))
+    if rec >= MIN_SEPARATION:
+        return text + f' (with them held these trials resolve it: {rec:.2g}, 1 needed)'
+    if best >= DEGENERATE_BELOW:
+        return text + (f' (with them held these trials resolve it to {rec:.2g} of the 1 needed, '
+                       f'with {_twice(info.specs[k])}: {best:.2g})')
+    return text + (f' (even with them held no trial resolves it: {max(rec, best):.2g} of the 1 '
+                   'needed)')
 
 
 def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
@@ -556,8 +601,10 @@ def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.nd
     trial, 'separation_recorded' without it, and 'se_with' / 'se_recorded' / 'smallest' in the
     parameter's units. An effect whose best resolution stays below DEGENERATE_BELOW is marked
     'degenerate': its 'instruction' says no trial settles it and quotes the effect library's
-    ``settle_by`` (also a field); the best trial stays in 'spec' and 'best_trial' as a record,
-    and ``generate --from-advice`` skips it.
+    ``settle_by`` (also a field; 'measure' adds the re-run when the measurement pins base
+    targets: 'pinned_by', 'targets_pinned', 'resolution_pinned', 'resolution_pinned_trial'); the
+    best trial stays in 'spec' and 'best_trial' as a record, and ``generate --from-advice``
+    skips it.
     """
     effects = [e for e in effects if len(EFFECTS[e].params) == 1]
     about = [e for e in (effects if about is None else about) if e in effects]
@@ -608,7 +655,7 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
         items = [info.item(e, [o for o in settleable if o != e]) for e in settleable]
     joint = joint_choice(pairs + items, specs)
     if joint is not None:
-        joint['not_settled_by_a_trial'] = {a['about']: a['settle_by'] for a in out
+        joint['not_settled_by_a_trial'] = {a['about']: a['measure'] for a in out
                                            if a.get('degenerate')}
         out.insert(0, joint)
     return out
@@ -696,7 +743,8 @@ def load_advice(path) -> list[TrialSpec]:
     except DiagnosisError as exc:
         raise DiagnosisError(f'{p}: {exc}') from None
     if not specs:
-        instead = '; '.join(f"{a.get('about')}: {a.get('settle_by')}" for a in doc['advice']
+        instead = '; '.join(f"{a.get('about')}: {a.get('measure') or a.get('settle_by')}"
+                            for a in doc['advice']
                             if isinstance(a, dict) and a.get('degenerate'))
         raise DiagnosisError(f'{p}: the diagnosis advises no trial (' + (
             f'no trial can settle what it could not: {instead})' if instead else

@@ -110,7 +110,10 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   'Sail each twice, once to each side: tune on one run, hold the other out '
                   '(an effect is named on its held-out gain). '
                   '`generate --from-advice diagnosis.json` runs both (the trial to sail '
-                  'first, then the others; never those no trial can settle).', '']
+                  'first, then the others; never those no trial can settle). An effect no '
+                  'trial can settle names the measurement that would; when that measurement '
+                  'fixes base coefficients, its advice gives the re-run (`--params` with them, '
+                  '`--targets` without them) and the resolution these trials reach then.', '']
         joint = [a for a in doc['advice'] if a.get('kind') == 'joint']
         for a in joint:   # one trial for all the suspects: which one is real is unknown
             lines += [f"**Sail first** (one trial for all of {a['about']}, chosen by how many "
