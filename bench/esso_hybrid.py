@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 from pathlib import Path
 import sys
 import time
@@ -79,7 +80,7 @@ def tuned_ship(ship, test, path: Path, default: bool, fold: int = 1):
     file given with ``--tuned`` is checked when it carries one, else used with a note.
     """
     if default or not path.is_file() or 'provenance:' in path.read_text():
-        prov = check_provenance(path, ship.source)
+        prov = check_provenance(path, ship.source, fold)
         held = [t.name for t in test]
         if prov.get('held_out_runs') != held:
             fail(f'{path} was tuned with another split (held out: '
@@ -291,7 +292,10 @@ def main() -> None:
     summary = {'dt': args.dt, 'seeds': args.seeds, 'options': {
         k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
         'scores': scores, 'seconds': seconds, 'share': shares, 'kind_of': kind_of,
-        'held_out_runs': [t.name for t in test_g], 'fold': args.fold}
+        'held_out_runs': [t.name for t in test_g], 'fold': args.fold,
+        # which tuned physics: its bytes and how it was tuned (the cross-validation checks them)
+        'tuned_sha256': hashlib.sha256(args.tuned.read_bytes()).hexdigest(),
+        'tuned_provenance': (yaml.safe_load(args.tuned.read_text()) or {}).get('provenance')}
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')

@@ -21,6 +21,7 @@ when the folds were registered).
 """
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 import sys
 
@@ -29,7 +30,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from esso_hybrid import out_dir, parser  # noqa: E402, I100
-from esso_osaka import FOLDS, KINDS, runs_by_kind, split  # noqa: E402
+from esso_osaka import FOLDS, KINDS, params_path, runs_by_kind, split  # noqa: E402
+from esso_osaka import parser as tuning_parser  # noqa: E402
 
 VERDICT_FOLDS = (0, 2)
 SEEDS = [0, 1, 2]
@@ -67,6 +69,7 @@ def load_fold(fold: int) -> dict | None:
         sys.exit(f'ERROR: {path}: not the registered run (seeds {doc.get("seeds")}, options '
                  f'differing from the defaults: {bad}, fold {opts.get("fold", 1)}); rerun: '
                  f'python bench/esso_hybrid.py --fold {fold} --seeds 0 1 2')
+    check_tuned(path, doc, fold)
     want = held_out_names(fold)
     got = {n for n in doc['scores']['tuned'] if n != 'all'}
     if got != set(want):
@@ -74,6 +77,36 @@ def load_fold(fold: int) -> dict | None:
                  f'{sorted(want)}')
     doc['kinds'] = want
     return doc
+
+
+def check_tuned(path: Path, doc: dict, fold: int) -> None:
+    """
+    Exit unless the summary's physics is the fold's registered tuning, unchanged since.
+
+    Its file must be the fold's default (``params_path``), its bytes those recorded in the
+    summary, and its provenance the fold with bench/esso_osaka.py's default options.
+    """
+    rerun = (f'rerun: python bench/esso_osaka.py --fold {fold} && python bench/esso_hybrid.py '
+             f'--fold {fold} --seeds 0 1 2')
+    tuned = params_path(fold)
+    if doc['options'].get('tuned') != str(tuned):
+        sys.exit(f'ERROR: {path}: its tuned physics is {doc["options"].get("tuned")}, not the '
+                 f"fold's {tuned}; {rerun}")
+    if 'tuned_sha256' not in doc:
+        sys.exit(f'ERROR: {path}: does not record the bytes of its tuned physics (written by '
+                 f'an older bench/esso_hybrid.py); {rerun}')
+    if not tuned.is_file() or (hashlib.sha256(tuned.read_bytes()).hexdigest()
+                               != doc['tuned_sha256']):
+        sys.exit(f'ERROR: {path}: {tuned} changed (or vanished) since the summary was written; '
+                 f'{rerun}')
+    prov = doc.get('tuned_provenance') or {}
+    defaults = {k: v for k, v in vars(tuning_parser().parse_args([])).items()
+                if k not in ('out', 'fold')}
+    opts = prov.get('options', {})
+    bad = [k for k, v in defaults.items() if opts.get(k) != v]
+    if prov.get('fold', 1) != fold or bad:
+        sys.exit(f'ERROR: {tuned}: not tuned as registered (fold {prov.get("fold", 1)}, '
+                 f'options differing from the defaults: {bad}); {rerun}')
 
 
 def run_index(scores: dict, model: str, run: str, seed: int | None = None) -> float:

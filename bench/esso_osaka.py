@@ -120,7 +120,7 @@ def inputs_fingerprint(ship_source: str | Path) -> str:
     return h.hexdigest()
 
 
-def check_provenance(path: Path, ship_source: str | Path) -> dict:
+def check_provenance(path: Path, ship_source: str | Path, fold: int = 1) -> dict:
     """
     Return the ``provenance`` of a params.yaml this script wrote, if its inputs are today's.
 
@@ -128,7 +128,8 @@ def check_provenance(path: Path, ship_source: str | Path) -> dict:
     missing, was not written by this script, or was tuned on other inputs (a changed ship
     config or run file): tuned parameters are never reused silently.
     """
-    redo = f'produce it with: {PARAMS_COMMAND} --out {path}'
+    redo = (f'produce it with: {PARAMS_COMMAND}' + (f' --fold {fold}' if fold != 1 else '')
+            + f' --out {path}')
     if not path.is_file():
         fail(f'tuned params file {path} does not exist; {redo}')
     doc = yaml.safe_load(path.read_text())
@@ -163,7 +164,8 @@ def load_split(fold: int = 1):
     return train, test, kind_of
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """Return the command line of this bench (its defaults are the registered tuning)."""
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--max-evals', type=int, default=4000)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
@@ -182,7 +184,11 @@ def main() -> None:
                     help='write the tuned params.yaml here (atomically; a previous output of '
                     'this script is replaced, any other file refused; default '
                     'bench/out/esso_osaka/params.yaml, params_foldF.yaml for fold 0 or 2)')
-    args = ap.parse_args()
+    return ap
+
+
+def main() -> None:
+    args = parser().parse_args()
     if args.out is None:
         args.out = params_path(args.fold)
     if args.out.is_dir():

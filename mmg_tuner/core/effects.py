@@ -171,9 +171,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                      'the shaft) over the rpm range, or fix R_0, t_P and w_P0 from resistance '
                      'and self-propulsion tests so the tuning cannot absorb the scale',
            # what those tests fix: the resistance, thrust deduction and wake at straight running.
-           # t_P and w_P0 alone are not enough: with the propeller law (u ~ n) thrust and
-           # resistance both go with u^2, so a tuned R_0 absorbs k^2 (resolution 0.14 -> 4.6 on
-           # two trials when R_0 is held too); epsilon stays tuned: it maps only the rudder inflow
+           # t_P and w_P0 alone are not enough: near the propeller law (u ~ n, J near constant)
+           # the mis-scaled thrust K_T(kJ) / (k^2 K_T(J)) is a near-constant factor, as is the
+           # resistance's u^2, so a tuned R_0 absorbs it (resolution 0.14 -> 4.6 on two trials
+           # when R_0 is held too); epsilon stays tuned: it maps only the rudder inflow
            pinned_by=('R_0', 't_P', 'w_P0')),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "

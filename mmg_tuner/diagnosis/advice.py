@@ -578,12 +578,13 @@ def _pinned(info: _Information, it: _Item, out: dict) -> str:
             f'<params.yaml with {held} under params:> --targets '
             + (' '.join(rest) if rest else '<none left: every target was pinned>'))
     if rec >= MIN_SEPARATION:
-        return text + f' (with them held these trials resolve it: {rec:.2g}, 1 needed)'
+        return text + (f' (with them held exactly these trials resolve it: {rec:.2g}, 1 '
+                       'needed; an error in the measured values lowers it)')
     if best >= DEGENERATE_BELOW:
-        return text + (f' (with them held these trials resolve it to {rec:.2g} of the 1 needed, '
-                       f'with {_twice(info.specs[k])}: {best:.2g})')
-    return text + (f' (even with them held no trial resolves it: {max(rec, best):.2g} of the 1 '
-                   'needed)')
+        return text + (f' (with them held exactly these trials resolve it to {rec:.2g} of the 1 '
+                       f'needed, with {_twice(info.specs[k])}: {best:.2g})')
+    return text + (f' (even with them held exactly no trial resolves it: {max(rec, best):.2g} '
+                   'of the 1 needed)')
 
 
 def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
