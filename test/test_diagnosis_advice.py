@@ -24,12 +24,17 @@ import numpy as np
 import pytest
 
 
-def test_resolution_matches_the_identifiability_flag_and_a_trial_only_adds(suzaku):
+def _two_trials(suzaku):
+    """Return a 10 deg zigzag and a 20 deg turn (200 s, 1 Hz, noisy), their objective, space."""
     trials = [generate_trial(suzaku, m, a, None, 106.0, 3.086, 200.0, 1.0, SensorNoise(),
                              i, f'{m}{a:+d}')[1]
               for i, (m, a) in enumerate([('zigzag', 10), ('turning', 20)])]
     obj = Objective(suzaku, TrialBatch.from_trials(trials), integrator='rk4')
-    base = ParameterSpace.around(suzaku)
+    return trials, obj, ParameterSpace.around(suzaku)
+
+
+def test_resolution_matches_the_identifiability_flag_and_a_trial_only_adds(suzaku):
+    trials, obj, base = _two_trials(suzaku)
     effects = ['rpm_scale', 'time_offset']
     out = {a['about']: a for a in advise_information(suzaku, base, base.pre, obj, effects,
                                                      trials)}
@@ -210,11 +215,7 @@ def test_a_measurement_that_pins_base_targets_comes_with_the_re_run_and_settles_
     time_offset's measurement (one clock, the blade angle) settles the delay itself and pins
     no coefficient.
     """
-    trials = [generate_trial(suzaku, m, a, None, 106.0, 3.086, 200.0, 1.0, SensorNoise(),
-                             i, f'{m}{a:+d}')[1]
-              for i, (m, a) in enumerate([('zigzag', 10), ('turning', 20)])]
-    obj = Objective(suzaku, TrialBatch.from_trials(trials), integrator='rk4')
-    base = ParameterSpace.around(suzaku)
+    trials, obj, base = _two_trials(suzaku)
     effects = ['rpm_scale', 'time_offset']
     assert EFFECTS['rpm_scale'].pinned_by == ('R_0', 't_P', 'w_P0')
     assert EFFECTS['time_offset'].pinned_by == ()
