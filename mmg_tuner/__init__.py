@@ -19,7 +19,8 @@ light::
 from mmg_tuner.errors import (ConfigError, DiagnosisError, MmgTunerError, OutputError,
                               SimulationError, TrialDataError, TuningError)
 
-_API = ('load_ship', 'load_trials', 'tune', 'diagnose', 'simulate', 'TuneConfig', 'TuneResult',
+_API = ('load_ship', 'load_model', 'Model', 'load_trials', 'tune', 'diagnose', 'simulate',
+        'TuneConfig', 'TuneResult',
         'Fit', 'DiagnoseConfig', 'DiagnosisResult', 'ModelFit', 'Cause', 'BUDGETS',
         'evaluate', 'EvaluateConfig', 'EvaluateResult')
 

@@ -35,7 +35,9 @@ from mmg_tuner.core import ship as _ship
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.residual import simulate_hybrid as _simulate_hybrid
+from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.model import load_model as _load_model
+from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
 from mmg_tuner.data.topics import load_topic_map
@@ -51,7 +53,7 @@ from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
-from mmg_tuner.tuning.hybrid import ensemble, require_jax, ResidualConfig, train_residual
+from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
 from mmg_tuner.tuning.objective import Objective, paper_weights, Prior, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
@@ -61,7 +63,8 @@ from mmg_tuner.tuning.tuner import Progress, Tuner
 import numpy as np
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
-           'TuneConfig', 'TuneResult', 'diagnose', 'load_ship', 'load_trials', 'simulate',
+           'Model', 'TuneConfig', 'TuneResult', 'diagnose', 'load_model', 'load_ship',
+           'load_trials', 'simulate',
            'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate']
 
 logger = logging.getLogger(__name__)
@@ -79,6 +82,16 @@ def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = N
     ``ship.with_params(fit.params)``.
     """
     return _ship.load_ship(name_or_path, params)
+
+
+def load_model(name_or_path: str | Path = 'suzaku', params: str | Path | None = None) -> Model:
+    """
+    Return a model: the ship with ``params`` overlaid and the residual network it names.
+
+    A params.yaml written by ``tune --residual`` names a network beside it; the model then
+    simulates as the hybrid (or the pure network). Without one it is the physics alone.
+    """
+    return _load_model(name_or_path, params)
 
 
 def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
@@ -185,10 +198,10 @@ class TuneConfig:
     max_evals: IPOP-CMA-ES budget; seed: a whole number. residual: None, 'hybrid' (after the
     tuning, train a neural residual on the tuning trials: ``tune --residual``) or 'network'
     (the pure network, no physics tuning: ``--residual-only``); residual_options: fields of
-    :class:`~mmg_tuner.tuning.hybrid.ResidualConfig` (epochs, window, hidden, ...; the seed
+    :class:`~mmg_tuner.learn.ResidualConfig` (epochs, window, hidden, ...; the seed
     defaults to this config's, the integrator to 'rk4', as ``evaluate`` runs the hybrid);
     residual_seeds: train that many residuals (seeds seed, seed + 1, ...) and keep their mean,
-    one exact ensemble network (``tuning.hybrid.ensemble``): less dependence on one seed's
+    one exact ensemble network (``learn.ensemble``): less dependence on one seed's
     initial weights, at that many times the training time. What CMA-ES minimises (the
     reported J keeps shoot_every_s): segment_s: cut the tuning trials into pieces of this
     many s, each started from the measured state (0: whole trials; ``tuning/segments.py``);
@@ -324,9 +337,13 @@ class TuneResult:
 
     @property
     def tuned_ship(self) -> ShipConfig:
-        """Return the tuned ship; with a trained residual, the hybrid (or pure network)."""
-        ship = self.ship.with_params(self.params)
-        return ship if self.residual is None else replace(ship, residual=self.residual.net)
+        """Return the tuned ship (the physics; the residual network: :attr:`tuned_model`)."""
+        return self.ship.with_params(self.params)
+
+    @property
+    def tuned_model(self) -> Model:
+        """Return the tuned model: the tuned ship and the trained residual network, if any."""
+        return Model(self.tuned_ship, None if self.residual is None else self.residual.net)
 
     def report(self) -> dict:
         """report.json's content."""
@@ -489,10 +506,6 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
                 cfg.a_r or ship.a_r)
     if cfg.residual is not None:
         require_jax()   # before any work: says how to install it
-    if ship.residual is not None:   # the physics is tuned; an old network would not fit it
-        logger.warning('the residual network of %s is not used for tuning (train a new one '
-                       'with residual=...)', ship.name)
-        ship = replace(ship, residual=None)
     if cfg.residual == 'network':   # the pure network: no physics to tune
         pre = _fit(sets, ship.params)
         result = TuneResult({n: float(ship[n]) for n in space.names}, pre, pre, [], [], 0, 0,
@@ -632,7 +645,7 @@ def _train_residual(result: TuneResult) -> ResidualResult:
         fits.append(train_residual(physics, result.trials, config=replace(rc, seed=rc.seed + k)))
     fit = fits[0]
     net = fit.net if len(fits) == 1 else ensemble([f.net for f in fits])
-    model = replace(physics, residual=net)
+    model = Model(physics, net)
     index = {}
     for which, trials in (('tune', result.trials), ('test', result.test)):
         if trials:
@@ -904,10 +917,10 @@ def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bo
 
 
 # ---------------------------------------------------------------------------------- simulate
-def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substeps: int = 1
-             ) -> Trial:
+def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4',
+             substeps: int = 1) -> Trial:
     """
-    Return the model's prediction of a recorded trial.
+    Return the model's prediction of a recorded trial (a ship, or a ship and its network).
 
     As a :class:`Trial` on the same time grid (compare ``run.states`` with ``trial.states`` sample
     by sample). It starts from the state the tuning objective uses (a quadratic fit over the first
@@ -918,9 +931,9 @@ def simulate(ship: ShipConfig, trial: Trial, *, integrator: str = 'rk4', substep
     _check('integrator', integrator, integrator in INTEGRATORS, f'one of {sorted(INTEGRATORS)}')
     _check('substeps', substeps, _is_int(substeps) and 1 <= substeps <= 1000,
            'a whole number in [1, 1000]')
-    if ship.residual is not None:  # a hybrid (or pure network) named by the params.yaml
-        return _simulate_hybrid(ship, ship.residual, trial, integrator=integrator,
-                                substeps=substeps)
+    ship, net = as_model(model).ship, as_model(model).residual
+    if net is not None:  # a hybrid (or pure network) named by the params.yaml
+        return _simulate_hybrid(ship, net, trial, integrator=integrator, substeps=substeps)
     traj = simulate_recorded(ship, trial, None, integrator, substeps)
     notes = [f'simulated by mmg_tuner ({ship.name}, {integrator}, {substeps} substep(s)) from '
              'the fitted start state']
@@ -964,7 +977,7 @@ class EvaluateConfig:
                'a whole number in [1, 1000]')
 
 
-def evaluate(ship: ShipConfig, trials: Trial | Sequence[Trial],
+def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
              config: EvaluateConfig | None = None, **options) -> 'EvaluateResult':
     """
     How good ``ship``'s model is on recorded ``trials``.

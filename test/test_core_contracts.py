@@ -12,7 +12,7 @@ import subprocess
 import sys
 
 from mmg_tuner.core import frames
-from mmg_tuner.core.channels import CHANNELS
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.effects import describe_values, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, PARAM_INDEX, SHARED_PARAMS
 from mmg_tuner.core.models import declared_params, families, REGISTRY
@@ -78,7 +78,7 @@ def test_effect_boxes_scale_with_the_ship(suzaku, kvlcc2):
 @pytest.mark.parametrize('fam', families(), ids=lambda f: f.name)
 def test_family_contract(fam):
     assert fam.name == REGISTRY[fam.code] and fam.params == declared_params(fam.name)
-    assert set(fam.inputs) <= set(CHANNELS) and fam.inputs[:2] == ('rpm', 'rudder')
+    assert set(fam.channels) <= set(TABLE) and fam.inputs[:2] == ('rpm', 'rudder')
     assert all(p in PARAM_INDEX for p in fam.params + tuple(fam.defaults))
     assert all(k in PARAM_INDEX for k in fam.required)
     assert not set(fam.params) & set(SHARED_PARAMS)
@@ -116,11 +116,12 @@ def test_status_checks_follow_the_family(suzaku):
     (the per-family flags the kernels read).
     """
     assert not suzaku.family.astern_rpm and not suzaku.family.astern_surge
-    from mmg_tuner.core.integrate import rpm_status
+    from mmg_tuner.core.actuators.screw_rudder import rpm_status
     from mmg_tuner.core.layout import OK, RPM_NOT_POSITIVE
-    assert rpm_status(suzaku.kind, -1.0) == RPM_NOT_POSITIVE
-    assert rpm_status(suzaku.kind, float('nan')) == RPM_NOT_POSITIVE
-    assert rpm_status(suzaku.kind, 1.0) == OK
+    astern = suzaku.family.astern_rpm
+    assert rpm_status(-1.0, astern) == RPM_NOT_POSITIVE
+    assert rpm_status(float('nan'), astern) == RPM_NOT_POSITIVE
+    assert rpm_status(1.0, astern) == OK
 
 
 def test_non_finite_state_is_caught_inside_the_inlined_step(suzaku):
@@ -148,7 +149,7 @@ def test_simulate_returns_the_one_trial_type(suzaku):
     tr = simulate(suzaku, [0, 0, 0, 3.0, 0, 0], ctrl, 1.0)
     assert isinstance(tr, Trial) and tr.ok and tr.status == 'ok' and tr.fail_time_s is None
     assert tr.controls.shape == (T, 2) and tr.wind.shape == (T, 2)
-    assert np.array_equal(tr.inputs, ctrl)
+    assert np.array_equal(tr.input_array(suzaku.family.channels), ctrl)
     assert np.array_equal(tr['wind_e'], ctrl[:, 3])
 
 
@@ -183,16 +184,21 @@ def test_numba_cache_is_keyed_by_the_core_sources(tmp_path):
     A change to a module a kernel imports must not run the stale cached kernel.
 
     A change to a module a kernel imports (here a family's capability flag, read by
-    integrate.rpm_status) must not run the stale cached kernel: numba alone would, since
-    integrate.py did not change.
+    the kernels) must not run the stale cached kernel: numba alone would, since integrate.py
+    did not change.
     """
     pkg = Path(__file__).resolve().parents[1] / 'mmg_tuner'
     shutil.copytree(pkg, tmp_path / 'mmg_tuner',
                     ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
     env = {**os.environ, 'NUMBA_CACHE_DIR': str(tmp_path / 'cache'),
            'PYTHONPATH': str(tmp_path)}
-    code = ('import numba; from mmg_tuner.core.integrate import rpm_status; '
-            'print(rpm_status(0, -1.0), numba.config.CACHE_DIR)')
+    code = ('import numba, numpy as np; from mmg_tuner.core.integrate import simulate_one; '
+            'out = np.empty((3, 6)); '
+            'ctrl = np.array([[-60.0, 0.0, np.nan, np.nan]] * 3); '
+            'st, _ = simulate_one(0, np.load("p.npy"), np.array([0, 0, 0, 1.0, 0, 0]), ctrl, 3, '
+            '0.1, 1, 0, out); print(st, numba.config.CACHE_DIR)')
+    from mmg_tuner.core.ship import load_ship
+    np.save(tmp_path / 'p.npy', load_ship('suzaku').params)
 
     def run():
         out = subprocess.run([sys.executable, '-c', code], env=env, cwd=tmp_path,

@@ -1,17 +1,17 @@
 """
-The kernels compiled for one family (called with its tag) against the run-time branch.
+The kernels compiled for one family (called with its tag).
 
 The entry points in ``core/integrate.py`` turn ``ship.kind`` into the family's tag, so each
-family runs kernels compiled for it alone; called with the plain code, the same kernels branch
-over the families at run time. Both must give the same results for every registered family,
-and a tag must select its own family (a tag mapped to the wrong forces would pass a test that
-only compares a family with itself, not this one).
+family runs kernels compiled for it alone (its forces, actuators and equations of motion); a
+tag must select its own family (a tag mapped to the wrong forces would pass a test that only
+compares a family with itself, not this one).
 """
 from mmg_tuner.core import dynamics, integrate
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from mmg_tuner.core.models import REGISTRY
 from mmg_tuner.core.ship import config_dirs, load_ship
-from mmg_tuner.core.simulate import self_propulsion_rpm
+from mmg_tuner.core.simulate import self_propulsion_rpm, simulate
+from mmg_tuner.core.trial import input_array
 import numpy as np
 import pytest
 
@@ -58,17 +58,26 @@ def test_tagged_derivative_equals_the_run_time_branch(name):
         p[PARAM_INDEX['wind_speed']] = rng.uniform(0, 8) if k % 2 else 0.0
         p[PARAM_INDEX['wind_dir']] = rng.uniform(-3, 3)
         s = _state(ship, rng)
-        act = (rng.uniform(2, 15), rng.uniform(-0.6, 0.6), rng.uniform(-5, 5), rng.uniform(-5, 5))
-        dynamics.derivative(ship.kind, p, s, act, a)
+        act = (rng.uniform(2, 15), rng.uniform(-0.6, 0.6), rng.uniform(-5, 5),
+               rng.uniform(-5, 5))[:len(ship.family.outputs)]
+        dynamics.derivative(tag, p, s, act, a)
         dynamics.derivative(tag, p, s, act, b)
-        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-300)
-        # and the tag's forces are its own family's, not another's
+        assert np.array_equal(a, b) and np.all(np.isfinite(a))
+        # the tag's forces are its own family's, not another's
         forces = dynamics.family_forces(tag, p, s[3], s[4], s[5], act)
         assert forces == pytest.approx(ship.family.forces(p, s[3], s[4], s[5], act), rel=1e-12)
     astern = np.array([0.0, 0.0, 0.0, -0.1, 0.0, 0.0])
-    for kind in (ship.kind, tag):
-        assert (integrate.state_status(kind, astern) == OK) == ship.family.astern_surge
-        assert (integrate.rpm_status(kind, -1.0) == OK) == ship.family.astern_rpm
+    assert (integrate.state_status(tag, astern) == OK) == ship.family.astern_surge
+    ctrl = np.tile([-60.0, 0.0] + [0.0] * (len(ship.family.inputs) - 2), (3, 1))
+    run = simulate(ship, _state(ship, rng), ctrl, 0.5, check=False)
+    assert run.ok == ship.family.astern_rpm   # rpm <= 0 stops a family without astern
+
+
+def test_kernels_take_the_family_tag_only(suzaku):
+    """The compiled kernels take the tag (one way); the Python entry points the code."""
+    from numba.core.errors import TypingError
+    with pytest.raises((TypeError, TypingError), match='FAMILY_TAGS'):
+        dynamics.derivative(suzaku.kind, suzaku.params, np.ones(6), (1.0, 0.0), np.empty(6))
 
 
 @pytest.mark.parametrize('name', REGISTRY)
@@ -80,9 +89,10 @@ def test_entry_points_run_the_family_kernel(name):
     x0 = _state(ship, rng)
     x0[2] = 0.0
     rpm = self_propulsion_rpm(ship, _speed(ship))
-    ctrl = np.column_stack([np.full(T, rpm), np.radians(20) * np.sin(np.arange(T) / 10),
-                            np.full(T, 3.0), np.full(T, -2.0), np.full(T, 2.0),
-                            np.full(T, -1.0)])
+    ctrl = input_array(ship.family.channels, {
+        'rpm': np.full(T, rpm), 'rudder': np.radians(20) * np.sin(np.arange(T) / 10),
+        'wind_n': np.full(T, 3.0), 'wind_e': np.full(T, -2.0),
+        'bow_thruster': np.full(T, 2.0), 'stern_thruster': np.full(T, -1.0)}, T)
     ctrls = np.stack([ctrl, ctrl[::-1].copy()])
     x0s = np.stack([x0, x0])
     lengths = np.array([T, T - 30])
@@ -90,7 +100,7 @@ def test_entry_points_run_the_family_kernel(name):
     params[:, PARAM_INDEX['time_offset']] = [0.0, 0.6, 0.0]
     outs = []
     for kernel, kind in ((integrate.simulate_many, ship.kind),
-                         (integrate._simulate_many, ship.kind)):
+                         (integrate._simulate_many, dynamics.family_tag(ship.kind))):
         out = np.full((N, 2, T, 6), np.nan)
         st = np.zeros((N, 2), np.int64)
         kf = np.zeros((N, 2), np.int64)
@@ -105,10 +115,11 @@ def test_entry_points_run_the_family_kernel(name):
     meas = o1[0].copy()
     meas[np.isnan(meas)] = 0.0
     Js = []
-    for kernel in (integrate.cost_many, integrate._cost_many):
+    for kernel, kind in ((integrate.cost_many, ship.kind),
+                         (integrate._cost_many, dynamics.family_tag(ship.kind))):
         J = np.empty((N, 2))
         kf = np.empty((N, 2), np.int64)
-        kernel(ship.kind, params, meas, ctrls, lengths, dt, 1, 0, w, 20, J, kf)
+        kernel(kind, params, meas, ctrls, lengths, dt, 1, 0, w, 20, J, kf)
         Js.append((J, kf))
     assert np.array_equal(Js[0][1], Js[1][1])
     np.testing.assert_allclose(Js[0][0], Js[1][0], rtol=1e-9)

@@ -200,7 +200,7 @@ def test_wind_loads_act_the_way_a_seaman_expects(suzaku):
     windage centroid aft (s_L < 0), a beam wind turns the bow into it; port and starboard winds
     mirror each other.
     """
-    from mmg_tuner.core.mmg import wind_loads
+    from mmg_tuner.core.dynamics import wind_loads
 
     def loads(wind_from_deg, u=3.0):
         p = suzaku.with_params({'wind_speed': 10.0, 'wind_dir': math.radians(wind_from_deg)})

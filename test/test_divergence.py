@@ -39,7 +39,7 @@ def test_a_diverging_run_has_infinite_J_and_says_where(suzaku):
     obj = Objective(suzaku, TrialBatch.from_trials(trials, x0_window_s=0))
     bad = suzaku.with_params(UNSTABLE).params
     # where the model fails, from the plain simulator (an independent path to the same time)
-    fails = {tr.name: simulate(suzaku, tr.states[0], tr.inputs, tr.dt, params=bad, check=False)
+    fails = {tr.name: simulate(suzaku, tr.states[0], tr, tr.dt, params=bad, check=False)
              for tr in trials}
     failing = [n for n, tr in fails.items() if tr.status != 'ok']
     assert failing == ['turning35'], {n: tr.status for n, tr in fails.items()}

@@ -1,7 +1,7 @@
 """
 The hybrid model's core (issue 14): the residual network's file, inference and training.
 
-Inference (core/residual.py) must equal the plain physics when the network is absent or
+Inference (learn/residual.py) must equal the plain physics when the network is absent or
 outputs zero, step by step in the node's stepper as in the offline simulation; the training's
 differentiable simulation must equal the compiled one and its gradient the finite
 differences; a small training must find an effect the physics lacks and nothing on clean data.
@@ -15,7 +15,7 @@ import zipfile
 import mmg_tuner as mt
 from mmg_tuner.core.integrate import start_state
 from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
-from mmg_tuner.core.residual import (advance_hybrid, apparent_wind_body, fitted_start, N_FEATURES,
+from mmg_tuner.learn.residual import (advance_hybrid, apparent_wind_body, fitted_start, N_FEATURES,
                                      ResidualNet, ResidualStepper, simulate_hybrid,
                                      simulate_segments, zero_net)
 from mmg_tuner.core.ship import load_ship
@@ -172,20 +172,20 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
 
 
 def test_core_residual_runs_without_jax():
-    code = ('import sys; import mmg_tuner.core.residual; import mmg_tuner.tuning.hybrid; '
+    code = ('import sys; import mmg_tuner.learn.residual; import mmg_tuner.learn; '
             'assert not any(m.split(".")[0] in ("jax", "equinox", "optax") for m in sys.modules)')
     subprocess.run([sys.executable, '-c', code], check=True)
 
 
 def test_missing_jax_says_how_to_install(monkeypatch, suzaku, trial):
-    from mmg_tuner.tuning.hybrid import train_residual
+    from mmg_tuner.learn import train_residual
     monkeypatch.setitem(sys.modules, 'jax', None)   # import jax -> ImportError
     with pytest.raises(MissingDependencyError, match='pip install jax equinox optax'):
         train_residual(suzaku, [trial])
 
 
 def test_config_names_the_bad_option():
-    from mmg_tuner.tuning.hybrid import ResidualConfig
+    from mmg_tuner.learn import ResidualConfig
     for kw, name in (({'window': 0}, 'window'), ({'hidden': ()}, 'hidden'),
                      ({'integrator': 'rk45'}, 'integrator'), ({'l2': -1.0}, 'l2'),
                      ({'horizon_s': math.nan}, 'horizon_s'), ({'balance': 'kind'}, 'balance'),
@@ -225,7 +225,7 @@ def test_bridge_forward_is_the_compiled_kernel(any_ship):
     import jax.numpy as jnp
 
     from mmg_tuner.core.dynamics import derivative
-    from mmg_tuner.tuning.hybrid._engine import physics_fn
+    from mmg_tuner.learn._engine import physics_fn
     ship = any_ship
     S, A, Wd = _states_inputs(ship, np.random.default_rng(4), 64)
     F = np.asarray(physics_fn(ship.kind, ship.params)(jnp.asarray(S), jnp.asarray(A),
@@ -248,7 +248,7 @@ def test_bridge_gradient_matches_finite_differences(any_ship):
     import jax
     import jax.numpy as jnp
 
-    from mmg_tuner.tuning.hybrid._engine import physics_fn
+    from mmg_tuner.learn._engine import physics_fn
     ship = any_ship
     rng = np.random.default_rng(9)
     S, A, Wd = _states_inputs(ship, rng, 16)
@@ -273,7 +273,7 @@ def test_bridge_gradient_matches_finite_differences(any_ship):
 
 
 def _window_batch(ship, trial, net, k0, H):
-    from mmg_tuner.tuning.hybrid._windows import cut, prepare
+    from mmg_tuner.learn._windows import cut, prepare
     w = cut([prepare(ship, trial)], net.window, H, 1).take([k0 - net.window + 1])
     return {'x0': w.x0, 'hist': w.hist, 'inp': w.inp, 'act': w.act, 'wind': w.wind,
             'target': w.target}
@@ -292,7 +292,7 @@ def test_training_simulation_equals_inference(suzaku, trial, integrator):
     import jax
     import jax.numpy as jnp
 
-    from mmg_tuner.tuning.hybrid._engine import make_simulator, MLP
+    from mmg_tuner.learn._engine import make_simulator, MLP
     ship = suzaku.with_params({'antenna_x': 1.0, 'current_speed': 0.2, 'current_dir': 1.0})
     net = random_net(scale=2e-3)
     k0, H = 40, 20
@@ -319,7 +319,7 @@ def test_loss_gradient_through_the_simulation(suzaku, trial):
     import jax
     import jax.numpy as jnp
 
-    from mmg_tuner.tuning.hybrid._engine import MLP, make_loss, make_simulator
+    from mmg_tuner.learn._engine import MLP, make_loss, make_simulator
     net = random_net(scale=2e-3)
     sim = make_simulator(suzaku.kind, suzaku.params, True, True, trial.dt, net.x_mean,
                          net.x_std, net.y_scale)
@@ -359,7 +359,7 @@ def _heldout_index(ship, net, trials):
 @pytest.fixture(scope='module')
 def hidden_fit(suzaku):
     pytest.importorskip('jax')
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    from mmg_tuner.learn import ResidualConfig, train_residual
     trials = make_trials(suzaku, {'yaw_moment_bias': 0.002})
     fit = train_residual(suzaku, trials[:4], config=ResidualConfig(**CI, seed=0))
     return fit, trials
@@ -376,7 +376,7 @@ def test_residual_learns_an_effect_the_physics_lacks(suzaku, hidden_fit):
 
 
 def test_training_is_reproducible_with_a_seed(suzaku, hidden_fit):
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    from mmg_tuner.learn import ResidualConfig, train_residual
     fit, trials = hidden_fit
     cfg = ResidualConfig(**{**CI, 'epochs': 3}, seed=0)
     a = train_residual(suzaku, trials[:4], config=cfg)
@@ -388,7 +388,7 @@ def test_training_is_reproducible_with_a_seed(suzaku, hidden_fit):
 
 def test_residual_finds_nothing_on_clean_data(suzaku):
     pytest.importorskip('jax')
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    from mmg_tuner.learn import ResidualConfig, train_residual
     trials = make_trials(suzaku, {})
     fit = train_residual(suzaku, trials[:4], config=ResidualConfig(**CI, seed=0))
     test = trials[4:]
@@ -400,7 +400,7 @@ def test_residual_finds_nothing_on_clean_data(suzaku):
 # ------------------------------------------------------- balance and selection (kinds alike)
 def test_window_weights_balance_trials_and_groups():
     from mmg_tuner.errors import TuningError
-    from mmg_tuner.tuning.hybrid.train import window_weights
+    from mmg_tuner.learn.train import window_weights
     names = ['long'] * 6 + ['short'] * 2 + ['other'] * 4
     groups = {'long': 'turning', 'short': 'zigzag', 'other': 'zigzag'}
     assert np.array_equal(window_weights(names, 'window'), np.ones(12))
@@ -416,7 +416,7 @@ def test_window_weights_balance_trials_and_groups():
 
 
 def test_every_group_selection_refuses_a_gain_bought_on_one_group():
-    from mmg_tuner.tuning.hybrid.train import group_losses, selection_score
+    from mmg_tuner.learn.train import group_losses, selection_score
     labels = np.array(['a', 'a', 'b', 'b'])
     w = np.ones(4)
     phys = group_losses(np.ones(4), w, labels, ['a', 'b'])
@@ -434,7 +434,7 @@ def test_every_group_selection_refuses_a_gain_bought_on_one_group():
 
 
 def test_kept_network_beats_the_physics_on_every_group(suzaku, hidden_fit):
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    from mmg_tuner.learn import ResidualConfig, train_residual
     _, trials = hidden_fit
     groups = {t.name: t.name.rstrip('+-0123456789') for t in trials[:4]}
     cfg = ResidualConfig(**{**CI, 'epochs': 15}, seed=0, balance='group', select='every_group')
@@ -453,14 +453,14 @@ def test_kept_network_beats_the_physics_on_every_group(suzaku, hidden_fit):
 
 
 def _forward(net, x):
-    from mmg_tuner.core.residual import mlp_forward
+    from mmg_tuner.learn.residual import mlp_forward
     sizes, flat = net.packed()
     n = int(sizes.max())
     return mlp_forward(sizes, flat, x, np.empty(n), np.empty(n))[:3].copy()
 
 
 def test_ensemble_is_the_mean_of_its_members():
-    from mmg_tuner.tuning.hybrid import ensemble
+    from mmg_tuner.learn import ensemble
     nets = [random_net(hidden=(8, 6), seed=s) for s in (1, 2, 3)]
     nets = [replace(n, x_mean=nets[0].x_mean, x_std=nets[0].x_std) for n in nets]
     ens = ensemble(nets)

@@ -10,7 +10,7 @@ import math
 import sys
 
 import mmg_tuner as mt
-from mmg_tuner.core.residual import ResidualNet, zero_net
+from mmg_tuner.learn.residual import ResidualNet, zero_net
 from mmg_tuner.diagnosis import structure
 from mmg_tuner.errors import ConfigError
 import numpy as np
@@ -148,7 +148,7 @@ def test_tune_residual_seeds_keep_the_mean_of_their_networks(trial_dir, tmp_path
     # --residual-seeds 2: the saved network is the exact mean of the seeds' networks, each
     # trained as a single-seed run with that seed would train it
     pytest.importorskip('jax')
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
+    from mmg_tuner.learn import ResidualConfig, train_residual
     trials = [mt.load_trials(trial_dir / t)[0] for t in TUNE]
     cfg = mt.TuneConfig(max_evals=100, residual='hybrid', residual_seeds=2,
                         residual_options={'epochs': 4, 'hidden': (6,)})
@@ -270,7 +270,7 @@ def test_the_node_stepper_runs_the_hybrid_like_the_offline_simulation(tmp_path):
     ShipSimulator with a params.yaml naming a network equals simulate_hybrid of the same
     held commands (the sim_node's engine), and a zero network equals the physics.
     """
-    from mmg_tuner.core.residual import simulate_hybrid
+    from mmg_tuner.learn.residual import simulate_hybrid
     from mmg_tuner.core.stepper import ShipSimulator
     from mmg_tuner.core.trial import Trial
     x0 = [0.0, 0.0, 0.0, 3.0, 0.0, 0.0]

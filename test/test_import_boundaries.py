@@ -28,7 +28,7 @@ def test_layering(path):
                                            'sensor_msgs', 'std_srvs') for m in mods), path
     if path.relative_to(PKG).parts[:2] != ('tuning', 'hybrid'):  # optional: hybrid training only
         assert not any(m.split('.')[0] in ('jax', 'jaxlib', 'equinox', 'optax')
-                       for m in mods), f'{path} imports JAX (allowed in tuning/hybrid only)'
+                       for m in mods), f'{path} imports JAX (allowed in learn only)'
     if layer in ORDER:
         allowed = ORDER[:ORDER.index(layer) + 1]
         for m in mods:

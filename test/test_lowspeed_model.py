@@ -303,12 +303,15 @@ def test_actuator_rate():
 def test_family_capabilities_and_inputs(ship):
     fam = family('lowspeed')
     assert fam.astern_rpm and fam.astern_surge and fam.air_drag and fam.wind is not None
-    assert {'bow_thruster', 'stern_thruster', 'wind_n', 'wind_e'} <= set(fam.inputs)
-    from mmg_tuner.core.integrate import rpm_status, state_status
+    assert {'bow_thruster', 'stern_thruster', 'wind_n', 'wind_e'} <= set(fam.channels)
+    assert fam.actuators == ('screw_rudder', 'tunnel_thrusters')
+    from mmg_tuner.core.actuators.screw_rudder import rpm_status
+    from mmg_tuner.core.dynamics import family_tag
+    from mmg_tuner.core.integrate import state_status
     from mmg_tuner.core.layout import OK, RPM_NOT_POSITIVE
-    assert rpm_status(ship.kind, -10.0) == OK and rpm_status(ship.kind, 0.0) == OK
-    assert rpm_status(ship.kind, float('nan')) == RPM_NOT_POSITIVE
-    assert state_status(ship.kind, np.array([0, 0, 0, -0.1, 0, 0.0])) == OK
+    assert rpm_status(-10.0, fam.astern_rpm) == OK and rpm_status(0.0, fam.astern_rpm) == OK
+    assert rpm_status(float('nan'), fam.astern_rpm) == RPM_NOT_POSITIVE
+    assert state_status(family_tag(ship.kind), np.array([0, 0, 0, -0.1, 0, 0.0])) == OK
 
 
 def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
@@ -319,7 +322,7 @@ def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
     apparent wind) equals lowspeed.accelerations to 1e-12 on random states and inputs, in all four
     quadrants, with and without true wind (the ship's own air drag).
     """
-    from mmg_tuner.core.dynamics import derivative
+    from mmg_tuner.core.dynamics import derivative, family_tag
     rng = np.random.default_rng(12)
     out = np.empty(6)
     q = p.copy()
@@ -333,7 +336,8 @@ def test_generic_kernel_reproduces_the_standalone_accelerations(p, ship):
         bt, st = rng.uniform(-25, 25, 2) if k % 3 else (0.0, 0.0)
         Vw, zeta = (rng.uniform(0, 5), rng.uniform(-4, 4)) if k % 4 else (0.0, 0.0)
         q[PARAM_INDEX['wind_speed']], q[PARAM_INDEX['wind_dir']] = Vw, zeta
-        derivative(ship.kind, q, np.array([1.0, 2.0, psi, u, v, r]), (n, d, bt, st), out)
+        derivative(family_tag(ship.kind), q, np.array([1.0, 2.0, psi, u, v, r]),
+                   (n, d, bt, st), out)
         ref = ls.accelerations(p, u, v, r, n, d, bt, st, *ls.apparent_wind(Vw, zeta, psi, u, v))
         np.testing.assert_allclose(out[3:], ref, rtol=1e-12, atol=1e-14)
         worst = max(worst, float(np.max(np.abs(out[3:] - np.array(ref)))))
@@ -355,7 +359,9 @@ def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
                             rng.uniform(-2, 2, T), rng.uniform(-2, 2, T),
                             np.repeat(rng.uniform(-20, 20, 20), 40), np.zeros(T)])
     x0 = np.array([0, 0, 0.3, 0.05, 0.0, 0.0])
-    got = simulate(ship, x0, ctrl, dt, 'rk4')
+    names = ('rpm', 'rudder', 'wind_n', 'wind_e', 'bow_thruster', 'stern_thruster')
+    named = {n: ctrl[:, j] for j, n in enumerate(names)}   # the columns of ctrl, by name
+    got = simulate(ship, x0, named, dt, 'rk4')
     assert got.ok
 
     def f(s, c):
@@ -372,16 +378,18 @@ def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
         s = s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     np.testing.assert_allclose(got.states[-1], s, rtol=1e-9, atol=1e-10)
     assert got.states[:, 3].min() < 0 < got.states[:, 3].max()   # went through u = 0
+    from mmg_tuner.core.trial import input_array
+    kernel = input_array(ship.family.channels, named, T)   # the family's column order
     for method in ('euler', 'rk4'):
-        one = simulate(ship, x0, ctrl, dt, method).states
+        one = simulate(ship, x0, named, dt, method).states
         many, status, _ = simulate_batch(ship.kind, np.stack([p, p]), np.stack([x0, x0]),
-                                         np.stack([ctrl, ctrl]), dt, integrator=method)
+                                         np.stack([kernel, kernel]), dt, integrator=method)
         assert np.array_equal(many[1, 0], one) and np.all(status == 0)
     # thruster channels left out mean 0 rev/s
-    no_thr = ctrl.copy()
-    no_thr[:, 4:] = 0.0
+    no_thr = {n: v for n, v in named.items() if 'thruster' not in n}
+    zero = {**no_thr, 'bow_thruster': np.zeros(T), 'stern_thruster': np.zeros(T)}
     assert np.array_equal(simulate(ship, x0, no_thr, dt).states,
-                          simulate(ship, x0, no_thr[:, :4], dt).states)
+                          simulate(ship, x0, zero, dt).states)
 
 
 def test_generic_kernel_reproduces_the_reference_manoeuvres(ship):

@@ -50,14 +50,15 @@ def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     config = api.EvaluateConfig(args.restart_every, args.integrator, args.substeps)
     with show_log(args.quiet), OutputDir.open(args.out, resumable=False) as out:
-        ship = api.load_ship(args.ship, args.params)
+        model = api.load_model(args.ship, args.params)   # with the network the params name
+        ship = model.ship
         # astern and u <= 0 kept when the ship's family covers them (load_trials' default)
         trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,
                                  trial_scale=args.trial_scale,
                                  cut_from_event=args.cut_from_event)
         if not trials:
             raise UsageError(f'no usable trial in {" ".join(args.trials)}')
-        result = api.evaluate(ship, trials, config)
+        result = api.evaluate(model, trials, config)
         result.write(out, plots=not args.no_plots)
         width = max(len(n) for n in result.trials)
         for name, s in result.trials.items():

@@ -18,15 +18,16 @@ from mmg_tuner.cli.common import (check_new_file, check_run, check_samples, Pars
                                   SEED, UsageError, write_new_file)
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
-from mmg_tuner.core.integrate import observe, start_state
+from mmg_tuner.core.dynamics import actuate_start, family_tag, N_ACT_STATES
+from mmg_tuner.core.integrate import advance, observe, start_state
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.residual import (advance_hybrid, apparent_wind_body, N_FEATURES,
-                                     ResidualStepper, simulate_hybrid_one)
-from mmg_tuner.core.ship import load_ship, ShipConfig
+from mmg_tuner.core.stepper import apparent_wind_body
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.csv_io import csv_text
+from mmg_tuner.learn.model import load_model, Model
+from mmg_tuner.learn.residual import N_FEATURES, simulate_hybrid_one
 import numpy as np
 
 
@@ -75,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    ship = load_ship(args.ship, args.params)
+    model = load_model(args.ship, args.params)   # with the network the params name, if any
+    ship, net = model.ship, model.residual
     speed = args.speed_ms if args.speed_ms is not None else args.speed_kn * mv.KNOT
     check_run(ship, args.rpm, speed, '--speed-ms' if args.speed_ms is not None else '--speed-kn',
               [('--rudder-deg', args.rudder_deg)])
@@ -96,12 +98,11 @@ def command(argv: list[str] | None = None) -> int:
         approach_s=args.approach, pullout_s=args.pullout_after,
         rudder_rate_deg_s=args.rudder_rate, integrator=args.integrator,
         substeps=args.substeps, seed=args.seed)
-    if ship.residual is not None:   # the params.yaml names a residual network
-        if abs(args.dt - ship.residual.dt_s) > 1e-9 * ship.residual.dt_s:
+    if net is not None:   # the params.yaml names a residual network
+        if abs(args.dt - net.dt_s) > 1e-9 * net.dt_s:
             raise UsageError(f'--dt {args.dt:g}: the residual network of {args.params} was '
-                             f'trained on {ship.residual.dt_s:g} s samples; use --dt '
-                             f'{ship.residual.dt_s:g}')
-        traj = hybrid_maneuver(ship, spec)
+                             f'trained on {net.dt_s:g} s samples; use --dt {net.dt_s:g}')
+        traj = hybrid_maneuver(model, spec)
     else:
         traj = mv.run(ship, spec)
     if args.out:
@@ -112,8 +113,7 @@ def command(argv: list[str] | None = None) -> int:
               file=sys.stderr)
     L = ship.L_pp
     k_exec = ix.execution_index(traj['rudder'])
-    kind = '' if ship.residual is None else (' + residual network' if ship.residual.physics
-                                             else ', pure network')
+    kind = '' if net is None else (' + residual network' if net.physics else ', pure network')
     print(f'{ship.name} ({ship.model} model{kind}), {args.maneuver} {args.rudder_deg:+g} deg, '
           f'{args.rpm:g} rpm, u0 = {speed:.3f} m/s, {args.integrator} dt = {args.dt:g} s')
     if args.maneuver in ('turning', 'pullout'):
@@ -134,7 +134,7 @@ def command(argv: list[str] | None = None) -> int:
     return 0 if traj.ok else 1
 
 
-def hybrid_maneuver(ship: ShipConfig, spec: mv.ManeuverSpec) -> Trial:
+def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
     """
     One manoeuvre of a ship that carries a residual network (hybrid or pure network).
 
@@ -144,32 +144,33 @@ def hybrid_maneuver(ship: ShipConfig, spec: mv.ManeuverSpec) -> Trial:
     as a recorded trial is replayed; a zigzag closes the loop on the hybrid's own heading,
     step by step (the residual held over each sample, the steering gear per substep).
     """
+    ship, net = model.ship, model.residual
     phys = mv.run(ship, spec)
-    net = ship.residual
     if spec.maneuver == 'zigzag':
-        return _hybrid_zigzag(ship, spec, phys)
-    ctrl = np.ascontiguousarray(phys.inputs, dtype=float)
+        return _hybrid_zigzag(model, spec, phys)
+    ctrl = np.ascontiguousarray(phys.input_array(ship.family.channels))
     if not phys.ok:   # past the physics' failure the programme is undefined: hold its last
-        k = max(1, int(np.argmax(~np.all(np.isfinite(ctrl[:, :2]), axis=1))))
+        n_cmd = len(ship.family.inputs)
+        k = max(1, int(np.argmax(~np.all(np.isfinite(ctrl[:, :n_cmd]), axis=1))))
         ctrl[k:] = ctrl[k - 1]
     T = len(phys)
     out = np.empty((T, 6))
     res = np.empty((T, 3))
     sizes, flat = net.packed()
     status, k_fail = simulate_hybrid_one(
-        ship.kind, np.ascontiguousarray(ship.params, dtype=float), phys.states[0].copy(),
+        family_tag(ship.kind), np.ascontiguousarray(ship.params, dtype=float), phys.states[0].copy(),
         np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
         net.x_mean, net.x_std, net.y_scale, bool(net.physics), out, res)
     kw = {} if status == OK else {'status': STATUS_TEXT[status],
                                   'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
-    return Trial(phys.t.copy(), out, phys.controls.copy(), name=spec.maneuver, wind=phys.wind,
-                 thrusters=phys.thrusters, **kw)
+    return Trial(phys.t.copy(), out, name=spec.maneuver, inputs=phys.inputs, **kw)
 
 
-def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
+def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
     """Return the IMO zigzag of integrate.run_maneuver, closed on the hybrid's heading."""
-    net = ship.residual
+    ship, net = model.ship, model.residual
+    tag = family_tag(ship.kind)
     p = np.ascontiguousarray(ship.params, dtype=float)
     T, dt, n_sub = len(phys), float(spec.dt), int(spec.substeps)
     h = dt / n_sub
@@ -189,9 +190,11 @@ def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Tria
     observe(p, s, out[0])
     delta = 0.0
     rudder[0] = delta
-    delta_act = delta + ship['rudder_offset']
+    inp = np.zeros(len(ship.family.inputs))   # rpm, rudder (the logged angle), thrusters 0
+    act_states = np.zeros(N_ACT_STATES)
+    actuate_start(tag, p, inp, act_states)
     started, cmd_zz, psi0 = False, amp, s[2]
-    stepper = ResidualStepper(net)
+    stepper = net.stepper()
     status, k_fail = OK, T
     for k in range(T - 1):
         a0, a1, a2 = stepper.accelerations(s, (rpm[k], delta), apparent_wind_body(ship, s))
@@ -205,9 +208,9 @@ def _hybrid_zigzag(ship: ShipConfig, spec: mv.ManeuverSpec, phys: Trial) -> Tria
                 elif cmd_zz < 0 and s[2] - psi0 <= -check:
                     cmd_zz = abs(amp)
                 cmd = cmd_zz
-            status, delta_act = advance_hybrid(ship.kind, p, s, delta_act, rpm[k], delta, h, 1,
-                                               method, *work, 0.0, 0.0, a0, a1, a2,
-                                               bool(net.physics))
+            inp[0], inp[1] = rpm[k], delta
+            status = advance(tag, p, s, act_states, inp, h, 1, method, *work, a0, a1, a2,
+                             bool(net.physics))
             if status != OK:
                 break
             delta += min(max_move, max(-max_move, cmd - delta))

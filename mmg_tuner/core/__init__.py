@@ -22,7 +22,7 @@ _numba_cache.configure()  # before any kernel module is imported: cache keyed by
 from mmg_tuner.core.layout import PARAM_NAMES, STATE_NAMES  # noqa: E402
 from mmg_tuner.core.ship import load_ship, ShipConfig  # noqa: E402
 from mmg_tuner.core.simulate import simulate, simulate_batch  # noqa: E402
-from mmg_tuner.core.trial import Trajectory, Trial  # noqa: E402
+from mmg_tuner.core.trial import Trial  # noqa: E402
 
-__all__ = ['PARAM_NAMES', 'STATE_NAMES', 'ShipConfig', 'Trajectory', 'Trial', 'load_ship',
+__all__ = ['PARAM_NAMES', 'STATE_NAMES', 'ShipConfig', 'Trial', 'load_ship',
            'simulate', 'simulate_batch']

@@ -1,46 +1,71 @@
 """
-Named input channels: what drives a simulation, one column each.
+Named input channels: what drives a simulation, one time series each, with its unit.
 
-A recorded or planned input array ``ctrl`` has shape (T, n) with its columns in
-:data:`CHANNELS` order; trailing channels may be left out (n = 2 is rpm and rudder only):
+A :class:`~mmg_tuner.core.trial.Trial` holds its inputs keyed by channel name; readers map CSV
+columns and topic-map entries to these names. The channels a ship needs are its actuators'
+inputs (``core/actuators``) plus the environment channels (:data:`ENVIRONMENT`, the measured
+wind). The compiled kernels take them as one array ``ctrl`` (T, n) whose columns are the
+family's :attr:`~mmg_tuner.core.models.Family.channels`, in that order: the actuators' inputs,
+then ``wind_n``, ``wind_e`` (NaN where the wind was not measured: the wind parameters act).
 
-* a left-out or NaN wind channel means "not measured": the wind parameters act instead;
-* a left-out thruster channel means "no thruster" (0 rev/s).
-
-A model family lists the channels it reads in its ``INPUTS``; adding an actuator is one more
-name here (appended, so existing column positions never move) and the family that reads it.
-The kernels turn the recorded channels into the *actuator vector* acting on the ship (after the
-input effects: rpm scale, rudder offset and steering-gear lag), a tuple indexed by ``ACT_*``.
+Adding an actuator with new inputs: declare them in the actuator module's ``CHANNELS``
+(name -> (unit, description, default)); the actuator registry adds them to this table.
 """
 from __future__ import annotations
 
-CHANNELS: tuple[str, ...] = ('rpm', 'rudder', 'wind_n', 'wind_e', 'bow_thruster',
-                             'stern_thruster')
-"""rpm: propeller revolutions [rev/min] (+ ahead); rudder [rad] (+ turns to starboard);
-wind_n, wind_e: measured true wind, the air's velocity over ground north/east [m/s];
-bow_thruster, stern_thruster: thruster revolutions [rev/s] (+ pushes the ship to starboard)."""
-UNITS = {'rpm': 'rev/min', 'rudder': 'rad', 'wind_n': 'm/s', 'wind_e': 'm/s',
-         'bow_thruster': 'rev/s', 'stern_thruster': 'rev/s'}
-CHANNEL_INDEX = {name: i for i, name in enumerate(CHANNELS)}
-
-RPM = 0
-RUDDER = 1
-WIND_N = 2
-WIND_E = 3
-BOW_THRUSTER = 4
-STERN_THRUSTER = 5
-
-CONTROL_NAMES = CHANNELS[:2]
-"""The two channels every trial has (the columns of ``Trial.controls``)."""
-
-# Actuator vector handed to a family's forces (a tuple, so it lives in registers):
-ACT_N = 0       # propeller revolutions n_P [rev/s] after the rpm scale
-ACT_DELTA = 1   # actual rudder angle [rad] after offset and steering-gear lag
-ACT_BOW = 2     # bow thruster [rev/s]
-ACT_STERN = 3   # stern thruster [rev/s]
-N_ACT = 4
+from dataclasses import dataclass
+import math
 
 
-def n_columns(names) -> int:
-    """Columns an input array needs to hold the given channels (their highest position + 1)."""
-    return max(CHANNEL_INDEX[n] for n in names) + 1
+@dataclass(frozen=True)
+class Channel:
+    """
+    One input channel.
+
+    name: the key in ``Trial.inputs``, CSV headers and topic maps; unit: SI unit (or rev/min,
+    rev/s) of the stored values; description: sign convention and meaning; default: the value
+    a trial without the channel is given (NaN: "not measured"; None: required, a trial without
+    it cannot drive a ship that needs it).
+    """
+
+    name: str
+    unit: str
+    description: str
+    default: float | None = None
+
+
+TABLE: dict[str, Channel] = {c.name: c for c in (
+    Channel('rpm', 'rev/min', 'propeller revolutions, + ahead'),
+    Channel('rudder', 'rad', 'rudder angle, + turns the ship to starboard'),
+    Channel('bow_thruster', 'rev/s', 'bow tunnel thruster, + pushes the bow to starboard', 0.0),
+    Channel('stern_thruster', 'rev/s', 'stern tunnel thruster, + pushes the stern to starboard',
+            0.0),
+    Channel('wind_n', 'm/s', 'measured true wind: the air velocity over ground, north',
+            math.nan),
+    Channel('wind_e', 'm/s', 'measured true wind: the air velocity over ground, east',
+            math.nan),
+)}
+"""Every known channel by name (actuator modules add theirs through the registry)."""
+
+ENVIRONMENT: tuple[str, ...] = ('wind_n', 'wind_e')
+"""Channels that are not commands: the last columns of every kernel input array."""
+
+CONTROL_NAMES: tuple[str, ...] = ('rpm', 'rudder')
+"""The two channels of a screw-and-rudder ship (the columns of ``Trial.controls``)."""
+
+
+def add_channel(channel: Channel) -> None:
+    """Register a channel (an actuator's input); the same name twice must mean the same."""
+    old = TABLE.get(channel.name)
+    if old is not None and old != channel:
+        raise ValueError(f'channel {channel.name!r} declared twice with different meanings: '
+                         f'{old} and {channel}')
+    TABLE[channel.name] = channel
+
+
+def unit(name: str) -> str:
+    """Return the unit of channel ``name`` (KeyError naming the known channels if unknown)."""
+    try:
+        return TABLE[name].unit
+    except KeyError:
+        raise KeyError(f'unknown input channel {name!r}; known: {", ".join(TABLE)}') from None

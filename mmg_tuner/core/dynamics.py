@@ -8,11 +8,15 @@ eq. 4) solved for the accelerations; ds/dt with the current's kinematics.
 The model state is (x_E, y_E, psi, u, v_m, r) with u, v_m relative to the water; with a
 current, kinematics add the current and outputs report velocities over ground.
 
-Every kernel's ``kind`` is either the family code (an int: one compiled kernel that branches
-on it at run time, for callers that only know the code at run time) or the family's tag
-``FAMILY_TAGS[code]`` (a tuple whose length is the code + 1, so that the family is part of the
-argument's numba type: each family gets its own kernel with only its forces inlined and no
-branch; the entry points of ``core/integrate.py`` pass tags).
+Every kernel's ``kind`` is the family's tag ``FAMILY_TAGS[code]`` (a tuple whose length is the
+code + 1, so that the family is part of the argument's numba type: each family gets its own
+kernel with only its forces, actuators and equations of motion inlined, and no branch). The
+Python entry points (``core/integrate.py``) take the code (``ShipConfig.kind``) and pass the tag.
+
+The plant of a family: its actuators (``core/actuators``) turn the input row into the actuator
+tuple (:func:`actuate_start`, :func:`actuate_hold`, :func:`actuate_output`) and add their forces
+(:func:`actuator_forces`); its ``forces`` give the hull's; its equations of motion (its own
+``inertia`` and ``mass_solve``, else the MMG's eq. 7) give the accelerations.
 """
 from __future__ import annotations
 
@@ -20,15 +24,15 @@ import math
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH, U_MIN
-from mmg_tuner.core.channels import ACT_N
-from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.core.actuators import actuator
+from mmg_tuner.core.layout import OK, PARAM_INDEX
 from mmg_tuner.core.models import families
-from numba import literal_unroll, njit, types
+from numba import njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.extending import overload
 
-# literal_unroll over a tuple of dispatchers reports numba's first-class-function machinery as
-# experimental; each call in the unrolled loop is a static, inlined call.
+# Tuples of dispatchers are reported as numba's experimental first-class functions; every call
+# here is a static, inlined call on a compile-time constant.
 warnings.filterwarnings('ignore', 'First-class function type feature is experimental',
                         NumbaExperimentalFeatureWarning)
 
@@ -51,12 +55,10 @@ def family_tag(kind: int) -> tuple:
 
 
 def _tag_code(kind):
-    """Return the family code a tag's numba type fixes (at compile time); None for an int."""
+    """Return the family code a tag's numba type fixes (at compile time)."""
     if isinstance(kind, types.UniTuple):
         return kind.count - 1
-    if isinstance(kind, types.Integer):
-        return None
-    raise TypeError(f'kind must be a family code (int) or a FAMILY_TAGS entry, got {kind}')
+    raise TypeError(f'kind must be a FAMILY_TAGS entry (dynamics.family_tag(code)), got {kind}')
 
 
 def _family_flag(flags):
@@ -66,10 +68,7 @@ def _family_flag(flags):
 
     @overload(flag, inline='always')
     def _flag(kind):
-        code = _tag_code(kind)
-        if code is None:
-            return lambda kind: flags[kind]
-        value = flags[code]
+        value = flags[_tag_code(kind)]
         return lambda kind: value
     return flag
 
@@ -79,30 +78,15 @@ astern_surge = _family_flag(ASTERN_SURGE)
 air_drag = _family_flag(AIR_DRAG)
 
 
-# The family hooks, dispatched on kind: a direct, inlined call when kind is a tag, else a
-# branch over the families (literal_unroll: one static call per family).
+# The family hooks, dispatched on the tag: a direct, inlined call of that family's function.
 def _forces_of(kind, p, u, v, r, act):
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(_forces_of, inline='always', jit_options={'fastmath': FASTMATH})
 def _forces_of_impl(kind, p, u, v, r, act):
-    code = _tag_code(kind)
-    if code is not None:
-        forces = _FORCES[code]
-        return lambda kind, p, u, v, r, act: forces(p, u, v, r, act)
-
-    def branch(kind, p, u, v, r, act):
-        X = 0.0
-        Y = 0.0
-        N = 0.0
-        i = 0
-        for f in literal_unroll(_FORCES):
-            if i == kind:
-                X, Y, N = f(p, u, v, r, act)
-            i += 1
-        return X, Y, N
-    return branch
+    forces = _FORCES[_tag_code(kind)]
+    return lambda kind, p, u, v, r, act: forces(p, u, v, r, act)
 
 
 _rho = PARAM_INDEX['rho']
@@ -111,15 +95,12 @@ _d = PARAM_INDEX['d']
 _m = PARAM_INDEX['m']
 _xG = PARAM_INDEX['x_G']
 _IzG = PARAM_INDEX['I_zG']
-_DP = PARAM_INDEX['D_P']
-_xR = PARAM_INDEX['x_R']
 _mx = PARAM_INDEX['m_x']
 _my = PARAM_INDEX['m_y']
 _Jz = PARAM_INDEX['J_z']
 _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
 _Nbias = PARAM_INDEX['yaw_moment_bias']
-_CYP = PARAM_INDEX['prop_side_force']
 _Vw = PARAM_INDEX['wind_speed']
 _dirw = PARAM_INDEX['wind_dir']
 _rhoa = PARAM_INDEX['rho_air']
@@ -140,30 +121,25 @@ def family_forces(kind, p, u, v, r, act):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def effect_forces(p, u, v, act, X, Y, N):
-    """Effect hooks that act as forces, added to the family's (each vanishes at neutral)."""
+def effect_forces(p, u, v, X, Y, N):
+    """Effect hooks on the hull that act as forces, added to the family's (0 at neutral)."""
     if p[_Nbias] != 0.0:
         # yaw_moment_bias: N'_0 x 1/2 rho L^2 d U^2
         U = math.sqrt(u * u + v * v)
         if U < U_MIN:
             U = U_MIN
         N += 0.5 * p[_rho] * p[_L] * p[_d] * U * U * p[_L] * p[_Nbias]
-    if p[_CYP] != 0.0:
-        # propeller side force (paddle-wheel effect) at the stern, scaling with n^2 like the
-        # thrust: Y_PS = C_YPS rho n^2 D^4 at x_R
-        n = act[ACT_N]
-        YPS = p[_CYP] * p[_rho] * n * n * p[_DP] ** 4
-        Y += YPS
-        N += YPS * p[_xR] * p[_L]
     return X, Y, N
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def accelerations(kind, p, u, v, r, act):
-    """(du/dt, dv_m/dt, dr/dt) for velocities through the water and the actuator tuple act."""
-    X, Y, N = family_forces(kind, p, u, v, r, act)
-    X, Y, N = effect_forces(p, u, v, act, X, Y, N)
-    # Equations of motion (paper eq. 7), solved for the accelerations
+def mmg_motion(p, u, v, r, X, Y, N):
+    """
+    The MMG equations of motion (paper eq. 7) solved for (du/dt, dv_m/dt, dr/dt).
+
+    X, Y, N: every force and moment but the inertia terms [N, N m]; the added masses are the
+    non-dimensional m_x, m_y, J_z of the flat vector.
+    """
     rho = p[_rho]
     L = p[_L]
     m = p[_m]
@@ -180,6 +156,232 @@ def accelerations(kind, p, u, v, r, act):
     a22 = p[_IzG] + xG * xG * m + Jz
     det = a11 * a22 - a12 * a12
     return fX / (m + mx), (a22 * fY - a12 * fN) / det, (a11 * fN - a12 * fY) / det
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def mmg_mass_solve(p, X, Y, N):
+    """Accelerations from external forces through the MMG mass matrix (eq. 7)."""
+    m = p[_m]
+    xG = p[_xG]
+    q2 = 0.5 * p[_rho] * p[_L] * p[_L] * p[_d]
+    a11 = m + p[_my] * q2
+    a12 = xG * m
+    a22 = p[_IzG] + xG * xG * m + p[_Jz] * q2 * p[_L] * p[_L]
+    det = a11 * a22 - a12 * a12
+    return X / (m + p[_mx] * q2), (a22 * Y - a12 * N) / det, (a11 * N - a12 * Y) / det
+
+
+_MOTION = tuple(mmg_motion if f.motion is None else f.motion for f in _FAMILIES)
+_MASS_SOLVE = tuple(mmg_mass_solve if f.mass_solve is None else f.mass_solve
+                    for f in _FAMILIES)
+
+
+def _motion_of(kind, p, u, v, r, X, Y, N):
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(_motion_of, inline='always', jit_options={'fastmath': FASTMATH})
+def _motion_of_impl(kind, p, u, v, r, X, Y, N):
+    motion = _MOTION[_tag_code(kind)]
+    return lambda kind, p, u, v, r, X, Y, N: motion(p, u, v, r, X, Y, N)
+
+
+def _solve_of(kind, p, X, Y, N):
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(_solve_of, inline='always', jit_options={'fastmath': FASTMATH})
+def _solve_of_impl(kind, p, X, Y, N):
+    solve = _MASS_SOLVE[_tag_code(kind)]
+    return lambda kind, p, X, Y, N: solve(p, X, Y, N)
+
+
+# ----------------------------------------------------------------------------- actuators
+def _plant(code: int):
+    """The actuators of family ``code``: [(actuator, first input, first state, first output)]."""
+    out = []
+    j = i = k = 0
+    for name in _FAMILIES[code].actuators:
+        a = actuator(name)
+        out.append((a, j, i, k))
+        j += len(a.inputs)
+        i += len(a.states)
+        k += len(a.outputs)
+    return out
+
+
+MAX_ACTUATORS = 3
+N_ACT_STATES = max(1, max(sum(len(actuator(n).states) for n in f.actuators)
+                          for f in _FAMILIES))
+"""Length of the actuator-state array every kernel keeps (the largest plant's)."""
+
+for _f in _FAMILIES:
+    if not 1 <= len(_f.actuators) <= MAX_ACTUATORS:
+        raise ImportError(f'family {_f.name!r}: ACTUATORS must list 1 to {MAX_ACTUATORS} '
+                          f'actuator models, got {_f.actuators}')
+
+
+def actuate_start(kind, p, inp, a):
+    """Set the actuator states ``a`` from the first input row (compiled only)."""
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(actuate_start, inline='always', jit_options={'fastmath': FASTMATH})
+def _actuate_start_impl(kind, p, inp, a):
+    plant = _plant(_tag_code(kind))
+    s0, j0, i0 = plant[0][0].start, plant[0][1], plant[0][2]
+    if len(plant) == 1:
+        def start1(kind, p, inp, a):
+            s0(p, inp, j0, a, i0)
+        return start1
+    s1, j1, i1 = plant[1][0].start, plant[1][1], plant[1][2]
+    if len(plant) == 2:
+        def start2(kind, p, inp, a):
+            s0(p, inp, j0, a, i0)
+            s1(p, inp, j1, a, i1)
+        return start2
+    s2, j2, i2 = plant[2][0].start, plant[2][1], plant[2][2]
+
+    def start3(kind, p, inp, a):
+        s0(p, inp, j0, a, i0)
+        s1(p, inp, j1, a, i1)
+        s2(p, inp, j2, a, i2)
+    return start3
+
+
+def actuate_hold(kind, p, inp, h):
+    """(status, held) for the inputs held over a sample interval (compiled only)."""
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(actuate_hold, inline='always', jit_options={'fastmath': FASTMATH})
+def _actuate_hold_impl(kind, p, inp, h):
+    code = _tag_code(kind)
+    astern = ASTERN_RPM[code]
+    plant = _plant(code)
+    h0, j0 = plant[0][0].hold, plant[0][1]
+    if len(plant) == 1:
+        def hold1(kind, p, inp, h):
+            st, held = h0(p, inp, j0, h, astern)
+            return st, (held,)
+        return hold1
+    h1, j1 = plant[1][0].hold, plant[1][1]
+    if len(plant) == 2:
+        def hold2(kind, p, inp, h):
+            st0, held0 = h0(p, inp, j0, h, astern)
+            st1, held1 = h1(p, inp, j1, h, astern)
+            return (st0 if st0 != OK else st1), (held0, held1)
+        return hold2
+    h2, j2 = plant[2][0].hold, plant[2][1]
+
+    def hold3(kind, p, inp, h):
+        st0, held0 = h0(p, inp, j0, h, astern)
+        st1, held1 = h1(p, inp, j1, h, astern)
+        st2, held2 = h2(p, inp, j2, h, astern)
+        st = st0 if st0 != OK else (st1 if st1 != OK else st2)
+        return st, (held0, held1, held2)
+    return hold3
+
+
+def actuate_output(kind, p, held, a):
+    """Advance the actuator states over one step; return the actuator tuple (compiled only)."""
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(actuate_output, inline='always', jit_options={'fastmath': FASTMATH})
+def _actuate_output_impl(kind, p, held, a):
+    plant = _plant(_tag_code(kind))
+    o0, i0 = plant[0][0].output, plant[0][2]
+    if len(plant) == 1:
+        return lambda kind, p, held, a: o0(p, held[0], a, i0)
+    o1, i1 = plant[1][0].output, plant[1][2]
+    if len(plant) == 2:
+        return lambda kind, p, held, a: o0(p, held[0], a, i0) + o1(p, held[1], a, i1)
+    o2, i2 = plant[2][0].output, plant[2][2]
+    return lambda kind, p, held, a: (o0(p, held[0], a, i0) + o1(p, held[1], a, i1)
+                                     + o2(p, held[2], a, i2))
+
+
+def act_tuple(kind, A, b):
+    """Row b of an actuator array A (B, n) as the family's actuator tuple (compiled only)."""
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+_ROW_TUPLES = {1: lambda kind, A, b: (A[b, 0],),
+               2: lambda kind, A, b: (A[b, 0], A[b, 1]),
+               3: lambda kind, A, b: (A[b, 0], A[b, 1], A[b, 2]),
+               4: lambda kind, A, b: (A[b, 0], A[b, 1], A[b, 2], A[b, 3]),
+               5: lambda kind, A, b: (A[b, 0], A[b, 1], A[b, 2], A[b, 3], A[b, 4]),
+               6: lambda kind, A, b: (A[b, 0], A[b, 1], A[b, 2], A[b, 3], A[b, 4], A[b, 5])}
+
+
+@overload(act_tuple, inline='always')
+def _act_tuple_impl(kind, A, b):
+    n = len(_FAMILIES[_tag_code(kind)].outputs)
+    if n not in _ROW_TUPLES:
+        raise TypeError(f'act_tuple: {n} actuator outputs; add a row form for it')
+    return _ROW_TUPLES[n]
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def _no_forces(p, u, v, r, act, k):
+    return 0.0, 0.0, 0.0
+
+
+def actuator_forces(kind, p, u, v, r, act):
+    """Sum of the actuators' own forces (X, Y, N) (compiled only)."""
+    raise NotImplementedError('compiled only (numba overload)')
+
+
+@overload(actuator_forces, inline='always', jit_options={'fastmath': FASTMATH})
+def _actuator_forces_impl(kind, p, u, v, r, act):
+    plant = [(A.forces, k) for A, _, _, k in _plant(_tag_code(kind)) if A.forces is not None]
+    if not plant:
+        return lambda kind, p, u, v, r, act: (0.0, 0.0, 0.0)
+    f0, k0 = plant[0]
+    if len(plant) == 1:
+        return lambda kind, p, u, v, r, act: f0(p, u, v, r, act, k0)
+    f1, k1 = plant[1]
+    f2, k2 = plant[2] if len(plant) > 2 else (_no_forces, 0)
+
+    def forces(kind, p, u, v, r, act):
+        X, Y, N = f0(p, u, v, r, act, k0)
+        X1, Y1, N1 = f1(p, u, v, r, act, k1)
+        X2, Y2, N2 = f2(p, u, v, r, act, k2)
+        return X + X1 + X2, Y + Y1 + Y2, N + N1 + N2
+    return forces
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def accelerations(kind, p, u, v, r, act):
+    """(du/dt, dv_m/dt, dr/dt) for velocities through the water and the actuator tuple act."""
+    X, Y, N = family_forces(kind, p, u, v, r, act)
+    X, Y, N = effect_forces(p, u, v, X, Y, N)
+    aX, aY, aN = actuator_forces(kind, p, u, v, r, act)
+    if aX != 0.0 or aY != 0.0 or aN != 0.0:   # nothing added: the sums stay bit-identical
+        X += aX
+        Y += aY
+        N += aN
+    return _motion_of(kind, p, u, v, r, X, Y, N)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def apparent_wind(p, psi, u, v):
+    """
+    Return the apparent wind: air velocity relative to the ship, body axes [m/s].
+
+    For the model state's heading and velocities through the water, with p's wind (and
+    current) slots.
+    """
+    ug = u
+    vg = v
+    Vc = p[_Vc]
+    if Vc != 0.0:
+        ug += Vc * math.cos(p[_dirc] - psi)
+        vg += Vc * math.sin(p[_dirc] - psi)
+    rel = p[_dirw] - psi
+    Vw = p[_Vw]
+    return -Vw * math.cos(rel) - ug, -Vw * math.sin(rel) - vg
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -235,22 +437,8 @@ def _wind_of(kind, p, ua, va):
 
 @overload(_wind_of, inline='always', jit_options={'fastmath': FASTMATH})
 def _wind_of_impl(kind, p, ua, va):
-    code = _tag_code(kind)
-    if code is not None:
-        wind = _WINDS[code]
-        return lambda kind, p, ua, va: wind(p, ua, va)
-
-    def branch(kind, p, ua, va):
-        X = 0.0
-        Y = 0.0
-        N = 0.0
-        i = 0
-        for f in literal_unroll(_WINDS):
-            if i == kind:
-                X, Y, N = f(p, ua, va)
-            i += 1
-        return X, Y, N
-    return branch
+    wind = _WINDS[_tag_code(kind)]
+    return lambda kind, p, ua, va: wind(p, ua, va)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -265,17 +453,10 @@ def family_wind(kind, p, ua, va):
     return _wind_of(kind, p, ua, va)
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def external_accelerations(p, X, Y, N):
-    """Accelerations from external forces through the same mass matrix as eq. 7."""
-    m = p[_m]
-    xG = p[_xG]
-    q2 = 0.5 * p[_rho] * p[_L] * p[_L] * p[_d]
-    a11 = m + p[_my] * q2
-    a12 = xG * m
-    a22 = p[_IzG] + xG * xG * m + p[_Jz] * q2 * p[_L] * p[_L]
-    det = a11 * a22 - a12 * a12
-    return X / (m + p[_mx] * q2), (a22 * Y - a12 * N) / det, (a11 * N - a12 * Y) / det
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def external_accelerations(kind, p, X, Y, N):
+    """Accelerations from external forces (wind) through the family's mass matrix."""
+    return _solve_of(kind, p, X, Y, N)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -308,7 +489,7 @@ def rhs(kind, p, s, act, out):
             vg += Vc * math.sin(p[_dirc] - psi)
         rel = p[_dirw] - psi
         Xw, Yw, Nw = family_wind(kind, p, -Vw * math.cos(rel) - ug, -Vw * math.sin(rel) - vg)
-        au, av, ar = external_accelerations(p, Xw, Yw, Nw)
+        au, av, ar = external_accelerations(kind, p, Xw, Yw, Nw)
         du += au
         dv += av
         dr += ar

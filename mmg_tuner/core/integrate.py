@@ -4,22 +4,24 @@ Fixed-step integration of the family-blind dynamics, compiled with numba.
 ``advance`` (one sample interval; the one implementation used by offline simulation, the tuning
 objective and the simulator node), whole trajectories (``simulate_one``/``simulate_many``),
 manoeuvres with a steering gear in the loop (``run_maneuver``) and the tuning cost
-(``trajectory_cost``/ ``cost_many``).
+(``trajectory_cost``/ ``cost_many``). The hybrid's runs (``learn/residual.py``) call the same
+``advance`` with the network's accelerations.
 
-Every kernel takes the family ``kind`` first and passes it down to
-:func:`~mmg_tuner.core.dynamics.derivative`; nothing here knows a family. ``kind`` is the
-family code (``ShipConfig.kind``, branched on at run time) or its tag
-(``dynamics.FAMILY_TAGS``: the kernel is compiled for that family alone). The whole-run entry
-points (``simulate_one``, ``simulate_many``, ``run_maneuver``, ``trajectory_cost``,
-``cost_many``) take the code and run the kernel compiled for its family. Batching over
-candidates and trials is a ``prange`` over independent trajectories, which numba spreads over
-cores. Input arrays ``ctrl`` (T, n) hold the channels of ``core/channels.py`` in order.
+Every kernel takes the family's tag ``kind`` first and passes it down to
+``core/dynamics.py``; nothing here knows a family or an actuator. The whole-run entry points
+(``simulate_one``, ``simulate_many``, ``run_maneuver``, ``trajectory_cost``, ``cost_many``) take
+the family code (``ShipConfig.kind``) and run the kernel compiled for its family alone.
+Batching over candidates and trials is a ``prange`` over independent trajectories, which numba
+spreads over cores. Input arrays ``ctrl`` (T, n) hold the family's channels
+(``Family.channels``: its actuators' inputs, then the measured wind north/east, NaN where not
+measured); the actuators keep their states in a small array ``a``.
 The per-sample path (``advance``, the right-hand side ``dynamics.rhs``, the status checks,
 ``observe_row``) is inlined into the whole-run loops (numba ``inline='always'``) and indexes
 rows instead of taking row views: every compiled call or view of an array costs atomic
 reference-count updates, which took ~40 % of an Euler step.
-The effects that act on inputs and observations are hooks here (rpm_scale, rudder_offset,
-rudder_lag_tau, time_offset, antenna offset, current in the observed velocities).
+The effects that act on observations and on the time base are hooks here (time_offset,
+antenna offset, current in the observed velocities); those acting between a command and the
+ship belong to the actuators (``core/actuators``).
 """
 from __future__ import annotations
 
@@ -28,11 +30,13 @@ import math
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH
-from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER, WIND_E, WIND_N
-from mmg_tuner.core.dynamics import astern_rpm, astern_surge, family_tag, rhs
+from mmg_tuner.core.dynamics import (actuate_hold, actuate_output, actuate_start, astern_surge,
+                                     family_tag, N_ACT_STATES, rhs)
 from mmg_tuner.core.frames import wrap_pi
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
                                    SURGE_NOT_POSITIVE)
+
+N_ENV = 2  # the measured wind north/east: the last two columns of every input array
 from numba import njit, prange
 from numba.core.errors import NumbaIRAssumptionWarning
 import numpy as np
@@ -44,9 +48,6 @@ warnings.filterwarnings('ignore', 'variable .* is not in scope', NumbaIRAssumpti
 
 _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
-_doff = PARAM_INDEX['rudder_offset']
-_tau = PARAM_INDEX['rudder_lag_tau']
-_nscale = PARAM_INDEX['rpm_scale']
 _ax = PARAM_INDEX['antenna_x']
 _ay = PARAM_INDEX['antenna_y']
 _toff = PARAM_INDEX['time_offset']
@@ -54,23 +55,42 @@ _Vw = PARAM_INDEX['wind_speed']
 _dirw = PARAM_INDEX['wind_dir']
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp):
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def deriv(kind, p, s, act, r0, r1, r2, physics, out):
+    """
+    ds/dt into out, plus the learned residual's accelerations (r0, r1, r2).
+
+    physics False: the residual replaces the family's accelerations (a pure network).
+    Without a network the callers pass zeros and True: adding 0.0 changes no bit.
+    """
+    rhs(kind, p, s, act, out)
+    if physics:
+        out[3] += r0
+        out[4] += r1
+        out[5] += r2
+    else:
+        out[3] = r0
+        out[4] = r1
+        out[5] = r2
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
     """Advance s in place by one step h (Euler or classic RK4), inputs held over the step."""
-    rhs(kind, p, s, act, k1)
+    deriv(kind, p, s, act, r0, r1, r2, physics, k1)
     if method == EULER:
         for i in range(6):
             s[i] += h * k1[i]
         return
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k1[i]
-    rhs(kind, p, tmp, act, k2)
+    deriv(kind, p, tmp, act, r0, r1, r2, physics, k2)
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k2[i]
-    rhs(kind, p, tmp, act, k3)
+    deriv(kind, p, tmp, act, r0, r1, r2, physics, k3)
     for i in range(6):
         tmp[i] = s[i] + h * k3[i]
-    rhs(kind, p, tmp, act, k4)
+    deriv(kind, p, tmp, act, r0, r1, r2, physics, k4)
     for i in range(6):
         s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
@@ -88,6 +108,23 @@ def _control_at(ctrl, k, j, frac_shift, T):
     i = int(t)
     w = t - i
     return (1.0 - w) * ctrl[i, j] + w * ctrl[i + 1, j]
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def input_row(ctrl, k, frac_shift, T, inp):
+    """Fill inp with the command channels at sample k (all but the wind), shifted in time."""
+    for j in range(inp.shape[0]):
+        inp[j] = _control_at(ctrl, k, j, frac_shift, T)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def has_measured_wind(ctrl):
+    """Whether the wind columns (the last two) hold any measured value (decided per run)."""
+    T, n = ctrl.shape
+    for k in range(T):
+        if ctrl[k, n - 2] == ctrl[k, n - 2] and ctrl[k, n - 1] == ctrl[k, n - 1]:
+            return True
+    return False
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -141,14 +178,6 @@ def observe(p, s, out):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rpm_status(kind, n_rps):
-    """OK or RPM_NOT_POSITIVE: n_P <= 0 (or NaN) is refused unless the family covers astern."""
-    if n_rps > 0.0 or (astern_rpm(kind) and n_rps == n_rps):
-        return OK
-    return RPM_NOT_POSITIVE
-
-
-@njit(cache=True, fastmath=FASTMATH, inline='always')
 def state_status(kind, s):
     """
     OK, DIVERGED (non-finite) or SURGE_NOT_POSITIVE (u <= 0 in a family without astern).
@@ -165,35 +194,30 @@ def state_status(kind, s):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4, tmp,
-            bow=0.0, stern=0.0):
+def advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp, r0=0.0, r1=0.0,
+            r2=0.0, physics=True):
     """
-    Advance the model state s (in place) over one sample interval dt.
+    Advance the model state s (in place) over one sample interval dt: the one step function.
 
-    With the recorded or commanded rpm, rudder [rad] and thrusters [rev/s] held.
-
-    delta_act is the actual rudder angle (the steering-gear lag state); the input effects act
-    here: rpm_scale, rudder_offset, rudder_lag_tau. Returns (status, new delta_act).
+    The command row ``inp`` (the family's actuator inputs) is held over the interval; the
+    actuators turn it into the actuator tuple (advancing their states ``a`` each integration
+    step), the family and the shared hooks into accelerations, plus the learned residual's
+    (r0, r1, r2) [m/s^2, m/s^2, rad/s^2] held over the interval when a network is attached.
+    Returns the status (OK, or why the run stops).
     """
-    n_rps = rpm * p[_nscale] / 60.0
-    st = rpm_status(kind, n_rps)
-    if st != OK:
-        return st, delta_act
-    delta_cmd = rudder + p[_doff]
     h = dt / substeps
-    tau = p[_tau]
-    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    st, held = actuate_hold(kind, p, inp, h)
+    if st != OK:
+        return st
     for _ in range(substeps):
-        # steering gear: exact first-order response to the held command
-        delta_act = delta_cmd + (delta_act - delta_cmd) * decay
-        act = (n_rps, delta_act, bow, stern)
+        act = actuate_output(kind, p, held, a)
         if method == EULER:  # the tuning hot path: keep the call chain shallow for inlining
-            rhs(kind, p, s, act, k1)
+            deriv(kind, p, s, act, r0, r1, r2, physics, k1)
             for i in range(6):
                 s[i] += h * k1[i]
         else:
-            step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp)
-    return state_status(kind, s), delta_act
+            step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics)
+    return state_status(kind, s)
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -214,15 +238,16 @@ def start_state(p, x0, s):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _use_measured_wind(p, ctrl, k):
+def use_measured_wind(p, ctrl, k):
     """
     Set the wind parameters of p from the measured wind channels at sample k.
 
     Set the wind parameters of p (a per-trajectory copy) from the measured wind channels (air
-    velocity north/east [m/s]) at sample k; NaN keeps the parameters.
+    velocity north/east [m/s], the last two columns) at sample k; NaN keeps the parameters.
     """
-    wn = ctrl[k, WIND_N]
-    we = ctrl[k, WIND_E]
+    n = ctrl.shape[1]
+    wn = ctrl[k, n - 2]
+    we = ctrl[k, n - 1]
     if wn == wn and we == we:
         p[_Vw] = math.sqrt(wn * wn + we * we)
         p[_dirw] = math.atan2(-we, -wn)  # blows from the opposite of where the air goes
@@ -234,8 +259,8 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
 
     x0 is the first observed state (antenna position, velocities over ground); ctrl[k] holds
-    the input channels (rpm, rudder_rad[, wind_n, wind_e[, bow, stern]]) held from sample k to
-    k+1 (delayed by time_offset if set). Returns (status, sample index of failure). After a
+    the family's channels (commands, then the measured wind) held from sample k to k+1
+    (delayed by time_offset if set). Returns (status, sample index of failure). After a
     failure the remaining rows are NaN.
     """
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
@@ -245,27 +270,21 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
+    a = np.zeros(N_ACT_STATES)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
     start_state(p, x0, s)
     observe_row(p, s, out, 0)
     shift = p[_toff] / dt
-    delta_act = _control_at(ctrl, 0, RUDDER, shift, T) + p[_doff]
-    # optional channels, decided once per run (a per-sample wrapper costs ~30 % in Euler)
-    measured_wind = ctrl.shape[1] > WIND_E
-    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    input_row(ctrl, 0, shift, T, inp)
+    actuate_start(kind, p, inp, a)
+    measured_wind = has_measured_wind(ctrl)  # decided once per run
     status = OK
     k_fail = T
     for k in range(T - 1):
         if measured_wind:
-            _use_measured_wind(p, ctrl, k)
-        rpm = _control_at(ctrl, k, RPM, shift, T)
-        rudder = _control_at(ctrl, k, RUDDER, shift, T)
-        bow = 0.0
-        stern = 0.0
-        if thrusters:
-            bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T)
-            stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T)
-        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                    method, k1, k2, k3, k4, tmp, bow, stern)
+            use_measured_wind(p, ctrl, k)
+        input_row(ctrl, k, shift, T, inp)
+        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -298,16 +317,18 @@ def _simulate_many(kind, params, x0s, ctrls, lengths, dt, substeps, method, out,
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, T, dt,
+def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate, T, dt,
                   substeps, method, out, rudder_out):
     """
     Simulate a manoeuvre with a steering gear in the loop (for generating trials).
 
-    rudder_cmd[k] is the open-loop rudder order at sample k (rad); if zigzag_amp != 0 the order
-    is instead closed on heading from the first sample where rudder_cmd[k] != 0: it starts at
+    ctrl (T, n): the family's channels at each sample, held per sample; its column
+    ``rudder_col`` holds the open-loop rudder *order* [rad], which a steering gear of rate
+    ``rate`` [rad/s] (<= 0: instantaneous) turns into the logged rudder angle the actuators
+    see (each integration step sees the angle at its start). If zigzag_amp != 0 the order is
+    instead closed on heading from the first sample whose order is not 0: it starts at
     zigzag_amp and reverses when the heading change passes +-zigzag_check (IMO zigzag).
-    rate: steering-gear rate limit [rad/s] (<= 0: instantaneous). rpm[k] is held per sample.
-    Writes observed states to out and the actual rudder angle at each sample to rudder_out.
+    Writes observed states to out and the logged rudder angle at each sample to rudder_out.
     Returns (status, k_fail).
     """
     s = np.empty(6)
@@ -316,6 +337,8 @@ def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, 
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
+    a = np.zeros(N_ACT_STATES)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
     for i in range(6):
         s[i] = x0[i]
     to_water(p, s)
@@ -324,24 +347,20 @@ def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, 
     max_move = rate * h if rate > 0.0 else 1e9
     delta = 0.0  # straight approach: the rudder starts amidships and moves at the gear's rate
     rudder_out[0] = delta
-    # effects between the recorded (indicated) rudder/rpm and what acts on the ship
-    tau = p[_tau]
-    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
-    delta_act = delta + p[_doff]
+    input_row(ctrl, 0, 0.0, T, inp)
+    inp[rudder_col] = delta
+    actuate_start(kind, p, inp, a)
     zz_started = False
     zz_cmd = zigzag_amp
     psi0 = s[2]
     status = OK
     k_fail = T
     for k in range(T - 1):
-        n_rps = rpm[k] * p[_nscale] / 60.0
-        status = rpm_status(kind, n_rps)
-        if status != OK:
-            k_fail = k
-            break
+        input_row(ctrl, k, 0.0, T, inp)
+        order = inp[rudder_col]
         for _ in range(substeps):
             if zigzag_amp != 0.0:
-                if not zz_started and rudder_cmd[k] != 0.0:
+                if not zz_started and order != 0.0:
                     zz_started = True
                     psi0 = s[2]
                 if zz_started:
@@ -354,27 +373,24 @@ def _run_maneuver(kind, p, x0, rpm, rudder_cmd, zigzag_amp, zigzag_check, rate, 
                 else:
                     cmd = 0.0
             else:
-                cmd = rudder_cmd[k]
-            # the step sees the angle at its start (as a zero-order-hold replay of the
+                cmd = order
+            # the step sees the logged angle at its start (as a zero-order-hold replay of the
             # recorded angle does); the gear then moves toward the order
-            delta_act = delta + p[_doff] + (delta_act - delta - p[_doff]) * decay
-            step(kind, p, s, (n_rps, delta_act, 0.0, 0.0), h, method, k1, k2, k3, k4, tmp)
+            inp[rudder_col] = delta
+            status = advance(kind, p, s, a, inp, h, 1, method, k1, k2, k3, k4, tmp)
+            if status == RPM_NOT_POSITIVE:
+                break
             diff = cmd - delta
             if diff > max_move:
                 diff = max_move
             elif diff < -max_move:
                 diff = -max_move
             delta += diff
-        ok = True
-        for i in range(6):
-            if not math.isfinite(s[i]):
-                ok = False
-        if not ok:
-            status = DIVERGED
-            k_fail = k + 1
+        if status == RPM_NOT_POSITIVE:
+            k_fail = k
             break
-        if s[3] <= 0.0 and not astern_surge(kind):
-            status = SURGE_NOT_POSITIVE
+        status = state_status(kind, s)
+        if status != OK:
             k_fail = k + 1
             break
         observe(p, s, out[k + 1])
@@ -406,26 +422,20 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
+    a = np.zeros(N_ACT_STATES)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
     shift = p[_toff] / dt
-    delta_act = _control_at(ctrl, 0, RUDDER, shift, T) + p[_doff]
-    # optional channels, decided once per run (a per-sample wrapper costs ~30 % in Euler)
-    measured_wind = ctrl.shape[1] > WIND_E
-    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    input_row(ctrl, 0, shift, T, inp)
+    actuate_start(kind, p, inp, a)
+    measured_wind = has_measured_wind(ctrl)  # decided once per run
     J = 0.0
     for k in range(T - 1):
         if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
             start_state(p, meas[k], s)
         if measured_wind:
-            _use_measured_wind(p, ctrl, k)
-        rpm = _control_at(ctrl, k, RPM, shift, T)
-        rudder = _control_at(ctrl, k, RUDDER, shift, T)
-        bow = 0.0
-        stern = 0.0
-        if thrusters:
-            bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T)
-            stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T)
-        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                    method, k1, k2, k3, k4, tmp, bow, stern)
+            use_measured_wind(p, ctrl, k)
+        input_row(ctrl, k, shift, T, inp)
+        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp)
         if status != OK:
             return J, (k if status == RPM_NOT_POSITIVE else k + 1)
         observe_row(p, s, o, 0)
@@ -458,6 +468,27 @@ def _cost_many(kind, params, meas, ctrls, lengths, dt, substeps, method, weights
         k_fail[i, j] = kf
 
 
+@njit(cache=True, fastmath=FASTMATH)
+def _actuator_outputs(kind, p, ctrl, T, dt, out):
+    """
+    Fill out (T, n) with the actuator tuple acting over each sample interval.
+
+    One integration step per sample (as the hybrid's training simulates), the inputs shifted
+    by time_offset; what the family's forces read (``Family.outputs``).
+    """
+    a = np.zeros(N_ACT_STATES)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
+    shift = p[_toff] / dt
+    input_row(ctrl, 0, shift, T, inp)
+    actuate_start(kind, p, inp, a)
+    for k in range(T):
+        input_row(ctrl, k, shift, T, inp)
+        _, held = actuate_hold(kind, p, inp, dt)
+        act = actuate_output(kind, p, held, a)
+        for i in range(len(act)):
+            out[k, i] = act[i]
+
+
 def _for_family(kernel):
     """
     Make the Python entry point of a whole-run kernel.
@@ -477,3 +508,4 @@ simulate_many = _for_family(_simulate_many)
 run_maneuver = _for_family(_run_maneuver)
 trajectory_cost = _for_family(_trajectory_cost)
 cost_many = _for_family(_cost_many)
+actuator_outputs = _for_family(_actuator_outputs)

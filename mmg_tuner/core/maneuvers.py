@@ -18,14 +18,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from mmg_tuner.core.channels import (BOW_THRUSTER, CHANNELS, RPM, RUDDER, STERN_THRUSTER, WIND_E,
-                                     WIND_N)
 from mmg_tuner.core.integrate import run_maneuver
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.models import family
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code, simulate
-from mmg_tuner.core.trial import Trial
+from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.errors import SimulationError
 import numpy as np
 
@@ -133,16 +131,39 @@ def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trial:
         raise SimulationError(f'approach speed {x0[3]} m/s: the MMG model covers u > 0 only')
     if spec.maneuver in LOWSPEED_MANEUVERS:
         return _run_lowspeed(ship, spec, x0, t, rate)
-    out = np.empty((T, 6))
-    rudder = np.empty(T)
-    status, k_fail = run_maneuver(ship.kind, ship.params, x0, rpm, orders, zz_amp, zz_check,
-                                  rate, T, float(spec.dt), int(spec.substeps),
-                                  integrator_code(spec.integrator), out, rudder)
+    status, k_fail, out, rudder = steered(ship, x0, rpm, orders, zz_amp, zz_check, rate,
+                                          spec.dt, spec.substeps, spec.integrator,
+                                          spec.maneuver)
     controls = np.column_stack([rpm, rudder])
     if status != OK:
         return Trial(t, out, controls, name=spec.maneuver, status=STATUS_TEXT[status],
                      fail_time_s=float(t[min(k_fail, T - 1)]))
     return Trial(t, out, controls, name=spec.maneuver)
+
+
+def steered(ship: ShipConfig, x0: np.ndarray, rpm: np.ndarray, orders: np.ndarray,
+            zigzag_amp: float, zigzag_check: float, rate_rad_s: float, dt: float,
+            substeps: int, integrator: str, what: str = 'manoeuvre'
+            ) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """
+    Run rudder orders [rad] through a steering gear of rate_rad_s (``integrate.run_maneuver``).
+
+    rpm, orders: (T,) per sample; zigzag_amp != 0 closes the orders on heading (IMO zigzag).
+    Returns (status, k_fail, observed states (T, 6), logged rudder angle (T,)).
+    """
+    fam = family(ship.model)
+    if fam.inputs[:2] != ('rpm', 'rudder'):
+        raise SimulationError(f'{what} drives a screw and rudder; the {fam.name!r} family '
+                              f'reads {", ".join(fam.inputs)}')
+    T = rpm.size
+    out = np.empty((T, 6))
+    rudder = np.empty(T)
+    ctrl = input_array(fam.channels, {'rpm': rpm, 'rudder': orders}, T, what)
+    status, k_fail = run_maneuver(ship.kind, ship.params, np.asarray(x0, dtype=float), ctrl,
+                                  fam.inputs.index('rudder'), zigzag_amp, zigzag_check,
+                                  rate_rad_s, T, float(dt), int(substeps),
+                                  integrator_code(integrator), out, rudder)
+    return status, k_fail, out, rudder
 
 
 def _random_orders(t: np.ndarray, spec: ManeuverSpec) -> tuple[np.ndarray, np.ndarray]:
@@ -191,9 +212,9 @@ class _Programme:
                  rate: float) -> None:
         self.ship, self.spec, self.x0, self.t, self.rate = ship, spec, x0, t, rate
         self.orders = np.zeros(t.size)
-        self.ctrl = np.zeros((t.size, len(CHANNELS)))
-        self.ctrl[:, RPM] = spec.rpm
-        self.ctrl[:, [WIND_N, WIND_E]] = np.nan  # not measured: the wind parameters act
+        # the commands by channel (the wind not measured: the wind parameters act)
+        self.ctrl = {'rpm': np.full(t.size, float(spec.rpm)), 'rudder': np.zeros(t.size),
+                     'bow_thruster': np.zeros(t.size), 'stern_thruster': np.zeros(t.size)}
 
     def sample(self, time_s: float) -> int:
         """Return the sample index of a time [s] (the last one at most)."""
@@ -201,7 +222,7 @@ class _Programme:
 
     def simulate(self) -> Trial:
         """Simulate the programme as it stands (rudder rate-limited from the orders)."""
-        self.ctrl[:, RUDDER] = _rate_limited(self.orders, self.rate, self.spec.dt)
+        self.ctrl['rudder'] = _rate_limited(self.orders, self.rate, self.spec.dt)
         return simulate(self.ship, self.x0, self.ctrl, self.spec.dt, self.spec.integrator,
                         self.spec.substeps)
 
@@ -215,8 +236,8 @@ class _Programme:
     def trial(self) -> Trial:
         """Return the finished programme's trial, thrusters included."""
         run = self.simulate()
-        return Trial.from_inputs(self.t, run.states, self.ctrl, name=self.spec.maneuver,
-                                 status=run.status, fail_time_s=run.fail_time_s)
+        return Trial(self.t, run.states, inputs=self.ctrl, name=self.spec.maneuver,
+                     status=run.status, fail_time_s=run.fail_time_s)
 
 
 def _run_lowspeed(ship: ShipConfig, spec: ManeuverSpec, x0: np.ndarray, t: np.ndarray,
@@ -254,17 +275,18 @@ def _berthing(pg: _Programme) -> None:
     pg.orders[k:] = math.radians(spec.rudder_deg)
     k = pg.until(k, 6 * t_L, lambda s, s0: np.abs(s[:, 2] - s0[2]) >= math.radians(20.0))
     pg.orders[k:] = 0.0
-    pg.ctrl[k:, RPM] = 0.0
+    pg.ctrl['rpm'][k:] = 0.0
     k = pg.until(k, 8 * t_L, lambda s, s0: s[:, 3] <= 0.6 * u0)
-    pg.ctrl[k:, RPM] = -spec.rpm
+    pg.ctrl['rpm'][k:] = -spec.rpm
     k = pg.until(k, 15 * t_L, lambda s, s0: s[:, 3] <= -0.1 * u0)
-    pg.ctrl[k:, RPM] = 0.0
+    pg.ctrl['rpm'][k:] = 0.0
     left = pg.t[-1] - pg.t[k]
     k_check = pg.sample(pg.t[k] + 0.6 * left)
     k_stop = pg.sample(pg.t[k] + 0.75 * left)
-    pg.ctrl[k:k_check, [BOW_THRUSTER, STERN_THRUSTER]] = side * spec.thruster_rps
-    pg.ctrl[k_check:k_stop, BOW_THRUSTER] = -side * spec.thruster_rps
-    pg.ctrl[k_check:k_stop, STERN_THRUSTER] = side * spec.thruster_rps
+    pg.ctrl['bow_thruster'][k:k_check] = side * spec.thruster_rps
+    pg.ctrl['stern_thruster'][k:k_check] = side * spec.thruster_rps
+    pg.ctrl['bow_thruster'][k_check:k_stop] = -side * spec.thruster_rps
+    pg.ctrl['stern_thruster'][k_check:k_stop] = side * spec.thruster_rps
 
 
 def _random_astern(pg: _Programme) -> None:
@@ -283,9 +305,9 @@ def _random_astern(pg: _Programme) -> None:
     while k < T:
         hold = max(1, int(rng.uniform(10.0, 60.0) / spec.dt))
         pg.orders[k:k + hold] = math.radians(rng.uniform(-amp, amp))
-        pg.ctrl[k:k + hold, RPM] = spec.rpm * rng.uniform(-0.8, 1.0)
+        pg.ctrl['rpm'][k:k + hold] = spec.rpm * rng.uniform(-0.8, 1.0)
         bow, stern = rng.uniform(-1.0, 1.0, 2) * spec.thruster_rps
         if rng.uniform() < 0.5:
-            pg.ctrl[k:k + hold, BOW_THRUSTER] = bow
-            pg.ctrl[k:k + hold, STERN_THRUSTER] = stern
+            pg.ctrl['bow_thruster'][k:k + hold] = bow
+            pg.ctrl['stern_thruster'][k:k + hold] = stern
         k += hold

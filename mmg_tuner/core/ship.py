@@ -7,7 +7,7 @@ finds the installed or in-tree config by name; a path to any YAML works too.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 import math
 from pathlib import Path
 import re
@@ -91,9 +91,6 @@ class ShipConfig:
     source: str = ''
     extra: Mapping[str, Any] = field(default_factory=dict)
     tuning_bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-    # a trained neural residual (core/residual.py) named by the params.yaml that was overlaid:
-    # the ship then simulates as a hybrid (or a pure network); None: the physics alone
-    residual: Any = field(default=None, repr=False, compare=False)
 
     @property
     def kind(self) -> int:
@@ -136,15 +133,16 @@ class ShipConfig:
         p = self.params.copy()
         for k, v in values.items():
             p[_index(k, where)] = _number(v, k, where)
-        _check_physical(p, where, set(values))
+        _check_physical(p, where, set(values), self.family.required)
         p.setflags(write=False)
         return ShipConfig(self.name, self.model, p, self.rudder_rate_rad_s, self.max_rudder_rad,
                           self.tuning_targets, self.a_r, self.scale_ratio, self.source, self.extra,
-                          self.tuning_bounds, self.residual)
+                          self.tuning_bounds)
 
 
 # Physical plausibility, checked for ship files and overlays alike.
-_POSITIVE = ('rho', 'L_pp', 'B', 'd', 'm', 'I_zG', 'D_P', 'H_R', 'A_R')
+_POSITIVE = ('rho', 'L_pp', 'B', 'd', 'm', 'I_zG')
+_POSITIVE_IF_REQUIRED = ('D_P', 'H_R', 'A_R')   # a propeller and rudder, where the family has them
 _NON_NEGATIVE = ('m_x', 'm_y', 'J_z', 'rho_air', 'A_F', 'A_L', 'L_OA', 'current_speed',
                  'wind_speed', 'rudder_lag_tau', 'rpm_scale')
 MAX_MAGNITUDE = 1e15
@@ -169,9 +167,15 @@ def _number(v: Any, key: str, source: str) -> float:
     return x
 
 
-def _check_physical(p: np.ndarray, source: str, keys=None) -> None:
-    """Refuse physically impossible values (keys: only report these, e.g. an overlay's)."""
-    for k in _POSITIVE:
+def _check_physical(p: np.ndarray, source: str, keys=None, required=_POSITIVE_IF_REQUIRED
+                    ) -> None:
+    """
+    Refuse physically impossible values (keys: only report these, e.g. an overlay's).
+
+    required: the family's required keys (a propeller's and rudder's sizes must be positive
+    only for a family that has them).
+    """
+    for k in _POSITIVE + tuple(k for k in _POSITIVE_IF_REQUIRED if k in required):
         if not p[PARAM_INDEX[k]] > 0 and (keys is None or k in keys):
             raise ConfigError(f'{source}: {k} must be positive, got {k} = '
                               f'{p[PARAM_INDEX[k]]:g}')
@@ -204,9 +208,6 @@ def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | Non
     ship = ship_from_dict(_read_yaml(path, 'ship config'), str(path))
     if params_file is not None:
         ship = ship.with_params(load_params_file(params_file), source=str(params_file))
-        net = load_params_residual(params_file)
-        if net is not None:
-            ship = replace(ship, residual=net)
     return ship
 
 
@@ -262,7 +263,7 @@ def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig
         if k in ('C_b', 'displacement'):
             continue
         p[PARAM_INDEX[k]] = _number(v, k, source)
-    _check_physical(p, source)
+    _check_physical(p, source, required=fam.required)
     p.setflags(write=False)
     steering = _section(doc, 'steering', source)
     tuning = _section(doc, 'tuning', source)
@@ -353,27 +354,3 @@ def load_params_file(path: str | Path) -> dict[str, float]:
             raise ConfigError(f'{path}: unknown parameter {k!r}')
         out[k] = _number(v, f'params.{k}', str(path))
     return out
-
-
-def load_params_residual(path: str | Path):
-    """
-    Return the residual network a params.yaml names (``residual: FILE.npz``, relative to the yaml).
-
-    Returns None when the file names none; a missing or corrupt network file is a ConfigError
-    naming both files.
-    """
-    path = Path(path)
-    doc = _read_yaml(path, 'params file')
-    name = doc.get('residual') if isinstance(doc, Mapping) else None
-    if name is None:
-        return None
-    if not isinstance(name, str) or not name.strip():
-        raise ConfigError(f'{path}: key "residual" = {name!r} must name a .npz file (relative '
-                          'to the params file)')
-    from mmg_tuner.core.residual import ResidualNet   # it imports this module
-    net_path = Path(name) if Path(name).is_absolute() else path.parent / name
-    try:
-        return ResidualNet.load(net_path)
-    except ConfigError as exc:
-        raise ConfigError(f'{path}: key "residual" names {net_path}, which cannot be used: '
-                          f'{exc}') from None

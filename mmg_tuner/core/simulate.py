@@ -6,14 +6,53 @@ One trajectory (:func:`simulate`) or a batch of parameter candidates x trials in
 """
 from __future__ import annotations
 
-from mmg_tuner.core.channels import CHANNELS, N_ACT
+from typing import Mapping
+
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import simulate_many, simulate_one
 from mmg_tuner.core.layout import INTEGRATORS, N_PARAMS, OK, STATUS_TEXT
-from mmg_tuner.core.models import Family, family
+from mmg_tuner.core.models import Family, family, family_of_code
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.trial import Trajectory, Trial  # noqa: F401  (Trajectory: former name)
-from mmg_tuner.errors import SimulationError
+from mmg_tuner.core.trial import input_array, Trial
+from mmg_tuner.errors import SimulationError, TrialDataError
 import numpy as np
+
+
+def kernel_inputs(fam: Family, controls, what: str = 'simulation') -> np.ndarray:
+    """
+    Return the kernels' input array for family ``fam``: its channels, wind last.
+
+    ``controls``: a Trial, a mapping channel name -> (T,) values (absent channels take their
+    defaults; a required one is an error naming it), or an array whose last axis holds the
+    family's channels (``fam.channels``: its actuators' inputs, then the measured wind north
+    and east) or the first of its command channels (``fam.inputs``; the rest take their
+    defaults, e.g. thrusters 0, and the wind is "not measured"). A (M, T, n) array of several
+    trials is accepted the same way.
+    """
+    if isinstance(controls, Trial):
+        return np.ascontiguousarray(controls.input_array(fam.channels))
+    if isinstance(controls, Mapping):
+        lengths = {np.asarray(v).shape[0] for v in controls.values()}
+        if len(lengths) != 1:
+            raise SimulationError(f'{what}: the input channels differ in length: '
+                                  f'{sorted(lengths)}')
+        try:
+            return input_array(fam.channels, controls, lengths.pop(), what)
+        except TrialDataError as exc:
+            raise SimulationError(str(exc)) from None
+    a = np.asarray(controls, dtype=float)
+    n = a.shape[-1] if a.ndim in (2, 3) else -1
+    n_req = max([i + 1 for i, c in enumerate(fam.inputs) if TABLE[c].default is None] or [0])
+    if n == len(fam.channels):
+        return np.ascontiguousarray(a)
+    if not n_req <= n <= len(fam.inputs):
+        raise SimulationError(f'{what}: controls must be (T, {n_req}..{len(fam.inputs)}) '
+                              f'({", ".join(fam.inputs)}) or (T, {len(fam.channels)}) with the '
+                              f'measured wind ({", ".join(fam.channels)}) for the {fam.name!r} '
+                              f'family, or a mapping of channel names; got shape {a.shape}')
+    rest = [TABLE[c].default for c in fam.channels[n:]]
+    return np.ascontiguousarray(np.concatenate(
+        [a, np.broadcast_to(np.array(rest, dtype=float), a.shape[:-1] + (len(rest),))], axis=-1))
 
 
 def integrator_code(name: str) -> int:
@@ -29,11 +68,13 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
     """
     Refuse inputs outside the model's range, with a message naming the sample time.
 
-    Refuse, with a message naming the sample time, inputs outside the model's range (the family's:
-    astern rpm and u <= 0 only where it covers them; default: neither).
+    ``controls``: the kernels' input array (:func:`kernel_inputs`) of family ``fam`` (its
+    command channels must be finite; the wind may be NaN: not measured); astern rpm and
+    u <= 0 only where the family covers them.
     """
-    astern_rpm = fam is not None and fam.astern_rpm
-    astern_surge = fam is not None and fam.astern_surge
+    fam = fam or family('container')
+    astern_rpm = fam.astern_rpm
+    astern_surge = fam.astern_surge
     if not dt > 0:
         raise SimulationError(f'{what}: time step dt must be positive, got {dt}')
     if x0.shape != (6,) or not np.all(np.isfinite(x0)):
@@ -41,21 +82,20 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
     if x0[3] <= 0 and not astern_surge:
         raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
                               'covers u > 0 only')
-    if controls.ndim != 2 or controls.shape[1] not in (2, 4, len(CHANNELS)):
-        raise SimulationError(f'{what}: controls must be (T, 2) rpm, rudder, (T, 4) with the '
-                              f'wind north/east components or (T, {len(CHANNELS)}) with the '
-                              f'thrusters too ({", ".join(CHANNELS)}), got shape '
-                              f'{controls.shape}')
-    cols = [0, 1] + list(range(4, controls.shape[1]))  # wind may be NaN: not measured
-    bad = ~np.all(np.isfinite(controls[:, cols]), axis=1)
+    n_cmd = len(fam.inputs)
+    bad = ~np.all(np.isfinite(controls[:, :n_cmd]), axis=1)
     if bad.any():
         k = int(np.argmax(bad))
-        raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s')
-    neg = controls[:, 0] <= 0
-    if neg[:-1].any() and not astern_rpm:
-        k = int(np.argmax(neg))
-        raise SimulationError(f'{what}: rpm = {controls[k, 0]:.2f} at t = {t0 + k * dt:.2f} s;'
-                              ' the MMG model covers forward propeller revolutions only')
+        j = int(np.argmax(~np.isfinite(controls[k, :n_cmd])))
+        raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s '
+                              f'({fam.inputs[j]})')
+    if 'rpm' in fam.inputs and not astern_rpm:
+        rpm = controls[:, fam.inputs.index('rpm')]
+        neg = rpm <= 0
+        if neg[:-1].any():
+            k = int(np.argmax(neg))
+            raise SimulationError(f'{what}: rpm = {rpm[k]:.2f} at t = {t0 + k * dt:.2f} s;'
+                                  ' the MMG model covers forward propeller revolutions only')
 
 
 def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',
@@ -70,12 +110,11 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
         The ship config (its parameter vector is used unless ``params`` is given).
     x0 : array_like, shape (6,)
         First observed state (x, y, psi, u, v, r), velocities over ground.
-    controls : array_like, shape (T, n)
-        Input channels (``core/channels.CHANNELS`` order) at each sample;
-        sample k is held until k+1. (T, 2): rpm and rudder [rad]; two more columns are the
-        measured true wind's north/east components [m/s] (the air's velocity), which
-        replace the wind parameters (NaN: not measured); two more the bow and stern
-        thrusters [rev/s].
+    controls : Trial, mapping or array_like, shape (T, n)
+        The input channels at each sample (see :func:`kernel_inputs`); sample k is held
+        until k+1. For a screw-and-rudder family: (T, 2) rpm and rudder [rad], or (T, 4)
+        with the measured true wind's north/east components [m/s] (the air's velocity),
+        which replace the wind parameters (NaN: not measured).
     dt : float
         Sample spacing [s]; each sample interval is split into ``substeps`` steps.
     integrator : str
@@ -101,9 +140,10 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
 
     """
     x0 = np.asarray(x0, dtype=float)
-    controls = np.ascontiguousarray(controls, dtype=float)
+    fam = family(ship.model)
+    controls = kernel_inputs(fam, controls)
     if check:
-        check_inputs(x0, controls, dt, t0, fam=family(ship.model))
+        check_inputs(x0, controls, dt, t0, fam=fam)
     T = controls.shape[0]
     out = np.empty((T, 6))
     p = ship.params if params is None else np.asarray(params, dtype=float)
@@ -111,10 +151,10 @@ def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler
                                   integrator_code(integrator), out)
     t = t0 + dt * np.arange(T)
     if status != OK:
-        return Trial.from_inputs(t, out, controls, name='simulation',
-                                 status=STATUS_TEXT[status],
-                                 fail_time_s=float(t[min(k_fail, T - 1)]))
-    return Trial.from_inputs(t, out, controls, name='simulation')
+        return Trial.from_array(t, out, controls, fam.channels, name='simulation',
+                                status=STATUS_TEXT[status],
+                                fail_time_s=float(t[min(k_fail, T - 1)]))
+    return Trial.from_array(t, out, controls, fam.channels, name='simulation')
 
 
 def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.ndarray,
@@ -132,7 +172,7 @@ def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.
     x0s : ndarray, shape (M, 6)
         First states.
     controls : ndarray, shape (M, T, n)
-        Input channels (see ``core/channels.py``), padded to the longest trial.
+        The family's input channels (see :func:`kernel_inputs`), padded to the longest trial.
     dt : float
         Sample spacing [s].
     lengths : ndarray, shape (M,), optional
@@ -151,7 +191,7 @@ def simulate_batch(kind: int, params: np.ndarray, x0s: np.ndarray, controls: np.
     if params.shape[1] != N_PARAMS:
         raise SimulationError(f'params must have {N_PARAMS} columns, got {params.shape[1]}')
     x0s = np.ascontiguousarray(x0s, dtype=float)
-    controls = np.ascontiguousarray(controls, dtype=float)
+    controls = kernel_inputs(family_of_code(kind), controls, 'simulate_batch')
     M, T = controls.shape[:2]
     lengths = np.full(M, T, dtype=np.int64) if lengths is None else np.asarray(lengths, np.int64)
     N = params.shape[0]
@@ -170,11 +210,14 @@ def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
 
     The surge force balance X_H + X_P + X_R = 0, solved by bisection.
     """
-    from mmg_tuner.core.dynamics import accelerations
+    from mmg_tuner.core.dynamics import accelerations, family_tag
 
-    def du(rpm: float) -> float:
-        act = (rpm / 60.0, 0.0) + (0.0,) * (N_ACT - 2)
-        return accelerations(ship.kind, ship.params, speed_ms, 0.0, 0.0, act)[0]
+    tag = family_tag(ship.kind)
+    n_act = len(ship.family.outputs)
+
+    def du(rpm: float) -> float:   # screw_rudder's outputs first: (n_P, delta, ...)
+        act = (rpm / 60.0, 0.0) + (0.0,) * (n_act - 2)
+        return accelerations(tag, ship.params, speed_ms, 0.0, 0.0, act)[0]
 
     if du(lo) > 0 or du(hi) < 0:
         raise SimulationError(f'{ship.name}: no rpm in [{lo}, {hi}] holds {speed_ms} m/s')

@@ -1,17 +1,19 @@
 """
 A stateful ship for interactive simulation (the ROS node's engine; no ROS here).
 
-It steps the same compiled :func:`~mmg_tuner.core.mmg.advance` as the offline simulation, so
-a command history held per step reproduces :func:`~mmg_tuner.core.simulate.simulate` exactly.
+It steps the same compiled :func:`~mmg_tuner.core.integrate.advance` as the offline simulation,
+so a command history held per step reproduces :func:`~mmg_tuner.core.simulate.simulate`
+exactly.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
 
-from mmg_tuner.core.layout import DIVERGED, OK, STATE_NAMES, STATUS_TEXT
+from mmg_tuner.core.dynamics import actuate_start, apparent_wind, family_tag, N_ACT_STATES
+from mmg_tuner.core.integrate import advance, observe, start_state
+from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits, InputLimits
-from mmg_tuner.core.mmg import advance, observe, start_state
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
@@ -65,30 +67,53 @@ class StepFailure:
 
 
 @njit(cache=True)
-def _advance_checked(kind, p, s, delta_act, rpm, rudder, bow, stern, dt, substeps, method, k1,
-                     k2, k3, k4, tmp, n, speed_max, yaw_rate_max, last):
+def _advance_checked(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp, n,
+                     speed_max, yaw_rate_max, last, r0, r1, r2, physics):
     """
     N calls of advance, each followed by a per-element finiteness and plausibility check.
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
-    isfinite(a + b + ...) to True, so advance's own check cannot be relied on. Returns
-    (status, steps done, delta_act); on failure ``last`` holds the state before the failed step
-    and ``s`` the failed one.
+    isfinite(a + b + ...) to True, so advance's own check cannot be relied on. The command row
+    ``inp`` is held; ``a`` holds the actuator states; (r0, r1, r2) a residual network's
+    accelerations (zeros and physics True without one). Returns (status, steps done); on
+    failure ``last`` holds the state before the failed step and ``s`` the failed one.
     """
     vmax2 = speed_max * speed_max
     for i in range(n):
         for j in range(6):
             last[j] = s[j]
-        status, delta_act = advance(kind, p, s, delta_act, rpm, rudder, dt, substeps, method,
-                                    k1, k2, k3, k4, tmp, bow, stern)
+        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp,
+                         r0, r1, r2, physics)
         if status != OK:
-            return status, i, delta_act
+            return status, i
         for j in range(6):
             if not math.isfinite(s[j]):
-                return DIVERGED, i, delta_act
+                return DIVERGED, i
         if s[3] * s[3] + s[4] * s[4] > vmax2 or abs(s[5]) > yaw_rate_max:
-            return IMPLAUSIBLE, i, delta_act
-    return OK, n, delta_act
+            return IMPLAUSIBLE, i
+    return OK, n
+
+
+@njit(cache=True)
+def _start_actuators(kind, p, inp, a):
+    actuate_start(kind, p, inp, a)
+
+
+def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
+                       wind_e: float = math.nan) -> tuple[float, float]:
+    """
+    Return the apparent wind in body axes [m/s] for a model state (for the node).
+
+    From the measured true wind (air velocity north/east [m/s]) or, when NaN, the ship's wind
+    parameters.
+    """
+    p = np.array(ship.params, dtype=float)
+    if wind_n == wind_n and wind_e == wind_e:
+        p[PARAM_INDEX['wind_speed']] = math.hypot(wind_n, wind_e)
+        p[PARAM_INDEX['wind_dir']] = math.atan2(-wind_e, -wind_n)
+    s = np.asarray(state, dtype=float)
+    wu, wv = apparent_wind(p, float(s[2]), float(s[3]), float(s[4]))
+    return float(wu), float(wv)
 
 
 class ShipSimulator:
@@ -112,8 +137,22 @@ class ShipSimulator:
     """
 
     def __init__(self, ship: ShipConfig, dt: float = 0.1, x0=None, rpm: float = 100.0,
-                 rudder_rad: float = 0.0, integrator: str = 'rk4', substeps: int = 1):
+                 rudder_rad: float = 0.0, integrator: str = 'rk4', substeps: int = 1,
+                 residual=None):
         self.ship = ship
+        # a learned residual network (``learn.ResidualNet``, or anything with dt_s, physics and
+        # stepper() -> .accelerations(state, commands, wind_body), .reset()) or None
+        self.residual = residual
+        self._tag = family_tag(ship.kind)
+        fam = ship.family
+        if fam.inputs[:2] != ('rpm', 'rudder'):
+            raise SimulationError(f'{ship.name}: the interactive simulator drives ships whose '
+                                  f'first actuator is a screw and rudder; the {fam.name!r} '
+                                  f'family reads {", ".join(fam.inputs)}')
+        self._thr = {w: fam.inputs.index(f'{w}_thruster') for w in THRUSTERS
+                     if f'{w}_thruster' in fam.inputs}
+        self._inp = np.zeros(len(fam.inputs))
+        self._a = np.zeros(N_ACT_STATES)
         self.limits: InputLimits = input_limits(ship)
         lim = self.limits
         try:
@@ -192,10 +231,23 @@ class ShipSimulator:
         self.bow = self.stern = 0.0  # thruster revolutions [rev/s]; 0 without thrusters
         self.s = np.empty(6)
         start_state(self.ship.params, self.x0, self.s)
-        self.delta_act = self.rudder + self.ship['rudder_offset']
+        _start_actuators(self._tag, self.ship.params, self._row(), self._a)
         self.status = 'ok'
         if getattr(self, '_residual', None) is not None:
             self._residual.reset()   # the network's window starts afresh
+
+    def _row(self) -> np.ndarray:
+        """The held commands as the family's input row (rpm, rudder[, thrusters])."""
+        self._inp[0] = self.rpm
+        self._inp[1] = self.rudder
+        for w, j in self._thr.items():
+            self._inp[j] = getattr(self, w)
+        return self._inp
+
+    @property
+    def delta_act(self) -> float:
+        """The actual rudder angle [rad] (the screw-and-rudder actuator's state)."""
+        return float(self._a[0])
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
         """
@@ -285,22 +337,14 @@ class ShipSimulator:
         ``failure`` then says when, why, with which commands and from which state, and the
         simulator is back at its initial state and commands (``status`` keeps the reason).
         """
-        k1, k2, k3, k4, tmp = self._work
-        lim = self.limits
         try:
-            if self.ship.residual is not None:   # a hybrid (params.yaml names a network)
-                status, done, delta = self._hybrid_steps(int(n))
-            else:
-                status, done, delta = _advance_checked(
-                    self.ship.kind, self.ship.params, self.s, self.delta_act, self.rpm,
-                    self.rudder, self.bow, self.stern, self.dt, self.substeps, self.method, k1,
-                    k2, k3, k4, tmp, int(n), lim.speed_max_ms, lim.yaw_rate_max_rad_s,
-                    self._last)
+            status, done = self._steps(int(n))
         except ZeroDivisionError:  # compiled code raises it (x / 0.0): a failure, not a crash
-            status, done, delta = ARITHMETIC, 0, self.delta_act
+            status, done = ARITHMETIC, 0
         self.steps += done
         self.t = self.steps * self.dt
-        self.delta_act = delta
+        delta = self.delta_act
+        lim = self.limits
         if status == OK:
             return True
         if status == IMPLAUSIBLE:
@@ -320,44 +364,43 @@ class ShipSimulator:
         self.status = reason
         return False
 
-    def _hybrid_steps(self, n: int) -> tuple[int, int, float]:
+    def _steps(self, n: int) -> tuple[int, int]:
         """
-        Return the hybrid's hook: _advance_checked with the residual network's accelerations.
+        Return (status, steps done) of n checked steps with the held commands.
 
-        The network (core/residual.py) is evaluated every net.dt_s of simulated time (dt must
-        divide it) from the window of its past samples and held in between, as the offline
-        hybrid does; the same checks follow every step. Returns (status, steps done,
-        delta_act) like _advance_checked.
+        With a residual network (learn/residual.py) it is evaluated every net.dt_s of simulated
+        time (dt must divide it) from the window of its past samples and held in between, as
+        the offline hybrid does; the same checks follow every step.
         """
-        from mmg_tuner.core.residual import ResidualStepper, advance_hybrid, apparent_wind_body
-        net = self.ship.residual
+        lim = self.limits
+        k1, k2, k3, k4, tmp = self._work
+        p, s, inp = self.ship.params, self.s, self._row()
+        net = self.residual
+        if net is None:
+            return _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
+                                    self.method, k1, k2, k3, k4, tmp, n, lim.speed_max_ms,
+                                    lim.yaw_rate_max_rad_s, self._last, 0.0, 0.0, 0.0, True)
         if getattr(self, '_residual', None) is None:
             every = int(round(net.dt_s / self.dt))
             if every < 1 or abs(every * self.dt - net.dt_s) > 1e-9 * net.dt_s:
                 raise SimulationError(f'{self.ship.name}: dt = {self.dt:g} s must divide the '
                                       f"residual network's sample interval {net.dt_s:g} s")
-            self._residual, self._every, self._acc = ResidualStepper(net), every, (0.0,) * 3
-        lim = self.limits
-        k1, k2, k3, k4, tmp = self._work
-        p, s, delta = self.ship.params, self.s, self.delta_act
-        vmax2 = lim.speed_max_ms ** 2
-        for i in range(n):
-            if (self.steps + i) % self._every == 0:
+            self._residual, self._every, self._acc = net.stepper(), every, (0.0,) * 3
+        done = 0
+        while done < n:
+            if (self.steps + done) % self._every == 0:
                 self._acc = self._residual.accelerations(
                     s, (self.rpm, self.rudder, self.bow, self.stern),
                     apparent_wind_body(self.ship, s))
-            self._last[:] = s
-            status, delta = advance_hybrid(self.ship.kind, p, s, delta, self.rpm, self.rudder,
-                                           self.dt, self.substeps, self.method, k1, k2, k3, k4,
-                                           tmp, self.bow, self.stern, *self._acc,
-                                           bool(net.physics))
+            chunk = min(n - done, self._every - (self.steps + done) % self._every)
+            status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
+                                         self.method, k1, k2, k3, k4, tmp, chunk,
+                                         lim.speed_max_ms, lim.yaw_rate_max_rad_s, self._last,
+                                         *self._acc, bool(net.physics))
+            done += k
             if status != OK:
-                return status, i, delta
-            if not np.all(np.isfinite(s)):
-                return DIVERGED, i, delta
-            if s[3] * s[3] + s[4] * s[4] > vmax2 or abs(s[5]) > lim.yaw_rate_max_rad_s:
-                return IMPLAUSIBLE, i, delta
-        return OK, n, delta
+                return status, done
+        return OK, n
 
     def observed(self) -> np.ndarray:
         """x, y, psi, u, v, r as measured (antenna position, velocities over ground)."""

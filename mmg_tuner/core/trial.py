@@ -2,89 +2,134 @@
 One time-history type for everything: a recorded, generated or simulated trial.
 
 ``simulate()`` and the manoeuvres return it, the readers produce it, the objective and the
-diagnosis consume it, so a prediction compares with a recording sample by sample.
+diagnosis consume it, so a prediction compares with a recording sample by sample. Its inputs
+are keyed by channel name (``core/channels.py``: units and defaults in one table); a ship's
+kernels take them as one array in its family's channel order (:meth:`Trial.input_array`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
+from typing import Any, Mapping
 
-from mmg_tuner.core.channels import CHANNELS, CONTROL_NAMES, STERN_THRUSTER, WIND_E
+from mmg_tuner.core.channels import CONTROL_NAMES, ENVIRONMENT, TABLE
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.errors import TrialDataError
 import numpy as np
 
+_UNSET: Any = object()
+_PAIRS = {'controls': CONTROL_NAMES, 'wind': ENVIRONMENT,
+          'thrusters': ('bow_thruster', 'stern_thruster')}
+"""The two-column views of screw-and-rudder trials and the channels behind them."""
 
-@dataclass
+
+@dataclass(init=False)
 class Trial:
     """
     A time history on a uniform grid, in the model frame, SI units.
 
     t [s] (T,); states (T, 6) = x_E, y_E [m], psi [rad, unwrapped], u, v [m/s over ground],
-    r [rad/s]; controls (T, 2) = rpm [rev/min], rudder [rad, + to starboard];
-    wind (T, 2) or None = measured true wind as the air's velocity over ground, north and east
-    components [m/s] (a vector, so it resamples without angle wrap-around);
-    thrusters (T, 2) or None = bow and stern thruster revolutions [rev/s].
-    status is 'ok' or, for a simulation, why it stopped; fail_time_s is when (NaN after it).
+    r [rad/s]; inputs: channel name -> (T,) values in the channel's unit
+    (``core/channels.TABLE``: rpm [rev/min], rudder [rad, + to starboard], bow_thruster,
+    stern_thruster [rev/s], wind_n, wind_e: the measured true wind as the air's velocity over
+    ground [m/s], ...). status is 'ok' or, for a simulation, why it stopped; fail_time_s is
+    when (NaN after it).
+
+    Screw-and-rudder trials may be built and read through two-column views: ``controls``
+    (rpm, rudder), ``wind`` (north, east; None if not measured) and ``thrusters`` (bow,
+    stern; None if not recorded). Given to the constructor (or to ``dataclasses.replace``) they
+    set those channels; ``None`` removes them.
     """
 
     t: np.ndarray
     states: np.ndarray
-    controls: np.ndarray
+    inputs: dict[str, np.ndarray]
     name: str = 'trial'
     source: str = ''
     notes: list[str] = field(default_factory=list)
     start_s: float = 0.0  # where t = 0 lies in the recording it came from [s]
-    wind: np.ndarray | None = None
-    thrusters: np.ndarray | None = None
     status: str = 'ok'
     fail_time_s: float | None = None
 
-    def __post_init__(self) -> None:
-        self.t = np.asarray(self.t, dtype=float)
-        self.states = np.asarray(self.states, dtype=float)
-        self.controls = np.asarray(self.controls, dtype=float)
+    def __init__(self, t, states, controls=_UNSET, name: str = 'trial', source: str = '',
+                 notes: list[str] | None = None, start_s: float = 0.0, wind=_UNSET,
+                 thrusters=_UNSET, status: str = 'ok', fail_time_s: float | None = None,
+                 inputs: Mapping[str, Any] | None = None) -> None:
+        self.t = np.asarray(t, dtype=float)
+        self.states = np.asarray(states, dtype=float)
+        self.name, self.source, self.start_s = name, source, start_s
+        self.notes = [] if notes is None else notes
+        self.status, self.fail_time_s = status, fail_time_s
         T = self.t.size
-        if self.states.shape != (T, 6) or self.controls.shape != (T, 2):
-            raise TrialDataError(f'{self.source or self.name}: inconsistent shapes '
-                                 f't {self.t.shape}, states {self.states.shape}, '
-                                 f'controls {self.controls.shape}')
-        for what in ('wind', 'thrusters'):
-            a = getattr(self, what)
-            if a is not None:
-                a = np.asarray(a, dtype=float)
-                if a.shape != (T, 2):
-                    raise TrialDataError(f'{self.source or self.name}: {what} must be (T, 2), '
-                                         f'got {a.shape}')
-                setattr(self, what, a)
+        where = self.source or self.name
+        if self.states.shape != (T, 6):
+            raise TrialDataError(f'{where}: inconsistent shapes t {self.t.shape}, '
+                                 f'states {self.states.shape}')
+        merged = dict(inputs or {})
+        for what, value in (('controls', controls), ('wind', wind), ('thrusters', thrusters)):
+            if value is _UNSET:
+                continue
+            names = _PAIRS[what]
+            if value is None:
+                for n in names:
+                    merged.pop(n, None)
+                continue
+            a = np.asarray(value, dtype=float)
+            if a.shape != (T, 2):
+                raise TrialDataError(f'{where}: {what} must be (T, 2) = ({", ".join(names)}) '
+                                     f'with T = {T}, got {a.shape}')
+            merged.update({n: a[:, i] for i, n in enumerate(names)})
+        self.inputs = {}
+        for n, v in merged.items():
+            if n not in TABLE:
+                raise TrialDataError(f'{where}: unknown input channel {n!r}; known: '
+                                     f'{", ".join(TABLE)}')
+            a = np.array(v, dtype=float)
+            if a.shape != (T,):
+                raise TrialDataError(f'{where}: channel {n!r} must have {T} samples (one per '
+                                     f'time), got shape {a.shape}')
+            self.inputs[n] = a
+        if 'wind_n' in self.inputs and 'wind_e' in self.inputs \
+                and np.all(np.isnan(self.inputs['wind_n'])) \
+                and np.all(np.isnan(self.inputs['wind_e'])):
+            del self.inputs['wind_n'], self.inputs['wind_e']   # "not measured" is no channel
 
     @classmethod
-    def from_inputs(cls, t, states, inputs, **kw) -> 'Trial':
-        """Return a trial from an input array whose columns follow ``core/channels.CHANNELS``."""
-        inputs = np.asarray(inputs, dtype=float)
-        n = inputs.shape[1]
-        wind = inputs[:, 2:4] if n > WIND_E else None
-        if wind is not None and np.all(np.isnan(wind)):
-            wind = None
-        thr = inputs[:, 4:6] if n > STERN_THRUSTER else None
-        return cls(t, states, inputs[:, :2], wind=wind, thrusters=thr, **kw)
+    def from_array(cls, t, states, array, channels, **kw) -> 'Trial':
+        """Return a trial from an input array whose columns are the named channels."""
+        array = np.asarray(array, dtype=float)
+        return cls(t, states, inputs={n: array[:, j] for j, n in enumerate(channels)}, **kw)
+
+    def _pair(self, what: str) -> np.ndarray | None:
+        names = _PAIRS[what]
+        if not all(n in self.inputs for n in names):
+            return None
+        return np.column_stack([self.inputs[n] for n in names])
 
     @property
-    def inputs(self) -> np.ndarray:
-        """
-        Return what drives a simulation, columns in ``CHANNELS`` order.
+    def controls(self) -> np.ndarray:
+        """(T, 2) rpm [rev/min], rudder [rad] (NaN where the trial has no such channel)."""
+        return np.column_stack([self.inputs.get(n, np.full(len(self), np.nan))
+                                for n in CONTROL_NAMES])
 
-        (T, 2) rpm, rudder; (T, 4) with the measured wind's north/east components when the trial
-        has it (the kernels then use it instead of the wind parameters); (T, 6) with thrusters
-        (wind NaN if not measured).
+    @property
+    def wind(self) -> np.ndarray | None:
+        """(T, 2) measured wind north, east [m/s], or None if not measured."""
+        return self._pair('wind')
+
+    @property
+    def thrusters(self) -> np.ndarray | None:
+        """(T, 2) bow, stern thrusters [rev/s], or None if not recorded."""
+        return self._pair('thrusters')
+
+    def input_array(self, channels) -> np.ndarray:
         """
-        if self.wind is None and self.thrusters is None:
-            return self.controls
-        cols = [self.controls,
-                self.wind if self.wind is not None else np.full((len(self), 2), np.nan)]
-        if self.thrusters is not None:
-            cols.append(self.thrusters)
-        return np.column_stack(cols)
+        Return the named channels as one (T, n) array, in the order given.
+
+        A channel the trial lacks takes its default (``channels.TABLE``: thrusters 0, wind
+        NaN = not measured); a required one without a default is a TrialDataError naming it.
+        """
+        return input_array(channels, self.inputs, len(self), self.source or self.name)
 
     @property
     def ok(self) -> bool:
@@ -106,18 +151,12 @@ class Trial:
             return self.t
         if name in STATE_NAMES:
             return self.states[:, STATE_NAMES.index(name)]
-        if name in CONTROL_NAMES:
-            return self.controls[:, CONTROL_NAMES.index(name)]
-        if name in CHANNELS:
-            inp = self.inputs
-            j = CHANNELS.index(name)
-            if j < inp.shape[1]:
-                return inp[:, j]
+        if name in self.inputs:
+            return self.inputs[name]
         raise KeyError(name)
 
-    def _map_series(self, fn) -> dict:
-        return {k: None if getattr(self, k) is None else fn(getattr(self, k))
-                for k in ('wind', 'thrusters')}
+    def _map_inputs(self, fn) -> dict[str, np.ndarray]:
+        return {n: fn(v) for n, v in self.inputs.items()}
 
     def slice(self, start_s: float, end_s: float | None = None,  # noqa: A003  public API name
               name: str | None = None
@@ -125,9 +164,9 @@ class Trial:
         """Return the part between start_s and end_s (trial time, inclusive)."""
         end_s = self.t[-1] if end_s is None else end_s
         k = (self.t >= start_s - 1e-9) & (self.t <= end_s + 1e-9)
-        return replace(self, t=self.t[k], states=self.states[k], controls=self.controls[k],
-                       name=name or self.name, notes=list(self.notes),
-                       **self._map_series(lambda a: a[k]))
+        return replace(self, t=self.t[k], states=self.states[k],
+                       inputs=self._map_inputs(lambda a: a[k]), name=name or self.name,
+                       notes=list(self.notes))
 
     def froude_scaled(self, ratio: float) -> 'Trial':
         """
@@ -140,11 +179,9 @@ class Trial:
         st[:, :2] /= ratio
         st[:, 3:5] /= s
         st[:, 5] *= s
-        ctrl = self.controls.copy()
-        ctrl[:, 0] *= s
-        return replace(self, t=self.t / s, states=st, controls=ctrl,
-                       wind=None if self.wind is None else self.wind / s,
-                       thrusters=None if self.thrusters is None else self.thrusters * s,
+        factor = {'rev/min': s, 'rev/s': s, 'm/s': 1.0 / s, 'rad/s': s}
+        inputs = {n: v * factor.get(TABLE[n].unit, 1.0) for n, v in self.inputs.items()}
+        return replace(self, t=self.t / s, states=st, inputs=inputs,
                        notes=self.notes + [f'Froude-scaled by 1/{ratio:g}'])
 
     def resampled(self, dt: float) -> 'Trial':
@@ -152,16 +189,33 @@ class Trial:
         n = int(math.floor(self.duration_s / dt + 1e-9)) + 1
         grid = self.t[0] + dt * np.arange(n)
 
-        def interp(a):
-            return np.column_stack([np.interp(grid, self.t, a[:, i]) for i in range(a.shape[1])])
-
-        return replace(self, t=grid, states=interp(self.states), controls=interp(self.controls),
-                       **self._map_series(interp),
+        states = np.column_stack([np.interp(grid, self.t, self.states[:, i]) for i in range(6)])
+        return replace(self, t=grid, states=states,
+                       inputs=self._map_inputs(lambda a: np.interp(grid, self.t, a)),
                        notes=self.notes + [f'resampled on dt = {dt:g} s (linear)'])
 
 
-Trajectory = Trial
-"""The former name of a simulated history (same type)."""
+def input_array(channels, values: Mapping[str, Any], T: int, where: str = 'inputs'
+                ) -> np.ndarray:
+    """
+    Stack the named channels of ``values`` (name -> (T,) array) into one (T, n) array.
+
+    Absent channels take their default (``channels.TABLE``); a required one is a
+    TrialDataError naming it and what the trial has.
+    """
+    out = np.empty((T, len(channels)))
+    for j, n in enumerate(channels):
+        if n in values:
+            out[:, j] = values[n]
+            continue
+        ch = TABLE.get(n)
+        if ch is None or ch.default is None:
+            what = f'{ch.description} [{ch.unit}]' if ch else 'an unknown channel'
+            raise TrialDataError(f'{where}: no input channel {n!r} ({what}); the ship needs '
+                                 f'{", ".join(channels)}, the trial has '
+                                 f'{", ".join(values) or "none"}')
+        out[:, j] = ch.default
+    return out
 
 
 def fitted_first_state(trial: Trial, window_s: float) -> np.ndarray:

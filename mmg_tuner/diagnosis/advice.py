@@ -67,9 +67,9 @@ from typing import Callable, Sequence
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
-from mmg_tuner.core.mmg import run_maneuver
+from mmg_tuner.core.maneuvers import steered
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import integrator_code, simulate_batch
+from mmg_tuner.core.simulate import simulate_batch
 from mmg_tuner.data.generate import SensorNoise
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import DiagnosisError
@@ -204,12 +204,10 @@ def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float
                                     else spec.rudder_deg))
         orders[executed] = amp
     substeps = max(1, int(math.ceil(dt / 0.1)))
-    out = np.empty((T, 6))
-    rudder = np.empty(T)
     x0 = np.array([0.0, 0.0, 0.0, spec.speed_ms, 0.0, 0.0])
-    status, k_fail = run_maneuver(ship.kind, ship.params, x0, rpm, orders, zz_amp, zz_check,
-                                  math.radians(spec.rudder_rate_deg_s), T, float(dt), substeps,
-                                  integrator_code('rk4'), out, rudder)
+    status, k_fail, out, rudder = steered(ship, x0, rpm, orders, zz_amp, zz_check,
+                                          math.radians(spec.rudder_rate_deg_s), dt, substeps,
+                                          'rk4', spec.name)
     why = '' if k_fail >= T else f'stopped at t = {t[min(k_fail, T - 1)]:.1f} s (status {status})'
     return t, out, np.column_stack([rpm, rudder]), why
 

@@ -300,17 +300,16 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
     (per-state gains; the regime bins where the error falls most; where the network acts).
     Raises MissingDependencyError (saying how to install JAX) when it is missing.
     """
-    import dataclasses
-
-    from mmg_tuner.core.residual import simulate_segments
     from mmg_tuner.diagnosis.select import jackknife_se
+    from mmg_tuner.learn import ResidualConfig, train_residual
+    from mmg_tuner.learn.model import Model
+    from mmg_tuner.learn.residual import simulate_segments
     from mmg_tuner.tuning.evaluate import INDEX_STATES, errors, evaluate, pooled_sigma
-    from mmg_tuner.tuning.hybrid import ResidualConfig, train_residual
 
     opts = {'integrator': integrator if integrator in ('euler', 'rk4') else 'rk4',
             **dict(options or {}), 'physics': True}
     fit = train_residual(ship, list(tune_trials), config=ResidualConfig(**opts))
-    hybrid = dataclasses.replace(ship, residual=fit.net)
+    hybrid = Model(ship, fit.net)
     sig = pooled_sigma(test_trials)
     base = evaluate(ship, test_trials, restart_every_s, 'rk4', sigma=sig)
     hyb = evaluate(hybrid, test_trials, restart_every_s, 'rk4', sigma=sig)
@@ -331,7 +330,7 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
         eh.append(errors(hyb.trials[n].predicted, tr.states))
         for k, x in regime_values(tr, tr.states).items():
             reg[k].append(x)
-        res.append(simulate_segments(hybrid, fit.net, tr, 'rk4', restart_every_s)[1])
+        res.append(simulate_segments(ship, fit.net, tr, 'rk4', restart_every_s)[1])
     eb, eh, res = np.concatenate(eb), np.concatenate(eh), np.concatenate(res)
     reg = {k: np.concatenate(v) for k, v in reg.items()}
     col = {n: STATE_NAMES.index(n) for n in INDEX_STATES}

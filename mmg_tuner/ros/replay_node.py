@@ -17,14 +17,13 @@ from pathlib import Path
 import shutil
 import tempfile
 
-from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER
-from mmg_tuner.core.residual import simulate_hybrid
-from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import load_topic_map, THRUSTER_ROLES, TopicMap
 from mmg_tuner.errors import MmgTunerError, OutputError
+from mmg_tuner.learn.model import load_model
+from mmg_tuner.learn.residual import simulate_hybrid
 from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
 from mmg_tuner.ros.run import declare_parameters, Param, spin_node
 from nav_msgs.msg import Odometry
@@ -150,16 +149,13 @@ class CommandPublisher:
         """
         Publish one sample.
 
-        inputs: the trial's input row (rpm, rudder [rad], wind north, wind east, bow, stern
-        [rev/s]; ``Trial.inputs`` order).
+        inputs: the trial's input channels at this sample, by name (rpm, rudder [rad], bow and
+        stern thrusters [rev/s], ...); a role whose channel the trial lacks publishes 0.
         """
-        values = {'rpm': inputs[RPM], 'rudder': inputs[RUDDER]}
-        if len(inputs) > STERN_THRUSTER:
-            values.update(bow_thruster=inputs[BOW_THRUSTER],
-                          stern_thruster=inputs[STERN_THRUSTER])
+        values = inputs
         joints: dict[str, JointState] = {}
         for role, (topic, typ, joint, scale) in self.roles.items():
-            v = float(values[role] * scale)
+            v = float(values.get(role, 0.0) * scale)
             if typ != self.JOINT:
                 self.pubs[topic].publish(self.SCALARS[typ](data=v))
                 continue
@@ -186,12 +182,13 @@ class ReplayNode(Node):
             raise MmgTunerError(f"{p['trial']}: trial_index {p['trial_index']} out of range "
                                 f'(it holds {len(trials)} trial(s))')
         self.trial = trials[p['trial_index']]
-        ship = load_ship(p['ship'], p['params_file'] or None)
-        if ship.residual is not None:   # the params file names a network: run the hybrid
-            sim = simulate_hybrid(ship, ship.residual, self.trial, integrator=p['integrator'],
+        model = load_model(p['ship'], p['params_file'] or None)
+        ship = model.ship
+        if model.residual is not None:   # the params file names a network: run the hybrid
+            sim = simulate_hybrid(ship, model.residual, self.trial, integrator=p['integrator'],
                                   restart_every_s=0.0)   # from the recorded first state
         else:
-            sim = simulate(ship, self.trial.states[0], self.trial.inputs, self.trial.dt,
+            sim = simulate(ship, self.trial.states[0], self.trial, self.trial.dt,
                            p['integrator'], check=False)
         if not sim.ok:
             self.get_logger().warn(f'the model stopped at t = {sim.fail_time_s:.1f} s: '
@@ -206,7 +203,7 @@ class ReplayNode(Node):
         self.pub_odom = self.create_publisher(Odometry, 'odom', 10)
         self.pub_rec = self.create_publisher(Odometry, 'recorded/odom', 10)
         self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None)
-        self.inputs = self.trial.inputs
+        self.inputs = self.trial.inputs   # channel name -> values
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.wall0: float | None = None  # steady time of the first sample [s]; None: not started
@@ -231,7 +228,7 @@ class ReplayNode(Node):
             t = float(tr.t[self.k] - tr.t[0])
             stamp = stamp_from_seconds(t)
             self.pub_clock.publish(ClockMsg(clock=stamp))
-            self.pub_cmd.publish(self.inputs[self.k], stamp)
+            self.pub_cmd.publish({n: v[self.k] for n, v in self.inputs.items()}, stamp)
             self.pub_rec.publish(odometry_from_state(tr.states[self.k], t))
             if np.all(np.isfinite(self.sim_states[self.k])):
                 self.pub_odom.publish(odometry_from_state(self.sim_states[self.k], t))

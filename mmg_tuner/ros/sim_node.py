@@ -22,9 +22,9 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
-from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
 from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.learn.model import load_model
 from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, seconds_from_stamp,
                                        stamp_from_seconds, transform_from_state)
 from mmg_tuner.ros.health import CommandHealth, Health
@@ -213,11 +213,11 @@ class SimNode(Node):
 
         A SimulationError/ConfigError says what is wrong.
         """
-        ship = load_ship(p['ship'], p['params_file'] or None)
+        model = load_model(p['ship'], p['params_file'] or None)   # the network it names too
         psi = enu_yaw_to_psi(p['initial_yaw'])
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]
-        return ShipSimulator(ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
-                             p['integrator'])
+        return ShipSimulator(model.ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
+                             p['integrator'], residual=model.residual)
 
     def _accepted(self) -> str:
         """Describe the command ranges of the current ship, for the log."""

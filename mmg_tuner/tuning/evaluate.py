@@ -33,7 +33,8 @@ from typing import Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.layout import STATE_NAMES
-from mmg_tuner.core.residual import simulate_segments
+from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.residual import simulate_segments
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
@@ -48,7 +49,7 @@ UNITS = {'x': 'm', 'y': 'm', 'psi': 'rad', 'u': 'm/s', 'v': 'm/s', 'r': 'rad/s'}
 _COL = {n: STATE_NAMES.index(n) for n in INDEX_STATES}
 
 
-def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
+def predict(model: ShipConfig | Model, trial: Trial, restart_every_s: float = 100.0,
             integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None
             ) -> tuple[np.ndarray, float | None, str]:
     """
@@ -56,18 +57,20 @@ def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
 
     Restarted from the measured state at t = 0, N, 2N, ... s (N = restart_every_s; 0: only at the
     start), driven by the recorded inputs (rpm, rudder, measured wind, thrusters) held per sample;
-    a ship with a residual network (``ship.residual``) runs as the hybrid (or the pure network).
+    a model with a residual network (``Model.residual``) runs as the hybrid (or the pure
+    network).
     Returns (states, time of the first failure [s from the trial's start] or None, its reason); a
     segment that failed is NaN from the failure to the next restart.
     """
-    if ship.residual is not None:  # a hybrid (or pure network) from the params.yaml
-        states, _, fail_t, why = simulate_segments(ship, ship.residual, trial, integrator,
+    ship, net = as_model(model).ship, as_model(model).residual
+    if net is not None:  # a hybrid (or pure network) from the params.yaml
+        states, _, fail_t, why = simulate_segments(ship, net, trial, integrator,
                                                    float(restart_every_s or 0.0), substeps,
                                                    params)
         return states, fail_t, why
     T = len(trial)
     K = T if not restart_every_s else max(1, int(round(restart_every_s / trial.dt)))
-    inputs = np.ascontiguousarray(trial.inputs)
+    inputs = trial.input_array(ship.family.channels)
     out = np.full((T, 6), np.nan)
     fail_t, why = None, ''
     for a in range(0, T, K):
@@ -82,12 +85,6 @@ def predict(ship: ShipConfig, trial: Trial, restart_every_s: float = 100.0,
             fail_t = float(trial.t[a] - trial.t[0] + run.fail_time_s)
             why = run.status
     return out, fail_t, why
-
-
-def model_kind(ship: ShipConfig) -> str:
-    """'physics', 'hybrid' (physics + residual network) or 'pure network'."""
-    net = ship.residual
-    return 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
 
 
 def pooled_sigma(trials: Sequence[Trial]) -> dict[str, float]:
@@ -154,13 +151,17 @@ class EvaluateResult:
     restart_every_s: float
     integrator: str
     substeps: int
-    ship: ShipConfig = field(repr=False)
+    model: Model = field(repr=False)
     recorded: list[Trial] = field(repr=False, default_factory=list)
+
+    @property
+    def ship(self) -> ShipConfig:
+        return self.model.ship
 
     def to_dict(self) -> dict:
         """evaluate.json's content."""
         return {'ship': self.ship.name, 'model': self.ship.model,
-                'simulated_as': model_kind(self.ship),
+                'simulated_as': self.model.kind,
                 'index': 'Wakita et al. 2022 eq. 26: mean over samples of the sum over the '
                          'states x, u, y, v, psi, r of ((model - measured) / sigma)^2, sigma '
                          'pooled over all evaluated trials',
@@ -170,7 +171,7 @@ class EvaluateResult:
                 'trials': {n: s.to_dict() for n, s in self.trials.items()}}
 
     def markdown(self) -> str:
-        lines = [f'# evaluate: {self.ship.name} ({self.ship.model}, {model_kind(self.ship)})', '',
+        lines = [f'# evaluate: {self.ship.name} ({self.ship.model}, {self.model.kind})', '',
                  f'Restart from the measured state every {self.restart_every_s:g} s '
                  f'({self.integrator}, {self.substeps} substep(s)); index = Wakita et al. '
                  '(2022) eq. 26 with sigma pooled over these trials.', '',
@@ -225,15 +226,17 @@ class EvaluateResult:
         return paths
 
 
-def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float = 100.0,
+def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s: float = 100.0,
              integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None,
              sigma: dict[str, float] | None = None) -> EvaluateResult:
     """
-    Score ``ship`` (or the parameter vector ``params``) on recorded trials.
+    Score a model (a ship, or a ship with a residual network; or the parameter vector
+    ``params``) on recorded trials.
 
     (see the module docstring). ``sigma``: the standardising deviations to use (default: pooled
     over these trials, as the paper does).
     """
+    model = as_model(model)
     trials = list(trials)
     if not trials:
         raise TuningError('evaluate: no trials given')
@@ -244,7 +247,7 @@ def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float =
     scores: dict[str, TrialScore] = {}
     all_err = []
     for tr, name in zip(trials, unique_names(trials)):
-        pred, fail_t, why = predict(ship, tr, restart_every_s, integrator, substeps, params)
+        pred, fail_t, why = predict(model, tr, restart_every_s, integrator, substeps, params)
         err = errors(pred, tr.states)
         ok = fail_t is None and bool(np.all(np.isfinite(err)))
         rms = {n: (float(np.sqrt(np.mean(err[:, _COL[n]] ** 2))) if ok else None)
@@ -255,10 +258,11 @@ def evaluate(ship: ShipConfig, trials: Sequence[Trial], restart_every_s: float =
     every = np.concatenate(all_err)
     index_all = index_of(every, sig) if np.all(np.isfinite(every)) else None
     return EvaluateResult(scores, sig, index_all, float(restart_every_s), integrator,
-                          int(substeps), ship, trials)
+                          int(substeps), model, trials)
 
 
-def compare_index(physics: ShipConfig, model: ShipConfig, trials: Sequence[Trial],
+def compare_index(physics: ShipConfig | Model, model: ShipConfig | Model,
+                  trials: Sequence[Trial],
                   restart_every_s: float = 100.0, integrator: str = 'rk4') -> dict:
     """
     Return the index over all ``trials`` of two models with one pooled sigma.

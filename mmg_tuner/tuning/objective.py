@@ -5,7 +5,8 @@ from dataclasses import dataclass
 import math
 from typing import Sequence
 
-from mmg_tuner.core.mmg import cost_many
+from mmg_tuner.core.channels import TABLE
+from mmg_tuner.core.integrate import cost_many
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.trial import fitted_first_state
@@ -16,13 +17,18 @@ import numpy as np
 
 @dataclass
 class TrialBatch:
-    """Trials packed for the compiled kernels: meas (M, T, 6), ctrls (M, T, 2 or 4), padded."""
+    """
+    Trials packed for the compiled kernels, padded to the longest: meas (M, T, 6) and the input
+    channels the trials have, by name (``channels``, the columns of ctrls (M, T, n)); a
+    channel a trial lacks holds its default (thrusters 0, wind NaN = not measured).
+    """
 
     names: list[str]
     meas: np.ndarray
     ctrls: np.ndarray
     lengths: np.ndarray
     dt: float
+    channels: tuple[str, ...] = ('rpm', 'rudder')
 
     @classmethod
     def from_trials(cls, trials: Sequence[Trial], x0_window_s: float = 10.0) -> 'TrialBatch':
@@ -41,27 +47,48 @@ class TrialBatch:
                               'on one grid (--dt)')
         T = max(len(t) for t in trials)
         M = len(trials)
+        channels = tuple(dict.fromkeys(n for t in trials for n in t.inputs))
+        missing = [(t.name, n) for t in trials for n in channels
+                   if n not in t.inputs and TABLE[n].default is None]
+        if missing:
+            raise TuningError(f'trial {missing[0][0]}: no input channel {missing[0][1]!r}, '
+                              'which other trials of the batch have')
         meas = np.zeros((M, T, 6))
-        # measured wind: two more input channels, NaN for trials without (they use the wind
-        # parameters); thrusters: two more, 0 rev/s for trials without
-        n_in = (6 if any(t.thrusters is not None for t in trials) else
-                4 if any(t.wind is not None for t in trials) else 2)
-        ctrls = np.full((M, T, n_in), np.nan)
-        ctrls[:, :, 4:] = 0.0
+        ctrls = np.empty((M, T, len(channels)))
         for j, tr in enumerate(trials):
             n = len(tr)
-            inputs = tr.inputs
-            measured = (inputs if tr.wind is not None else  # wind NaN = not measured
-                        inputs[:, [0, 1] + list(range(4, inputs.shape[1]))])
-            if not np.all(np.isfinite(tr.states)) or not np.all(np.isfinite(measured)):
+            inputs = tr.input_array(channels)
+            measured = [c for i, c in enumerate(channels) if not math.isnan(
+                TABLE[c].default if TABLE[c].default is not None else 0.0)]
+            if not np.all(np.isfinite(tr.states)) or not all(
+                    np.all(np.isfinite(tr.inputs[c])) for c in measured if c in tr.inputs):
                 raise TuningError(f'trial {tr.name}: non-finite values')
             meas[j, :n] = tr.states
             meas[j, 0] = initial_state(tr, x0_window_s)
-            ctrls[j, :n, :inputs.shape[1]] = inputs
+            ctrls[j, :n] = inputs
             meas[j, n:] = tr.states[-1]
-            ctrls[j, n:, :inputs.shape[1]] = inputs[-1]
+            ctrls[j, n:] = inputs[-1]
         return cls([t.name for t in trials], meas, ctrls,
-                   np.array([len(t) for t in trials], dtype=np.int64), float(dts.pop()))
+                   np.array([len(t) for t in trials], dtype=np.int64), float(dts.pop()),
+                   channels)
+
+    def inputs_for(self, channels: Sequence[str], ship: str = 'the ship') -> np.ndarray:
+        """
+        Return ctrls (M, T, n) with the given channels (a family's), in that order.
+
+        Channels the trials lack take their defaults; a required one is a TuningError naming it.
+        """
+        M, T = self.meas.shape[:2]
+        out = np.empty((M, T, len(channels)))
+        for i, c in enumerate(channels):
+            if c in self.channels:
+                out[:, :, i] = self.ctrls[:, :, self.channels.index(c)]
+            elif c in TABLE and TABLE[c].default is not None:
+                out[:, :, i] = TABLE[c].default
+            else:
+                raise TuningError(f'{ship} needs the input channel {c!r}, which the trials do '
+                                  f'not have (they have {", ".join(self.channels)})')
+        return np.ascontiguousarray(out)
 
 
 def initial_state(trial: Trial, window_s: float) -> np.ndarray:
@@ -181,6 +208,8 @@ class Objective:
                               '(one per trial)')
         self.prior = prior
         self.batch = batch
+        # the batch's channels in the ship family's kernel order
+        self.ctrls = batch.inputs_for(ship.family.channels, ship.name)
         self.weights = paper_weights(ship.L_pp) if weights is None else np.asarray(weights, float)
         if self.weights.shape != (6,) or np.any(self.weights < 0):
             raise TuningError('weights must be 6 non-negative numbers (x, y, psi, u, v, r)')
@@ -200,7 +229,7 @@ class Objective:
         N, M = params.shape[0], self.batch.meas.shape[0]
         J = np.empty((N, M))
         k_fail = np.empty((N, M), dtype=np.int64)
-        cost_many(self.ship.kind, params, self.batch.meas, self.batch.ctrls, self.batch.lengths,
+        cost_many(self.ship.kind, params, self.batch.meas, self.ctrls, self.batch.lengths,
                   self.batch.dt, self.substeps, self.method, self.weights, self.shoot_every, J,
                   k_fail)
         self.evaluations += N

@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import simulate, Trajectory
+from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.tuning import plots
 from mmg_tuner.tuning.objective import TrialBatch
@@ -112,14 +112,14 @@ def start_state(trial: Trial) -> np.ndarray:
 
 
 def simulate_recorded(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
-                      integrator: str = 'euler', substeps: int = 1) -> Trajectory:
+                      integrator: str = 'euler', substeps: int = 1) -> Trial:
     """
     Return the one way to simulate a recorded trial.
 
     From :func:`start_state`, driven by the recorded controls (and measured wind), zero-order hold;
     NaN after a failure, with ``status`` and ``fail_time_s`` saying so.
     """
-    traj = simulate(ship, start_state(trial), trial.inputs, trial.dt, integrator, substeps,
+    traj = simulate(ship, start_state(trial), trial, trial.dt, integrator, substeps,
                     t0=float(trial.t[0]), params=params, check=False)
     traj.t = trial.t.copy()
     return traj

@@ -3,10 +3,11 @@ Model families: the registry.
 
 One family = one module here + one entry in :data:`REGISTRY`.
 
-A family is the part of the MMG model that differs between ship models: the hull, propeller
-and rudder forces and the inputs they need. Everything else is shared and family-blind: the
-equations of motion and mass matrix, wind loads and current kinematics (``core/dynamics.py``),
-effects (``core/effects.py``), integrators, ``advance``, simulation and the tuning cost
+A family is the part of a ship model that differs between ship models: the hull (and
+propeller and rudder) forces, the actuators driving it (``core/actuators``) and, optionally,
+its own equations of motion. Everything else is shared and family-blind: the MMG equations of
+motion (the default), wind loads and current kinematics (``core/dynamics.py``), effects
+(``core/effects.py``), integrators, ``advance``, simulation and the tuning cost
 (``core/integrate.py``), and everything above the core (objective, tuning, diagnosis, nodes,
 commands), which only ever passes ``ship.kind`` along.
 
@@ -20,8 +21,9 @@ How to add a family ``myship`` (look at ``standard.py``, the shortest, as the te
      the layout reads it without importing the module (the kernels need the finished layout).
    * ``REQUIRED``: the keys a ship YAML of this family must give; ``DEFAULTS``: values for
      keys it may omit.
-   * ``INPUTS``: the input channels it reads (names from ``core/channels.py``; add a new
-     actuator there, appended).
+   * ``ACTUATORS``: the actuator models driving it (``core/actuators``), in order; their
+     outputs, concatenated, are the actuator tuple ``act`` its forces read, and their inputs
+     (plus the measured wind) are the channels a trial must bring.
    * ``ASTERN_RPM`` (bool): whether it covers propeller revolutions <= 0; ``ASTERN_SURGE``
      (bool): whether it covers surge u <= 0. When False, the kernels stop a run there with a
      status (``layout.RPM_NOT_POSITIVE`` / ``SURGE_NOT_POSITIVE``), the data layer and the
@@ -31,14 +33,23 @@ How to add a family ``myship`` (look at ``standard.py``, the shortest, as the te
      function returning hull + propeller + rudder (+ thruster) force [N] and yaw moment [N m]
      about midship in body axes, for velocities u, v_m [m/s] through the water, yaw rate r
      [rad/s], the flat parameter vector p (read it by index: ``_X0 = PARAM_INDEX['X_0']`` at
-     module level, so numba folds the index in) and the actuator tuple ``act`` indexed by
-     ``channels.ACT_*`` (n_P [rev/s], actual rudder [rad], thrusters [rev/s]). No inertia
-     terms (the shared equations of motion add them) and no effects (shared hooks add them).
+     module level, so numba folds the index in) and the actuator tuple ``act`` (its
+     actuators' outputs, by position: name the positions at module level). No inertia
+     terms (the equations of motion add them), no effects and no actuator forces (the
+     shared hooks and the actuators add them).
    * optionally its own wind model: ``wind(p, wx, wy) -> (X, Y, N)``, an njit function of the
      apparent wind given as the air's velocity relative to the ship in body axes [m/s]
      (without one the shared Blendermann loads act), and ``AIR_DRAG`` (bool, default False):
      whether wind loads act even when the true wind is zero (the ship's own air drag).
-2. Append ``'myship'`` to :data:`REGISTRY` (its position is its integer code ``ship.kind``).
+   * optionally its own equations of motion (the MMG families use the shared ones of
+     ``core/dynamics.py``: the non-dimensional added masses of eq. 7), as two njit functions:
+     ``motion(p, u, v, r, X, Y, N) -> (du, dv, dr)``, the accelerations for the hull,
+     actuator and effect forces (X, Y, N) (its inertia, Coriolis and centripetal terms
+     inside), and ``mass_solve(p, X, Y, N) -> (du, dv, dr)``, M^-1 (X, Y, N) for external
+     forces (wind); a control-oriented family supplies M, C(nu) and D(nu) in SI units this
+     way (its ``forces`` then return -D(nu) nu, the actuators tau).
+2. Append ``'myship'`` to :data:`BUILTIN` (its position is its integer code ``ship.kind``),
+   or register it as a plugin from outside the package (``core/plugins.py``).
 3. A ship YAML with ``model: myship``.
 
 Nothing else changes. The whole-run kernels (simulation, tuning cost, manoeuvres) are compiled
@@ -51,14 +62,19 @@ never runs stale compiled code.
 """
 from __future__ import annotations
 
-import ast
 from dataclasses import dataclass, field
 import importlib
-from pathlib import Path
 from typing import Any, Callable
 
-REGISTRY: tuple[str, ...] = ('container', 'standard', 'lowspeed')
-"""Registered families, by module name in this package; the position is the family's code."""
+from mmg_tuner.core import plugins
+from mmg_tuner.core._registry import declared, module_name, plugin_map
+from mmg_tuner.core.actuators import actuator, declared_params as actuator_params
+from mmg_tuner.core.channels import ENVIRONMENT
+
+BUILTIN: tuple[str, ...] = ('container', 'standard', 'lowspeed')
+_PLUGINS = plugin_map(plugins.modules('families'), BUILTIN, 'family')
+REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
+"""Registered families; the position is the family's code (built-ins first, then plugins)."""
 
 
 @dataclass(frozen=True)
@@ -70,23 +86,45 @@ class Family:
     params: tuple[str, ...]
     required: tuple[str, ...]
     defaults: dict[str, float]
-    inputs: tuple[str, ...]
+    actuators: tuple[str, ...]
     astern_rpm: bool
     astern_surge: bool
     description: str
     forces: Callable[..., Any] = field(repr=False)
     wind: Callable[..., Any] | None = field(default=None, repr=False)  # None: Blendermann
     air_drag: bool = False
+    motion: Callable[..., Any] | None = field(default=None, repr=False)  # None: MMG eq. 7
+    mass_solve: Callable[..., Any] | None = field(default=None, repr=False)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """The command channels its actuators read, in kernel order."""
+        return tuple(c for a in self.actuators for c in actuator(a).inputs)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The columns of its kernels' input array: the commands, then the measured wind."""
+        return self.inputs + ENVIRONMENT
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The actuator tuple its forces read (its actuators' outputs, concatenated)."""
+        return tuple(o for a in self.actuators for o in actuator(a).outputs)
+
+
+def module_of(name: str) -> str:
+    """Return the module of registered family ``name`` (KeyError if there is none)."""
+    if name not in REGISTRY:
+        raise KeyError(name)
+    return module_name(__name__, name, _PLUGINS)
 
 
 def declared_params(name: str) -> tuple[str, ...]:
-    """Return a family's ``PARAMS`` read from its source without importing it."""
-    path = Path(__file__).with_name(f'{name}.py')
-    for node in ast.parse(path.read_text()).body:
-        if (isinstance(node, ast.Assign) and len(node.targets) == 1
-                and getattr(node.targets[0], 'id', None) == 'PARAMS'):
-            return tuple(ast.literal_eval(node.value))
-    raise ImportError(f'{path}: no literal PARAMS = (...) at module level')
+    """Return a family's ``PARAMS`` (and its actuators') read from source, without importing."""
+    mod = module_of(name)
+    own = tuple(declared(mod, 'PARAMS'))
+    extra = tuple(q for a in declared(mod, 'ACTUATORS') for q in actuator_params(a))
+    return own + tuple(q for q in extra if q not in own)
 
 
 _CACHE: dict[str, Family] = {}
@@ -98,12 +136,13 @@ def family(name: str) -> Family:
         code = REGISTRY.index(name) if name in REGISTRY else None
         if code is None:
             raise KeyError(name)
-        mod = importlib.import_module(f'{__name__}.{name}')
+        mod = importlib.import_module(module_of(name))
         _CACHE[name] = Family(name, code, tuple(mod.PARAMS), tuple(mod.REQUIRED),
-                              dict(getattr(mod, 'DEFAULTS', {})), tuple(mod.INPUTS),
+                              dict(getattr(mod, 'DEFAULTS', {})), tuple(mod.ACTUATORS),
                               bool(mod.ASTERN_RPM), bool(mod.ASTERN_SURGE), mod.DESCRIPTION,
                               mod.forces, getattr(mod, 'wind', None),
-                              bool(getattr(mod, 'AIR_DRAG', False)))
+                              bool(getattr(mod, 'AIR_DRAG', False)),
+                              getattr(mod, 'motion', None), getattr(mod, 'mass_solve', None))
     return _CACHE[name]
 
 

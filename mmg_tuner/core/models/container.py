@@ -22,17 +22,17 @@ REQUIRED = ('L_pp', 'B', 'd', 'x_G', 'D_P', 'H_R', 'A_R', 'rho', 'x_R', 'm_x', '
             'R_0', 'Y_v', 'N_v', 't_P', 'w_P0', 'C_w', 'l_P', 'KT_0', 't_R', 'a_H', 'x_H',
             'epsilon', 'kappa', 'u_R0', 'l_R', 'gamma_Rp', 'gamma_Rn', 'f_alpha')
 DEFAULTS = {'flap_ratio': 1.0}
-INPUTS = ('rpm', 'rudder')
+ACTUATORS = ('screw_rudder',)
 ASTERN_RPM = False
 ASTERN_SURGE = False
 DESCRIPTION = 'container ship with flapped rudder, Suyama et al. 2023 (SUZAKU)'
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declarations layout reads)
-from mmg_tuner.core.channels import ACT_DELTA, ACT_N  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from mmg_tuner.core.models._mmg_hull import hull, rudder_forces  # noqa: E402
 from mmg_tuner.core.models._mmg_hull import sin_attack, slipstream  # noqa: E402
 
+ACT_N, ACT_DELTA = 0, 1   # the actuator tuple: screw_rudder's (n_P [rev/s], delta [rad])
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
 _DP = PARAM_INDEX['D_P']

@@ -48,7 +48,7 @@ PARAMS = ('g', 'X_0F', 'X_0A', 'X_vr', 'Y_v', 'Y_r', 'N_v', 'N_r', 'C_D', 'C_rY'
 REQUIRED = ('L_pp', 'B', 'd', 'rho', 'm', 'x_G', 'I_zG', 'm_x', 'm_y', 'J_z', 'D_P', 'H_R',
             'A_R', 'x_R', 'rho_air', 'A_F', 'A_L') + PARAMS
 DEFAULTS: dict[str, float] = {}
-INPUTS = ('rpm', 'rudder', 'wind_n', 'wind_e', 'bow_thruster', 'stern_thruster')
+ACTUATORS = ('screw_rudder', 'tunnel_thrusters')
 ASTERN_RPM = True
 ASTERN_SURGE = True
 AIR_DRAG = True   # its wind loads act on the apparent wind even when the true wind is zero
@@ -57,10 +57,12 @@ DESCRIPTION = ('low-speed four-quadrant MMG with thrusters and Fujiwara wind, Os
 
 import math  # noqa: E402  (below the declarations the layout reads)
 
-from mmg_tuner.core.channels import ACT_BOW, ACT_DELTA, ACT_N, ACT_STERN  # noqa: E402
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 import numpy as np  # noqa: E402
+
+# the actuator tuple: screw_rudder's (n_P, delta), then tunnel_thrusters' (bow, stern)
+ACT_N, ACT_DELTA, ACT_BOW, ACT_STERN = 0, 1, 2, 3
 
 # indices into the flat vector (module-level ints: numba folds them in as constants)
 I_L, I_D, I_RHO, I_RHOA, I_G = (PARAM_INDEX[k] for k in ('L_pp', 'd', 'rho', 'rho_air', 'g'))

@@ -10,15 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from mmg_tuner.core.integrate import actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.core.residual import N_FEATURES, trial_rows
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
+from mmg_tuner.learn.residual import N_FEATURES, trial_rows
 import numpy as np
 
-_doff = PARAM_INDEX['rudder_offset']
-_tau = PARAM_INDEX['rudder_lag_tau']
-_nscale = PARAM_INDEX['rpm_scale']
 _Vw = PARAM_INDEX['wind_speed']
 _dirw = PARAM_INDEX['wind_dir']
 
@@ -28,9 +26,9 @@ class TrialArrays:
     """
     One trial as the training reads it.
 
-    Feature rows (T, N_FEATURES), model states (T, 6), observed states (T, 6), actuators
-    (T, 4: n_P [rev/s], actual rudder [rad], thrusters [rev/s]) and wind (T, 2: speed [m/s],
-    direction it blows from [rad]).
+    Feature rows (T, N_FEATURES), model states (T, 6), observed states (T, 6), the actuator
+    tuples (T, n: ``Family.outputs``, e.g. n_P [rev/s], actual rudder [rad], thrusters
+    [rev/s]) and wind (T, 2: speed [m/s], direction it blows from [rad]).
     """
 
     name: str
@@ -45,22 +43,15 @@ def prepare(ship: ShipConfig, trial: Trial) -> TrialArrays:
     """
     Return the arrays of one trial, with the inputs as the kernels apply them.
 
-    One step per sample: rpm scale, rudder offset and steering-gear lag; measured wind held
-    when missing.
+    The ship's actuators, one step per sample (their effects included: rpm scale, rudder
+    offset, steering-gear lag); measured wind held when missing.
     """
     rows, ms = trial_rows(ship, trial)
     T = len(trial)
     p = ship.params
-    act = np.empty((T, 4))
-    act[:, 0] = rows[:, 3] * p[_nscale] / 60.0
-    tau = p[_tau]
-    decay = math.exp(-trial.dt / tau) if tau > 0.0 else 0.0
-    cmd = rows[:, 4] + p[_doff]
-    d = cmd[0]
-    for k in range(T):
-        d = cmd[k] + (d - cmd[k]) * decay
-        act[k, 1] = d
-    act[:, 2:4] = rows[:, 5:7]
+    ctrl = np.ascontiguousarray(trial.input_array(ship.family.channels))
+    act = np.empty((T, len(ship.family.outputs)))
+    actuator_outputs(ship.kind, p, ctrl, T, float(trial.dt), act)
     wind = np.empty((T, 2))
     vw, dw = float(p[_Vw]), float(p[_dirw])
     for k in range(T):
@@ -115,7 +106,8 @@ def cut(arrs: list[TrialArrays], window: int, horizon: int, stride: int) -> Wind
             parts['target'].append(a.observed[k0 + 1:k0 + horizon + 1])
     if not parts['x0']:
         return Windows(np.zeros((0, 6)), np.zeros((0, window - 1, N_FEATURES)),
-                       np.zeros((0, horizon, 4)), np.zeros((0, horizon, 4)),
+                       np.zeros((0, horizon, 4)),
+                       np.zeros((0, horizon, arrs[0].act.shape[1] if arrs else 2)),
                        np.zeros((0, horizon, 2)), np.zeros((0, horizon, 6)))
     return Windows(*(np.ascontiguousarray(np.stack(parts[k]), dtype=float)
                      for k in ('x0', 'hist', 'inp', 'act', 'wind', 'target')))

@@ -16,8 +16,11 @@ recorded inputs are (zero-order hold; with Euler this is the paper's scheme). Be
 sample of a run the window is padded with that sample; a restart from a measured state takes
 the measured history before it.
 
-Only NumPy and numba here (a ROS install without JAX runs trained hybrids); training lives in
-``mmg_tuner.tuning.hybrid``. The weights are stored in a portable ``.npz`` (no pickle).
+The network's input features assume a screw-and-rudder plant (its first inputs rpm and rudder,
+then optional bow and stern thrusters, zero when the ship has none). Only NumPy and numba here
+(a ROS install without JAX runs trained hybrids); training lives in ``learn/train.py``. The
+weights are stored in a portable ``.npz`` (no pickle). The runs step the core's one
+``integrate.advance`` with the network's accelerations.
 """
 from __future__ import annotations
 
@@ -30,14 +33,15 @@ import zipfile
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core._jit import FASTMATH
-from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER, WIND_E
-from mmg_tuner.core.dynamics import derivative
-from mmg_tuner.core.integrate import (_control_at, _use_measured_wind, observe, rpm_status,
-                                      start_state, state_status)
-from mmg_tuner.core.layout import EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE, STATUS_TEXT
+from mmg_tuner.core.dynamics import (actuate_start, apparent_wind, family_tag,
+                                     N_ACT_STATES)
+from mmg_tuner.core.integrate import (advance, has_measured_wind, input_row, N_ENV, observe,
+                                      start_state, use_measured_wind)
+from mmg_tuner.core.layout import OK, PARAM_INDEX, RPM_NOT_POSITIVE, STATUS_TEXT
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.simulate import simulate as _simulate
+from mmg_tuner.core.stepper import apparent_wind_body  # noqa: F401  (re-exported: the node's)
 from mmg_tuner.core.trial import fitted_first_state, Trial
 from mmg_tuner.errors import ConfigError, SimulationError
 from numba import njit
@@ -52,14 +56,7 @@ FORMAT = 'mmg_tuner.residual/1'
 X0_WINDOW_S = 10.0
 """The start-state fit of ``mt.simulate`` (tuning.objective.initial_state's default)."""
 
-_Vc = PARAM_INDEX['current_speed']
-_dirc = PARAM_INDEX['current_dir']
-_doff = PARAM_INDEX['rudder_offset']
-_tau = PARAM_INDEX['rudder_lag_tau']
-_nscale = PARAM_INDEX['rpm_scale']
 _toff = PARAM_INDEX['time_offset']
-_Vw = PARAM_INDEX['wind_speed']
-_dirw = PARAM_INDEX['wind_dir']
 
 
 # ------------------------------------------------------------------------------- the network
@@ -91,6 +88,10 @@ class ResidualNet:
     def __post_init__(self) -> None:
         """Check shapes once, so the compiled kernels never read out of bounds."""
         _check_net(self, '<ResidualNet>')
+
+    def stepper(self) -> 'ResidualStepper':
+        """The network one sample at a time (what the interactive simulator calls)."""
+        return ResidualStepper(self)
 
     @property
     def n_inputs(self) -> int:
@@ -160,6 +161,34 @@ class ResidualNet:
         except (TypeError, ValueError) as exc:
             raise ConfigError(f'{path}: malformed residual network file ({exc})') from None
         return net
+
+
+def load_residual(params_file) -> ResidualNet | None:
+    """
+    Return the residual network a params.yaml names (``residual: FILE.npz``, relative to it).
+
+    None when the file names none; a missing or corrupt network file is a ConfigError naming
+    both files. A model is (ship, parameters, this network): ``load_ship(name, params_file)``
+    gives the first two.
+    """
+    import yaml
+    path = Path(params_file)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f'params file {path}: cannot be read: {exc}') from None
+    name = doc.get('residual') if isinstance(doc, dict) else None
+    if name is None:
+        return None
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f'{path}: key "residual" = {name!r} must name a .npz file (relative '
+                          'to the params file)')
+    net_path = Path(name) if Path(name).is_absolute() else path.parent / name
+    try:
+        return ResidualNet.load(net_path)
+    except ConfigError as exc:
+        raise ConfigError(f'{path}: key "residual" names {net_path}, which cannot be used: '
+                          f'{exc}') from None
 
 
 def _json_default(o):
@@ -239,34 +268,15 @@ def mlp_forward(sizes, flat, x, buf_a, buf_b):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def apparent_wind(p, psi, u, v):
-    """
-    Return the apparent wind: air velocity relative to the ship, body axes [m/s].
-
-    For the model state's heading and velocities through the water, with p's wind (and
-    current) slots.
-    """
-    ug = u
-    vg = v
-    Vc = p[_Vc]
-    if Vc != 0.0:
-        ug += Vc * math.cos(p[_dirc] - psi)
-        vg += Vc * math.sin(p[_dirc] - psi)
-    rel = p[_dirw] - psi
-    Vw = p[_Vw]
-    return -Vw * math.cos(rel) - ug, -Vw * math.sin(rel) - vg
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def feature_row(p, s, rpm, rudder, bow, stern, row):
-    """Fill row (N_FEATURES,) for model state s and the inputs held at this sample."""
+def feature_row(p, s, inp, row):
+    """Fill row (N_FEATURES,) for model state s and the command row held at this sample."""
     row[0] = s[3]
     row[1] = s[4]
     row[2] = s[5]
-    row[3] = rpm
-    row[4] = rudder
-    row[5] = bow
-    row[6] = stern
+    row[3] = inp[0]
+    row[4] = inp[1]
+    row[5] = inp[2] if inp.shape[0] > 2 else 0.0
+    row[6] = inp[3] if inp.shape[0] > 3 else 0.0
     wu, wv = apparent_wind(p, s[2], s[3], s[4])
     row[7] = wu
     row[8] = wv
@@ -284,59 +294,6 @@ def window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z, buf_a,
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _deriv_res(kind, p, s, act, physics, a0, a1, a2, out):
-    """ds/dt: the family's (physics) or only the kinematics (pure network), plus a0..a2."""
-    derivative(kind, p, s, act, out)
-    if physics:
-        out[3] += a0
-        out[4] += a1
-        out[5] += a2
-    else:
-        out[3] = a0
-        out[4] = a1
-        out[5] = a2
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def advance_hybrid(kind, p, s, delta_act, rpm, rudder, dt, substeps, method, k1, k2, k3, k4,
-                   tmp, bow, stern, a0, a1, a2, physics):
-    """
-    ``integrate.advance`` with the residual accelerations (a0, a1, a2) held over the step.
-
-    physics False: the residual replaces the family's accelerations (pure network). Returns
-    (status, new delta_act) like ``advance``.
-    """
-    n_rps = rpm * p[_nscale] / 60.0
-    st = rpm_status(kind, n_rps)
-    if st != OK:
-        return st, delta_act
-    delta_cmd = rudder + p[_doff]
-    h = dt / substeps
-    tau = p[_tau]
-    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
-    for _ in range(substeps):
-        delta_act = delta_cmd + (delta_act - delta_cmd) * decay
-        act = (n_rps, delta_act, bow, stern)
-        _deriv_res(kind, p, s, act, physics, a0, a1, a2, k1)
-        if method == EULER:
-            for i in range(6):
-                s[i] += h * k1[i]
-            continue
-        for i in range(6):
-            tmp[i] = s[i] + 0.5 * h * k1[i]
-        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k2)
-        for i in range(6):
-            tmp[i] = s[i] + 0.5 * h * k2[i]
-        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k3)
-        for i in range(6):
-            tmp[i] = s[i] + h * k3[i]
-        _deriv_res(kind, p, tmp, act, physics, a0, a1, a2, k4)
-        for i in range(6):
-            s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    return state_status(kind, s), delta_act
-
-
-@njit(cache=True, fastmath=FASTMATH)
 def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
     """
     Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
@@ -346,17 +303,15 @@ def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
     """
     p = p_in.copy()
     s = np.empty(6)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
     shift = p[_toff] / dt
-    measured_wind = ctrl.shape[1] > WIND_E
-    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    measured_wind = has_measured_wind(ctrl)
     for k in range(T):
         if measured_wind:
-            _use_measured_wind(p, ctrl, k)
+            use_measured_wind(p, ctrl, k)
         start_state(p, states[k], s)
-        bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T) if thrusters else 0.0
-        stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T) if thrusters else 0.0
-        feature_row(p, s, _control_at(ctrl, k, RPM, shift, T),
-                    _control_at(ctrl, k, RUDDER, shift, T), bow, stern, rows[k])
+        input_row(ctrl, k, shift, T, inp)
+        feature_row(p, s, inp, rows[k])
         for i in range(6):
             model_states[k, i] = s[i]
 
@@ -378,6 +333,8 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
     k3 = np.empty(6)
     k4 = np.empty(6)
     tmp = np.empty(6)
+    a = np.zeros(N_ACT_STATES)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
     nf = x_mean.shape[0]
     ring = np.empty((window, nf))
     row = np.empty(nf)
@@ -390,20 +347,17 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
     start_state(p, x0, s)
     observe(p, s, out[0])
     shift = p[_toff] / dt
-    delta_act = _control_at(ctrl, 0, RUDDER, shift, T) + p[_doff]
-    measured_wind = ctrl.shape[1] > WIND_E
-    thrusters = ctrl.shape[1] > STERN_THRUSTER
+    input_row(ctrl, 0, shift, T, inp)
+    actuate_start(kind, p, inp, a)
+    measured_wind = has_measured_wind(ctrl)
     status = OK
     k_fail = T
     nh = hist.shape[0]
     for k in range(T - 1):
         if measured_wind:
-            _use_measured_wind(p, ctrl, k)
-        rpm = _control_at(ctrl, k, RPM, shift, T)
-        rudder = _control_at(ctrl, k, RUDDER, shift, T)
-        bow = _control_at(ctrl, k, BOW_THRUSTER, shift, T) if thrusters else 0.0
-        stern = _control_at(ctrl, k, STERN_THRUSTER, shift, T) if thrusters else 0.0
-        feature_row(p, s, rpm, rudder, bow, stern, row)
+            use_measured_wind(p, ctrl, k)
+        input_row(ctrl, k, shift, T, inp)
+        feature_row(p, s, inp, row)
         if k == 0:
             for i in range(window - 1):
                 back = window - 1 - i  # samples before the first
@@ -420,9 +374,8 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
         res_out[k, 0] = a0
         res_out[k, 1] = a1
         res_out[k, 2] = a2
-        status, delta_act = advance_hybrid(kind, p, s, delta_act, rpm, rudder, dt, substeps,
-                                           method, k1, k2, k3, k4, tmp, bow, stern, a0, a1, a2,
-                                           physics)
+        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp,
+                         a0, a1, a2, physics)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -444,11 +397,11 @@ def fitted_start(trial: Trial, window_s: float = X0_WINDOW_S) -> np.ndarray:
 
 def trial_rows(ship: ShipConfig, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
     """Feature rows (T, N_FEATURES) and model states (T, 6) of a trial's measured states."""
-    ctrl = np.ascontiguousarray(trial.inputs, dtype=float)
+    ctrl = np.ascontiguousarray(trial.input_array(ship.family.channels))
     T = len(trial)
     rows = np.empty((T, N_FEATURES))
     ms = np.empty((T, 6))
-    measured_rows(ship.kind, ship.params, np.ascontiguousarray(trial.states), ctrl, T,
+    measured_rows(family_tag(ship.kind), ship.params, np.ascontiguousarray(trial.states), ctrl, T,
                   float(trial.dt), rows, ms)
     return rows, ms
 
@@ -476,7 +429,7 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
     p = np.ascontiguousarray(ship.params if params is None else params, dtype=float)
     T = len(trial)
     dt = float(trial.dt)
-    inputs = np.ascontiguousarray(trial.inputs, dtype=float)
+    inputs = np.ascontiguousarray(trial.input_array(ship.family.channels))
     res = np.full((T, 3), np.nan)
     if net is not None:
         _check_dt(net, dt, trial.name)
@@ -509,7 +462,7 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
                 hist = np.ascontiguousarray(rows[lo:a]) if a > lo else np.zeros((1, N_FEATURES))
                 n_hist = a - lo
             st, k_fail = simulate_hybrid_one(
-                ship.kind, p, np.asarray(x0, float), hist, n_hist, inputs[a:b], b - a, dt,
+                family_tag(ship.kind), p, np.asarray(x0, float), hist, n_hist, inputs[a:b], b - a, dt,
                 int(substeps), method, int(net.window), sizes, flat, net.x_mean, net.x_std,
                 net.y_scale, bool(net.physics), seg, seg_res)
             res[a:b] = seg_res
@@ -546,27 +499,9 @@ def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
     if fail_t is not None:
         notes.append(f'the simulation stopped at t = {fail_t:.2f} s: {why}')
         kw = {'status': why, 'fail_time_s': float(trial.t[0] + fail_t)}
-    return Trial(trial.t.copy(), states, trial.controls.copy(), trial.name,
-                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
-                 None if trial.wind is None else trial.wind.copy(),
-                 None if trial.thrusters is None else trial.thrusters.copy(), **kw)
-
-
-def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
-                       wind_e: float = math.nan) -> tuple[float, float]:
-    """
-    Return the apparent wind in body axes [m/s] for a model state (for the node).
-
-    From the measured true wind (air velocity north/east [m/s]) or, when NaN, the ship's wind
-    parameters.
-    """
-    p = np.array(ship.params, dtype=float)
-    if wind_n == wind_n and wind_e == wind_e:
-        p[_Vw] = math.hypot(wind_n, wind_e)
-        p[_dirw] = math.atan2(-wind_e, -wind_n)
-    s = np.asarray(state, dtype=float)
-    wu, wv = apparent_wind(p, float(s[2]), float(s[3]), float(s[4]))
-    return float(wu), float(wv)
+    return Trial(trial.t.copy(), states, name=trial.name,
+                 source=f'simulated: {trial.source or trial.name}', notes=notes,
+                 start_s=trial.start_s, inputs=trial.inputs, **kw)
 
 
 class ResidualStepper:

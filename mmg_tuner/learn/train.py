@@ -18,11 +18,11 @@ import math
 import time
 from typing import Mapping, Sequence
 
-from mmg_tuner.core.residual import FEATURES, N_FEATURES, ResidualNet
+from mmg_tuner.learn.residual import FEATURES, N_FEATURES, ResidualNet
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
-from mmg_tuner.tuning.hybrid._windows import cut, prepare, starts, Windows
+from mmg_tuner.learn._windows import cut, prepare, starts, Windows
 import numpy as np
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
@@ -312,8 +312,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     import equinox as eqx
     import jax
 
-    from mmg_tuner.tuning.hybrid import _engine as E
-    from mmg_tuner.tuning.hybrid._bridge import batch_derivative, teacher_residuals
+    from mmg_tuner.core.dynamics import family_tag
+    from mmg_tuner.learn import _engine as E
+    from mmg_tuner.learn._bridge import batch_derivative, teacher_residuals
 
     t_start = time.perf_counter()
     cfg = config
@@ -363,7 +364,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     act = np.ascontiguousarray(np.concatenate([a.act for a in tr_arrs]))
     wind = np.ascontiguousarray(np.concatenate([a.wind for a in tr_arrs]))
     F = np.empty((ms.shape[0], 6))
-    batch_derivative(ship.kind, ship.params, ms, act, wind, F, np.empty((1, 6, 6)), False)
+    batch_derivative(family_tag(ship.kind), ship.params, ms, act, wind, F,
+                     np.empty((1, 6, 6)), False)
     y_scale = np.sqrt(np.mean(F[:, 3:6] ** 2, axis=0))
     y_scale = np.maximum(y_scale, max(1e-3 * float(y_scale.max()), 1e-9))
     obs = np.concatenate([a.observed for a in tr_arrs])

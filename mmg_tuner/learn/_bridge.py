@@ -10,9 +10,9 @@ custom VJP (``_engine.physics_fn``). NumPy and numba only.
 """
 from __future__ import annotations
 
-from mmg_tuner.core.dynamics import derivative
+from mmg_tuner.core.dynamics import act_tuple, derivative
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.core.residual import window_residual
+from mmg_tuner.learn.residual import window_residual
 from numba import njit
 import numpy as np
 
@@ -25,7 +25,8 @@ FD_REL_STEP = 1e-6
 @njit(cache=True)
 def batch_derivative(kind, p_in, S, A, Wd, F, J, with_jac):
     """
-    ds/dt F (B, 6) of the family for states S (B, 6), actuators A (B, 4) and wind Wd (B, 2).
+    ds/dt F (B, 6) of the family (``kind``: its tag) for states S (B, 6), actuator tuples
+    A (B, n_outputs) and wind Wd (B, 2).
 
     Wd holds (wind_speed [m/s], wind_dir [rad]) per row (the measured wind of the sample, or
     the ship's parameters). with_jac: also J (B, 6, 6) = dF/dS by central differences (x, y
@@ -39,7 +40,7 @@ def batch_derivative(kind, p_in, S, A, Wd, F, J, with_jac):
     for b in range(S.shape[0]):
         p[_Vw] = Wd[b, 0]
         p[_dirw] = Wd[b, 1]
-        act = (A[b, 0], A[b, 1], A[b, 2], A[b, 3])
+        act = act_tuple(kind, A, b)
         for i in range(6):
             s[i] = S[b, i]
         derivative(kind, p, s, act, out)

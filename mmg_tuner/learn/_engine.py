@@ -12,8 +12,9 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.tuning.hybrid._bridge import batch_derivative
+from mmg_tuner.learn._bridge import batch_derivative
 import numpy as np
 import optax
 
@@ -29,16 +30,18 @@ def physics_fn(kind: int, p: np.ndarray):
     """
     Return ds/dt (B, 6) of the family as a differentiable JAX function of the states (B, 6).
 
-    Actuators (B, 4) and wind (B, 2) are data (zero cotangent).
+    Actuators (B, n_outputs) and wind (B, 2) are data (zero cotangent); ``kind``: the family
+    code.
     """
     p = np.ascontiguousarray(p, dtype=float)
+    tag = family_tag(kind)
 
     def host(s, act, wind, with_jac):
         s = np.ascontiguousarray(s, dtype=float)
         B = s.shape[0]
         F = np.empty((B, 6))
         J = np.empty((B, 6, 6))
-        batch_derivative(kind, p, s, np.ascontiguousarray(act, dtype=float),
+        batch_derivative(tag, p, s, np.ascontiguousarray(act, dtype=float),
                          np.ascontiguousarray(wind, dtype=float), F, J, with_jac)
         return (F, J) if with_jac else F
 
@@ -97,7 +100,7 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
     Return simulate(model, x0, hist, inp, act, wind) -> (observed, residual).
 
     Observed (B, H, 6) and residual (B, H, 3) for a batch of windows, mirroring
-    ``core.residual.simulate_hybrid_one`` (one step per sample, the residual held over it).
+    ``learn.residual.simulate_hybrid_one`` (one step per sample, the residual held over it).
     """
     phys = physics_fn(kind, p)
     Vc, dirc, ax, ay = (float(p[_Vc]), float(p[_dirc]), float(p[_ax]), float(p[_ay]))

@@ -1,0 +1,112 @@
+"""
+Actuator models: the registry.
+
+An actuator model turns recorded or commanded input channels (``core/channels.py``) into what
+the hull model needs: the states the family's force formulas read (propeller revolutions,
+the actual rudder angle, thruster speeds; its *outputs*) and, optionally, forces of its own
+(a propeller's side force, an azimuth thruster's thrust). It owns its internal states (the
+actual rudder angle behind a steering gear, azimuth angles and rates) and the effects that act
+between a command and the ship (rpm scale, rudder offset and steering-gear lag belong to the
+screw-and-rudder actuator).
+
+A family lists its actuators in ``ACTUATORS``; the outputs of all of them, in that order, form
+the actuator tuple ``act`` its ``forces`` read (by position: the family module names them).
+
+How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest template):
+
+1. Write ``core/actuators/myact.py`` (or any module, registered as a plugin:
+   ``core/plugins.py``) declaring at the top:
+
+   * ``PARAMS = (...)``: a literal tuple of its own parameter slots (the layout reads it
+     without importing the module); effect parameters stay in ``core/effects.py``.
+   * ``INPUTS``: the channels it reads, in order; ``CHANNELS``: the new ones among them,
+     name -> (unit, description, default) (default None: required).
+   * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
+     internal states (may be empty). ``DESCRIPTION``: one line with the source.
+   * njit functions (``inline='always'``; ``inp`` is the row of input values at this sample,
+     ``j`` the position of this actuator's first input in it, ``a`` the float array of all
+     actuator states, ``i`` the position of this actuator's first state in it):
+
+     - ``start(p, inp, j, a, i)``: set the internal states from the first sample's inputs;
+     - ``hold(p, inp, j, h, astern) -> (status, held)``: once per sample interval: read and
+       convert the inputs held over it (``h``: the integration step [s]; ``astern``: whether
+       the family covers astern revolutions); status ``layout.OK`` or a status code that stops
+       the run; ``held`` a tuple of floats for ``output``;
+     - ``output(p, held, a, i) -> tuple``: once per integration step: advance the internal
+       states over it and return the outputs acting during it (floats, ``len(OUTPUTS)``);
+     - optionally ``forces(p, u, v, r, act, k) -> (X, Y, N)``: forces [N] and moment [N m]
+       about midship of its own, ``act[k]`` being its first output.
+2. Append its name to :data:`REGISTRY` (built-in) or register the plugin; list it in a
+   family's ``ACTUATORS``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import importlib
+from typing import Any, Callable
+
+from mmg_tuner.core import plugins
+from mmg_tuner.core._registry import declared, module_name, plugin_map
+from mmg_tuner.core.channels import add_channel, Channel
+
+BUILTIN: tuple[str, ...] = ('screw_rudder', 'tunnel_thrusters')
+_PLUGINS = plugin_map(plugins.modules('actuators'), BUILTIN, 'actuator')
+REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
+"""Registered actuator models, by name."""
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """What the rest of the package may ask about an actuator model (module docstring)."""
+
+    name: str
+    params: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    states: tuple[str, ...]
+    description: str
+    start: Callable[..., Any] = field(repr=False)
+    hold: Callable[..., Any] = field(repr=False)
+    output: Callable[..., Any] = field(repr=False)
+    forces: Callable[..., Any] | None = field(default=None, repr=False)
+
+
+def module_of(name: str) -> str:
+    """Return the module of registered actuator ``name`` (KeyError if there is none)."""
+    if name not in REGISTRY:
+        raise KeyError(f'unknown actuator {name!r}; registered: {", ".join(REGISTRY)}')
+    return module_name(__name__, name, _PLUGINS)
+
+
+def declared_params(name: str) -> tuple[str, ...]:
+    """An actuator's own ``PARAMS``, read from its source without importing it."""
+    return tuple(declared(module_of(name), 'PARAMS'))
+
+
+def declared_channels(name: str) -> dict[str, tuple]:
+    """An actuator's new ``CHANNELS``, read from its source without importing it."""
+    return dict(declared(module_of(name), 'CHANNELS', {}))
+
+
+_CACHE: dict[str, Actuator] = {}
+
+
+def actuator(name: str) -> Actuator:
+    """Return the registered actuator model called ``name`` (KeyError if there is none)."""
+    if name not in _CACHE:
+        mod = importlib.import_module(module_of(name))
+        _CACHE[name] = Actuator(name, tuple(mod.PARAMS), tuple(mod.INPUTS),
+                                tuple(mod.OUTPUTS), tuple(mod.STATES), mod.DESCRIPTION,
+                                mod.start, mod.hold, mod.output,
+                                getattr(mod, 'forces', None))
+    return _CACHE[name]
+
+
+def register_channels() -> None:
+    """Add every registered actuator's new channels to the channel table."""
+    for name in REGISTRY:
+        for ch, (unit, description, default) in declared_channels(name).items():
+            add_channel(Channel(ch, unit, description, default))
+
+
+register_channels()

@@ -1,0 +1,75 @@
+"""
+Actuator ``screw_rudder``: one propeller and one rudder behind a steering gear.
+
+Inputs: the logged propeller revolutions [rev/min] and rudder angle [rad]. Outputs, what the
+MMG formulas read: n_P [rev/s] and the actual rudder angle delta [rad]. Its internal state is
+that actual angle. The effects acting between the log and the ship live here: rpm_scale (the
+logged revolutions are off by a factor), rudder_offset (the rudder's zero is off) and
+rudder_lag_tau (a first-order steering gear, exact over each integration step for a held
+order), and the propeller's side force (prop_side_force, the paddle-wheel effect).
+"""
+from __future__ import annotations
+
+PARAMS = ()   # its parameters are effects (core/effects.py): rpm_scale, rudder_offset, ...
+INPUTS = ('rpm', 'rudder')
+CHANNELS: dict = {}   # both are base channels (core/channels.py)
+OUTPUTS = ('n_P', 'delta')
+STATES = ('delta_actual',)
+DESCRIPTION = 'propeller [rev/min] and rudder [rad] behind a first-order steering gear'
+
+import math  # noqa: E402  (below the declarations the layout reads)
+
+from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100
+from mmg_tuner.core.layout import OK, PARAM_INDEX, RPM_NOT_POSITIVE  # noqa: E402
+from numba import njit  # noqa: E402
+
+_doff = PARAM_INDEX['rudder_offset']
+_tau = PARAM_INDEX['rudder_lag_tau']
+_nscale = PARAM_INDEX['rpm_scale']
+_CYP = PARAM_INDEX['prop_side_force']
+_rho = PARAM_INDEX['rho']
+_DP = PARAM_INDEX['D_P']
+_xR = PARAM_INDEX['x_R']
+_L = PARAM_INDEX['L_pp']
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def rpm_status(n_rps, astern):
+    """OK or RPM_NOT_POSITIVE: n_P <= 0 (or NaN) is refused unless the family covers astern."""
+    if n_rps > 0.0 or (astern and n_rps == n_rps):
+        return OK
+    return RPM_NOT_POSITIVE
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def start(p, inp, j, a, i):
+    """The gear starts where the first logged angle (plus the offset) puts it."""
+    a[i] = inp[j + 1] + p[_doff]
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def hold(p, inp, j, h, astern):
+    """(status, (n_P [rev/s], rudder order [rad], gear decay over h)) for the held inputs."""
+    n_rps = inp[j] * p[_nscale] / 60.0
+    tau = p[_tau]
+    decay = math.exp(-h / tau) if tau > 0.0 else 0.0
+    return rpm_status(n_rps, astern), (n_rps, inp[j + 1] + p[_doff], decay)
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def output(p, held, a, i):
+    """Steering gear: exact first-order response to the held order over one step."""
+    delta_cmd = held[1]
+    delta_act = delta_cmd + (a[i] - delta_cmd) * held[2]
+    a[i] = delta_act
+    return (held[0], delta_act)
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def forces(p, u, v, r, act, k):
+    """Propeller side force at the stern, scaling with n^2 like the thrust (0 by default)."""
+    if p[_CYP] == 0.0:
+        return 0.0, 0.0, 0.0
+    n = act[k]
+    YPS = p[_CYP] * p[_rho] * n * n * p[_DP] ** 4   # Y_PS = C_YPS rho n^2 D^4 at x_R
+    return 0.0, YPS, YPS * p[_xR] * p[_L]

@@ -1,0 +1,43 @@
+"""
+A model: a ship (its family and parameter values) and, optionally, a learned residual network.
+
+The ship config never owns a network; whatever simulates "a model" takes one of these (or a
+bare :class:`~mmg_tuner.core.ship.ShipConfig`, the physics alone).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from mmg_tuner.core.ship import load_ship, ShipConfig
+from mmg_tuner.learn.residual import load_residual, ResidualNet
+
+
+@dataclass(frozen=True)
+class Model:
+    """ship: the physics (family + parameters); residual: its learned residual, or None."""
+
+    ship: ShipConfig
+    residual: ResidualNet | None = None
+
+    @property
+    def kind(self) -> str:
+        """'physics', 'hybrid' (physics + residual network) or 'pure network'."""
+        net = self.residual
+        return 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
+
+    @property
+    def name(self) -> str:
+        return self.ship.name
+
+
+def as_model(model: 'Model | ShipConfig') -> Model:
+    """A Model from a Model or a bare ship config (the physics alone)."""
+    return model if isinstance(model, Model) else Model(model)
+
+
+def load_model(name_or_path: str | Path = 'suzaku', params_file: str | Path | None = None
+               ) -> Model:
+    """The ship, with a params.yaml's tuned values and the residual network it names, if any."""
+    ship = load_ship(name_or_path, params_file)
+    return Model(ship, None if params_file is None else load_residual(params_file))

@@ -1,0 +1,156 @@
+"""
+A new kind of vessel is new files only: a toy family and a toy actuator from test code.
+
+The toy is a control-oriented model (its own mass matrix and linear damping, no MMG
+formulas) driven by a water-jet-like actuator with its own input channels, internal state (a
+nozzle angle behind a first-order lag) and forces. Both live in a temporary folder, are
+registered through the plugin environment variables (``core/plugins.py``) and never touch
+``mmg_tuner/core``; the subprocess then loads a ship of the family, simulates it, checks the
+physics the toy defines and tunes two of its coefficients back from a simulated trial.
+"""
+from pathlib import Path
+import subprocess
+import sys
+import textwrap
+
+TOY_ACTUATOR = '''
+"""Toy water jet: thrust [N] and a nozzle angle behind a first-order lag."""
+PARAMS = ('toy_x_jet', 'toy_tau_nozzle')
+INPUTS = ('jet_thrust', 'jet_angle')
+CHANNELS = {'jet_thrust': ('N', 'toy jet thrust, + ahead', None),
+            'jet_angle': ('rad', 'toy nozzle angle order, + pushes the stern to port', 0.0)}
+OUTPUTS = ('thrust', 'nozzle')
+STATES = ('nozzle',)
+DESCRIPTION = 'toy water jet (test plugin)'
+
+import math
+
+from mmg_tuner.core.layout import OK, PARAM_INDEX
+from numba import njit
+
+_X = PARAM_INDEX['toy_x_jet']
+_TAU = PARAM_INDEX['toy_tau_nozzle']
+
+
+@njit(inline='always')
+def start(p, inp, j, a, i):
+    a[i] = inp[j + 1]
+
+
+@njit(inline='always')
+def hold(p, inp, j, h, astern):
+    return OK, (inp[j], inp[j + 1], math.exp(-h / p[_TAU]))
+
+
+@njit(inline='always')
+def output(p, held, a, i):
+    a[i] = held[1] + (a[i] - held[1]) * held[2]
+    return (held[0], a[i])
+
+
+@njit(inline='always')
+def forces(p, u, v, r, act, k):
+    T = act[k]
+    Y = -T * math.sin(act[k + 1])
+    return T * math.cos(act[k + 1]), Y, Y * p[_X]
+'''
+
+TOY_FAMILY = '''
+"""Toy control-oriented family: M nu_dot + D nu = tau, diagonal M and D (SI units)."""
+PARAMS = ('toy_Xu', 'toy_Yv', 'toy_Nr', 'toy_x_jet', 'toy_tau_nozzle')
+REQUIRED = ('rho', 'L_pp', 'B', 'd', 'm', 'I_zG') + PARAMS
+DEFAULTS = {'x_G': 0.0}
+ACTUATORS = ('toy_jet',)
+ASTERN_RPM = True
+ASTERN_SURGE = True
+DESCRIPTION = 'toy control-oriented family (test plugin)'
+
+from mmg_tuner.core.layout import PARAM_INDEX
+from numba import njit
+
+_XU, _YV, _NR = (PARAM_INDEX[k] for k in ('toy_Xu', 'toy_Yv', 'toy_Nr'))
+_M, _IZ = PARAM_INDEX['m'], PARAM_INDEX['I_zG']
+
+
+@njit(inline='always')
+def forces(p, u, v, r, act):
+    return -p[_XU] * u, -p[_YV] * v, -p[_NR] * r
+
+
+@njit(inline='always')
+def motion(p, u, v, r, X, Y, N):
+    m = p[_M]
+    return X / m + v * r, Y / m - u * r, N / p[_IZ]
+
+
+@njit(inline='always')
+def mass_solve(p, X, Y, N):
+    return X / p[_M], Y / p[_M], N / p[_IZ]
+'''
+
+SCRIPT = '''
+import math
+import numpy as np
+import mmg_tuner as mt
+from mmg_tuner.core.models import family, REGISTRY
+from mmg_tuner.core.ship import ship_from_dict
+from mmg_tuner.core.simulate import simulate
+from mmg_tuner.core.trial import Trial
+from mmg_tuner.errors import SimulationError
+
+assert REGISTRY[-1] == 'toy_family', REGISTRY
+fam = family('toy_family')
+assert fam.channels == ('jet_thrust', 'jet_angle', 'wind_n', 'wind_e'), fam.channels
+ship = ship_from_dict({'name': 'toy', 'model': 'toy_family', 'particulars': {
+    'rho': 1025.0, 'L_pp': 10.0, 'B': 3.0, 'd': 1.0, 'm': 20000.0, 'I_zG': 150000.0,
+    'toy_Xu': 2000.0, 'toy_Yv': 8000.0, 'toy_Nr': 60000.0, 'toy_x_jet': -5.0,
+    'toy_tau_nozzle': 2.0},
+    'tuning': {'targets': ['toy_Xu', 'toy_Nr']}})
+
+# straight ahead: the surge speed settles where thrust = X_u u
+T = 1201
+run = simulate(ship, [0, 0, 0, 0.0, 0, 0], {'jet_thrust': np.full(T, 4000.0)}, 0.1, 'rk4')
+assert run.ok and abs(run.states[-1, 3] - 2.0) < 1e-3, run.states[-1]
+# a nozzle step turns it; the lag state makes the first second's yaw rate smaller
+t = np.arange(T) * 0.1
+cmd = {'jet_thrust': np.full(T, 4000.0), 'jet_angle': np.where(t > 10, 0.2, 0.0)}
+turn = simulate(ship, [0, 0, 0, 2.0, 0, 0], cmd, 0.1, 'rk4')
+assert turn.ok and turn.states[-1, 5] > 0.01, turn.states[-1]
+fast = simulate(ship.with_params({'toy_tau_nozzle': 0.01}), [0, 0, 0, 2.0, 0, 0], cmd, 0.1,
+                'rk4')
+k = int(11.0 / 0.1)
+assert 0 < turn.states[k, 5] < 0.8 * fast.states[k, 5], (turn.states[k], fast.states[k])
+# a trial without the required channel is refused, naming it
+try:
+    simulate(ship, [0, 0, 0, 2.0, 0, 0], {'jet_angle': np.zeros(T)}, 0.1)
+    raise AssertionError('no error for a missing channel')
+except SimulationError as exc:
+    assert "'jet_thrust'" in str(exc), exc
+
+# tuning through the plugin: two coefficients back from a simulated trial
+truth = ship.with_params({'toy_Xu': 2600.0, 'toy_Nr': 45000.0})
+rec = simulate(truth, [0, 0, 0, 2.0, 0, 0], cmd, 0.1, 'rk4')
+trial = Trial(rec.t, rec.states, inputs=rec.inputs, name='toy_turn')
+res = mt.tune(ship, [trial], config=mt.TuneConfig(max_evals=1500, integrator='rk4', seed=1))
+print(res.params)
+assert abs(res.params['toy_Xu'] / 2600.0 - 1) < 0.02, res.params
+assert abs(res.params['toy_Nr'] / 45000.0 - 1) < 0.02, res.params
+print('TOY OK')
+'''
+
+
+def test_a_toy_family_and_actuator_from_test_code_simulate_and_tune(tmp_path):
+    pkg = tmp_path / 'toyplug'
+    pkg.mkdir()
+    (pkg / '__init__.py').write_text('')
+    (pkg / 'toy_jet.py').write_text(textwrap.dedent(TOY_ACTUATOR))
+    (pkg / 'toy_family.py').write_text(textwrap.dedent(TOY_FAMILY))
+    repo = Path(__file__).resolve().parents[1]
+    env = {'PATH': '/usr/bin:/bin', 'HOME': str(tmp_path),
+           'PYTHONPATH': f'{tmp_path}:{repo}', 'NUMBA_CACHE_DIR': str(tmp_path / 'cache'),
+           'MMG_TUNER_FAMILIES': 'toyplug.toy_family',
+           'MMG_TUNER_ACTUATORS': 'toyplug.toy_jet'}
+    out = subprocess.run([sys.executable, '-c', SCRIPT], env=env, cwd=tmp_path,
+                         capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0 and 'TOY OK' in out.stdout, out.stdout + out.stderr[-4000:]
+    assert not list((repo / 'mmg_tuner' / 'core').rglob('toy_*')), 'the toy must stay outside core'
