@@ -23,7 +23,7 @@ restart from the measured state every 100 s), through ``mt.evaluate``:
   apparent wind; no physics), trained with the simulation-based loss;
 * hybrid: the tuned physics plus a neural residual on the accelerations, same training;
 * ensemble (with several ``--seeds``): the tuned physics plus the mean of the seeds' residuals,
-  as one network (``tuning.hybrid.ensemble``; no further training, nothing chosen).
+  as one network (``learn.ensemble``; no further training, nothing chosen).
 
 The hybrid's residual trains on the training runs weighed by duration, the three short
 berthing runs repeated ``--berthing-weight`` times (``--balance window``, as the pure network,
@@ -62,9 +62,9 @@ from esso_osaka import (  # noqa: E402, I100
     check_provenance, fail, FOLDS, KINDS, load_split, params_path, RESTART_S)
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.core.residual import ResidualNet  # noqa: E402
-from mmg_tuner.tuning.hybrid import ensemble, ResidualConfig, train_residual  # noqa: E402
-from mmg_tuner.tuning.hybrid.train import BALANCE, SELECT  # noqa: E402
+from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
+from mmg_tuner.learn import ensemble, ResidualConfig, train_residual  # noqa: E402
+from mmg_tuner.learn.train import BALANCE, SELECT  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid'
 # the paper's Table 9 for comparison: MMG (captive tests) and Type-1 (mean, std)

@@ -92,8 +92,8 @@ from esso_hybrid import (  # noqa: E402, I100
     bench_runs, held_out_scores, OUT as HYBRID_OUT, parser, shrunk, train_network, training_set)
 from esso_osaka import fail, KINDS, PARAMS_OUT  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.core.residual import ResidualNet  # noqa: E402
-from mmg_tuner.tuning.hybrid.train import _split  # noqa: E402
+from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
+from mmg_tuner.learn.train import _split  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid_settings' / 'results.json'
 VALIDATION_FRACTION = 0.25   # ResidualConfig's default: what train_residual holds out

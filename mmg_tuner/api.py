@@ -54,7 +54,8 @@ from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
-from mmg_tuner.tuning.objective import Objective, paper_weights, Prior, TrialBatch
+from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.objective import Objective, paper_weights, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
@@ -265,6 +266,11 @@ class TuneConfig:
         _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 1,
                'a whole number >= 1', E)
 
+    def objective_spec(self) -> ObjectiveSpec:
+        """What CMA-ES minimises, for the one objective factory (``tuning/factory.py``)."""
+        return ObjectiveSpec(self.weights, self.shoot_every_s, self.integrator, self.substeps,
+                             self.segment_s, self.balance, self.prior)
+
 
 @dataclass
 class Fit:
@@ -457,24 +463,6 @@ def _config(cls, config, options: dict):
     return replace(config, **options) if options else config
 
 
-def _tuning_objective(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig,
-                      space: ParameterSpace, weights: np.ndarray, obj: Objective) -> Objective:
-    """Build what CMA-ES minimises: ``obj``, or segments, balanced, with a prior."""
-    if not cfg.segment_s and cfg.balance == 'sample' and not cfg.prior:
-        return obj
-    segs = split_trials([replace(t, name=n) for t, n in zip(trials, unique_names(trials))],
-                        cfg.segment_s)
-    # a segment starts from its measured sample, as the evaluation index's restarts do
-    batch = TrialBatch.from_trials([s.trial for s in segs],
-                                   x0_window_s=0.0 if cfg.segment_s else 10.0)
-    prior = None
-    if cfg.prior:
-        samples = float(batch.lengths.sum() - len(segs))
-        prior = Prior(space.indices, space.pre, space.upper - space.lower, cfg.prior * samples)
-    return Objective(ship, batch, weights, cfg.shoot_every_s, cfg.integrator, cfg.substeps,
-                     trial_weights=segment_weights(segs, cfg.balance), prior=prior)
-
-
 def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
          test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
          checkpoint: str | Path | None = None, resume: bool = False,
@@ -492,15 +480,12 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     if not trials:
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
-    weights = np.array(cfg.weights) if cfg.weights else paper_weights(ship.L_pp)
+    spec = cfg.objective_spec()
     names = unique_names(trials + test)
-    obj = Objective(ship, TrialBatch.from_trials(trials), weights, cfg.shoot_every_s,
-                    cfg.integrator, cfg.substeps)
+    obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
     sets = {'tune': (obj, names[:len(trials)])}
     if test:
-        sets['test'] = (Objective(ship, TrialBatch.from_trials(test), weights,
-                                  cfg.shoot_every_s, cfg.integrator, cfg.substeps),
-                        names[len(trials):])
+        sets['test'] = (make_objective(ship, test, spec.plain), names[len(trials):])
     logger.info('tuning %d parameters of %s on %d trial(s)%s; box a_r = %g', space.dim,
                 ship.name, len(trials), f', testing on {len(test)}' if test else '',
                 cfg.a_r or ship.a_r)
@@ -511,7 +496,8 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         result = TuneResult({n: float(ship[n]) for n in space.names}, pre, pre, [], [], 0, 0,
                             0.0, False, ship, space, cfg, trials, test, obj.batch.dt)
     else:
-        tuner = Tuner(space, _tuning_objective(ship, trials, cfg, space, weights, obj),
+        minimised = obj if spec == spec.plain else make_objective(ship, trials, spec, space)
+        tuner = Tuner(space, minimised,
                       popsize=cfg.popsize, max_popsize=cfg.max_popsize,
                       max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
         res = tuner.run(resume=resume, progress=progress)

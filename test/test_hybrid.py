@@ -13,12 +13,13 @@ import sys
 import zipfile
 
 import mmg_tuner as mt
-from mmg_tuner.core.integrate import start_state
+from mmg_tuner.core.dynamics import family_tag, N_ACT_STATES
+from mmg_tuner.core.integrate import advance, start_state
 from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
-from mmg_tuner.learn.residual import (advance_hybrid, apparent_wind_body, fitted_start, N_FEATURES,
-                                     ResidualNet, ResidualStepper, simulate_hybrid,
-                                     simulate_segments, zero_net)
 from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.stepper import apparent_wind_body
+from mmg_tuner.learn.residual import (fitted_start, N_FEATURES, ResidualNet, ResidualStepper,
+                                      simulate_hybrid, simulate_segments, zero_net)
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError
 import numpy as np
@@ -159,13 +160,15 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
     stepper = ResidualStepper(net)
     stepper.reset(s)
     work = [np.empty(6) for _ in range(5)]
-    delta = trial.controls[0, 1] + suzaku['rudder_offset']
+    gear = np.zeros(N_ACT_STATES)   # the screw-and-rudder actuator's state: the actual angle
+    gear[0] = trial.controls[0, 1] + suzaku['rudder_offset']
+    tag = family_tag(suzaku.kind)
     got = [s.copy()]
     for k in range(len(trial) - 1):
         rpm, rudder = trial.controls[k]
         a = stepper.accelerations(s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
-        st, delta = advance_hybrid(suzaku.kind, p, s, delta, rpm, rudder, trial.dt, 1,
-                                   INTEGRATORS[integrator], *work, 0.0, 0.0, *a, True)
+        st = advance(tag, p, s, gear, np.array([rpm, rudder]), trial.dt, 1,
+                     INTEGRATORS[integrator], *work, *a, True)
         assert st == OK
         got.append(s.copy())
     np.testing.assert_allclose(np.array(got), ref.states, rtol=1e-12, atol=1e-12)
@@ -196,7 +199,7 @@ def test_config_names_the_bad_option():
 
 # ------------------------------------------------------------------------ the physics bridge
 def _states_inputs(ship, rng, n):
-    """Random states, actuators and winds in the family's range."""
+    """Random states, actuator tuples (``Family.outputs``) and winds in the family's range."""
     if ship.model == 'lowspeed':
         uvr = rng.uniform([-0.3, -0.2, -0.1], [0.8, 0.2, 0.1], (n, 3))
         act = np.column_stack([rng.uniform(-20, 20, n), rng.uniform(-0.7, 0.7, n),
@@ -205,8 +208,7 @@ def _states_inputs(ship, rng, n):
     else:
         U = 3.0 if ship.name.lower().startswith('suz') else 1.2
         uvr = rng.uniform([0.6 * U, -0.1 * U, -0.02], [1.1 * U, 0.1 * U, 0.02], (n, 3))
-        act = np.column_stack([rng.uniform(5, 15, n), rng.uniform(-0.6, 0.6, n),
-                               np.zeros((n, 2))])
+        act = np.column_stack([rng.uniform(5, 15, n), rng.uniform(-0.6, 0.6, n)])
         wind = np.column_stack([rng.uniform(0, 8, n), rng.uniform(-4, 4, n)])
     S = np.column_stack([rng.uniform(-50, 50, (n, 2)), rng.uniform(-4, 4, n), uvr])
     return S, act, wind
@@ -234,7 +236,7 @@ def test_bridge_forward_is_the_compiled_kernel(any_ship):
     out = np.empty(6)
     for b in range(S.shape[0]):
         p[PARAM_INDEX['wind_speed']], p[PARAM_INDEX['wind_dir']] = Wd[b]
-        derivative(ship.kind, p, S[b].copy(), tuple(A[b]), out)
+        derivative(family_tag(ship.kind), p, S[b].copy(), tuple(A[b]), out)
         assert np.array_equal(F[b], out)
 
 

@@ -60,13 +60,14 @@ def test_params_with_residual_round_trip_through_simulate_and_evaluate(
     from mmg_tuner.cli.simulate import command as simulate
     zero = _params_dir(tmp_path, zero_net(3, 1.0), 'zero')
     kick = _params_dir(tmp_path, _yaw_kick(), 'kick')
-    ship = mt.load_ship('suzaku', kick)
+    ship = mt.load_model('suzaku', kick)   # a model: the ship and the network its params name
     assert isinstance(ship.residual, ResidualNet) and ship.residual.physics
-    assert mt.load_ship('suzaku').residual is None
+    assert mt.load_ship('suzaku', kick) == ship.ship   # a ship config owns no network
+    assert mt.load_model('suzaku').residual is None
     tr = mt.load_trials(trial_dir / 'zigzag_m15')[0]
     plain = mt.simulate(mt.load_ship('suzaku'), tr)
     # a zero residual is the physics; a constant yaw acceleration turns the ship away
-    assert np.allclose(mt.simulate(mt.load_ship('suzaku', zero), tr).states, plain.states,
+    assert np.allclose(mt.simulate(mt.load_model('suzaku', zero), tr).states, plain.states,
                        atol=1e-9)
     kicked = mt.simulate(ship, tr).states
     assert np.all(np.isfinite(kicked)) and kicked[-1, 2] - plain.states[-1, 2] > 0.1
@@ -101,7 +102,7 @@ def test_params_naming_a_missing_or_corrupt_residual_is_refused(tmp_path, capsys
     p = _params_dir(tmp_path, zero_net(2, 1.0))
     (tmp_path / 'p' / 'params.residual.npz').unlink()
     with pytest.raises(ConfigError, match=r'params\.yaml.*params\.residual\.npz'):
-        mt.load_ship('suzaku', p)
+        mt.load_model('suzaku', p)
     (tmp_path / 'p' / 'params.residual.npz').write_bytes(b'not a zip')
     with pytest.raises(SystemExit) as e:
         main(['--params', str(p), '--duration', '10'])
@@ -134,7 +135,7 @@ def test_tune_residual_end_to_end(trial_dir, tmp_path, capsys):
     assert r['kind'] == 'hybrid' and 0 <= r['share'] <= 1 and r['epochs'] >= 1
     assert set(r['index']) == {'tune', 'test'} and r['heldout_gain'] is not None
     assert '## Neural residual (hybrid)' in (out / 'report.md').read_text()
-    ship = mt.load_ship('suzaku', out / 'params.yaml')
+    ship = mt.load_model('suzaku', out / 'params.yaml')
     assert ship.residual.physics and ship.residual.meta['config']['hidden'] == [8]
     assert evaluate([str(trial_dir / t) for t in TEST] + [
         '--ship', 'suzaku', '--params', str(out / 'params.yaml'), '--out',
@@ -203,7 +204,7 @@ def test_without_jax_the_hybrid_commands_say_how_to_install_it(trial_dir, tmp_pa
         mt.diagnose(mt.load_ship('suzaku'), [], residual=True)
     # everything else still works, including running a saved hybrid
     p = _params_dir(tmp_path, _yaw_kick())
-    run = mt.simulate(mt.load_ship('suzaku', p), mt.load_trials(trial_dir / 'zigzag_m15')[0])
+    run = mt.simulate(mt.load_model('suzaku', p), mt.load_trials(trial_dir / 'zigzag_m15')[0])
     assert np.all(np.isfinite(run.states))
 
 
@@ -274,25 +275,27 @@ def test_the_node_stepper_runs_the_hybrid_like_the_offline_simulation(tmp_path):
     from mmg_tuner.core.stepper import ShipSimulator
     from mmg_tuner.core.trial import Trial
     x0 = [0.0, 0.0, 0.0, 3.0, 0.0, 0.0]
-    ship = mt.load_ship('suzaku', _params_dir(tmp_path, _yaw_kick(window=3, dt=0.5)))
-    sim = ShipSimulator(ship, dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.1)
+    model = mt.load_model('suzaku', _params_dir(tmp_path, _yaw_kick(window=3, dt=0.5)))
+    sim = ShipSimulator(model.ship, dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.1,
+                        residual=model.residual)
     assert sim.step(400)
     T = 201
     tr = Trial(np.arange(T) * 0.5, np.tile(x0, (T, 1)),
                np.column_stack([np.full(T, 100.0), np.full(T, 0.1)]))
     # the offline run integrates 0.5 s samples; the node 2 steps of 0.25 s each: compare with
     # the offline run at two substeps, the same integration grid
-    off = simulate_hybrid(ship, ship.residual, tr, restart_every_s=0.0, substeps=2)
+    off = simulate_hybrid(model.ship, model.residual, tr, restart_every_s=0.0, substeps=2)
     assert np.allclose(sim.observed(), off.states[-1], rtol=1e-9, atol=1e-9)
     plain = ShipSimulator(mt.load_ship('suzaku'), dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.1)
     plain.step(400)
     assert not np.allclose(plain.observed(), sim.observed(), atol=1e-3)
-    zero = ShipSimulator(mt.load_ship('suzaku', _params_dir(tmp_path, zero_net(3, 0.5), 'z')),
-                         dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.1)
+    zm = mt.load_model('suzaku', _params_dir(tmp_path, zero_net(3, 0.5), 'z'))
+    zero = ShipSimulator(zm.ship, dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.1,
+                         residual=zm.residual)
     zero.step(400)
     assert np.allclose(plain.observed(), zero.observed(), rtol=1e-12, atol=1e-9)
     with pytest.raises(mt.MmgTunerError, match='must divide'):
-        ShipSimulator(ship, dt=0.3, x0=x0, rpm=100.0)
+        ShipSimulator(model.ship, dt=0.3, x0=x0, rpm=100.0, residual=model.residual)
 
 
 def test_marin_kvlcc2_asymmetry_is_structural():
