@@ -1,0 +1,75 @@
+"""
+Recordings you can trust (issue 28 items 2 to 5): incomplete files, clashing names, foreign params.
+
+Every bad input is the package's own error naming the file (and field), or a WARNING line naming
+it, never a traceback from a library and never a silent choice.
+"""
+import logging
+
+import mmg_tuner as mt
+from mmg_tuner.cli import diagnose as cli_diagnose
+from mmg_tuner.cli import evaluate as cli_evaluate
+from mmg_tuner.cli import inspect as cli_inspect
+from mmg_tuner.cli import tune as cli_tune
+from mmg_tuner.data.csv_io import write_trial_csv
+from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.data.load import load_trials
+from mmg_tuner.errors import TrialDataError
+import pytest
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+@pytest.fixture(scope='module')
+def short_trial(suzaku):
+    return generate_trial(suzaku, 'zigzag', 20, None, 106.0, 3.086, 40.0, 1.0, SensorNoise(), 3,
+                          'zz')[1]
+
+
+# ------------------------------------------------------------------ 2. an 8-byte MCAP
+def test_an_mcap_holding_only_its_magic_is_a_data_error_naming_it(tmp_path):
+    f = tmp_path / 'stub.mcap'
+    f.write_bytes(MCAP_MAGIC)
+    with pytest.raises(TrialDataError, match=r'stub\.mcap: not a complete MCAP file'):
+        load_trials(f)
+    # inside a rosbag2 folder too
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
+    (bag / 'bag_0.mcap').write_bytes(MCAP_MAGIC)
+    with pytest.raises(TrialDataError, match=r'bag_0\.mcap: not a complete MCAP file'):
+        load_trials(bag)
+
+
+@pytest.mark.parametrize('main', [cli_tune.main, cli_evaluate.main, cli_diagnose.main,
+                                  cli_inspect.main])
+def test_every_command_reports_the_stub_mcap_in_one_line(main, tmp_path, capsys):
+    f = tmp_path / 'stub.mcap'
+    f.write_bytes(MCAP_MAGIC)
+    argv = [str(f)] if main is cli_inspect.main else [str(f), '--out', str(tmp_path / 'o')]
+    if main is cli_diagnose.main:
+        argv += ['--test', str(f), str(f)]
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    err = capsys.readouterr()
+    text = err.out + err.err
+    assert 'Traceback' not in text and 'TypeError' not in text
+    assert 'stub.mcap: not a complete MCAP file' in text, text
+    assert stop.value.code != 0
+
+
+def test_a_folder_skips_the_stub_mcap_with_a_warning_and_reads_the_rest(tmp_path, short_trial,
+                                                                        caplog):
+    (tmp_path / 'a_stub.mcap').write_bytes(MCAP_MAGIC)
+    write_trial_csv(short_trial, tmp_path / 'b_good.csv')
+    with caplog.at_level(logging.WARNING, logger='mmg_tuner'):
+        (tr,) = load_trials(tmp_path)
+    assert tr.name == 'b_good'
+    lines = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert any(ln.startswith('WARNING:') and 'a_stub.mcap' in ln and 'skipped' in ln
+               for ln in lines), lines
+    # the API and a folder holding nothing else: the error, not an empty list
+    assert len(mt.load_trials([tmp_path], ship=mt.load_ship('suzaku'))) == 1
+    (tmp_path / 'b_good.csv').unlink()
+    with pytest.raises(TrialDataError, match='a_stub.mcap'):
+        load_trials(tmp_path)
