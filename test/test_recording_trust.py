@@ -73,3 +73,27 @@ def test_a_folder_skips_the_stub_mcap_with_a_warning_and_reads_the_rest(tmp_path
     (tmp_path / 'b_good.csv').unlink()
     with pytest.raises(TrialDataError, match='a_stub.mcap'):
         load_trials(tmp_path)
+
+
+# ------------------------------------------------------------------ 3. figure file names
+CLASHING = ['run 1', 'run_1', '旋回試験', '停止試験', 'Zig', 'zig']
+
+
+def test_file_stems_are_distinct_where_names_are():
+    from mmg_tuner.tuning.report import file_stems
+    stems = file_stems(CLASHING)
+    assert len({s.casefold() for s in stems}) == len(CLASHING), stems
+    assert all(s.isascii() and '/' not in s and not s.startswith('.') for s in stems)
+    assert file_stems(['run 1', 'zigzag_p20']) == ['run_1', 'zigzag_p20']   # no clash: as before
+    assert file_stems(CLASHING) == stems   # deterministic
+
+
+def test_trials_whose_names_clash_as_file_names_get_a_figure_each(suzaku, short_trial):
+    from mmg_tuner.data.trial import Trial
+    from mmg_tuner.tuning.report import plot_trials
+    trials = [Trial(short_trial.t, short_trial.states, short_trial.controls, name=n)
+              for n in CLASHING[:4]]
+    images = plot_trials(suzaku, trials, {'tuned': suzaku.params}, 'plot_')
+    assert len(images) == 4, sorted(images)
+    ev = mt.evaluate(suzaku, trials)
+    assert len(ev.plots()) == 4
