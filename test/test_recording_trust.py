@@ -97,3 +97,47 @@ def test_trials_whose_names_clash_as_file_names_get_a_figure_each(suzaku, short_
     assert len(images) == 4, sorted(images)
     ev = mt.evaluate(suzaku, trials)
     assert len(ev.plots()) == 4
+
+
+# ------------------------------------------------------------------ 4. another ship's params
+@pytest.fixture
+def kvlcc2_params(tmp_path):
+    f = tmp_path / 'tuned_kvlcc2' / 'params.yaml'
+    f.parent.mkdir()
+    f.write_text('ship: kvlcc2\nparams:\n  R_0: 0.022\n')
+    return f
+
+
+def test_a_params_file_of_another_ship_is_refused_by_the_api(kvlcc2_params, tmp_path):
+    with pytest.raises(mt.ConfigError, match=r"params\.yaml.*'kvlcc2'.*'suzaku'"):
+        mt.load_ship('suzaku', kvlcc2_params)
+    assert mt.load_ship('kvlcc2', kvlcc2_params)['R_0'] == 0.022   # its own ship: applied
+    plain = tmp_path / 'hand_written.yaml'   # no ship key: the user vouches for it
+    plain.write_text('params:\n  R_0: 0.02\n')
+    assert mt.load_ship('suzaku', plain)['R_0'] == 0.02
+
+
+@pytest.mark.parametrize('command', ['simulate', 'generate', 'tune', 'evaluate'])
+def test_every_command_refuses_another_ships_params(command, kvlcc2_params, tmp_path, capsys):
+    import importlib
+    main = importlib.import_module(f'mmg_tuner.cli.{command}').main
+    out = str(tmp_path / 'o')
+    argv = {'simulate': ['--maneuver', 'turning', '--out', out + '.csv'],
+            'generate': ['--out', out, '--maneuvers', 'turning:35'],
+            'tune': [str(kvlcc2_params), '--out', out],      # (refused before any trial is read)
+            'evaluate': [str(kvlcc2_params), '--out', out]}[command]
+    with pytest.raises(SystemExit) as stop:
+        main(argv + ['--ship', 'suzaku', '--params', str(kvlcc2_params)])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and 'Traceback' not in err
+    assert 'kvlcc2' in err and 'suzaku' in err and 'params.yaml' in err, err
+
+
+def test_sim_node_refuses_another_ships_params(kvlcc2_params):
+    pytest.importorskip('rclpy')
+    from mmg_tuner.ros.sim_node import SimNode
+    p = {'ship': 'suzaku', 'params_file': str(kvlcc2_params), 'initial_yaw': 0.0,
+         'initial_x': 0.0, 'initial_y': 0.0, 'initial_speed': 0.5, 'dt': 0.1,
+         'initial_rpm': 10.0, 'initial_rudder': 0.0, 'integrator': 'rk4'}
+    with pytest.raises(mt.ConfigError, match=r"params\.yaml.*'kvlcc2'.*'suzaku'"):
+        SimNode._build(p)

@@ -13,6 +13,7 @@ import argparse
 import math
 import sys
 
+from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.cli.args import bounded, finite_float, nonneg_float, positive_float
 from mmg_tuner.cli.common import (check_new_file, check_run, check_samples, Parser, run_command,
                                   SEED, UsageError, write_new_file)
@@ -23,7 +24,7 @@ from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.residual import (advance_hybrid, apparent_wind_body, N_FEATURES,
                                      ResidualStepper, simulate_hybrid_one)
-from mmg_tuner.core.ship import load_ship, ShipConfig
+from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.csv_io import csv_text
@@ -75,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    ship = load_ship(args.ship, args.params)
+    ship = load_ship_with_params(args.ship, args.params)   # refuses another ship's params
     speed = args.speed_ms if args.speed_ms is not None else args.speed_kn * mv.KNOT
     check_run(ship, args.rpm, speed, '--speed-ms' if args.speed_ms is not None else '--speed-kn',
               [('--rudder-deg', args.rudder_deg)])

@@ -17,9 +17,9 @@ from pathlib import Path
 import shutil
 import tempfile
 
+from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.channels import BOW_THRUSTER, RPM, RUDDER, STERN_THRUSTER
 from mmg_tuner.core.residual import simulate_hybrid
-from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
@@ -186,7 +186,7 @@ class ReplayNode(Node):
             raise MmgTunerError(f"{p['trial']}: trial_index {p['trial_index']} out of range "
                                 f'(it holds {len(trials)} trial(s))')
         self.trial = trials[p['trial_index']]
-        ship = load_ship(p['ship'], p['params_file'] or None)
+        ship = load_ship_with_params(p['ship'], p['params_file'] or None)   # same ship only
         if ship.residual is not None:   # the params file names a network: run the hybrid
             sim = simulate_hybrid(ship, ship.residual, self.trial, integrator=p['integrator'],
                                   restart_every_s=0.0)   # from the recorded first state

@@ -20,9 +20,9 @@ import re
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
-from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
 from mmg_tuner.errors import MmgTunerError
 from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, seconds_from_stamp,
@@ -213,7 +213,7 @@ class SimNode(Node):
 
         A SimulationError/ConfigError says what is wrong.
         """
-        ship = load_ship(p['ship'], p['params_file'] or None)
+        ship = load_ship_with_params(p['ship'], p['params_file'] or None)   # same ship only
         psi = enu_yaw_to_psi(p['initial_yaw'])
         x0 = [p['initial_y'], p['initial_x'], psi, p['initial_speed'], 0.0, 0.0]
         return ShipSimulator(ship, p['dt'], x0, p['initial_rpm'], p['initial_rudder'],
