@@ -141,3 +141,50 @@ def test_sim_node_refuses_another_ships_params(kvlcc2_params):
          'initial_rpm': 10.0, 'initial_rudder': 0.0, 'integrator': 'rk4'}
     with pytest.raises(mt.ConfigError, match=r"params\.yaml.*'kvlcc2'.*'suzaku'"):
         SimNode._build(p)
+
+
+# ------------------------------------------------------------------ 5. implausible ship files
+def _ship_doc(name='suzaku'):
+    import yaml
+    from mmg_tuner.core.ship import resolve_config_path
+    return yaml.safe_load(resolve_config_path(name).read_text())
+
+
+@pytest.mark.parametrize('edit,words', [
+    (lambda d: d['particulars'].update(x_G=1e6), ['x_G = 1e+06', 'L_pp / 2 = 41.5']),
+    (lambda d: d['particulars'].update(x_G=-42.0), ['x_G = -42', 'L_pp / 2 = 41.5']),
+    (lambda d: d['hull'].update(R_0=-0.01), ['R_0 = -0.01', 'negative']),
+    (lambda d: d.update(particuliers={'B': 1.0}),
+     ["'particuliers'", 'particulars', 'known']),
+    (lambda d: d.update(tunning={'a_r': 0.5}), ["'tunning'", 'tuning']),
+])
+def test_implausible_ship_files_are_refused_naming_file_and_key(tmp_path, edit, words):
+    import yaml
+    doc = _ship_doc()
+    edit(doc)
+    f = tmp_path / 'odd.yaml'
+    f.write_text(yaml.safe_dump(doc, allow_unicode=True))
+    with pytest.raises(mt.ConfigError) as e:
+        mt.load_ship(f)
+    assert str(f) in str(e.value) and all(w in str(e.value) for w in words), str(e.value)
+
+
+def test_every_shipped_config_still_loads_and_x_G_is_checked_in_overlays(tmp_path):
+    for name in ('suzaku', 'kvlcc2', 'esso_osaka_3m'):
+        s = mt.load_ship(name)
+        assert abs(s['x_G']) <= s['L_pp'] / 2 and s['R_0'] >= 0
+    f = tmp_path / 'params.yaml'
+    f.write_text('ship: suzaku\nparams:\n  x_G: 100.0\n')
+    with pytest.raises(mt.ConfigError, match=r'params\.yaml.*x_G = 100'):
+        mt.load_ship('suzaku', f)
+
+
+def test_a_csv_with_a_duplicated_column_is_refused_naming_file_and_column(tmp_path, short_trial):
+    f = tmp_path / 'dup.csv'
+    write_trial_csv(short_trial, f)
+    head, *rows = f.read_text().splitlines()
+    assert head.split(',')[4] == 'u'
+    # a second 'u' (e.g. a logger's speed through water beside speed over ground): which one?
+    f.write_text('\n'.join([head + ',U'] + [r + ',0.0' for r in rows]) + '\n')
+    with pytest.raises(TrialDataError, match=r"dup\.csv: column 'u' appears twice.*5 and 10"):
+        load_trials(f)

@@ -93,6 +93,11 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
     if not lines:
         raise TrialDataError(f'{path}: empty file, no CSV header')
     header = [h.strip().strip('"').strip().lower() for h in lines[0].split(',')]
+    for k, h in enumerate(header):   # which of two 'u' columns is the speed? never guess
+        if h and h in header[:k]:
+            raise TrialDataError(f'{path}: column {h!r} appears twice in the header (columns '
+                                 f'{header.index(h) + 1} and {k + 1}, names compared without '
+                                 'case); rename or remove one')
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
