@@ -191,7 +191,7 @@ def _check_physical(p: np.ndarray, source: str, keys=None) -> None:
     r0 = p[PARAM_INDEX['R_0']]
     if keys is None and r0 < 0:
         raise ConfigError(f'{source}: R_0 = {r0:g} is negative: the straight-ahead '
-                          'resistance coefficient R\'_0 opposes the motion (R_0 >= 0)')
+                          'resistance coefficient (R_0 >= 0) opposes the motion')
 
 
 # every top-level key a ship file may have (anything else is a typing error, refused)
