@@ -188,3 +188,64 @@ def test_a_csv_with_a_duplicated_column_is_refused_naming_file_and_column(tmp_pa
     f.write_text('\n'.join([head + ',U'] + [r + ',0.0' for r in rows]) + '\n')
     with pytest.raises(TrialDataError, match=r"dup\.csv: column 'u' appears twice.*5 and 10"):
         load_trials(f)
+
+
+# ------------------------------------------------------------------ 7. unit sanity of a CSV
+DEG = 57.29577951308232
+
+
+def _unit_warnings(caplog, path) -> list[str]:
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger='mmg_tuner'):
+        try:
+            load_trials(path)
+        except TrialDataError:   # t in ms: 1000 s gaps leave no trial; the warning says why
+            pass
+    return [r.getMessage() for r in caplog.records
+            if r.levelno == logging.WARNING and 'looks like' in r.getMessage()]
+
+
+@pytest.fixture(scope='module')
+def unit_trials(suzaku, kvlcc2):
+    """Clean synthetic trials: a long turn (heading over many radians), a zigzag, a random run."""
+    return [generate_trial(ship, m, a, None, rpm, speed, 300.0, hz, SensorNoise(), 7,
+                           f'{ship.name}_{m}')[1]
+            for ship, rpm, speed in ((suzaku, 106.0, 3.086), (kvlcc2, 600.0, 1.18))
+            for m, a, hz in (('turning', 35, 1.0), ('zigzag', 20, 10.0), ('random', 30, 2.0))]
+
+
+@pytest.mark.parametrize('column,convert,words', [
+    ('t', lambda c: c * 1000, 'milliseconds'),
+    ('rudder', lambda c: c * DEG, 'degrees'),
+    ('psi', lambda c: (c * DEG) % 360, 'degrees'),     # a compass heading, 0..360
+    ('psi', lambda c: c * DEG, 'degrees'),
+    ('r', lambda c: c * DEG, 'deg/s'),
+])
+def test_a_csv_column_in_another_unit_gives_a_warning_with_the_fix(
+        unit_trials, tmp_path, caplog, column, convert, words):
+    from mmg_tuner.data.trial import CSV_COLUMNS
+    import numpy as np
+    for tr in unit_trials:
+        f = tmp_path / f'{tr.name}.csv'
+        write_trial_csv(tr, f)
+        head, *rows = f.read_text().splitlines()
+        data = np.array([[float(x) for x in r.split(',')] for r in rows])
+        k = list(CSV_COLUMNS).index(column)
+        data[:, k] = convert(data[:, k])
+        np.savetxt(f, data, delimiter=',', header=head, comments='', fmt='%.10g')
+        lines = _unit_warnings(caplog, f)
+        assert len(lines) == 1, (tr.name, lines)
+        line = lines[0]
+        assert line.startswith('WARNING:') and str(f) in line and f"column '{column}'" in line
+        assert words in line and ('divide' in line or 'multiply' in line), line
+
+
+def test_no_unit_warning_on_clean_trials_or_the_repositorys_recordings(
+        unit_trials, tmp_path, caplog):
+    from pathlib import Path
+    for tr in unit_trials:
+        write_trial_csv(tr, tmp_path / f'{tr.name}.csv')
+        assert _unit_warnings(caplog, tmp_path / f'{tr.name}.csv') == []
+    data = Path(__file__).resolve().parents[1] / 'data'
+    for folder in sorted(p for p in data.iterdir() if p.is_dir()):
+        assert _unit_warnings(caplog, folder) == [], folder
