@@ -31,7 +31,7 @@ import time
 from typing import Callable, Mapping, Sequence
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.core import ship as _ship
+from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.limits import input_limits
@@ -82,7 +82,7 @@ def load_ship(name_or_path: str | Path = 'suzaku', params: str | Path | None = N
     ``params`` overlays a params.yaml (e.g. a tuned one). Tuned values in memory:
     ``ship.with_params(fit.params)``.
     """
-    return _ship.load_ship(name_or_path, params)
+    return load_ship_with_params(name_or_path, params)   # refuses another ship's params
 
 
 def load_model(name_or_path: str | Path = 'suzaku', params: str | Path | None = None) -> Model:

@@ -27,7 +27,7 @@ from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 
-CHECKPOINT = 'checkpoint.pkl'
+CHECKPOINT = 'checkpoint.json'   # the effect search's; the base tuning's beside it
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -28,11 +28,11 @@ import shutil
 import sys
 
 from mmg_tuner._outdir import OutputDir
+from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import check_run, check_samples, Parser, run_command, SEED, UsageError
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
@@ -156,7 +156,7 @@ def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not args.maneuvers:
         args.maneuvers = [parse_maneuver(m) for m in DEFAULT_MANEUVERS]
-    ship = load_ship(args.ship, args.params)
+    ship = load_ship_with_params(args.ship, args.params)   # refuses another ship's params
     if args.effect:
         try:
             ship = ship.with_params(dict(args.effect))

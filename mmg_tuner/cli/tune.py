@@ -27,6 +27,9 @@ from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
 ARGS_FILE = 'args.json'
+CHECKPOINT = 'checkpoint.npz'
+# what older versions wrote: pickles, which run code when loaded, so never loaded
+LEGACY_CHECKPOINTS = ('checkpoint.pkl', 'checkpoint.pkl.base')
 ARGS_VERSION = 2
 DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
 SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
@@ -203,6 +206,12 @@ def resumed_args(parser: argparse.ArgumentParser, argv: list[str] | None, comman
     if not saved.is_file():
         raise UsageError(f'--resume {out}: nothing to resume (no {ARGS_FILE}; is it a '
                          f'{command} output folder?)')
+    for name in LEGACY_CHECKPOINTS:   # refused before anything is read or run
+        if (out / name).exists():
+            raise UsageError(f'--resume {out}: {out / name} is a checkpoint in the old pickle '
+                             'format; it is never loaded, because unpickling a file runs '
+                             'whatever code it holds (and a folder may come from someone '
+                             f'else): re-run without --resume, with --out in a new folder')
     try:
         doc = json.loads(saved.read_text())
     except (OSError, ValueError) as exc:
@@ -327,7 +336,7 @@ def command(argv: list[str] | None = None) -> int:
         try:
             with sigterm_as_interrupt():
                 result = api.tune(ship, tune_trials, test_trials, config,
-                                  checkpoint=out.path / 'checkpoint.pkl', resume=resume,
+                                  checkpoint=out.path / CHECKPOINT, resume=resume,
                                   progress=bar)
         finally:
             if bar is not None:

@@ -8,6 +8,7 @@ finds the installed or in-tree config by name; a path to any YAML works too.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import difflib
 import math
 from pathlib import Path
 import re
@@ -183,6 +184,34 @@ def _check_physical(p: np.ndarray, source: str, keys=None, required=_POSITIVE_IF
         if p[PARAM_INDEX[k]] < 0 and (keys is None or k in keys):
             raise ConfigError(f'{source}: {k} must not be negative, got {k} = '
                               f'{p[PARAM_INDEX[k]]:g}')
+    # the centre of gravity lies in the hull: x_G [m] from midships, |x_G| <= L_pp / 2
+    xg, half = p[PARAM_INDEX['x_G']], p[PARAM_INDEX['L_pp']] / 2
+    if not abs(xg) <= half and (keys is None or {'x_G', 'L_pp'} & set(keys)):
+        raise ConfigError(f'{source}: x_G = {xg:g} m puts the centre of gravity outside the '
+                          f'hull (|x_G| <= L_pp / 2 = {half:g} m); x_G is in metres from '
+                          'midships, + forward')
+    # the ship file only: a tuned overlay's R_0 comes from a box the user chose, and refusing
+    # it would lose a finished run (ParameterSpace keeps the pre-determined value's box)
+    r0 = p[PARAM_INDEX['R_0']]
+    if keys is None and r0 < 0:
+        raise ConfigError(f'{source}: R_0 = {r0:g} is negative: the straight-ahead '
+                          'resistance coefficient (R_0 >= 0) opposes the motion')
+
+
+# every top-level key a ship file may have (anything else is a typing error, refused)
+_TOP_LEVEL = _SECTIONS + ('name', 'model', 'scale', 'scale_ratio', 'setting', 'steering',
+                          'tuning')
+
+
+def _check_top_level(doc: Mapping[str, Any], source: str) -> None:
+    """Refuse a key the loader would ignore (``tunning:``), listing the known ones."""
+    unknown = [k for k in doc if k not in _TOP_LEVEL]
+    if unknown:
+        k = unknown[0]
+        close = difflib.get_close_matches(str(k), _TOP_LEVEL, n=1)
+        raise ConfigError(f'{source}: unknown top-level key {k!r}'
+                          + (f" (did you mean '{close[0]}'?)" if close else '')
+                          + f"; the known keys are {', '.join(_TOP_LEVEL)}")
 
 
 def _index(name: str, source: str) -> int:
@@ -236,6 +265,7 @@ def _read_yaml(path: Path, what: str) -> Any:
 def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig:
     if not isinstance(doc, Mapping):
         raise ConfigError(f'{source}: a ship config must be a mapping')
+    _check_top_level(doc, source)
     model = doc.get('model')
     if not isinstance(model, str) or model not in MODEL_KINDS:
         raise ConfigError(f'{source}: key "model" must be one of {sorted(MODEL_KINDS)}, '

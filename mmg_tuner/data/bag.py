@@ -60,6 +60,29 @@ class RawRecording:
 
 
 NS = 1_000_000_000
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+class IncompleteMcapError(TrialDataError):
+    """
+    An MCAP file holding at most its 8-byte magic (a recorder stopped before writing anything).
+
+    A folder of recordings skips such a file with a warning (:func:`.load.load_trials`).
+    """
+
+
+def check_mcap_size(path: Path, size: int) -> None:
+    """
+    Refuse an MCAP file of ``size`` bytes that cannot hold a record.
+
+    rosbags fails on one holding just the magic with a bare TypeError; anything longer is
+    handled (and fuzzed) by the readers.
+    """
+    if size <= len(MCAP_MAGIC):
+        raise IncompleteMcapError(
+            f'{display_text(str(path))}: not a complete MCAP file: {size} bytes, at most the '
+            f'{len(MCAP_MAGIC)}-byte magic that starts one (a recorder stopped before writing '
+            'anything?); record it again or remove it')
 
 
 def _stamp_ns(header) -> int:
@@ -287,7 +310,9 @@ def _check_bag_files(bag: Path) -> list[Path]:
     check_regular_file(bag / 'metadata.yaml', 'rosbag2 metadata.yaml', MAX_METADATA_BYTES)
     files = sorted(p for p in bag.iterdir() if p.suffix in ('.mcap', '.db3', '.zstd'))
     for f in files:
-        check_regular_file(f, 'rosbag2 storage file')
+        size = check_regular_file(f, 'rosbag2 storage file')
+        if f.suffix == '.mcap':
+            check_mcap_size(f, size)
     return files
 
 
@@ -423,7 +448,7 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
             raise TrialDataError(f'{bag}: not a rosbag2 directory (no metadata.yaml)')
         it = _iter_rosbag2(bag)
     elif path.suffix == '.mcap':
-        check_regular_file(path, 'MCAP file')
+        check_mcap_size(path, check_regular_file(path, 'MCAP file'))
         it = _iter_bare_mcap(path)
     else:
         raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')

@@ -9,6 +9,8 @@ the other is 0).
 from __future__ import annotations
 
 import io
+import logging
+import math
 from pathlib import Path
 import warnings
 
@@ -20,6 +22,7 @@ from mmg_tuner.errors import TrialDataError
 import numpy as np
 
 
+logger = logging.getLogger(__name__)
 WIND_COLUMNS = ('wind_n', 'wind_e')
 THRUSTER_COLUMNS = ('bow_thruster', 'stern_thruster')  # rev/s, the channels' own names
 # what the notes name for each role of a CSV read as a recording: its columns, not the topics
@@ -93,6 +96,11 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
     if not lines:
         raise TrialDataError(f'{path}: empty file, no CSV header')
     header = [h.strip().strip('"').strip().lower() for h in lines[0].split(',')]
+    for k, h in enumerate(header):   # which of two 'u' columns is the speed? never guess
+        if h and h in header[:k]:
+            raise TrialDataError(f'{path}: column {h!r} appears twice in the header (columns '
+                                 f'{header.index(h) + 1} and {k + 1}, names compared without '
+                                 'case); rename or remove one')
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
@@ -127,7 +135,113 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
     if data.shape[0] < 2:
         raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns'
                              + (f' ({"; ".join(notes)})' if notes else ''))
+    for w in unit_warnings(header, data):   # read as it is: the user decides
+        logger.warning('WARNING: %s: %s', display_text(str(path)), w)
     return header, data, notes
+
+
+# ----------------------------------------------------------------- unit sanity (issue 28)
+# The values say which unit a column is in, checked against the format's (s, rad, rad/s):
+# positions in metres move at the speed u, v give whatever t's unit; the course over ground
+# (from the track, radians whatever the file says) turns with the heading; the heading turns
+# as the yaw rate integrates. The bands are wide: 180/pi or 1000 apart, never near 1.
+_DEG_BAND = (25.0, 120.0)         # a ratio here is 180/pi = 57.3: degrees for radians
+_RAD_BAND = (0.5, 2.0)            # a ratio here: the same unit
+
+
+def _slope(a: np.ndarray, b: np.ndarray) -> tuple[float, float] | None:
+    """Return (k, misfit) of a ~ k b, both centred; misfit: rms(a - k b) / rms(a)."""
+    a, b = a - a.mean(), b - b.mean()
+    aa, bb = float(a @ a), float(b @ b)
+    if not (aa > 0 and bb > 0):
+        return None
+    k = float(a @ b) / bb
+    return k, math.sqrt(float(((a - k * b) ** 2).sum()) / aa)
+
+
+def _heading_unit(psi: np.ndarray, x: np.ndarray, y: np.ndarray, u: np.ndarray
+                  ) -> tuple[bool | None, np.ndarray, str]:
+    """
+    Return (degrees? (None: cannot tell), the heading unwrapped, the evidence) of column psi.
+
+    A heading wrapping at 360 is in degrees; else one turning 57 times as far as the course
+    over ground (chords of the track ten times longer than its noise, ahead motion only) is.
+    """
+    steps, top = np.abs(np.diff(psi)), float(np.max(np.abs(psi)))
+    if top <= 361 and np.any((steps > 300) & (steps < 420)):
+        return True, np.unwrap(psi, period=360.0), 'it wraps at 360'
+    if top <= 2 * math.pi + 0.1 and np.any((steps > 5.5) & (steps < 7.0)):
+        return False, np.unwrap(psi), ''
+    if not np.mean(u > 0.05) > 0.9:   # astern or stopped: the course says nothing
+        return None, psi, ''
+    noise = math.sqrt((np.var(np.diff(x, 2)) + np.var(np.diff(y, 2))) / 12)   # [m], 1 sigma
+    for m in {max(1, len(psi) // k): None for k in (100, 50, 25, 12)}:   # shortest first
+        dx, dy = x[m:] - x[:-m], y[m:] - y[:-m]
+        if np.quantile(np.hypot(dx, dy), 0.1) > 10 * noise:
+            break
+    else:
+        return None, psi, ''
+    course = np.unwrap(np.arctan2(dy, dx))
+    fit = _slope(psi[m // 2: m // 2 + len(course)], course)
+    # the drift angle comes and goes (a zigzag's misfit reaches 0.5): the ratio still tells
+    if np.ptp(course) < 0.5 or fit is None or fit[1] > 0.6:
+        return None, psi, ''
+    k = fit[0]
+    if _DEG_BAND[0] <= k <= _DEG_BAND[1]:
+        return True, psi, f'it turns {k:.0f} times as far as the track does'
+    return (False, psi, '') if _RAD_BAND[0] <= k <= _RAD_BAND[1] else (None, psi, '')
+
+
+def unit_warnings(header: list[str], data: np.ndarray) -> list[str]:
+    """
+    Return what the values say about a column given in another unit than the format's.
+
+    t in milliseconds, psi in degrees, r in deg/s, rudder in degrees, each with the fix; empty
+    when nothing looks wrong (or too little moves to tell). Rows with a non-finite field are
+    left out.
+    """
+    names = ('t', 'x', 'y', 'psi', 'u', 'v', 'r', 'rudder')
+    cols = np.column_stack([data[:, header.index(c)] for c in names])
+    cols = cols[np.all(np.isfinite(cols), axis=1)]
+    if len(cols) < 20:
+        return []
+    t, x, y, psi, u, v, r, rudder = cols[np.argsort(cols[:, 0], kind='stable')].T
+    out = []
+    m = max(1, len(t) // 100)   # chords of 1 % of the trial: clear of position noise
+    dt = np.diff(t)
+    dt_med = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.0
+    speed, span = float(np.median(np.hypot(u, v))), t[m:] - t[:-m]
+    seconds = 1.0
+    if speed > 0.05 and dt_med >= 5 and np.any(span > 0):
+        moved = float(np.median(np.hypot(x[m:] - x[:-m], y[m:] - y[:-m])[span > 0]
+                                / span[span > 0]))
+        if moved < 0.02 * speed:
+            seconds = 1e-3
+            out.append(f"column 't': samples {dt_med:g} apart, and the positions move "
+                       f'{speed / max(moved, 1e-300):.0f} times slower than u, v say: t looks '
+                       'like milliseconds; the format wants seconds (divide t by 1000)')
+    top = float(np.max(np.abs(rudder)))
+    if 1.2 < top <= 45:
+        out.append(f"column 'rudder': up to {top:g}, more than any rudder turns in radians "
+                   '(1.2 rad = 69 deg): it looks like degrees; the format wants radians '
+                   '(multiply by pi/180)')
+    deg, psi_u, why = _heading_unit(psi, x, y, u)
+    if deg:
+        out.append(f"column 'psi': {why}: it looks like degrees; the format wants radians "
+                   '(multiply by pi/180)')
+    heading = psi_u / (180 / math.pi) if deg else psi_u
+    turned = np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(t) * seconds)])
+    fit = _slope(heading, turned)
+    if fit is not None and fit[1] < 0.3 and np.ptp(heading) > 0.2 and np.ptp(turned) > 0:
+        k = fit[0]
+        if k > 0 and _DEG_BAND[0] <= 1 / k <= _DEG_BAND[1]:
+            out.append(f"column 'r': the heading turns {1 / k:.0f} times less than r "
+                       'integrates to: r looks like deg/s; the format wants rad/s (multiply by '
+                       'pi/180)')
+        elif deg is None and _DEG_BAND[0] <= k <= _DEG_BAND[1]:
+            out.append(f"column 'psi': it turns {k:.0f} times as far as r integrates to: it "
+                       'looks like degrees; the format wants radians (multiply by pi/180)')
+    return out
 
 
 def read_trial_csv(path: str | Path) -> Trial:

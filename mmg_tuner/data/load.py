@@ -7,12 +7,13 @@ recursively) -> list of trials.
 from __future__ import annotations
 
 from dataclasses import replace
+import logging
 import math
 from pathlib import Path
 
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
-from mmg_tuner.data.bag import read_series
+from mmg_tuner.data.bag import IncompleteMcapError, read_series
 from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording
 from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
@@ -23,6 +24,7 @@ from mmg_tuner.errors import ConfigError, TrialDataError
 
 TRIAL_SUFFIXES = ('.mcap', '.csv', '.dat')
 MAX_DEPTH = 8  # folders below the one given; deeper is not a data set layout
+logger = logging.getLogger(__name__)
 
 
 def _is_bag(p: Path) -> bool:
@@ -135,11 +137,24 @@ def load_trials(path: str | Path, tm: TopicMap | None = None,
     if not path.exists():
         raise TrialDataError(f'{path}: no such file or directory')
     trials: list[Trial] = []
-    for p in find_inputs(path):
-        found = load_one(p, tm, keep_astern, limits)
+    inputs = find_inputs(path)
+    skipped: list[IncompleteMcapError] = []
+    for p in inputs:
+        try:
+            found = load_one(p, tm, keep_astern, limits)
+        except IncompleteMcapError as exc:
+            if inputs == [path]:   # the file (or bag) asked for: its error
+                raise
+            # one recorder that stopped at once must not cost the whole folder
+            logger.warning('WARNING: %s; skipped, reading the other files of %s', exc,
+                           display_text(str(path)))
+            skipped.append(exc)
+            continue
         if time_ranges:
             found = cut_time_ranges(found, time_ranges)
         trials.extend(found)
+    if skipped and not trials:
+        raise skipped[0]
     return unique_names(trials)
 
 

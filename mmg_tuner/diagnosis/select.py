@@ -56,10 +56,10 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 import hashlib
+import json
 import logging
 import math
 from pathlib import Path
-import pickle
 import time
 from typing import Callable, Sequence, TypeVar
 
@@ -74,7 +74,7 @@ from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
-from mmg_tuner.tuning.tuner import Tuner
+from mmg_tuner.tuning.tuner import refuse_pickle, Tuner
 import numpy as np
 
 logger = logging.getLogger(__name__)
@@ -286,13 +286,14 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
 
 class SearchCheckpoint:
     """
-    Completed tunings of one diagnosis, pickled atomically after each.
+    Completed tunings of one diagnosis, written atomically (JSON, data only) after each.
 
     A resumed search replays the same (deterministic) steps and takes every finished tuning from
     here.
     """
 
-    VERSION = 1
+    VERSION = 2       # version 1 was a pickle: refused unread (unpickling runs code)
+    FORMAT = 'mmg_tuner diagnosis checkpoint'
 
     def __init__(self, path: str | Path | None, fingerprint: str, resume: bool = False):
         self.path = Path(path) if path else None
@@ -300,23 +301,51 @@ class SearchCheckpoint:
         self.done: dict[str, np.ndarray] = {}
         self.hits = 0
         if resume and self.path is not None and self.path.is_file():
-            try:
-                doc = pickle.loads(self.path.read_bytes())
-            except Exception as exc:  # a truncated or foreign file: pickle raises many types
-                raise DiagnosisError(f'{self.path}: unreadable checkpoint ({exc})') from None
-            if not isinstance(doc, dict) or doc.get('version') != self.VERSION:
-                raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of this version')
-            if doc.get('fingerprint') != fingerprint:
-                raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
-                                     '(ship, trials or settings differ)')
-            self.done = doc['done']
+            self.done = self._read()
         if self.path is not None and not self.done:
             self._write()   # exists from the start: an interrupt at once still leaves one
+
+    def _read(self) -> dict[str, np.ndarray]:
+        """Return the stored tunings, checked: every failure a DiagnosisError naming the file."""
+        try:
+            blob = self.path.read_bytes()
+        except OSError as exc:
+            raise DiagnosisError(f'{self.path}: unreadable checkpoint '
+                                 f'({exc.strerror or exc})') from None
+        refuse_pickle(self.path, blob[:4], DiagnosisError)
+        try:
+            doc = json.loads(blob)
+        except ValueError as exc:   # JSON and UTF-8 errors alike
+            raise DiagnosisError(f'{self.path}: unreadable checkpoint, damaged or not JSON '
+                                 f'({exc}); re-run without --resume') from None
+        if not isinstance(doc, dict) or doc.get('format') != self.FORMAT:
+            raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of mmg_tuner; re-run '
+                                 'without --resume')
+        if doc.get('version') != self.VERSION:
+            raise DiagnosisError(f"{self.path}: checkpoint version {doc.get('version')}, this "
+                                 f'mmg_tuner reads version {self.VERSION}; re-run without '
+                                 '--resume')
+        if doc.get('fingerprint') != self.fingerprint:
+            raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
+                                 '(ship, trials or settings differ)')
+        done = doc.get('done')
+        if not isinstance(done, dict):
+            raise DiagnosisError(f"{self.path}: damaged checkpoint ('done' is not a mapping)")
+        out = {}
+        for key, theta in done.items():
+            ok = (isinstance(theta, list) and len(theta) > 0
+                  and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                          for x in theta))
+            if not ok:
+                raise DiagnosisError(f'{self.path}: damaged checkpoint (entry {key[:12]}... is '
+                                     'not a list of numbers); re-run without --resume')
+            out[key] = np.array(theta, dtype=float)
+        return out
 
     @property
     def base_tune_path(self) -> Path | None:
         """Where the base tuning (the longest single run) checkpoints every generation."""
-        return None if self.path is None else self.path.with_name(self.path.name + '.base')
+        return None if self.path is None else self.path.with_name(self.path.stem + '.base.npz')
 
     @staticmethod
     def key(*parts) -> str:
@@ -339,9 +368,11 @@ class SearchCheckpoint:
             self._write()
 
     def _write(self) -> None:
-        doc = {'version': self.VERSION, 'fingerprint': self.fingerprint, 'done': self.done}
+        # json writes a float as its shortest repr: read back to the same bits
+        doc = {'format': self.FORMAT, 'version': self.VERSION, 'fingerprint': self.fingerprint,
+               'done': {k: v.tolist() for k, v in self.done.items()}}
         try:
-            write_atomic(self.path, pickle.dumps(doc))
+            write_atomic(self.path, json.dumps(doc) + '\n')
         except OSError as exc:
             raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
                               f'({exc.strerror or exc})') from None

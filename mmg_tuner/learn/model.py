@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from mmg_tuner.core.ship import load_ship, ShipConfig
+from mmg_tuner._ship_params import load_ship_with_params
+from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.learn.residual import load_residual, ResidualNet
 
 
@@ -38,6 +39,10 @@ def as_model(model: 'Model | ShipConfig') -> Model:
 
 def load_model(name_or_path: str | Path = 'suzaku', params_file: str | Path | None = None
                ) -> Model:
-    """The ship, with a params.yaml's tuned values and the residual network it names, if any."""
-    ship = load_ship(name_or_path, params_file)
+    """
+    The ship, with a params.yaml's tuned values and the residual network it names, if any.
+
+    A params file tuned for another ship (its key ``ship``) is refused, naming both.
+    """
+    ship = load_ship_with_params(name_or_path, params_file)
     return Model(ship, None if params_file is None else load_residual(params_file))

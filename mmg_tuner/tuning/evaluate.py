@@ -40,7 +40,7 @@ from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning.plots import png_bytes, trial_figure, trial_title
-from mmg_tuner.tuning.report import file_stem, json_text, unique_names
+from mmg_tuner.tuning.report import file_stems, json_text, unique_names
 import numpy as np
 
 INDEX_STATES = ('x', 'u', 'y', 'v', 'psi', 'r')
@@ -195,7 +195,8 @@ class EvaluateResult:
         """{file name: PNG}: per trial, states recorded vs model and the inputs beside them."""
         images = {}
         every = self.restart_every_s
-        for tr, (name, s) in zip(self.recorded, self.trials.items()):
+        stems = file_stems(list(self.trials))
+        for tr, (name, s), stem in zip(self.recorded, self.trials.items(), stems):
             step = max(1, round(every / tr.dt)) if every else len(tr)
             restarts = tr.t[step::step]  # where predict() restarted from the measurement
             how = (f'restarted from the measured state every {every:g} s' if every
@@ -204,7 +205,7 @@ class EvaluateResult:
                                 error_name='index (Wakita 2022 eq. 26, lower is better)')
             fig = trial_figure(tr, {'model': s.predicted}, title,
                                states=('x', 'y', 'psi', 'r', 'u', 'v'), restarts_s=restarts)
-            images[f'evaluate_{file_stem(name)}.png'] = png_bytes(fig)
+            images[f'evaluate_{stem}.png'] = png_bytes(fig)
         return images
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:

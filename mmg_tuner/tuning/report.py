@@ -10,6 +10,7 @@ its Agg canvas): no global backend is set here.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
@@ -37,6 +38,38 @@ def display_name(name: str) -> str:
 def file_stem(name: str) -> str:
     """Return a trial name safe as a file name part (ASCII letters, digits, ._+- kept)."""
     return re.sub(r'[^A-Za-z0-9._+-]', '_', display_name(name)).lstrip('.') or 'trial'
+
+
+def file_stems(names: Sequence[str]) -> list[str]:
+    """
+    Return :func:`file_stem` of each name, distinct wherever the names are.
+
+    ``run 1`` and ``run_1``, or two Japanese names (every character replaced), would share one
+    file and the second figure would overwrite the first. A stem shared by several names (also
+    up to case: macOS and Windows file systems ignore it) keeps its plain form for the name it
+    spells exactly; the others get 8 hex digits of the name's SHA-256, which stays the same
+    whatever the other trials are; a counter settles what is left. A stem no other name shares
+    is unchanged.
+    """
+    plain = [file_stem(n) for n in names]
+    count: dict[str, int] = {}
+    for s in plain:
+        count[s.casefold()] = count.get(s.casefold(), 0) + 1
+    stems = []
+    for n, s in zip(names, plain):
+        if count[s.casefold()] > 1 and s != display_name(n):
+            s = f'{s}-{hashlib.sha256(display_name(n).encode()).hexdigest()[:8]}'
+        stems.append(s)
+    taken: set[str] = set()
+    out = []
+    for s in stems:
+        k, cand = 1, s
+        while cand.casefold() in taken:   # 'Zig' and 'zig': both spelled exactly
+            k += 1
+            cand = f'{s}_{k}'
+        taken.add(cand.casefold())
+        out.append(cand)
+    return out
 
 
 def unique_names(trials: Sequence[Trial]) -> list[str]:
@@ -148,13 +181,14 @@ def plot_trials(ship: ShipConfig, trials: Sequence[Trial], runs: dict[str, np.nd
     shown in the title. Returns {file name: PNG bytes}.
     """
     images = {}
-    for tr, label in zip(trials, unique_names(trials)):
+    labels = unique_names(trials)
+    for tr, label, stem in zip(trials, labels, file_stems(labels)):
         sims = {name: simulate_trial(ship, tr, p, integrator, substeps)
                 for name, p in runs.items()}
         errs = {m: per.get(label, per.get(tr.name)) for m, per in (J or {}).items()}
         which = (sets or {}).get(label, (sets or {}).get(tr.name))
         fig = plots.trial_figure(tr, sims, plots.trial_title(label, which, errs))
-        images[f'{prefix}{file_stem(label)}.png'] = plots.png_bytes(fig)
+        images[f'{prefix}{stem}.png'] = plots.png_bytes(fig)
     return images
 
 

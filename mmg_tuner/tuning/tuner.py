@@ -10,11 +10,13 @@ Paper setting (Suyama et al. 2023, section 4): population 12, doubled at each re
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import io
+import json
 import math
 from pathlib import Path
-import pickle
 import time
 from typing import Callable
+import zipfile
 
 from cmaes import CMA
 from mmg_tuner._atomic import write_atomic
@@ -23,7 +25,29 @@ from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
 
-CHECKPOINT_VERSION = 1
+# version 2: a .npz of plain arrays and a JSON string (version 1 was a pickle, which runs code
+# when loaded: never read, see refuse_pickle)
+CHECKPOINT_VERSION = 2
+CHECKPOINT_FORMAT = 'mmg_tuner tuning checkpoint'
+_ZIP_MAGIC = b'PK\x03\x04'      # every .npz is a zip archive
+_CMA = 'cma.'                    # prefix of the optimizer's attributes among the arrays
+_KINDS = ('array', 'numpy', 'bool', 'int', 'float')
+_STATE_INTS = ('seed', 'restart', 'popsize', 'evaluations', 'flat_gens')
+_STATE_FLOATS = ('best_J', 'wall_s', 'last_best_run')
+
+
+def refuse_pickle(path: Path | str, head: bytes, error: type[Exception]) -> None:
+    """
+    Raise ``error`` when a checkpoint's first bytes say it is a pickle.
+
+    Checkpoints of older versions were pickles: unpickling runs whatever code the file holds,
+    and a folder may come from someone else, so they are refused unread (whatever their name).
+    """
+    if head[:1] == b'\x80':    # the opcode every pickle of protocol 2 or later starts with
+        raise error(f'{path}: a checkpoint in the old pickle format (an older mmg_tuner wrote '
+                    'it, or someone else did); it is never loaded, because unpickling a file '
+                    'runs whatever code it holds: re-run without --resume, into a new output '
+                    'folder')
 
 
 @dataclass
@@ -48,7 +72,7 @@ class TuningResult:
 
 @dataclass
 class _State:
-    """Everything needed to resume: pickled to the checkpoint every generation."""
+    """Everything needed to resume: written to the checkpoint every generation (as data)."""
 
     version: int
     fingerprint: str
@@ -144,12 +168,12 @@ class Tuner:
         # counted, the optimizer not yet told), and resuming from that half would not continue
         # as the uninterrupted run does (no checkpoint: nothing to resume, no snapshots)
         keep = self.checkpoint is not None
-        whole = pickle.dumps(state) if keep else None
+        whole = self._encode(state) if keep else None
         try:
             while not state.done:
                 self._generation(state)
                 state.wall_s = time.perf_counter() - t_start
-                whole = pickle.dumps(state) if keep else None
+                whole = self._encode(state) if keep else None
                 if progress:
                     progress(Progress(state.restart, state.popsize, state.optimizer.generation,
                                       state.evaluations, state.best_J))
@@ -157,7 +181,7 @@ class Tuner:
         except KeyboardInterrupt:
             interrupted = True
             if whole is not None:
-                state = pickle.loads(whole)
+                state = self._decode(whole, self.checkpoint)
             state.wall_s = time.perf_counter() - t_start
             self._save(state)
         return TuningResult(self.space.from_unit(state.best_z), state.best_J, state.evaluations,
@@ -201,7 +225,7 @@ class Tuner:
     def _save(self, state: _State, blob: bytes | None = None) -> None:
         if self.checkpoint is not None:
             try:
-                write_atomic(self.checkpoint, pickle.dumps(state) if blob is None else blob)
+                write_atomic(self.checkpoint, self._encode(state) if blob is None else blob)
             except OSError as exc:
                 raise OutputError(f'writing the checkpoint {self.checkpoint} failed '
                                   f'({exc.strerror or exc}); the run stopped there') from None
@@ -210,14 +234,159 @@ class Tuner:
         if self.checkpoint is None or not self.checkpoint.is_file():
             raise TuningError(f'no checkpoint to resume at {self.checkpoint}')
         try:
-            state = pickle.loads(self.checkpoint.read_bytes())
-        except Exception as exc:  # a truncated or foreign file
-            raise TuningError(f'{self.checkpoint}: unreadable checkpoint ({exc})') from None
-        if not isinstance(state, _State) or state.version != CHECKPOINT_VERSION:
-            raise TuningError(f'{self.checkpoint}: not a checkpoint of this version')
-        if state.fingerprint != self.fingerprint():
-            raise TuningError(f'{self.checkpoint}: checkpoint belongs to another problem '
+            blob = self.checkpoint.read_bytes()
+        except OSError as exc:
+            raise TuningError(f'{self.checkpoint}: unreadable checkpoint '
+                              f'({exc.strerror or exc})') from None
+        return self._decode(blob, self.checkpoint)
+
+    # ------------------------------------------------------------------ checkpoint format
+    def _encode(self, state: _State) -> bytes:
+        """
+        Return the state as a ``.npz`` (bytes): plain arrays and a JSON string, nothing pickled.
+
+        The optimizer is stored attribute by attribute, whole (the covariance in full, the
+        random generator's state as its key array), so a resumed run continues to the last digit.
+        """
+        arrays: dict[str, np.ndarray] = {}
+        kinds: dict[str, str] = {}
+        for name, v in vars(state.optimizer).items():
+            if name == '_rng':
+                continue
+            kinds[name] = _kind(v)
+            if v is not None:
+                arrays[_CMA + name] = np.asarray(v)
+        alg, keys, pos, has_gauss, gauss = state.optimizer._rng.get_state()
+        arrays['rng.keys'] = np.asarray(keys, dtype=np.uint32)
+        arrays['rng.pos_has_gauss'] = np.array([pos, has_gauss], dtype=np.int64)
+        arrays['rng.gauss'] = np.array(gauss, dtype=float)
+        for k in _STATE_INTS:
+            arrays[k] = np.array(getattr(state, k), dtype=np.int64)
+        for k in _STATE_FLOATS:
+            arrays[k] = np.array(getattr(state, k), dtype=float)
+        arrays['best_z'] = np.asarray(state.best_z, dtype=float)
+        h = np.array(state.history, dtype=float).reshape(-1, 3)
+        arrays['history_counts'] = h[:, :2].astype(np.int64)
+        arrays['history_best'] = h[:, 2].copy()
+        arrays['meta'] = np.array(json.dumps({
+            'format': CHECKPOINT_FORMAT, 'version': state.version, 'ship': self._ship_name(),
+            'fingerprint': state.fingerprint, 'done': bool(state.done), 'rng': alg,
+            'cma': kinds}))
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        return buf.getvalue()
+
+    def _decode(self, blob: bytes, path: Path | None) -> _State:
+        """Read what :meth:`_encode` wrote; every check names the file (TuningError)."""
+        src = path or 'the checkpoint'
+        refuse_pickle(src, blob[:4], TuningError)
+        if blob[:4] != _ZIP_MAGIC:   # checked before any parsing: only a zip reaches np.load
+            raise TuningError(f'{src}: not a tuning checkpoint (.npz of mmg_tuner): re-run '
+                              'without --resume, into a new output folder')
+        try:
+            with np.load(io.BytesIO(blob), allow_pickle=False) as z:
+                a = {k: z[k] for k in z.files}
+            meta = json.loads(str(a['meta']))
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+            raise TuningError(f'{src}: unreadable checkpoint, damaged or incomplete ({exc}); '
+                              're-run without --resume') from None
+        if not isinstance(meta, dict) or meta.get('format') != CHECKPOINT_FORMAT:
+            raise TuningError(f'{src}: not a tuning checkpoint of mmg_tuner')
+        if meta.get('version') != CHECKPOINT_VERSION:
+            raise TuningError(f"{src}: checkpoint version {meta.get('version')}, this mmg_tuner "
+                              f'reads version {CHECKPOINT_VERSION}; re-run without --resume')
+        if meta.get('ship') != self._ship_name():
+            raise TuningError(f"{src}: the checkpoint is of ship {meta.get('ship')!r}, this run "
+                              f'tunes {self._ship_name()!r}; re-run without --resume')
+        if meta.get('fingerprint') != self.fingerprint():
+            raise TuningError(f'{src}: checkpoint belongs to another problem '
                               '(trials, targets, bounds, weights, pieces, balance or prior '
                               'differ, or an older mmg_tuner wrote it) and cannot be resumed: '
                               'start a new run in a new output folder')
-        return state
+        try:
+            return self._state_from(a, meta, src)
+        except KeyError as exc:
+            raise TuningError(f'{src}: checkpoint incomplete, array {exc} missing; re-run '
+                              'without --resume') from None
+
+    def _state_from(self, a: dict[str, np.ndarray], meta: dict, src) -> _State:
+        """Rebuild the state from checked arrays; shapes compared with what this run expects."""
+        def bad(what: str) -> TuningError:
+            return TuningError(f'{src}: damaged checkpoint ({what}); re-run without --resume')
+
+        d = self.space.dim
+        ints = {k: int(a[k]) for k in _STATE_INTS}
+        floats = {k: float(a[k]) for k in _STATE_FLOATS}
+        if a['best_z'].shape != (d,):
+            raise bad(f"best_z has shape {a['best_z'].shape}, expected ({d},)")
+        if ints['popsize'] < 2:
+            raise bad(f"popsize {ints['popsize']}")
+        # a fresh optimizer of the stored size gives every attribute's expected type and shape
+        opt = CMA(mean=np.full(d, 0.5), sigma=self.sigma0, bounds=np.tile([0.0, 1.0], (d, 1)),
+                  population_size=ints['popsize'], seed=0)
+        kinds = meta.get('cma')
+        expected = {k: _kind(v) for k, v in vars(opt).items() if k != '_rng'}
+        if not isinstance(kinds, dict) or set(kinds) != set(expected):
+            raise bad('the optimizer attributes differ from those of the installed cmaes; '
+                      'another cmaes version wrote it')
+        for name, kind in kinds.items():
+            ref = getattr(opt, name)
+            if kind == 'none':
+                if expected[name] != 'none':   # only a cache (the eigen decomposition) may be
+                    raise bad(f'{name} is missing')
+                setattr(opt, name, None)
+                continue
+            v = a[_CMA + name]
+            # a scalar may change type as the run goes (float -> numpy.float64): both scalars
+            if kind not in _KINDS or (kind == 'array') != (expected[name] == 'array') \
+                    and expected[name] != 'none':
+                raise bad(f'{name} is {kind}, expected {expected[name]}')
+            want = ref.shape if isinstance(ref, np.ndarray) else None if kind == 'array' else ()
+            if want is not None and v.shape != want:
+                raise bad(f'{name} has shape {v.shape}, expected {want}')
+            if v.dtype.kind not in 'biuf':
+                raise bad(f'{name} has dtype {v.dtype}')
+            setattr(opt, name, _value(v, kind))
+        keys, pos = a['rng.keys'], a['rng.pos_has_gauss']
+        if keys.shape != (624,) or pos.shape != (2,):
+            raise bad('random generator state')
+        opt._rng.set_state((str(meta.get('rng')), keys, int(pos[0]), int(pos[1]),
+                            float(a['rng.gauss'])))
+        counts, best = a['history_counts'], a['history_best']
+        if counts.ndim != 2 or counts.shape[1:] != (2,) or best.shape != (len(counts),):
+            raise bad('history')
+        history = [(int(e), int(r), float(b)) for (e, r), b in zip(counts, best)]
+        return _State(CHECKPOINT_VERSION, meta['fingerprint'], ints['seed'], ints['restart'],
+                      ints['popsize'], opt, a['best_z'].astype(float), floats['best_J'],
+                      ints['evaluations'], floats['wall_s'], ints['flat_gens'],
+                      floats['last_best_run'], history, bool(meta.get('done')))
+
+    def _ship_name(self) -> str:
+        return str(getattr(self.objective.ship, 'name', ''))
+
+
+def _kind(v) -> str:
+    """How an optimizer attribute is stored and rebuilt (its exact Python / numpy type)."""
+    if v is None:
+        return 'none'
+    if isinstance(v, np.ndarray):
+        return 'array'
+    if isinstance(v, np.generic):   # before float: np.float64 is a float too
+        return 'numpy'
+    if isinstance(v, bool):         # before int: bool is an int too
+        return 'bool'
+    if isinstance(v, int):
+        return 'int'
+    if isinstance(v, float):
+        return 'float'
+    raise TuningError(f'cannot checkpoint an optimizer attribute of type {type(v).__name__} '
+                      '(an unsupported cmaes version)')
+
+
+def _value(v: np.ndarray, kind: str):
+    """Inverse of storing with :func:`_kind`: the same type and the same bits."""
+    if kind == 'array':
+        return v.copy()
+    if kind == 'numpy':
+        return v[()]
+    return {'bool': bool, 'int': int, 'float': float}[kind](v[()])
