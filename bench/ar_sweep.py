@@ -14,7 +14,8 @@ import argparse
 import time
 
 from common import moved_truth, PAPER_TEST, PAPER_TUNE, paper_turning_trials
-from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
+from mmg_tuner.tuning import ParameterSpace, Tuner
+from mmg_tuner.tuning.factory import make_objective
 
 
 def main() -> None:
@@ -27,8 +28,8 @@ def main() -> None:
                                     extra={'rudder_lag_tau': args.lag})
     tune = paper_turning_trials(truth, PAPER_TUNE, seed=args.seed)
     test = paper_turning_trials(truth, PAPER_TEST, seed=args.seed + 10)
-    obj = Objective(ship, TrialBatch.from_trials(tune))
-    obj_test = Objective(ship, TrialBatch.from_trials(test))
+    obj = make_objective(ship, tune)   # the paper's J: whole trials, its weights, Euler
+    obj_test = make_objective(ship, test)
     print(f'pre-determined: J_tune {obj(ship.params[None])[0]:.4g}, '
           f'J_test {obj_test(ship.params[None])[0]:.4g}')
     print('| a_r | J_tune | J_test | on a bound | wall |')

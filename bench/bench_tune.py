@@ -13,7 +13,8 @@ import resource
 import time
 
 from common import moved_truth, PAPER_TEST, PAPER_TUNE, paper_turning_trials
-from mmg_tuner.tuning import Objective, TrialBatch, Tuner
+from mmg_tuner.tuning import Tuner
+from mmg_tuner.tuning.factory import make_objective
 
 
 def main() -> None:
@@ -23,8 +24,8 @@ def main() -> None:
     ship, truth, space, theta = moved_truth(args.seed)
     tune = paper_turning_trials(truth, PAPER_TUNE, seed=args.seed)
     test = paper_turning_trials(truth, PAPER_TEST, seed=args.seed + 10)
-    obj = Objective(ship, TrialBatch.from_trials(tune))
-    obj_test = Objective(ship, TrialBatch.from_trials(test))
+    obj = make_objective(ship, tune)   # the paper's J: whole trials, its weights, Euler
+    obj_test = make_objective(ship, test)
     obj(ship.params[None])  # compile outside the timing
     t0 = time.perf_counter()
     res = Tuner(space, obj, seed=args.seed, max_evaluations=200_000).run()

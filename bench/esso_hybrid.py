@@ -62,8 +62,9 @@ from esso_osaka import (  # noqa: E402, I100
     check_provenance, fail, FOLDS, KINDS, load_split, params_path, RESTART_S)
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
 from mmg_tuner.learn import ensemble, ResidualConfig, train_residual  # noqa: E402
+from mmg_tuner.learn.model import Model  # noqa: E402
+from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
 from mmg_tuner.learn.train import BALANCE, SELECT  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid'
@@ -247,12 +248,12 @@ def main() -> None:
                     f'{k} {v["physics"]:.4f} -> {v["hybrid"]:.4f}'
                     for k, v in fit.val_by_group.items()))
             shares.setdefault(name, []).append(fit.share)
-            models[name].append(dataclasses.replace(base, residual=net))
+            models[name].append(Model(base, net))
         if physics and len(args.seeds) > 1:   # one network averaging the seeds' residuals
             ens = ensemble([m.residual for m in models[name]])
             ens.save(out / f'hybrid_ensemble_{args.balance}_{args.select}'
                      f'{_variant(args, True)}.npz')
-            models['ensemble'] = [dataclasses.replace(base, residual=ens)]
+            models['ensemble'] = [Model(base, ens)]
     scores = {}
     for name, ships in models.items():
         scores[name] = held_out_scores(ships, test_g)

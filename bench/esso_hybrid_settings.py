@@ -28,7 +28,8 @@ with the lowest score among those run for all the seeds asked; lower is better.
 bench/esso_hybrid_preregistration.md, committed before the first run; all nine settings):
 
 * validation quarter of a training run R: the trial ``train_residual`` holds out of R,
-  ``_split([R], 0.25, window)[1][0]`` (the last 25 % plus the window's 4 samples of history);
+  ``split_validation([R], 0.25, window)[1][0]`` (the last 25 % plus the window's 4 samples of
+  history);
   each of the 21 training runs once (not repeated as berthing is in training);
 * the paper's index (eq. 26, 100 s restarts) through :func:`esso_hybrid.held_out_scores`, the
   function the held-out scoring uses (``mt.evaluate``, RK4, sigma pooled over the 21
@@ -92,8 +93,9 @@ from esso_hybrid import (  # noqa: E402, I100
     bench_runs, held_out_scores, OUT as HYBRID_OUT, parser, shrunk, train_network, training_set)
 from esso_osaka import fail, KINDS, PARAMS_OUT  # noqa: E402
 from mmg_tuner._atomic import write_atomic  # noqa: E402
+from mmg_tuner.learn.model import Model  # noqa: E402
 from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
-from mmg_tuner.learn.train import _split  # noqa: E402
+from mmg_tuner.learn.train import split_validation  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid_settings' / 'results.json'
 VALIDATION_FRACTION = 0.25   # ResidualConfig's default: what train_residual holds out
@@ -148,7 +150,7 @@ def validation_quarters(trials: list, window: int) -> list:
     repeated in ``trials`` (berthing with balance window) is returned once.
     """
     distinct = list({t.name: t for t in trials}.values())
-    return _split(distinct, VALIDATION_FRACTION, window)[1]
+    return split_validation(distinct, VALIDATION_FRACTION, window)[1]
 
 
 def index_ratios(physics: dict, hybrid: dict, kind_of: dict) -> dict:
@@ -261,12 +263,12 @@ class Sweep:
     def index_of(self, net: ResidualNet) -> dict:
         """Return the hybrid's index on each validation quarter and 'all'."""
         q = validation_quarters(self.train_g, self.base.window)
-        hybrid = replace(self.tuned, residual=net)
+        hybrid = Model(self.tuned, net)
         return {k: v[0] for k, v in held_out_scores([hybrid], q).items()}
 
     def held_out(self, net: ResidualNet) -> dict:
         """Return the hybrid's eq. 26 index on each held-out run and 'all'."""
-        hybrid = replace(self.tuned, residual=net)
+        hybrid = Model(self.tuned, net)
         return {k: v[0] for k, v in held_out_scores([hybrid], self.test_g).items()}
 
     def train(self, name: str, seed: int) -> tuple[dict, ResidualNet]:

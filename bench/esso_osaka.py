@@ -56,10 +56,9 @@ from mmg_tuner._atomic import write_atomic  # noqa: E402
 from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.data.esso import cut_from_event, esso_data_dir, read_esso_csv  # noqa: E402
 from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402
-from mmg_tuner.tuning.objective import Objective, Prior, TrialBatch  # noqa: E402
+from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec  # noqa: E402
 from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
 from mmg_tuner.tuning.report import params_yaml_text  # noqa: E402
-from mmg_tuner.tuning.segments import segment_weights, split_trials  # noqa: E402
 from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
@@ -209,18 +208,17 @@ def main() -> None:
     tune_runs = train if args.dt is None else [t.resampled(args.dt) for t in train]
     sig = pooled_sigma(train)
     weights = np.array([1.0 / sig[n] ** 2 for n in STATE_NAMES])
-    segs = split_trials(tune_runs, args.segment)
-    batch = TrialBatch.from_trials([s.trial for s in segs], x0_window_s=0.0)
-    substeps = max(1, int(round(batch.dt / 0.1)))
+    substeps = max(1, int(round(tune_runs[0].dt / 0.1)))
     targets = (ship.tuning_targets + LOWSPEED_EXTRA if args.targets == 'lowspeed'
                else ship.tuning_targets)
     space = ParameterSpace.around(ship, targets)
+    spec = ObjectiveSpec(tuple(weights), 0.0 if args.segment else RESTART_S, args.integrator,
+                         substeps, args.segment, args.balance, args.prior, kind_of,
+                         x0_window_s=0.0)
+    obj = make_objective(ship, tune_runs, spec, space)
+    batch = obj.batch
+    segs = batch.names
     n_samples = int(batch.lengths.sum()) - len(segs)
-    prior = (Prior(space.indices, space.pre, space.upper - space.lower, args.prior * n_samples)
-             if args.prior > 0 else None)
-    obj = Objective(ship, batch, weights, 0.0 if args.segment else RESTART_S, args.integrator,
-                    substeps, trial_weights=segment_weights(segs, args.balance, kind_of),
-                    prior=prior)
     t0 = time.perf_counter()
     J0 = float(obj(ship.params[None])[0])
     t_eval = time.perf_counter() - t0

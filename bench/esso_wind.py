@@ -36,7 +36,7 @@ import esso_osaka as eb  # noqa: E402
 import mmg_tuner as mt  # noqa: E402
 from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.tuning.evaluate import evaluate, pooled_sigma  # noqa: E402
-from mmg_tuner.tuning.objective import Objective, TrialBatch  # noqa: E402
+from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec  # noqa: E402
 from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
 from mmg_tuner.tuning.segments import split_trials  # noqa: E402
 from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
@@ -67,9 +67,8 @@ def steady_mean(tr):
 
 def fit_steady(ship, tr, weights, seed=0):
     """Fit the steady true wind (speed [m/s], from-direction [rad]) to one run alone."""
-    batch = TrialBatch.from_trials([s.trial for s in split_trials([tr], RESTART_S)],
-                                   x0_window_s=0.0)
-    obj = Objective(ship, batch, weights, 0.0, 'rk4', 1)
+    obj = make_objective(ship, [tr], ObjectiveSpec(tuple(weights), integrator='rk4',
+                                                   segment_s=RESTART_S, x0_window_s=0.0))
     space = ParameterSpace.around(ship, ('wind_speed', 'wind_dir'),
                                   overrides={'wind_speed': (0.0, MAX_STEADY_MS),
                                              'wind_dir': (-math.pi, math.pi)})

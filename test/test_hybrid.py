@@ -167,8 +167,9 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
     for k in range(len(trial) - 1):
         rpm, rudder = trial.controls[k]
         a = stepper.accelerations(s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
-        st = advance(tag, p, s, gear, np.array([rpm, rudder]), trial.dt, 1,
-                     INTEGRATORS[integrator], *work, *a, True)
+        row = np.array([[rpm, rudder, np.nan, np.nan]])   # one sample: commands, no wind
+        st = advance(tag, p, s, gear, row, 0, 0.0, 1, trial.dt, 1, INTEGRATORS[integrator],
+                     *work, *a, True)
         assert st == OK
         got.append(s.copy())
     np.testing.assert_allclose(np.array(got), ref.states, rtol=1e-12, atol=1e-12)

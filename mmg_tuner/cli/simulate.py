@@ -190,9 +190,11 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
     observe(p, s, out[0])
     delta = 0.0
     rudder[0] = delta
-    inp = np.zeros(len(ship.family.inputs))   # rpm, rudder (the logged angle), thrusters 0
+    # one sample of the input array: rpm, rudder (the logged angle), thrusters 0, no wind
+    row = np.full((1, len(ship.family.channels)), np.nan)
+    row[0, :len(ship.family.inputs)] = 0.0
     act_states = np.zeros(N_ACT_STATES)
-    actuate_start(tag, p, inp, act_states)
+    actuate_start(tag, p, row, 0.0, 1, act_states)
     started, cmd_zz, psi0 = False, amp, s[2]
     stepper = net.stepper()
     status, k_fail = OK, T
@@ -208,9 +210,9 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
                 elif cmd_zz < 0 and s[2] - psi0 <= -check:
                     cmd_zz = abs(amp)
                 cmd = cmd_zz
-            inp[0], inp[1] = rpm[k], delta
-            status = advance(tag, p, s, act_states, inp, h, 1, method, *work, a0, a1, a2,
-                             bool(net.physics))
+            row[0, 0], row[0, 1] = rpm[k], delta
+            status = advance(tag, p, s, act_states, row, 0, 0.0, 1, h, 1, method, *work, a0,
+                             a1, a2, bool(net.physics))
             if status != OK:
                 break
             delta += min(max_move, max(-max_move, cmd - delta))

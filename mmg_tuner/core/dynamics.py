@@ -221,63 +221,63 @@ for _f in _FAMILIES:
                           f'actuator models, got {_f.actuators}')
 
 
-def actuate_start(kind, p, inp, a):
-    """Set the actuator states ``a`` from the first input row (compiled only)."""
+def actuate_start(kind, p, ctrl, shift, T, a):
+    """Set the actuator states ``a`` from sample 0 of ``ctrl`` (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuate_start, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_start_impl(kind, p, inp, a):
+def _actuate_start_impl(kind, p, ctrl, shift, T, a):
     plant = _plant(_tag_code(kind))
     s0, j0, i0 = plant[0][0].start, plant[0][1], plant[0][2]
     if len(plant) == 1:
-        def start1(kind, p, inp, a):
-            s0(p, inp, j0, a, i0)
+        def start1(kind, p, ctrl, shift, T, a):
+            s0(p, ctrl, shift, T, j0, a, i0)
         return start1
     s1, j1, i1 = plant[1][0].start, plant[1][1], plant[1][2]
     if len(plant) == 2:
-        def start2(kind, p, inp, a):
-            s0(p, inp, j0, a, i0)
-            s1(p, inp, j1, a, i1)
+        def start2(kind, p, ctrl, shift, T, a):
+            s0(p, ctrl, shift, T, j0, a, i0)
+            s1(p, ctrl, shift, T, j1, a, i1)
         return start2
     s2, j2, i2 = plant[2][0].start, plant[2][1], plant[2][2]
 
-    def start3(kind, p, inp, a):
-        s0(p, inp, j0, a, i0)
-        s1(p, inp, j1, a, i1)
-        s2(p, inp, j2, a, i2)
+    def start3(kind, p, ctrl, shift, T, a):
+        s0(p, ctrl, shift, T, j0, a, i0)
+        s1(p, ctrl, shift, T, j1, a, i1)
+        s2(p, ctrl, shift, T, j2, a, i2)
     return start3
 
 
-def actuate_hold(kind, p, inp, h):
-    """(status, held) for the inputs held over a sample interval (compiled only)."""
+def actuate_hold(kind, p, ctrl, k, shift, T, h):
+    """(status, held) for the inputs of sample k, held over its interval (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuate_hold, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_hold_impl(kind, p, inp, h):
+def _actuate_hold_impl(kind, p, ctrl, k, shift, T, h):
     code = _tag_code(kind)
     astern = ASTERN_RPM[code]
     plant = _plant(code)
     h0, j0 = plant[0][0].hold, plant[0][1]
     if len(plant) == 1:
-        def hold1(kind, p, inp, h):
-            st, held = h0(p, inp, j0, h, astern)
+        def hold1(kind, p, ctrl, k, shift, T, h):
+            st, held = h0(p, ctrl, k, shift, T, j0, h, astern)
             return st, (held,)
         return hold1
     h1, j1 = plant[1][0].hold, plant[1][1]
     if len(plant) == 2:
-        def hold2(kind, p, inp, h):
-            st0, held0 = h0(p, inp, j0, h, astern)
-            st1, held1 = h1(p, inp, j1, h, astern)
+        def hold2(kind, p, ctrl, k, shift, T, h):
+            st0, held0 = h0(p, ctrl, k, shift, T, j0, h, astern)
+            st1, held1 = h1(p, ctrl, k, shift, T, j1, h, astern)
             return (st0 if st0 != OK else st1), (held0, held1)
         return hold2
     h2, j2 = plant[2][0].hold, plant[2][1]
 
-    def hold3(kind, p, inp, h):
-        st0, held0 = h0(p, inp, j0, h, astern)
-        st1, held1 = h1(p, inp, j1, h, astern)
-        st2, held2 = h2(p, inp, j2, h, astern)
+    def hold3(kind, p, ctrl, k, shift, T, h):
+        st0, held0 = h0(p, ctrl, k, shift, T, j0, h, astern)
+        st1, held1 = h1(p, ctrl, k, shift, T, j1, h, astern)
+        st2, held2 = h2(p, ctrl, k, shift, T, j2, h, astern)
         st = st0 if st0 != OK else (st1 if st1 != OK else st2)
         return st, (held0, held1, held2)
     return hold3

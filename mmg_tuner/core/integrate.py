@@ -33,6 +33,7 @@ from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.dynamics import (actuate_hold, actuate_output, actuate_start, astern_surge,
                                      family_tag, N_ACT_STATES, rhs)
 from mmg_tuner.core.frames import wrap_pi
+from mmg_tuner.core.inputs import value
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
                                    SURGE_NOT_POSITIVE)
 
@@ -96,25 +97,10 @@ def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def _control_at(ctrl, k, j, frac_shift, T):
-    """Control channel j at sample k delayed by frac_shift samples (linear interpolation)."""
-    if frac_shift == 0.0:
-        return ctrl[k, j]
-    t = k - frac_shift
-    if t <= 0.0:
-        return ctrl[0, j]
-    if t >= T - 1:
-        return ctrl[T - 1, j]
-    i = int(t)
-    w = t - i
-    return (1.0 - w) * ctrl[i, j] + w * ctrl[i + 1, j]
-
-
-@njit(cache=True, fastmath=FASTMATH, inline='always')
 def input_row(ctrl, k, frac_shift, T, inp):
     """Fill inp with the command channels at sample k (all but the wind), shifted in time."""
     for j in range(inp.shape[0]):
-        inp[j] = _control_at(ctrl, k, j, frac_shift, T)
+        inp[j] = value(ctrl, k, j, frac_shift, T)
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -194,19 +180,19 @@ def state_status(kind, s):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp, r0=0.0, r1=0.0,
-            r2=0.0, physics=True):
+def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3, k4, tmp,
+            r0=0.0, r1=0.0, r2=0.0, physics=True):
     """
     Advance the model state s (in place) over one sample interval dt: the one step function.
 
-    The command row ``inp`` (the family's actuator inputs) is held over the interval; the
-    actuators turn it into the actuator tuple (advancing their states ``a`` each integration
-    step), the family and the shared hooks into accelerations, plus the learned residual's
-    (r0, r1, r2) [m/s^2, m/s^2, rad/s^2] held over the interval when a network is attached.
-    Returns the status (OK, or why the run stops).
+    The commands of sample k of ``ctrl`` (delayed by ``shift`` samples; T samples in all) are
+    held over the interval; the actuators turn them into the actuator tuple (advancing their
+    states ``a`` each integration step), the family and the shared hooks into accelerations,
+    plus the learned residual's (r0, r1, r2) [m/s^2, m/s^2, rad/s^2] held over the interval
+    when a network is attached. Returns the status (OK, or why the run stops).
     """
     h = dt / substeps
-    st, held = actuate_hold(kind, p, inp, h)
+    st, held = actuate_hold(kind, p, ctrl, k, shift, T, h)
     if st != OK:
         return st
     for _ in range(substeps):
@@ -271,20 +257,18 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     k4 = np.empty(6)
     tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
-    inp = np.empty(ctrl.shape[1] - N_ENV)
     start_state(p, x0, s)
     observe_row(p, s, out, 0)
     shift = p[_toff] / dt
-    input_row(ctrl, 0, shift, T, inp)
-    actuate_start(kind, p, inp, a)
+    actuate_start(kind, p, ctrl, shift, T, a)
     measured_wind = has_measured_wind(ctrl)  # decided once per run
     status = OK
     k_fail = T
     for k in range(T - 1):
         if measured_wind:
             use_measured_wind(p, ctrl, k)
-        input_row(ctrl, k, shift, T, inp)
-        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
+                         k4, tmp, 0.0, 0.0, 0.0, True)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -338,7 +322,7 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
     k4 = np.empty(6)
     tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
-    inp = np.empty(ctrl.shape[1] - N_ENV)
+    row = np.empty((1, ctrl.shape[1]))   # this sample's inputs, the rudder the gear's angle
     for i in range(6):
         s[i] = x0[i]
     to_water(p, s)
@@ -347,17 +331,19 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
     max_move = rate * h if rate > 0.0 else 1e9
     delta = 0.0  # straight approach: the rudder starts amidships and moves at the gear's rate
     rudder_out[0] = delta
-    input_row(ctrl, 0, 0.0, T, inp)
-    inp[rudder_col] = delta
-    actuate_start(kind, p, inp, a)
+    for j in range(ctrl.shape[1]):
+        row[0, j] = ctrl[0, j]
+    row[0, rudder_col] = delta
+    actuate_start(kind, p, row, 0.0, 1, a)
     zz_started = False
     zz_cmd = zigzag_amp
     psi0 = s[2]
     status = OK
     k_fail = T
     for k in range(T - 1):
-        input_row(ctrl, k, 0.0, T, inp)
-        order = inp[rudder_col]
+        for j in range(ctrl.shape[1]):
+            row[0, j] = ctrl[k, j]
+        order = ctrl[k, rudder_col]
         for _ in range(substeps):
             if zigzag_amp != 0.0:
                 if not zz_started and order != 0.0:
@@ -376,8 +362,9 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
                 cmd = order
             # the step sees the logged angle at its start (as a zero-order-hold replay of the
             # recorded angle does); the gear then moves toward the order
-            inp[rudder_col] = delta
-            status = advance(kind, p, s, a, inp, h, 1, method, k1, k2, k3, k4, tmp)
+            row[0, rudder_col] = delta
+            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, k1, k2, k3, k4, tmp,
+                             0.0, 0.0, 0.0, True)
             if status == RPM_NOT_POSITIVE:
                 break
             diff = cmd - delta
@@ -423,10 +410,8 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
     k4 = np.empty(6)
     tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
-    inp = np.empty(ctrl.shape[1] - N_ENV)
     shift = p[_toff] / dt
-    input_row(ctrl, 0, shift, T, inp)
-    actuate_start(kind, p, inp, a)
+    actuate_start(kind, p, ctrl, shift, T, a)
     measured_wind = has_measured_wind(ctrl)  # decided once per run
     J = 0.0
     for k in range(T - 1):
@@ -434,8 +419,8 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
             start_state(p, meas[k], s)
         if measured_wind:
             use_measured_wind(p, ctrl, k)
-        input_row(ctrl, k, shift, T, inp)
-        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
+                         k4, tmp, 0.0, 0.0, 0.0, True)
         if status != OK:
             return J, (k if status == RPM_NOT_POSITIVE else k + 1)
         observe_row(p, s, o, 0)
@@ -477,13 +462,10 @@ def _actuator_outputs(kind, p, ctrl, T, dt, out):
     by time_offset; what the family's forces read (``Family.outputs``).
     """
     a = np.zeros(N_ACT_STATES)
-    inp = np.empty(ctrl.shape[1] - N_ENV)
     shift = p[_toff] / dt
-    input_row(ctrl, 0, shift, T, inp)
-    actuate_start(kind, p, inp, a)
+    actuate_start(kind, p, ctrl, shift, T, a)
     for k in range(T):
-        input_row(ctrl, k, shift, T, inp)
-        _, held = actuate_hold(kind, p, inp, dt)
+        _, held = actuate_hold(kind, p, ctrl, k, shift, T, dt)
         act = actuate_output(kind, p, held, a)
         for i in range(len(act)):
             out[k, i] = act[i]

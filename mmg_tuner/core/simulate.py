@@ -50,9 +50,11 @@ def kernel_inputs(fam: Family, controls, what: str = 'simulation') -> np.ndarray
                               f'({", ".join(fam.inputs)}) or (T, {len(fam.channels)}) with the '
                               f'measured wind ({", ".join(fam.channels)}) for the {fam.name!r} '
                               f'family, or a mapping of channel names; got shape {a.shape}')
-    rest = [TABLE[c].default for c in fam.channels[n:]]
-    return np.ascontiguousarray(np.concatenate(
-        [a, np.broadcast_to(np.array(rest, dtype=float), a.shape[:-1] + (len(rest),))], axis=-1))
+    out = np.empty(a.shape[:-1] + (len(fam.channels),))
+    out[..., :n] = a
+    for j, c in enumerate(fam.channels[n:], start=n):
+        out[..., j] = TABLE[c].default
+    return out
 
 
 def integrator_code(name: str) -> int:
@@ -83,17 +85,18 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
         raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
                               'covers u > 0 only')
     n_cmd = len(fam.inputs)
-    bad = ~np.all(np.isfinite(controls[:, :n_cmd]), axis=1)
-    if bad.any():
+    cmd = controls[:, :n_cmd]
+    # one pass on the usual path (a sum of finite values can still overflow: then look closer)
+    bad = None if np.isfinite(cmd.sum()) else ~np.all(np.isfinite(cmd), axis=1)
+    if bad is not None and bad.any():
         k = int(np.argmax(bad))
         j = int(np.argmax(~np.isfinite(controls[k, :n_cmd])))
         raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s '
                               f'({fam.inputs[j]})')
     if 'rpm' in fam.inputs and not astern_rpm:
-        rpm = controls[:, fam.inputs.index('rpm')]
-        neg = rpm <= 0
-        if neg[:-1].any():
-            k = int(np.argmax(neg))
+        rpm = controls[:-1, fam.inputs.index('rpm')]
+        if rpm.min(initial=1.0) <= 0:
+            k = int(np.argmax(rpm <= 0))
             raise SimulationError(f'{what}: rpm = {rpm[k]:.2f} at t = {t0 + k * dt:.2f} s;'
                                   ' the MMG model covers forward propeller revolutions only')
 

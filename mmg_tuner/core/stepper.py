@@ -67,14 +67,14 @@ class StepFailure:
 
 
 @njit(cache=True)
-def _advance_checked(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp, n,
+def _advance_checked(kind, p, s, a, row, dt, substeps, method, k1, k2, k3, k4, tmp, n,
                      speed_max, yaw_rate_max, last, r0, r1, r2, physics):
     """
     N calls of advance, each followed by a per-element finiteness and plausibility check.
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
-    isfinite(a + b + ...) to True, so advance's own check cannot be relied on. The command row
-    ``inp`` is held; ``a`` holds the actuator states; (r0, r1, r2) a residual network's
+    isfinite(a + b + ...) to True, so advance's own check cannot be relied on. The commands
+    ``row`` (1, the family's channels) are held; ``a`` holds the actuator states; (r0, r1, r2) a residual network's
     accelerations (zeros and physics True without one). Returns (status, steps done); on
     failure ``last`` holds the state before the failed step and ``s`` the failed one.
     """
@@ -82,8 +82,8 @@ def _advance_checked(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, t
     for i in range(n):
         for j in range(6):
             last[j] = s[j]
-        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp,
-                         r0, r1, r2, physics)
+        status = advance(kind, p, s, a, row, 0, 0.0, 1, dt, substeps, method, k1, k2, k3, k4,
+                         tmp, r0, r1, r2, physics)
         if status != OK:
             return status, i
         for j in range(6):
@@ -95,8 +95,8 @@ def _advance_checked(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, t
 
 
 @njit(cache=True)
-def _start_actuators(kind, p, inp, a):
-    actuate_start(kind, p, inp, a)
+def _start_actuators(kind, p, row, a):
+    actuate_start(kind, p, row, 0.0, 1, a)
 
 
 def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
@@ -151,7 +151,8 @@ class ShipSimulator:
                                   f'family reads {", ".join(fam.inputs)}')
         self._thr = {w: fam.inputs.index(f'{w}_thruster') for w in THRUSTERS
                      if f'{w}_thruster' in fam.inputs}
-        self._inp = np.zeros(len(fam.inputs))
+        self._inp = np.full((1, len(fam.channels)), np.nan)   # the held commands; wind: none
+        self._inp[0, :len(fam.inputs)] = 0.0
         self._a = np.zeros(N_ACT_STATES)
         self.limits: InputLimits = input_limits(ship)
         lim = self.limits
@@ -237,11 +238,11 @@ class ShipSimulator:
             self._residual.reset()   # the network's window starts afresh
 
     def _row(self) -> np.ndarray:
-        """The held commands as the family's input row (rpm, rudder[, thrusters])."""
-        self._inp[0] = self.rpm
-        self._inp[1] = self.rudder
+        """The held commands as one sample of the family's input array (1, channels)."""
+        self._inp[0, 0] = self.rpm
+        self._inp[0, 1] = self.rudder
         for w, j in self._thr.items():
-            self._inp[j] = getattr(self, w)
+            self._inp[0, j] = getattr(self, w)
         return self._inp
 
     @property

@@ -84,7 +84,7 @@ class Trial:
             if n not in TABLE:
                 raise TrialDataError(f'{where}: unknown input channel {n!r}; known: '
                                      f'{", ".join(TABLE)}')
-            a = np.array(v, dtype=float)
+            a = np.asarray(v, dtype=float)   # no copy, as the arrays a trial is built from
             if a.shape != (T,):
                 raise TrialDataError(f'{where}: channel {n!r} must have {T} samples (one per '
                                      f'time), got shape {a.shape}')

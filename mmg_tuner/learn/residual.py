@@ -347,8 +347,7 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
     start_state(p, x0, s)
     observe(p, s, out[0])
     shift = p[_toff] / dt
-    input_row(ctrl, 0, shift, T, inp)
-    actuate_start(kind, p, inp, a)
+    actuate_start(kind, p, ctrl, shift, T, a)
     measured_wind = has_measured_wind(ctrl)
     status = OK
     k_fail = T
@@ -374,8 +373,8 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
         res_out[k, 0] = a0
         res_out[k, 1] = a1
         res_out[k, 2] = a2
-        status = advance(kind, p, s, a, inp, dt, substeps, method, k1, k2, k3, k4, tmp,
-                         a0, a1, a2, physics)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
+                         k4, tmp, a0, a1, a2, physics)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break

@@ -248,7 +248,7 @@ def _significant(gain: np.ndarray, z: float) -> bool:
     return bool(gain.mean() > z * gain.std(ddof=1) / np.sqrt(n))
 
 
-def _split(trials: list[Trial], fraction: float, window: int) -> tuple[list[Trial], list[Trial]]:
+def split_validation(trials: list[Trial], fraction: float, window: int) -> tuple[list[Trial], list[Trial]]:
     """Hold out the last ``fraction`` of each trial (with the window's history before it)."""
     train, val = [], []
     for tr in trials:
@@ -321,7 +321,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     trials = list(trials)
     dt = _check_trials(trials, 'training')
     if validation is None:
-        train_trials, val_trials = _split(trials, cfg.validation_fraction, cfg.window)
+        train_trials, val_trials = split_validation(trials, cfg.validation_fraction, cfg.window)
         val_note = f'validation: the last {cfg.validation_fraction:.0%} of each training trial'
     else:
         val_trials = list(validation)

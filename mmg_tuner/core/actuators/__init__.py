@@ -23,15 +23,16 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      name -> (unit, description, default) (default None: required).
    * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
      internal states (may be empty). ``DESCRIPTION``: one line with the source.
-   * njit functions (``inline='always'``; ``inp`` is the row of input values at this sample,
-     ``j`` the position of this actuator's first input in it, ``a`` the float array of all
-     actuator states, ``i`` the position of this actuator's first state in it):
+   * njit functions (``inline='always'``). ``ctrl`` is the kernels' input array (T, n),
+     read with ``core.inputs.value(ctrl, k, j, shift, T)`` (sample k, delayed by ``shift``
+     samples); ``j`` is the column of this actuator's first input, ``a`` the float array of
+     all actuator states, ``i`` the position of this actuator's first state in it:
 
-     - ``start(p, inp, j, a, i)``: set the internal states from the first sample's inputs;
-     - ``hold(p, inp, j, h, astern) -> (status, held)``: once per sample interval: read and
-       convert the inputs held over it (``h``: the integration step [s]; ``astern``: whether
-       the family covers astern revolutions); status ``layout.OK`` or a status code that stops
-       the run; ``held`` a tuple of floats for ``output``;
+     - ``start(p, ctrl, shift, T, j, a, i)``: set the internal states from the first sample;
+     - ``hold(p, ctrl, k, shift, T, j, h, astern) -> (status, held)``: once per sample
+       interval: read and convert the inputs held over it (``h``: the integration step [s];
+       ``astern``: whether the family covers astern revolutions); status ``layout.OK`` or a
+       status code that stops the run; ``held`` a tuple of floats for ``output``;
      - ``output(p, held, a, i) -> tuple``: once per integration step: advance the internal
        states over it and return the outputs acting during it (floats, ``len(OUTPUTS)``);
      - optionally ``forces(p, u, v, r, act, k) -> (X, Y, N)``: forces [N] and moment [N m]

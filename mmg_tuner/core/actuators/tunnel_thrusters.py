@@ -15,20 +15,21 @@ STATES = ()
 DESCRIPTION = 'bow and stern tunnel thrusters [rev/s], no lag'
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declarations)
+from mmg_tuner.core.inputs import value  # noqa: E402
 from mmg_tuner.core.layout import OK  # noqa: E402
 from numba import njit  # noqa: E402
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, inp, j, a, i):
+def start(p, ctrl, shift, T, j, a, i):
     """No internal state."""
     return
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, inp, j, h, astern):
+def hold(p, ctrl, k, shift, T, j, h, astern):
     """The held speeds."""
-    return OK, (inp[j], inp[j + 1])
+    return OK, (value(ctrl, k, j, shift, T), value(ctrl, k, j + 1, shift, T))
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
