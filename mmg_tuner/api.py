@@ -35,9 +35,6 @@ from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.learn.model import as_model, Model
-from mmg_tuner.learn.model import load_model as _load_model
-from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
 from mmg_tuner.data.topics import load_topic_map
@@ -51,15 +48,17 @@ from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, check_trial_s
                                         DiagnosisSettings, MapFn, RETUNE_METHODS)
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
+from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
+from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.model import load_model as _load_model
+from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
-from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
-from mmg_tuner.tuning.objective import Objective, paper_weights, TrialBatch
+from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
-from mmg_tuner.tuning.segments import segment_weights, split_trials
 from mmg_tuner.tuning.tuner import Progress, Tuner
 import numpy as np
 
@@ -267,7 +266,7 @@ class TuneConfig:
                'a whole number >= 1', E)
 
     def objective_spec(self) -> ObjectiveSpec:
-        """What CMA-ES minimises, for the one objective factory (``tuning/factory.py``)."""
+        """Return what CMA-ES minimises, for the one objective factory (tuning/factory.py)."""
         return ObjectiveSpec(self.weights, self.shoot_every_s, self.integrator, self.substeps,
                              self.segment_s, self.balance, self.prior)
 

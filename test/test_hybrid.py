@@ -18,10 +18,10 @@ from mmg_tuner.core.integrate import advance, start_state
 from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import apparent_wind_body
-from mmg_tuner.learn.residual import (fitted_start, N_FEATURES, ResidualNet, ResidualStepper,
-                                      simulate_hybrid, simulate_segments, zero_net)
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError
+from mmg_tuner.learn.residual import (fitted_start, N_FEATURES, ResidualNet, ResidualStepper,
+                                      simulate_hybrid, simulate_segments, zero_net)
 import numpy as np
 import pytest
 

@@ -10,9 +10,9 @@ import math
 import sys
 
 import mmg_tuner as mt
-from mmg_tuner.learn.residual import ResidualNet, zero_net
 from mmg_tuner.diagnosis import structure
 from mmg_tuner.errors import ConfigError
+from mmg_tuner.learn.residual import ResidualNet, zero_net
 import numpy as np
 import pytest
 import yaml

@@ -11,8 +11,8 @@ from pathlib import Path
 import sys
 
 import mmg_tuner as mt
-from mmg_tuner.learn.residual import mlp_forward, N_FEATURES, ResidualNet
 from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.learn.residual import mlp_forward, N_FEATURES, ResidualNet
 import numpy as np
 import pytest
 

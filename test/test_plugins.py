@@ -13,8 +13,8 @@ import subprocess
 import sys
 import textwrap
 
-TOY_ACTUATOR = '''
-"""Toy water jet: thrust [N] and a nozzle angle behind a first-order lag."""
+TOY_ACTUATOR = """
+'''Toy water jet: thrust [N] and a nozzle angle behind a first-order lag.'''
 PARAMS = ('toy_x_jet', 'toy_tau_nozzle')
 INPUTS = ('jet_thrust', 'jet_angle')
 CHANNELS = {'jet_thrust': ('N', 'toy jet thrust, + ahead', None),
@@ -53,10 +53,10 @@ def forces(p, u, v, r, act, k):
     T = act[k]
     Y = -T * math.sin(act[k + 1])
     return T * math.cos(act[k + 1]), Y, Y * p[_X]
-'''
+"""
 
-TOY_FAMILY = '''
-"""Toy control-oriented family: M nu_dot + D nu = tau, diagonal M and D (SI units)."""
+TOY_FAMILY = """
+'''Toy control-oriented family: M nu_dot + D nu = tau, diagonal M and D (SI units).'''
 PARAMS = ('toy_Xu', 'toy_Yv', 'toy_Nr', 'toy_x_jet', 'toy_tau_nozzle')
 REQUIRED = ('rho', 'L_pp', 'B', 'd', 'm', 'I_zG') + PARAMS
 DEFAULTS = {'x_G': 0.0}
@@ -86,9 +86,9 @@ def motion(p, u, v, r, X, Y, N):
 @njit(inline='always')
 def mass_solve(p, X, Y, N):
     return X / p[_M], Y / p[_M], N / p[_IZ]
-'''
+"""
 
-SCRIPT = '''
+SCRIPT = """
 import math
 import numpy as np
 import mmg_tuner as mt
@@ -136,7 +136,7 @@ print(res.params)
 assert abs(res.params['toy_Xu'] / 2600.0 - 1) < 0.02, res.params
 assert abs(res.params['toy_Nr'] / 45000.0 - 1) < 0.02, res.params
 print('TOY OK')
-'''
+"""
 
 
 def test_a_toy_family_and_actuator_from_test_code_simulate_and_tune(tmp_path):

@@ -22,8 +22,8 @@ from mmg_tuner.core.dynamics import actuate_start, family_tag, N_ACT_STATES
 from mmg_tuner.core.integrate import advance, observe, start_state
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
-from mmg_tuner.core.stepper import apparent_wind_body
 from mmg_tuner.core.simulate import integrator_code
+from mmg_tuner.core.stepper import apparent_wind_body
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.csv_io import csv_text
 from mmg_tuner.learn.model import load_model, Model
@@ -158,7 +158,8 @@ def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
     res = np.empty((T, 3))
     sizes, flat = net.packed()
     status, k_fail = simulate_hybrid_one(
-        family_tag(ship.kind), np.ascontiguousarray(ship.params, dtype=float), phys.states[0].copy(),
+        family_tag(ship.kind), np.ascontiguousarray(ship.params, dtype=float),
+        phys.states[0].copy(),
         np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
         net.x_mean, net.x_std, net.y_scale, bool(net.physics), out, res)

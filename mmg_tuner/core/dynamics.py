@@ -135,7 +135,7 @@ def effect_forces(p, u, v, X, Y, N):
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def mmg_motion(p, u, v, r, X, Y, N):
     """
-    The MMG equations of motion (paper eq. 7) solved for (du/dt, dv_m/dt, dr/dt).
+    Solve the MMG equations of motion (paper eq. 7) for (du/dt, dv_m/dt, dr/dt).
 
     X, Y, N: every force and moment but the inertia terms [N, N m]; the added masses are the
     non-dimensional m_x, m_y, J_z of the flat vector.
@@ -198,7 +198,7 @@ def _solve_of_impl(kind, p, X, Y, N):
 
 # ----------------------------------------------------------------------------- actuators
 def _plant(code: int):
-    """The actuators of family ``code``: [(actuator, first input, first state, first output)]."""
+    """Return family ``code``'s actuators: [(actuator, first input, state, output)]."""
     out = []
     j = i = k = 0
     for name in _FAMILIES[code].actuators:

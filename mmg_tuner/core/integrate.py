@@ -36,11 +36,11 @@ from mmg_tuner.core.frames import wrap_pi
 from mmg_tuner.core.inputs import value
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
                                    SURGE_NOT_POSITIVE)
-
-N_ENV = 2  # the measured wind north/east: the last two columns of every input array
 from numba import njit, prange
 from numba.core.errors import NumbaIRAssumptionWarning
 import numpy as np
+
+N_ENV = 2  # the measured wind north/east: the last two columns of every input array
 
 # Inlining advance (which inlines the family's overload-inlined forces) trips a pedantic
 # check of numba's IR inliner about renamed variables; the compiled code is checked

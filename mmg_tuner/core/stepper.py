@@ -74,9 +74,10 @@ def _advance_checked(kind, p, s, a, row, dt, substeps, method, k1, k2, k3, k4, t
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
     isfinite(a + b + ...) to True, so advance's own check cannot be relied on. The commands
-    ``row`` (1, the family's channels) are held; ``a`` holds the actuator states; (r0, r1, r2) a residual network's
-    accelerations (zeros and physics True without one). Returns (status, steps done); on
-    failure ``last`` holds the state before the failed step and ``s`` the failed one.
+    ``row`` (1, the family's channels) are held; ``a`` holds the actuator states; (r0, r1,
+    r2) a residual network's accelerations (zeros and physics True without one). Returns
+    (status, steps done); on failure ``last`` holds the state before the failed step and
+    ``s`` the failed one.
     """
     vmax2 = speed_max * speed_max
     for i in range(n):
@@ -238,7 +239,7 @@ class ShipSimulator:
             self._residual.reset()   # the network's window starts afresh
 
     def _row(self) -> np.ndarray:
-        """The held commands as one sample of the family's input array (1, channels)."""
+        """Return the held commands as one sample of the family's input array."""
         self._inp[0, 0] = self.rpm
         self._inp[0, 1] = self.rudder
         for w, j in self._thr.items():
@@ -247,7 +248,7 @@ class ShipSimulator:
 
     @property
     def delta_act(self) -> float:
-        """The actual rudder angle [rad] (the screw-and-rudder actuator's state)."""
+        """Return the actual rudder angle [rad] (the screw-and-rudder actuator's state)."""
         return float(self._a[0])
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:

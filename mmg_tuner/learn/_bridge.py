@@ -25,8 +25,10 @@ FD_REL_STEP = 1e-6
 @njit(cache=True)
 def batch_derivative(kind, p_in, S, A, Wd, F, J, with_jac):
     """
-    ds/dt F (B, 6) of the family (``kind``: its tag) for states S (B, 6), actuator tuples
-    A (B, n_outputs) and wind Wd (B, 2).
+    Fill ds/dt F (B, 6) of the family for states, actuator tuples and winds.
+
+    ``kind``: the family's tag; S (B, 6) states, A (B, n_outputs) actuator tuples, Wd (B, 2)
+    winds.
 
     Wd holds (wind_speed [m/s], wind_dir [rad]) per row (the measured wind of the sample, or
     the ship's parameters). with_jac: also J (B, 6, 6) = dF/dS by central differences (x, y

@@ -33,14 +33,14 @@ class Model:
 
 
 def as_model(model: 'Model | ShipConfig') -> Model:
-    """A Model from a Model or a bare ship config (the physics alone)."""
+    """Return a Model from a Model or a bare ship config (the physics alone)."""
     return model if isinstance(model, Model) else Model(model)
 
 
 def load_model(name_or_path: str | Path = 'suzaku', params_file: str | Path | None = None
                ) -> Model:
     """
-    The ship, with a params.yaml's tuned values and the residual network it names, if any.
+    Return the ship, with a params.yaml's values and the residual network it names, if any.
 
     A params file tuned for another ship (its key ``ship``) is refused, naming both.
     """

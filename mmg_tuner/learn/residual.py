@@ -90,7 +90,7 @@ class ResidualNet:
         _check_net(self, '<ResidualNet>')
 
     def stepper(self) -> 'ResidualStepper':
-        """The network one sample at a time (what the interactive simulator calls)."""
+        """Return the network one sample at a time (what the interactive simulator calls)."""
         return ResidualStepper(self)
 
     @property
@@ -461,7 +461,8 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
                 hist = np.ascontiguousarray(rows[lo:a]) if a > lo else np.zeros((1, N_FEATURES))
                 n_hist = a - lo
             st, k_fail = simulate_hybrid_one(
-                family_tag(ship.kind), p, np.asarray(x0, float), hist, n_hist, inputs[a:b], b - a, dt,
+                family_tag(ship.kind), p, np.asarray(x0, float), hist, n_hist, inputs[a:b],
+                b - a, dt,
                 int(substeps), method, int(net.window), sizes, flat, net.x_mean, net.x_std,
                 net.y_scale, bool(net.physics), seg, seg_res)
             res[a:b] = seg_res

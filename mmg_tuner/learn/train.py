@@ -18,11 +18,11 @@ import math
 import time
 from typing import Mapping, Sequence
 
-from mmg_tuner.learn.residual import FEATURES, N_FEATURES, ResidualNet
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
 from mmg_tuner.learn._windows import cut, prepare, starts, Windows
+from mmg_tuner.learn.residual import FEATURES, N_FEATURES, ResidualNet
 import numpy as np
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
@@ -248,7 +248,8 @@ def _significant(gain: np.ndarray, z: float) -> bool:
     return bool(gain.mean() > z * gain.std(ddof=1) / np.sqrt(n))
 
 
-def split_validation(trials: list[Trial], fraction: float, window: int) -> tuple[list[Trial], list[Trial]]:
+def split_validation(trials: list[Trial], fraction: float, window: int
+                     ) -> tuple[list[Trial], list[Trial]]:
     """Hold out the last ``fraction`` of each trial (with the window's history before it)."""
     train, val = [], []
     for tr in trials:

@@ -33,12 +33,12 @@ from typing import Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.layout import STATE_NAMES
-from mmg_tuner.learn.model import as_model, Model
-from mmg_tuner.learn.residual import simulate_segments
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
+from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.residual import simulate_segments
 from mmg_tuner.tuning.plots import png_bytes, trial_figure, trial_title
 from mmg_tuner.tuning.report import file_stems, json_text, unique_names
 import numpy as np
@@ -231,8 +231,9 @@ def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s
              integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None,
              sigma: dict[str, float] | None = None) -> EvaluateResult:
     """
-    Score a model (a ship, or a ship with a residual network; or the parameter vector
-    ``params``) on recorded trials.
+    Score a model on recorded trials.
+
+    A ship, a ship with a residual network, or the parameter vector ``params``.
 
     (see the module docstring). ``sigma``: the standardising deviations to use (default: pooled
     over these trials, as the paper does).

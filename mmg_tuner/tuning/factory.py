@@ -48,7 +48,7 @@ class ObjectiveSpec:
 
     @property
     def plain(self) -> 'ObjectiveSpec':
-        """The same objective on whole trials, every sample alike, without a prior (for J)."""
+        """Return the same objective on whole trials, samples alike, no prior (for J)."""
         return replace(self, segment_s=0.0, balance='sample', prior=0.0, group_of=None,
                        x0_window_s=None)
 

@@ -28,8 +28,8 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     b = objective.batch
     x0s = np.ascontiguousarray(b.meas[:, 0, :])
     integ = {0: 'euler', 1: 'rk4'}[objective.method]
-    out, _, _ = simulate_batch(objective.ship.kind, params, x0s, objective.ctrls, b.dt, b.lengths, integ,
-                               objective.substeps)
+    out, _, _ = simulate_batch(objective.ship.kind, params, x0s, objective.ctrls, b.dt,
+                               b.lengths, integ, objective.substeps)
     err = out - b.meas[None]
     err[..., 2] = (err[..., 2] + np.pi) % (2 * np.pi) - np.pi
     mask = np.arange(b.meas.shape[1])[None, :] < b.lengths[:, None]

@@ -18,9 +18,11 @@ import numpy as np
 @dataclass
 class TrialBatch:
     """
-    Trials packed for the compiled kernels, padded to the longest: meas (M, T, 6) and the input
-    channels the trials have, by name (``channels``, the columns of ctrls (M, T, n)); a
-    channel a trial lacks holds its default (thrusters 0, wind NaN = not measured).
+    Trials packed for the compiled kernels, padded to the longest.
+
+    meas (M, T, 6) and the input channels the trials have, by name (``channels``, the columns
+    of ctrls (M, T, n)); a channel a trial lacks holds its default (thrusters 0, wind NaN =
+    not measured).
     """
 
     names: list[str]

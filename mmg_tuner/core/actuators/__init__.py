@@ -80,12 +80,12 @@ def module_of(name: str) -> str:
 
 
 def declared_params(name: str) -> tuple[str, ...]:
-    """An actuator's own ``PARAMS``, read from its source without importing it."""
+    """Return an actuator's own ``PARAMS``, read from its source without importing it."""
     return tuple(declared(module_of(name), 'PARAMS'))
 
 
 def declared_channels(name: str) -> dict[str, tuple]:
-    """An actuator's new ``CHANNELS``, read from its source without importing it."""
+    """Return an actuator's new ``CHANNELS``, read from its source without importing it."""
     return dict(declared(module_of(name), 'CHANNELS', {}))
 
 

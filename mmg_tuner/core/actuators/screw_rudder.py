@@ -44,7 +44,7 @@ def rpm_status(n_rps, astern):
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def start(p, ctrl, shift, T, j, a, i):
-    """The gear starts where the first logged angle (plus the offset) puts it."""
+    """Start the gear where the first logged angle (plus the offset) puts it."""
     a[i] = value(ctrl, 0, j + 1, shift, T) + p[_doff]
 
 

@@ -28,11 +28,11 @@ def start(p, ctrl, shift, T, j, a, i):
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def hold(p, ctrl, k, shift, T, j, h, astern):
-    """The held speeds."""
+    """Return the held speeds."""
     return OK, (value(ctrl, k, j, shift, T), value(ctrl, k, j + 1, shift, T))
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def output(p, held, a, i):
-    """The held speeds act for the whole step."""
+    """Return the held speeds: they act for the whole step."""
     return held

@@ -98,17 +98,17 @@ class Family:
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        """The command channels its actuators read, in kernel order."""
+        """Return the command channels its actuators read, in kernel order."""
         return tuple(c for a in self.actuators for c in actuator(a).inputs)
 
     @property
     def channels(self) -> tuple[str, ...]:
-        """The columns of its kernels' input array: the commands, then the measured wind."""
+        """Return the columns of its kernels' input array: commands, then measured wind."""
         return self.inputs + ENVIRONMENT
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        """The actuator tuple its forces read (its actuators' outputs, concatenated)."""
+        """Return the actuator tuple its forces read (its actuators' outputs, in order)."""
         return tuple(o for a in self.actuators for o in actuator(a).outputs)
 
 
