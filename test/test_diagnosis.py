@@ -54,10 +54,10 @@ def test_clean_data_names_nothing(suzaku):
 
 def test_finds_a_hidden_rudder_offset(suzaku):
     d = run(suzaku, {'rudder_offset': math.radians(2.0)})
-    assert [c['effect'] for c in d.causes] == ['rudder_offset']
+    assert [c.effect for c in d.causes] == ['rudder_offset']
     c = d.causes[0]
-    assert math.degrees(c['parameters']['rudder_offset']) == pytest.approx(2.0, abs=0.75)
-    assert c['heldout_gain'] > 0.5
+    assert math.degrees(c.parameters['rudder_offset']) == pytest.approx(2.0, abs=0.75)
+    assert c.heldout_gain > 0.5
 
 
 def test_diagnose_command_finds_a_current(tmp_path, capsys):
@@ -93,11 +93,11 @@ def test_every_effect_is_registered_with_bounds_containing_neutral(suzaku):
 
 def test_finds_a_hidden_wind(suzaku):
     d = run(suzaku, {'wind_speed': 10.0, 'wind_dir': -2.2})
-    assert [c['effect'] for c in d.causes] == ['wind']
-    p = d.causes[0]['parameters']
+    assert [c.effect for c in d.causes] == ['wind']
+    p = d.causes[0].parameters
     assert p['wind_speed'] == pytest.approx(10.0, abs=1.5)
     assert _angle_deg(p['wind_dir'], -2.2) < 15
-    assert d.causes[0]['heldout_gain'] > 0.8
+    assert d.causes[0].heldout_gain > 0.8
 
 
 def test_finds_a_hidden_steering_gear_lag(suzaku):
@@ -110,9 +110,9 @@ def test_finds_a_hidden_steering_gear_lag(suzaku):
     the statistics; README, Diagnosis).
     """
     d = run(suzaku, {'rudder_lag_tau': 8.0})
-    assert [c['effect'] for c in d.causes][:1] == ['rudder_lag']
-    assert 4.0 < d.causes[0]['parameters']['rudder_lag_tau'] < 20.0
-    assert d.causes[0]['heldout_gain'] > 0.3
+    assert [c.effect for c in d.causes][:1] == ['rudder_lag']
+    assert 4.0 < d.causes[0].parameters['rudder_lag_tau'] < 20.0
+    assert d.causes[0].heldout_gain > 0.3
 
 
 def test_finds_a_hidden_antenna_offset(suzaku):
@@ -125,8 +125,8 @@ def test_finds_a_hidden_antenna_offset(suzaku):
     offset's own estimate is asserted here.
     """
     d = run(suzaku, {'antenna_x': -25.0, 'antenna_y': 2.0}, max_effects=1)
-    assert [c['effect'] for c in d.causes][:1] == ['antenna_offset']
-    p = d.causes[0]['parameters']
+    assert [c.effect for c in d.causes][:1] == ['antenna_offset']
+    p = d.causes[0].parameters
     assert p['antenna_x'] == pytest.approx(-25.0, abs=4.0)
     assert p['antenna_y'] == pytest.approx(2.0, abs=2.5)
 
@@ -149,8 +149,8 @@ def test_two_hidden_effects_are_both_named(suzaku):
     """
     d = run(suzaku, {'current_speed': 0.2, 'current_dir': 2.0,
                      'rudder_offset': math.radians(3.0)})
-    assert sorted(c['effect'] for c in d.causes) == ['current', 'rudder_offset']
-    p = {k: v for c in d.causes for k, v in c['parameters'].items()}
+    assert sorted(c.effect for c in d.causes) == ['current', 'rudder_offset']
+    p = {k: v for c in d.causes for k, v in c.parameters.items()}
     assert p['current_speed'] == pytest.approx(0.2, abs=0.05)
     assert _angle_deg(p['current_dir'], 2.0) < 40
     assert math.degrees(p['rudder_offset']) == pytest.approx(3.0, abs=1.0)
@@ -169,8 +169,8 @@ def test_rpm_scale_is_named_when_the_propulsion_coefficients_are_known(suzaku):
     hull_rudder = ['t_R', 'a_H', 'x_H', 'epsilon', 'kappa', 'l_R', 'gamma_Rp', 'gamma_Rn']
     d = run(suzaku, {'rpm_scale': 0.94}, targets=hull_rudder,
             effects=['rpm_scale', 'rudder_offset', 'current'])
-    assert [c['effect'] for c in d.causes] == ['rpm_scale']
-    assert d.causes[0]['parameters']['rpm_scale'] == pytest.approx(0.94, abs=0.02)
+    assert [c.effect for c in d.causes] == ['rpm_scale']
+    assert d.causes[0].parameters['rpm_scale'] == pytest.approx(0.94, abs=0.02)
 
 
 def test_an_estimate_pinned_on_its_bound_is_not_accepted():
@@ -209,4 +209,4 @@ def test_a_time_offset_the_trials_cannot_see_is_reported_not_misnamed(suzaku):
     d = run(suzaku, {'time_offset': 1.5})
     assert 'time_offset' in d.aliased
     assert d.aliased['time_offset']['se'] > 0.5 * d.aliased['time_offset']['smallest']
-    assert [c['effect'] for c in d.causes] in ([], ['time_offset'])
+    assert [c.effect for c in d.causes] in ([], ['time_offset'])

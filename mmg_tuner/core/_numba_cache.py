@@ -5,8 +5,8 @@ Numba invalidates a cached kernel when *its own* source file changes, not when a
 imports does (a family's forces, a parameter index in ``layout``, a flag in a registry):
 after an upgrade it would run stale machine code. So before any kernel is decorated, point
 ``numba.config.CACHE_DIR`` at a folder named by ``mmg_tuner.__version__``, numba's version
-and a hash of every ``.py`` file under ``mmg_tuner/core``: any change there starts a fresh
-cache. Base folder: ``$NUMBA_CACHE_DIR`` if set, else ``core/__pycache__`` (numba's usual
+and a hash of every ``.py`` file under ``mmg_tuner/core`` and of every plugin family or
+actuator module: any change there starts a fresh cache. Base folder: ``$NUMBA_CACHE_DIR`` if set, else ``core/__pycache__`` (numba's usual
 place) if writable, else ``~/.cache/mmg_tuner``, else the temp dir.
 """
 from __future__ import annotations
@@ -20,11 +20,30 @@ CORE_DIR = Path(__file__).resolve().parent
 _BASE_ENV = os.environ.get('NUMBA_CACHE_DIR', '')  # as given before configure() ran
 
 
+def _plugin_sources() -> list[Path]:
+    """Source files of the registered plugin families and actuators (``core/plugins.py``)."""
+    import importlib.util
+
+    from mmg_tuner.core import plugins
+    out = []
+    for kind in ('families', 'actuators'):
+        for mod in plugins.modules(kind):
+            try:
+                spec = importlib.util.find_spec(mod)
+            except (ImportError, ValueError):
+                spec = None
+            if spec is not None and spec.origin and spec.origin.endswith('.py'):
+                out.append(Path(spec.origin))
+    return out
+
+
 def source_hash(core_dir: Path = CORE_DIR) -> str:
-    """sha256 over the relative path and bytes of every .py file under core_dir."""
+    """sha256 over the path and bytes of every .py file under core_dir and of the plugins."""
     h = hashlib.sha256()
-    for f in sorted(core_dir.rglob('*.py')):
-        h.update(str(f.relative_to(core_dir)).encode())
+    files = [(str(f.relative_to(core_dir)), f) for f in sorted(core_dir.rglob('*.py'))]
+    files += [(str(f), f) for f in _plugin_sources()]
+    for name, f in files:
+        h.update(name.encode())
         h.update(b'\0')
         h.update(f.read_bytes())
         h.update(b'\0')

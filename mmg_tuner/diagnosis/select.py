@@ -196,16 +196,6 @@ class Cause:
     def to_dict(self) -> dict:
         return {**asdict(self), 'summary': self.summary}
 
-    # dict-style reading, for scripts written when causes were dicts
-    def __getitem__(self, key: str):
-        try:
-            return getattr(self, key)
-        except AttributeError:
-            raise KeyError(key) from None
-
-    def get(self, key: str, default=None):
-        return getattr(self, key, default)
-
 
 @dataclass
 class Diagnosis:
