@@ -27,13 +27,14 @@ def _trial(ship, seed, T=400, dt=0.5, name='run'):
     """Return a low-speed run with astern propeller, measured wind and a thruster."""
     rng = np.random.default_rng(seed)
     m = T // 40
-    ctrl = np.column_stack([60 * np.repeat(rng.uniform(-12, 14, m), 40),
-                            np.repeat(rng.uniform(-0.6, 0.6, m), 40),
-                            np.full(T, 1.0), np.full(T, -0.5),
-                            np.repeat(rng.uniform(-15, 15, m), 40), np.zeros(T)])
+    ctrl = {'rpm': 60 * np.repeat(rng.uniform(-12, 14, m), 40),
+            'rudder': np.repeat(rng.uniform(-0.6, 0.6, m), 40),
+            'wind_n': np.full(T, 1.0), 'wind_e': np.full(T, -0.5),
+            'bow_thruster': np.repeat(rng.uniform(-15, 15, m), 40),
+            'stern_thruster': np.zeros(T)}
     tr = simulate(ship, [0, 0, 0.2, 0.1, 0, 0], ctrl, dt, 'rk4')
     assert tr.ok
-    return Trial.from_inputs(tr.t, tr.states, ctrl, name=name)
+    return Trial(tr.t, tr.states, inputs=ctrl, name=name)
 
 
 def test_perfect_model_scores_zero(esso):

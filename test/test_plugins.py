@@ -25,6 +25,7 @@ DESCRIPTION = 'toy water jet (test plugin)'
 
 import math
 
+from mmg_tuner.core.inputs import value
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from numba import njit
 
@@ -33,13 +34,14 @@ _TAU = PARAM_INDEX['toy_tau_nozzle']
 
 
 @njit(inline='always')
-def start(p, inp, j, a, i):
-    a[i] = inp[j + 1]
+def start(p, ctrl, shift, T, j, a, i):
+    a[i] = value(ctrl, 0, j + 1, shift, T)
 
 
 @njit(inline='always')
-def hold(p, inp, j, h, astern):
-    return OK, (inp[j], inp[j + 1], math.exp(-h / p[_TAU]))
+def hold(p, ctrl, k, shift, T, j, h, astern):
+    return OK, (value(ctrl, k, j, shift, T), value(ctrl, k, j + 1, shift, T),
+                math.exp(-h / p[_TAU]))
 
 
 @njit(inline='always')

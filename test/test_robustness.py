@@ -332,7 +332,8 @@ def test_non_utf8_names_never_break_reports(tmp_path, short_trial):
 def test_implausible_samples_are_dropped_with_a_note(tmp_path, short_trial, suzaku):
     from mmg_tuner.core.limits import input_limits
     tr = Trial(short_trial.t, short_trial.states, short_trial.controls.copy(), name='x')
-    tr.controls[[5, 30], 1] = 1e308
+    rudder, rpm = tr.inputs['rudder'], tr.inputs['rpm']   # the trial's channels, by name
+    rudder[[5, 30]] = 1e308
     f = tmp_path / 'x.csv'
     write_trial_csv(tr, f)
     (back,) = load_trials(f)
@@ -347,15 +348,15 @@ def test_implausible_samples_are_dropped_with_a_note(tmp_path, short_trial, suza
     assert any('columns x, y, psi, u, v, r: dropped 1 implausible' in n for n in back.notes)
     assert not any('header stamps' in n for n in back.notes), back.notes
     # with the ship, its own limits: 5000 rpm is a unit error for SUZAKU (not for a model)
-    tr.controls[:, 1] = short_trial.controls[:, 1]
-    tr.controls[40:, 0] = 5000.0
+    rudder[:] = short_trial.controls[:, 1]
+    rpm[40:] = 5000.0
     write_trial_csv(tr, f)
     (back,) = load_trials(f)
     assert back['rpm'].max() == 5000.0
     (back,) = load_trials(f, limits=input_limits(suzaku))
     assert back['rpm'].max() < 200 and any('column rpm' in n for n in back.notes)
     # nothing plausible left: refused, naming file and column
-    tr.controls[:, 1] = 1e308
+    rudder[:] = 1e308
     write_trial_csv(tr, f)
     with pytest.raises(TrialDataError, match=r'x\.csv.*column rudder.*implausible'):
         load_trials(f)

@@ -172,12 +172,13 @@ def test_replay_publishes_recorded_thrusters_in_the_maps_units():
                               'stern_thruster': {'topic': '/st'}})
     node = Node()
     pub = CommandPublisher(node, tm, thrusters=True)
-    pub.publish(np.array([100.0, 0.1, np.nan, np.nan, 5.0, -3.0]), None)
+    pub.publish({'rpm': 100.0, 'rudder': 0.1, 'bow_thruster': 5.0, 'stern_thruster': -3.0},
+                None)
     assert node.sent['/bt'][0].data == pytest.approx(-300.0)  # 5 rev/s, as rpm to port
     assert node.sent['/st'][0].data == pytest.approx(-3.0)
     assert node.sent['/propeller_rpm'][0].data == pytest.approx(100.0)
     node.sent.clear()
-    CommandPublisher(node, tm).publish(np.array([100.0, 0.1]), None)  # a trial without them
+    CommandPublisher(node, tm).publish({'rpm': 100.0, 'rudder': 0.1}, None)  # without them
     assert set(node.sent) == {'/rudder_angle', '/propeller_rpm'}
 
 

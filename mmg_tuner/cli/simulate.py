@@ -18,8 +18,8 @@ from mmg_tuner.cli.common import (check_new_file, check_run, check_samples, Pars
                                   SEED, UsageError, write_new_file)
 from mmg_tuner.core import indices as ix
 from mmg_tuner.core import maneuvers as mv
-from mmg_tuner.core.dynamics import actuate_start, family_tag, N_ACT_STATES
-from mmg_tuner.core.integrate import advance, observe, start_state
+from mmg_tuner.core.dynamics import family_tag, N_ACT_STATES
+from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.simulate import integrator_code
@@ -195,7 +195,7 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
     row = np.full((1, len(ship.family.channels)), np.nan)
     row[0, :len(ship.family.inputs)] = 0.0
     act_states = np.zeros(N_ACT_STATES)
-    actuate_start(tag, p, row, 0.0, 1, act_states)
+    start_actuators(tag, p, row, 0.0, 1, act_states)
     started, cmd_zz, psi0 = False, amp, s[2]
     stepper = net.stepper()
     status, k_fail = OK, T

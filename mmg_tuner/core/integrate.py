@@ -207,6 +207,12 @@ def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3, 
 
 
 @njit(cache=True, fastmath=FASTMATH)
+def start_actuators(kind, p, ctrl, shift, T, a):
+    """Set the actuator states a from sample 0 of ctrl (Python callers: the node, commands)."""
+    actuate_start(kind, p, ctrl, shift, T, a)
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def start_state(p, x0, s):
     """
     Model state from a first observed state.

@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from mmg_tuner.core.dynamics import actuate_start, apparent_wind, family_tag, N_ACT_STATES
-from mmg_tuner.core.integrate import advance, observe, start_state
+from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
+from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
 from mmg_tuner.core.limits import input_limits, InputLimits
 from mmg_tuner.core.ship import ShipConfig
@@ -93,11 +93,6 @@ def _advance_checked(kind, p, s, a, row, dt, substeps, method, k1, k2, k3, k4, t
         if s[3] * s[3] + s[4] * s[4] > vmax2 or abs(s[5]) > yaw_rate_max:
             return IMPLAUSIBLE, i
     return OK, n
-
-
-@njit(cache=True)
-def _start_actuators(kind, p, row, a):
-    actuate_start(kind, p, row, 0.0, 1, a)
 
 
 def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
@@ -233,7 +228,7 @@ class ShipSimulator:
         self.bow = self.stern = 0.0  # thruster revolutions [rev/s]; 0 without thrusters
         self.s = np.empty(6)
         start_state(self.ship.params, self.x0, self.s)
-        _start_actuators(self._tag, self.ship.params, self._row(), self._a)
+        start_actuators(self._tag, self.ship.params, self._row(), 0.0, 1, self._a)
         self.status = 'ok'
         if getattr(self, '_residual', None) is not None:
             self._residual.reset()   # the network's window starts afresh
