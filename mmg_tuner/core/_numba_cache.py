@@ -6,8 +6,9 @@ imports does (a family's forces, a parameter index in ``layout``, a flag in a re
 after an upgrade it would run stale machine code. So before any kernel is decorated, point
 ``numba.config.CACHE_DIR`` at a folder named by ``mmg_tuner.__version__``, numba's version
 and a hash of every ``.py`` file under ``mmg_tuner/core`` and of every plugin family or
-actuator module: any change there starts a fresh cache. Base folder: ``$NUMBA_CACHE_DIR`` if set, else ``core/__pycache__`` (numba's usual
-place) if writable, else ``~/.cache/mmg_tuner``, else the temp dir.
+actuator module: any change there starts a fresh cache. Base folder: ``$NUMBA_CACHE_DIR`` if
+set, else ``core/__pycache__`` (numba's usual place) if writable, else ``~/.cache/mmg_tuner``,
+else the temp dir.
 """
 from __future__ import annotations
 

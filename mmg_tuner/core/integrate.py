@@ -75,9 +75,14 @@ def deriv(kind, p, s, act, r0, r1, r2, physics, out):
         out[5] = r2
 
 
-@njit(cache=True, fastmath=FASTMATH, inline='always')
+@njit(cache=True, fastmath=FASTMATH)
 def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
-    """Advance s in place by one step h (Euler or classic RK4), inputs held over the step."""
+    """
+    Advance s in place by one step h (Euler or classic RK4), inputs held over the step.
+
+    Not inlined: the RK4 path's four right-hand sides stay one compiled function, which keeps
+    the Euler hot loop small and the compile time of every whole-run kernel down.
+    """
     deriv(kind, p, s, act, r0, r1, r2, physics, k1)
     if method == EULER:
         for i in range(6):
