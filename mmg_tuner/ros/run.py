@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import difflib
 import faulthandler
+import os
 from pathlib import Path
 import signal
 import sys
@@ -164,6 +165,13 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+    if code:
+        # a failed start has nothing left to save: leave without the interpreter's finalization
+        # (atexit handlers, thread joins), where faulthandler's watchdog no longer runs and a
+        # start-up error was once seen to hang the process past its one ERROR line
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     sys.exit(code)
 
 
