@@ -10,6 +10,7 @@ import importlib.util
 import os
 from pathlib import Path
 import re
+import shlex
 import subprocess
 import sys
 
@@ -68,6 +69,31 @@ def test_readme_python_example_uses_only_the_public_api():
     compile(code, 'README.md', 'exec')
     used = set(re.findall(r'\bmt\.(\w+)', code))
     assert used and used <= set(mt.__all__)
+
+
+def _command_lines():
+    """Yield (page, line) for each documented command line: bash blocks, one command a line."""
+    commands = _console_scripts() - {'sim_node', 'replay_node'}
+    for page in [README, *sorted(DOC.rglob('*.md'))]:
+        for block in _fenced(page.read_text(), 'bash'):
+            for line in block.replace('\\\n', ' ').split('\n'):
+                words = shlex.split(line.split(' #')[0])
+                if words[:3] == ['ros2', 'run', 'mmg_tuner']:
+                    words = words[3:]
+                # TRIALS... and the like are placeholders, not arguments
+                if words and words[0] in commands and not any('...' in w for w in words):
+                    yield page, words
+
+
+def test_documented_command_lines_parse():
+    lines = list(_command_lines())
+    assert len({words[0] for _, words in lines}) >= 6, 'the command examples went missing'
+    for page, words in lines:
+        parser = importlib.import_module(f'mmg_tuner.cli.{words[0]}').build_parser()
+        try:
+            parser.parse_args(words[1:])
+        except Exception as e:   # the commands' parser raises UsageError, never exits
+            pytest.fail(f'{page.relative_to(ROOT)}: {shlex.join(words)}: {e}')
 
 
 @pytest.mark.parametrize('page', [README, *sorted(DOC.rglob('*.md'))],
