@@ -24,8 +24,8 @@ from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_
 from mmg_tuner.core.limits import InputLimits, RUDDER_HARD_CAP_RAD
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion,
-                                        reset_findings, split_at, UnusableRecordingError,
-                                        unusable_reason, warn)
+                                        reset_findings, split_at, unusable_reason,
+                                        UnusableRecordingError, warn)
 from mmg_tuner.data.files import brief
 from mmg_tuner.data.topics import IMU, NAVSATFIX, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial

@@ -105,7 +105,7 @@ class Finding:
                 f'{self.unit} ({self.detail}); {self.action}')
 
     def note(self) -> str:
-        """Return the finding as a trial note (the line without its WARNING: prefix)."""
+        """Return the finding as a trial note: its line without the prefix."""
         return self.line()[len('WARNING: '):]
 
 
@@ -182,7 +182,8 @@ def _cumtrapz(y: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def _runs(mask: np.ndarray, bridge: int = 0) -> list[tuple[int, int]]:
-    """Return the [start, end] index pairs (inclusive) of the True runs of mask.
+    """
+    Return the [start, end] index pairs (inclusive) of the True runs of mask.
 
     Runs fewer than bridge samples apart are joined.
     """
@@ -405,6 +406,13 @@ def warn(findings: list[Finding]) -> None:
     """Log each finding as its ``WARNING:`` line (the path the unit warnings take)."""
     for f in findings:
         logger.warning(f.line())
+
+
+def refuse_warnings(lines: list[str]) -> None:
+    """Raise a TrialDataError counting the WARNING lines and quoting the first (strict)."""
+    if lines:
+        raise TrialDataError(f'--strict: {len(lines)} WARNING(s) about the recordings, each '
+                             f'an error under --strict; first: {lines[0][len("WARNING: "):]}')
 
 
 class WarningLog(logging.Handler):

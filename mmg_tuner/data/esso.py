@@ -37,8 +37,8 @@ import warnings
 
 from mmg_tuner.core import frames
 from mmg_tuner.data.consistency import (check_motion, clock_resets, keep_slices, Motion,
-                                        reset_findings, split_at, UnusableRecordingError,
-                                        unusable_reason, warn)
+                                        reset_findings, split_at, unusable_reason,
+                                        UnusableRecordingError, warn)
 from mmg_tuner.data.files import brief
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
