@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import logging
 import math
+import sys
 
 from mmg_tuner.core import frames
 from mmg_tuner.errors import TrialDataError
@@ -420,20 +421,27 @@ class WarningLog(logging.Handler):
     Collect the ``WARNING:`` lines the readers log while recordings are read (``--strict``).
 
     Use as a context manager around the reading: ``with WarningLog() as log: ...`` then
-    ``log.lines``.
+    ``log.lines``. Where nothing else handles the package's log (``inspect``, a script),
+    Python prints warnings through its last-resort handler, which a handler of ours would
+    silence: then the lines are printed on stderr here, as that handler would.
     """
 
     def __init__(self) -> None:
         super().__init__(logging.WARNING)
         self.lines: list[str] = []
+        self._print = False
 
     def emit(self, record: logging.LogRecord) -> None:
         text = record.getMessage()
         if text.startswith('WARNING:'):
             self.lines.append(text)
+        if self._print:
+            sys.stderr.write(text + '\n')
 
     def __enter__(self) -> 'WarningLog':
-        logging.getLogger('mmg_tuner').addHandler(self)
+        log = logging.getLogger('mmg_tuner')
+        self._print = not log.hasHandlers()
+        log.addHandler(self)
         return self
 
     def __exit__(self, *exc) -> None:
