@@ -244,3 +244,14 @@ def test_time_in_milliseconds_is_refused_in_one_short_line(zigzag, tmp_path):
     assert '\n' not in text
     assert len(text) < 1500, len(text)
     assert 'more like it' in text, text
+
+
+def test_brief_counts_repeated_notes_and_caps_the_line():
+    from mmg_tuner.data.files import brief
+    notes = [f'/rpm: gap of {k}.0 s at t = {3 * k}.0 s: trial split there' for k in range(5000)]
+    notes += [f'note {c} of its own kind' * 3 for c in 'abcdefghijklmnopqrstuvwxyz']
+    text = brief(notes)
+    assert text.startswith('/rpm: gap of 0.0 s at t = 0.0 s: trial split there (and 4999 more '
+                           'like it)')
+    assert len(text) <= 700 and 'more kind(s) of note' in text
+    assert brief(['a', 'b']) == 'a; b'

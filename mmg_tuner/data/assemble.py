@@ -126,7 +126,7 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
             s.stamps_ns, s.values = s.stamps_ns[~dup], s.values[~dup]
     if s.stamps_ns.size < 2:
         raise TrialDataError(f'{path}: topic {s.topic} has fewer than 2 usable samples'
-                             + (f' ({"; ".join(s.notes)})' if s.notes else ''))
+                             + (f' ({brief(s.notes)})' if s.notes else ''))
     return s
 
 
