@@ -61,7 +61,7 @@ PARAMS = {
     'dt': Param(0.1, 'integration step [s of simulated time]; at most the time to sail one '
                 'ship length at its top speed. A change restarts the run from the initial '
                 "state (the step is the simulated clock, the sensors' sampling grid and a "
-                "residual network's window: see docs/conventions.md)", (DT_MIN_S, 10.0)),
+                "residual network's window: see doc/conventions.md)", (DT_MIN_S, 10.0)),
     'integrator': Param('rk4', 'integration method', constraints='euler or rk4'),
     'real_time_factor': Param(1.0, 'simulated seconds per wall second; 0: as fast as possible',
                               (0.0, 1e4)),
