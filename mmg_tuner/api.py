@@ -37,6 +37,7 @@ from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
+from mmg_tuner.data.consistency import refuse_warnings, WarningLog
 from mmg_tuner.data.topics import load_topic_map
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis import structure as _structure
@@ -97,7 +98,8 @@ def load_model(name_or_path: str | Path = 'suzaku', params: str | Path | None = 
 def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
                 dt: float | None = None, topics: str | Path | None = None,
                 trial_scale: str = 'ship', keep_astern: bool | None = None,
-                cut_from_event: str | tuple[str, float] | None = None) -> list[Trial]:
+                cut_from_event: str | tuple[str, float] | None = None,
+                strict: bool = False) -> list[Trial]:
     """
     Read every trial in ``paths`` as the commands read them.
 
@@ -115,6 +117,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     (default 5) before the event, one of ``rudder_first_over`` (real runs start with a
     manually steered approach) or ``propeller_first_astern``; a trial without the event is
     kept whole with a note.
+    strict: any ``WARNING:`` line logged while reading (channels that disagree, a column in a
+    likely wrong unit, a file skipped) is a TrialDataError instead (``--strict``).
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -141,8 +145,11 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
         tm = replace(tm, dt=dt)
     # one call: names unique across all paths; samples the ship cannot show dropped with a note
     limits = input_limits(ship) if ship is not None else None
-    trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
-                                          limits=limits)
+    with WarningLog() as log:
+        trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
+                                              limits=limits)
+    if strict:
+        refuse_warnings(log.lines)
     if cut is not None:
         trials = _load.cut_at_event(trials, *cut)
         for t in trials:

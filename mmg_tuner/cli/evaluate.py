@@ -18,7 +18,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float, STRICT_HELP
 from mmg_tuner.cli.common import Parser, run_command, UsageError
 from mmg_tuner.cli.tune import show_log
 
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--no-plots', action='store_true')
@@ -55,7 +56,7 @@ def command(argv: list[str] | None = None) -> int:
         # astern and u <= 0 kept when the ship's family covers them (load_trials' default)
         trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,
                                  trial_scale=args.trial_scale,
-                                 cut_from_event=args.cut_from_event)
+                                 cut_from_event=args.cut_from_event, strict=args.strict)
         if not trials:
             raise UsageError(f'no usable trial in {" ".join(args.trials)}')
         result = api.evaluate(model, trials, config)

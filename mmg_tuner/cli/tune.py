@@ -21,7 +21,7 @@ import sys
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, positive_float,
-                                positive_int)
+                                positive_int, STRICT_HELP)
 from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
@@ -90,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--popsize', type=POPSIZE, default=12)
@@ -327,7 +328,8 @@ def command(argv: list[str] | None = None) -> int:
         ship = api.load_ship(args.ship, args.params)
         load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
                 'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None)}
+                'cut_from_event': getattr(args, 'cut_from_event', None),
+                'strict': getattr(args, 'strict', False)}
         tune_trials = api.load_trials(args.trials, **load)
         test_trials = api.load_trials(args.test, **load) if args.test else []
         if not resume:
