@@ -855,8 +855,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             if ok and not implaus and name in EFFECTS:
                 incons = _clearly_worse(J_test, Jt, noise, s, ot_m.batch.names)
                 if not incons:
+                    clock('consistency')
                     est = per_trial(ship, m.space, th, params, singles[m.measured_wind])
                     incons = disagreement(ship, name, est, vals)
+                    clock('retune')
             ok = ok and not implaus and not incons
             cand = Candidate(name, float(Jt.sum()), v.per_trial_gain.tolist(), float(v.gain),
                              v.gain_se, ok, vals, float(drop), pinned, float(J_test.sum()),
