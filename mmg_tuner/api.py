@@ -777,6 +777,11 @@ class DiagnosisResult:
     # whether the model structure, not the named effects, is the likely cause (structure.py)
     structure: dict = field(default_factory=dict)
     structure_images: dict = field(repr=False, default_factory=dict)   # {file: PNG}
+    # effects the search kept that only mimic a structural gap (structure.one_verdict): in the
+    # fitted model (params), never named as causes
+    mimicking: list[Cause] = field(default_factory=list)
+    # the sensor noise and the held-out J it alone leaves (diagnosis/noise.py)
+    noise: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -792,6 +797,7 @@ class DiagnosisResult:
                 'would_fit_but_impossible': self.impossible_fits,
                 'measured_signals': self.measured, 'advice': self.advice,
                 'structure': self.structure,
+                'mimicking': [c.to_dict() for c in self.mimicking], 'noise': self.noise,
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -802,7 +808,9 @@ class DiagnosisResult:
         is complete).
         """
         doc = self.to_dict()
-        names = ', '.join(c.effect for c in self.causes) or 'none'
+        names = ', '.join([c.effect for c in self.causes]
+                          + [f'{c.effect} (mimicking a structural gap)'
+                             for c in self.mimicking]) or 'none'
         docs = [('params.yaml', params_yaml_text(
                     self.ship, self.params,
                     f'tuned and extended by mmg_tuner diagnose (effects: {names})')),
@@ -881,8 +889,10 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         dict(d.params), d.rounds, d.aliased,
         {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg,
         d.setting, d.impossible, d.impossible_fits, d.measured, timings, test_base, test_final,
-        d.advice)
+        d.advice, noise=d.noise)
     dx.structure = _structure_of(dx, trials, d.measured_wind_used or not cfg.measured_signals)
+    dx.causes, dx.mimicking = _structure.one_verdict(dx.causes, dx.structure,
+                                                     dx.baseline.J_test, dx.noise)
     return dx
 
 

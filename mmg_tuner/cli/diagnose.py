@@ -122,8 +122,13 @@ def command(argv: list[str] | None = None) -> int:
             print(f'CAUSE: {c.summary} -- held-out gain {100 * c.heldout_gain:.1f} %'
                   + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
                      if c.indistinguishable_from else ''))
+    elif dx.mimicking:
+        print('CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)')
     else:
         print('CAUSE: none found -- no effect in the library explains the errors significantly')
+    for c in dx.mimicking:
+        print(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
+              f'{100 * c.heldout_gain:.1f} %')
     b, f = dx.baseline.J_test, dx.final.J_test
     for x in dx.impossible_fits:
         print(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "

@@ -37,7 +37,8 @@ from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
-from mmg_tuner.data.generate import generate_trial, parse_maneuver, SensorNoise
+from mmg_tuner.data.generate import (generate_trial, out_of_library, parse_maneuver,
+                                     SensorNoise)
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 
 # per trial: 1e6 samples is ~0.8 GB of bag (three topics a sample); a day at 10 Hz fits
@@ -96,6 +97,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
                     type=effect_spec,
                     help='hidden model extension parameter, e.g. current_speed=0.3 (repeatable)')
+    ap.add_argument('--hull-scale', type=positive_float, default=1.0, metavar='FACTOR',
+                    help='every hull force and moment x FACTOR, a change outside the effects '
+                    'library (the polynomial hull coefficients; e.g. 1.45)')
+    ap.add_argument('--scale', action='append', default=[], metavar='NAME=FACTOR',
+                    type=effect_spec,
+                    help='one parameter x FACTOR, e.g. N_r=1.45 (repeatable; outside the '
+                    'effects library)')
     ap.add_argument('--record-wind', action='store_true',
                     help='also record the (steady) true wind on /wind, as an anemometer would')
     ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
@@ -162,6 +170,11 @@ def command(argv: list[str] | None = None) -> int:
             ship = ship.with_params(dict(args.effect))
         except ConfigError as exc:
             raise UsageError(f'--effect: {exc}') from None
+    if args.hull_scale != 1.0 or args.scale:
+        try:
+            ship = out_of_library(ship, args.hull_scale, dict(args.scale))
+        except ConfigError as exc:
+            raise UsageError(f'--hull-scale/--scale: {exc}') from None
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)
         return _from_advice(args, ship)
     for kind, rud, _ in args.maneuvers:
