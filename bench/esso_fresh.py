@@ -41,6 +41,7 @@ from mmg_tuner._atomic import write_atomic  # noqa: E402
 from mmg_tuner.errors import MmgTunerError  # noqa: E402
 from mmg_tuner.learn import ensemble  # noqa: E402
 from mmg_tuner.learn.model import Model  # noqa: E402
+from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
 from mmg_tuner.learn.train import split_validation  # noqa: E402
 from mmg_tuner.tuning.choice import choose_model  # noqa: E402
 from mmg_tuner.tuning.interval import calibrate_interval, coverage  # noqa: E402
@@ -91,6 +92,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--tuned', type=Path, default=params_path(None))
     ap.add_argument('--out', type=Path, default=OUT, help='networks and summary.yaml go here')
+    ap.add_argument('--load', action='store_true',
+                    help="don't train: load the networks an earlier run saved in --out "
+                    '(the same trained models, e.g. after a failure in the scoring)')
     ap.add_argument('--test-dir', type=Path, default=FRESH,
                     help='the test runs (KIND/*.csv; default the seven fresh runs; another '
                     'folder only for a smoke test of this script)')
@@ -118,13 +122,19 @@ def main() -> None:
         base = tuned if physics else ship
         models[name], nets[name] = [], []
         for seed in hargs.seeds:
-            fit = train_network(base, train_g, kind_of, hargs, physics, seed)
-            fit.net.save(args.out / f'{name}_seed{seed}.npz')
-            print(f'{name} seed {seed}: {fit.seconds:.0f} s, {fit.epochs} epochs (best '
-                  f'{fit.best_epoch}), share {100 * fit.share:.1f} %; notes: '
-                  f'{"; ".join(fit.notes)}', flush=True)
-            nets[name].append(fit.net)
-            models[name].append(Model(base, fit.net))
+            path = args.out / f'{name}_seed{seed}.npz'
+            if args.load:
+                net = ResidualNet.load(path)
+                print(f'{name} seed {seed}: loaded {path}')
+            else:
+                fit = train_network(base, train_g, kind_of, hargs, physics, seed)
+                net = fit.net
+                net.save(path)
+                print(f'{name} seed {seed}: {fit.seconds:.0f} s, {fit.epochs} epochs (best '
+                      f'{fit.best_epoch}), share {100 * fit.share:.1f} %; notes: '
+                      f'{"; ".join(fit.notes)}', flush=True)
+            nets[name].append(net)
+            models[name].append(Model(base, net))
     ens = {n: ensemble(v) for n, v in nets.items()}
     for n, net in ens.items():
         net.save(args.out / f'{n}_ensemble.npz')

@@ -65,7 +65,7 @@ from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
-from mmg_tuner.tuning.tuner import Progress, Tuner
+from mmg_tuner.tuning.tuner import Progress, Tuner, TuningResult
 import numpy as np
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
@@ -284,8 +284,11 @@ class TuneConfig:
         _check('max_popsize', self.max_popsize, _is_int(self.max_popsize)
                and self.popsize <= self.max_popsize <= 100_000,
                f'a whole number >= popsize ({self.popsize})', E)
-        _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 1,
-               'a whole number >= 1', E)
+        _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 0,
+               'a whole number >= 0 (0: no CMA-ES, the least-squares polish alone)', E)
+        _check('max_evals', self.max_evals, self.max_evals >= 1 or (
+            _is_int(self.polish) and self.polish >= 1), '>= 1 unless polish is set (else '
+            'nothing would tune)', E)
 
     def objective_spec(self) -> ObjectiveSpec:
         """Return what CMA-ES minimises, for the one objective factory (tuning/factory.py)."""
@@ -514,11 +517,9 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
     spec = cfg.objective_spec()
-    if cfg.balance == 'group':
-        if not groups:
-            raise TuningError("balance 'group' needs the kind of each run (tune's groups; the "
-                              'command line: trials in one folder per kind)')
-        spec = replace(spec, group_of=dict(groups))
+    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
+        spec = replace(spec, group_of=dict(groups) if groups else
+                       {n: n for n in unique_names(trials)})
     names = unique_names(trials + test)
     obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
     sets = {'tune': (obj, names[:len(trials)])}
@@ -539,7 +540,11 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         tuner = Tuner(space, minimised,
                       popsize=cfg.popsize, max_popsize=cfg.max_popsize,
                       max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
-        res = tuner.run(resume=resume, progress=progress)
+        if cfg.max_evals:
+            res = tuner.run(resume=resume, progress=progress)
+        else:   # the polish alone, from the pre-determined values
+            J_pre = float(minimised(ship.params[None])[0])
+            res = TuningResult(space.pre.copy(), J_pre, 0, 0, 0.0, [], False)
         theta, evaluations = res.theta, res.evaluations
         if cfg.polish and not res.interrupted:
             if spec.shoot_every_s:   # the residual vector has no restarts: not the same J

@@ -30,7 +30,7 @@ def trials(tmp_path_factory):
 
 
 def _kick(dr: float) -> ResidualNet:
-    """A network whose output is a constant yaw acceleration dr [rad/s^2]."""
+    """Return a network whose output is a constant yaw acceleration dr [rad/s^2]."""
     net = zero_net(2, 1.0)
     b = list(net.biases)
     b[-1] = np.array([0.0, 0.0, dr])
@@ -101,3 +101,15 @@ def test_the_fresh_test_was_registered_with_its_hypotheses():
     readme = (ROOT / 'data' / 'esso_osaka_frt_extra' / 'README.md').read_text()
     assert 'esso_fresh_preregistration.md' in readme
     assert (ROOT / 'data' / 'esso_osaka_frt_extra' / 'LICENSE').is_file()
+
+
+def test_polish_alone_tunes_from_the_pre_determined_values(trials):
+    # max_evals 0: no CMA-ES, the least-squares polish on the objective's residuals alone
+    ship = mt.load_ship('suzaku')
+    start = ship.with_params({'N_r': 1.2 * ship['N_r']})
+    res = mt.tune(start, trials[:2], targets=['N_r'], max_evals=0, polish=60,
+                  balance='group', groups={t.name: KINDS[t.name] for t in trials})
+    assert 0 < res.evaluations <= 62 and res.J.tune < 0.5 * res.J_pre.tune
+    assert res.params['N_r'] == pytest.approx(ship['N_r'], rel=0.05)
+    with pytest.raises(mt.MmgTunerError, match='max_evals'):
+        mt.TuneConfig(max_evals=0)

@@ -95,7 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--popsize', type=POPSIZE, default=12)
     ap.add_argument('--max-popsize', type=POPSIZE, default=128)
-    ap.add_argument('--max-evals', type=positive_int, default=200_000)
+    ap.add_argument('--max-evals', type=nonneg_int, default=200_000,
+                    help='CMA-ES budget (0: none, the --polish alone from the pre-determined '
+                    'values)')
     ap.add_argument('--seed', type=SEED, default=0)
     res = ap.add_mutually_exclusive_group()
     res.add_argument('--residual', action='store_true',
@@ -120,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--model', choices=api.MODEL_CHOICES, default='physics',
                     help='auto: also train the pure network and the hybrid (when JAX is '
                     'installed and the trials allow it), compare them with the tuned physics '
-                    'on the last quarter of each trial per kind of run (the trial\'s folder) '
+                    'on the last quarter of each trial per kind of run (the folder of the trial) '
                     'and write the recommended one (report.md: the table); with '
                     '--residual-seeds N >= 2 it carries a calibrated 90 %% interval')
     ap.add_argument('--polish', type=nonneg_int, default=0, metavar='N',

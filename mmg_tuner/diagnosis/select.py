@@ -69,9 +69,9 @@ from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
-from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.tuner import refuse_pickle, Tuner

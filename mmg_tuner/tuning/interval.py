@@ -108,7 +108,10 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     model = as_model(model)
     mem = ensemble_members(model)
     R = np.concatenate(_ratios(model, mem, list(trials), restart_every_s, integrator))
-    scale = tuple(float(np.quantile(R[:, i], level)) for i in range(len(INDEX_STATES)))
+    # the order statistic at or above the level (no interpolation): at least that share of
+    # the calibration samples is inside
+    scale = tuple(float(np.quantile(R[:, i], level, method='higher'))
+                  for i in range(len(INDEX_STATES)))
     if not all(np.isfinite(scale)):
         raise TuningError('the interval could not be calibrated: the model failed on a '
                           'calibration trial (its errors are not finite)')
