@@ -113,3 +113,20 @@ def test_polish_alone_tunes_from_the_pre_determined_values(trials):
     assert res.params['N_r'] == pytest.approx(ship['N_r'], rel=0.05)
     with pytest.raises(mt.MmgTunerError, match='max_evals'):
         mt.TuneConfig(max_evals=0)
+
+
+def test_ship_recipe_fills_only_the_options_not_given():
+    from types import SimpleNamespace
+
+    from mmg_tuner.cli.tune import apply_recipe, build_parser, explicit_options
+    argv = ['runs/', '--ship', 'esso_osaka_3m', '--out', 'o', '--prior', '0.2']
+    args = build_parser().parse_args(argv)
+    ship = SimpleNamespace(extra={'tuning': {'recipe': {'prior': 0.05, 'segment': 100.0,
+                                                        'max_evals': 0, 'polish': 700}}},
+                           source='esso.yaml')
+    applied = apply_recipe(args, explicit_options(build_parser(), argv), ship)
+    assert args.prior == 0.2 and args.segment == 100.0 and args.max_evals == 0
+    assert args.polish == 700 and 'prior=0.05' not in applied
+    ship.extra['tuning']['recipe'] = {'nope': 1}
+    with pytest.raises(Exception, match='nope'):
+        apply_recipe(args, {}, ship)
