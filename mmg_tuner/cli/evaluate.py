@@ -68,6 +68,10 @@ def command(argv: list[str] | None = None) -> int:
             print(f'{name:<{width}}  index {idx}')
         if result.index_all is not None:
             print(f'{"all trials":<{width}}  index {result.index_all:.4g}')
+        if result.coverage is not None:   # an ensemble with a calibrated interval
+            c = result.coverage
+            print(f'{100 * c["all"]:.1f} % of the samples inside the nominal '
+                  f'{100 * c["level"]:.0f} % prediction interval')
         print(f'wrote {out.path}/evaluate.json, evaluate.md'
               + ('' if args.no_plots else ', evaluate_*.png'))
     return 0
