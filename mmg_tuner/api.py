@@ -55,6 +55,7 @@ from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.nstep import MAX_HORIZON
 from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
@@ -945,12 +946,15 @@ class EvaluateConfig:
     Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
 
     restart_every_s: restart each simulation from the measured state every N s (Wakita et al.
-    2022 use 100 s; 0: never); integrator, substeps: as for simulate.
+    2022 use 100 s; 0: never); integrator, substeps: as for simulate; horizons: n-step
+    prediction horizons [samples] (e.g. (1, 5, 10, 20, 30, 40, 50), the MBPE-LOGO paper's):
+    also the n-step RMSE and the free-run relative errors (``tuning/nstep.py``; None: not).
     """
 
     restart_every_s: float = 100.0
     integrator: str = 'rk4'
     substeps: int = 1
+    horizons: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         _check('restart_every_s', self.restart_every_s,
@@ -960,6 +964,12 @@ class EvaluateConfig:
                f'one of {sorted(INTEGRATORS)}')
         _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
                'a whole number in [1, 1000]')
+        if self.horizons is not None:
+            _check('horizons', self.horizons, isinstance(self.horizons, (list, tuple)) and len(
+                self.horizons) > 0 and all(_is_int(h) and 1 <= h <= MAX_HORIZON
+                                           for h in self.horizons),
+                   f'a non-empty list of whole numbers of steps in [1, {MAX_HORIZON}]')
+            object.__setattr__(self, 'horizons', tuple(sorted(set(self.horizons))))
 
 
 def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
@@ -982,4 +992,5 @@ def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
 
     """
     cfg = _config(EvaluateConfig, config, options)
-    return _evaluate(ship, _as_list(trials), cfg.restart_every_s, cfg.integrator, cfg.substeps)
+    return _evaluate(ship, _as_list(trials), cfg.restart_every_s, cfg.integrator, cfg.substeps,
+                     horizons=cfg.horizons)
