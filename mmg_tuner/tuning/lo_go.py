@@ -125,7 +125,7 @@ def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> Bollar
     if np.any(n < 0):
         k = int(np.argmax(n < 0))
         raise TuningError(f'{source}: n = {n[k]:g} rev/s at row {k + 1}: give the ahead '
-                          'curve (n >= 0); astern thrust is the ship config\'s '
+                          'curve (n >= 0); astern thrust is the ship config value '
                           'thrust_astern_ratio')
     order = np.argsort(n, kind='stable')
     n, F = n[order], F[order]
@@ -492,7 +492,7 @@ class _Simulator:
 
 
 def pooled_velocity_sigma(trials: Sequence[Trial]) -> np.ndarray:
-    """Standard deviation of u, v, r over all samples (a floor keeps a flat one usable)."""
+    """Return the std of u, v, r over all samples (a floor keeps a flat one usable)."""
     st = np.concatenate([t.states[:, _VEL] for t in trials])
     s = np.std(st, axis=0)
     return np.maximum(s, 1e-3 * max(float(np.max(s)), 1e-9))
