@@ -1022,7 +1022,7 @@ class IdentifyConfig:
     bollard_pull: str | Path | BollardTable | None = None
     thrust_degree: int | None = None
     targets: tuple[str, ...] | None = None
-    smooth_s: float = 1.0
+    smooth_s: float = 2.0
     ridge: float = 1e-4
     segment_s: float = 10.0
     integrator: str = 'rk4'

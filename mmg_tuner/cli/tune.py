@@ -28,6 +28,7 @@ from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, positive_float,
                                 positive_int)
 from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
+from mmg_tuner.errors import MmgTunerError
 from mmg_tuner.tuning.lo_go import METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
@@ -133,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'thrust polynomial is fitted to it first')
     lg.add_argument('--thrust-degree', type=bounded(int, 1, 5, 'thrust degree'),
                     help='degree of the thrust polynomial (default: by leave-one-out error)')
-    lg.add_argument('--smooth', type=nonneg_float, default=1.0, metavar='S',
+    lg.add_argument('--smooth', type=nonneg_float, default=2.0, metavar='S',
                     help='LO: Savitzky-Golay window on the velocities [s] (0: none)')
     lg.add_argument('--ridge', type=nonneg_float, default=1e-4,
                     help='GO: pull toward the LO solution per squared relative change')
@@ -405,11 +406,15 @@ def command(argv: list[str] | None = None) -> int:
     if getattr(args, 'method', None) not in (None, 'cmaes') or getattr(args, 'bollard_pull',
                                                                        None):
         return identify_command(args, identify_method(args, None))
+    config = tune_config(args)             # every option checked before any work
     if not resume:
-        method = identify_method(args, api.load_ship(args.ship, args.params))
+        try:
+            ship = api.load_ship(args.ship, args.params)
+        except MmgTunerError:   # reported where the tuning loads it, as before
+            ship = None
+        method = None if ship is None else identify_method(args, ship)
         if method is not None:
             return identify_command(args, method)
-    config = tune_config(args)             # every option checked before any work
     with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
         for n in notes:
             logging.getLogger(__name__).warning('resume: %s', n)

@@ -354,11 +354,22 @@ def _mass_and_hull(fam, p: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.n
 
 def _interval_data(ship: ShipConfig, trial: Trial, smooth_s: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(nu (T, 3), dnu/dt over each interval (T-1, 3), tau of each interval (T-1, 3))."""
+    """
+    (nu (T, 3), dnu/dt over each interval (T-1, 3), tau of each interval (T-1, 3)).
+
+    When the trial recorded azimuth commands, the angle moves within an interval: tau is then
+    the mean of tau with the measured angles at its start and at its end (the shaft speeds
+    held); without commands the kernels hold the measured angle, and so does tau here.
+    """
     nu = _smooth(trial.states[:, _VEL], trial.dt, smooth_s)
     dnu = np.diff(nu, axis=0) / trial.dt
-    tau = actuator_forces(ship, trial)[:-1]
-    return nu, dnu, tau
+    tau = actuator_forces(ship, trial)
+    meas_ch, cmd_ch, _ = _azimuth_channels(ship)
+    if cmd_ch and _has_commands(trial, cmd_ch):
+        ahead = {c: np.append(trial.inputs[c][1:], trial.inputs[c][-1]) for c in meas_ch}
+        tau_end = actuator_forces(ship, replace(trial, inputs={**trial.inputs, **ahead}))
+        return nu, dnu, 0.5 * (tau[:-1] + tau_end[:-1])
+    return nu, dnu, tau[:-1]
 
 
 def regressor(ship: ShipConfig, names: Sequence[str], nu: np.ndarray, dnu: np.ndarray
@@ -408,7 +419,7 @@ class LoResult:
 
 
 def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | None = None,
-           smooth_s: float = 1.0) -> LoResult:
+           smooth_s: float = 2.0) -> LoResult:
     """
     Solve the local step: one linear least-squares problem over all samples of all trials.
 
@@ -480,14 +491,16 @@ class _Simulator:
         self.target = (self.meas[..., _VEL] / sigma)[self.mask]
 
     def residuals(self, thetas: np.ndarray) -> np.ndarray:
-        """(N, n * 3) residuals / sqrt(n) of coefficient vectors (N, d); failures cost 10."""
+        """(N, n * 3) residuals / sqrt(n) of coefficient vectors (N, d), each within +-10 sigma."""
         P = np.repeat(self.ship.params[None, :], len(thetas), axis=0)
         P[:, self.idx] = thetas
         out, _, _ = simulate_batch(self.ship.kind, P, self.meas[:, 0], self.ctrls, self.dt,
                                    self.lengths, self.integrator, self.substeps)
         sim = (out[..., _VEL] / self.sigma)[:, self.mask]
         r = sim - self.target[None]
+        # a diverging candidate: bounded residuals keep the step finite and the cost comparable
         r[~np.isfinite(r)] = 10.0
+        np.clip(r, -10.0, 10.0, out=r)
         return r.reshape(len(thetas), -1) / math.sqrt(self.n)
 
 
@@ -687,7 +700,7 @@ class IdentifyResult:
 
 def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
              bollard: BollardTable | None = None, thrust_degree: int | None = None,
-             names: Sequence[str] | None = None, smooth_s: float = 1.0,
+             names: Sequence[str] | None = None, smooth_s: float = 2.0,
              ridge: float = 1e-4, segment_s: float = 10.0, integrator: str = 'rk4',
              substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> IdentifyResult:
     """
