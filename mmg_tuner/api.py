@@ -932,10 +932,10 @@ def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4'
                'states are NaN from there')
         notes.append(msg)
         logger.warning('%s: %s', trial.name, msg)
-    return Trial(trial.t.copy(), traj.states, trial.controls.copy(), trial.name,
-                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
-                 None if trial.wind is None else trial.wind.copy(),
-                 None if trial.thrusters is None else trial.thrusters.copy())
+    # every input channel by name (a twin-azimuth trial has no rpm/rudder pair)
+    return Trial(trial.t.copy(), traj.states, name=trial.name,
+                 source=f'simulated: {trial.source or trial.name}', notes=notes,
+                 start_s=trial.start_s, inputs={n: v.copy() for n, v in trial.inputs.items()})
 
 
 def config_fields(cls) -> list[str]:

@@ -71,7 +71,8 @@ from mmg_tuner.core._registry import declared, module_name, plugin_map
 from mmg_tuner.core.actuators import actuator, declared_params as actuator_params
 from mmg_tuner.core.channels import ENVIRONMENT
 
-BUILTIN: tuple[str, ...] = ('container', 'standard', 'lowspeed')
+BUILTIN: tuple[str, ...] = (
+    'container', 'standard', 'lowspeed', 'surge_decoupled', 'simplified6')
 _PLUGINS = plugin_map(plugins.modules('families'), BUILTIN, 'family')
 REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
 """Registered families; the position is the family's code (built-ins first, then plugins)."""
