@@ -139,3 +139,18 @@ def test_identify_writes_a_params_yaml_load_ship_accepts(tug, twin, tmp_path):
         mt.identify(mt.load_ship('suzaku'), train[:1], method='lo')
     with pytest.raises(mt.TuningError, match='method'):
         mt.IdentifyConfig(method='cma')
+
+
+def test_tune_method_on_an_mmg_ship_is_refused_with_the_reason(tmp_path, capsys):
+    from mmg_tuner.cli.common import run_command
+    from mmg_tuner.cli.tune import command
+    from mmg_tuner.data.csv_io import write_trial_csv
+    ship = mt.load_ship('suzaku')
+    T = 60
+    ctrl = np.column_stack([np.full(T, 106.0), np.full(T, 0.2)])
+    run = simulate(ship, [0, 0, 0, 3.0, 0, 0], ctrl, 1.0, 'rk4')
+    write_trial_csv(Trial(run.t, run.states, ctrl, name='t'), tmp_path / 't.csv')
+    rc = run_command(command, [str(tmp_path / 't.csv'), '--ship', 'suzaku', '--method', 'lo',
+                               '--out', str(tmp_path / 'o')])
+    assert rc == 2
+    assert 'control-oriented' in capsys.readouterr().err
