@@ -1023,8 +1023,8 @@ class IdentifyConfig:
     thrust_degree: int | None = None
     targets: tuple[str, ...] | None = None
     smooth_s: float = 2.0
-    ridge: float = 1e-4
-    segment_s: float = 10.0
+    ridge: float = 1e-6
+    segment_s: float = 20.0
     integrator: str = 'rk4'
     substeps: int = 1
     max_iter: int = 40

@@ -136,9 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='degree of the thrust polynomial (default: by leave-one-out error)')
     lg.add_argument('--smooth', type=nonneg_float, default=2.0, metavar='S',
                     help='LO: Savitzky-Golay window on the velocities [s] (0: none)')
-    lg.add_argument('--ridge', type=nonneg_float, default=1e-4,
+    lg.add_argument('--ridge', type=nonneg_float, default=1e-6,
                     help='GO: pull toward the LO solution per squared relative change')
-    lg.add_argument('--go-segment', type=nonneg_float, default=10.0, metavar='S',
+    lg.add_argument('--go-segment', type=nonneg_float, default=20.0, metavar='S',
                     help='GO: simulate pieces of S s from the measured state (0: whole trials)')
     lg.add_argument('--go-iter', type=positive_int, default=40, metavar='N',
                     help='GO: most Levenberg-Marquardt iterations')

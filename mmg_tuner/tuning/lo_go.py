@@ -555,7 +555,7 @@ def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 
 
 def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
            names: Sequence[str] | None = None, prior: np.ndarray | None = None,
-           ridge: float = 1e-4, segment_s: float = 10.0, integrator: str = 'rk4',
+           ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
            substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> GoResult:
     """
     Minimise the simulation error of u, v, r from theta0, pulled toward ``prior`` (LO).
@@ -701,7 +701,7 @@ class IdentifyResult:
 def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
              bollard: BollardTable | None = None, thrust_degree: int | None = None,
              names: Sequence[str] | None = None, smooth_s: float = 2.0,
-             ridge: float = 1e-4, segment_s: float = 10.0, integrator: str = 'rk4',
+             ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
              substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> IdentifyResult:
     """
     Identify the whole ship: thrust curve, azimuth dynamics, hull coefficients (LO, GO).
