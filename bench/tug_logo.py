@@ -231,7 +231,7 @@ def main() -> None:
         for h in (1, 10, 30, 50):
             i = sc.horizons.index(h)
             v = [sc.rmse[s][i] for s in ('u', 'v', 'r', 'psi')]
-            cells.append('fail' if None in v else
+            cells.append('fail' if None in v else 'diverges' if not max(v) < 10 else
                          f'{v[0]:.3f} {v[1]:.3f} {math.degrees(v[2]):.2f} '
                          f'{math.degrees(v[3]):.1f}')
         print(f'{label:<30} ' + ' '.join(f'{c:>22}' for c in cells))

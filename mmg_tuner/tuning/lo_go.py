@@ -565,7 +565,8 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
     coefficient the data do not determine stays at its local value. Levenberg-Marquardt
     (:func:`levenberg_marquardt`), at most ``max_nfev`` iterations; each Jacobian is one batched
     simulation of the d + 1 candidates. ``grow``: the trials are added one by one
-    (Algorithm 1), each stage from the last one's solution, earlier stages a quarter of the
+    (Algorithm 1), each stage from the last one's solution or from LO, whichever fits that
+    stage's trials better (the paper's "from LO if GO fails"), earlier stages a quarter of the
     iterations.
     """
     t0 = time.perf_counter()
@@ -599,6 +600,10 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
             return r, J
 
         z0 = (theta - prior) / scale
+        if si > 0:   # Algorithm 1: from the last stage's GO, or from LO where that fits worse
+            r_go, r_lo = rj(z0, False)[0], rj(np.zeros_like(z0), False)[0]
+            if not float(r_go @ r_go) <= float(r_lo @ r_lo):
+                z0 = np.zeros_like(z0)
         last = si == len(stages) - 1
         if last:
             r0 = rj(z0, False)[0]

@@ -64,8 +64,8 @@ class NStepScore:
     horizons [samples]; rmse[state][i]: RMSE at horizons[i] (SI units, psi rad, wrapped) over
     every window that reaches that far (None: no window does, or every one failed);
     windows[i]: how many windows were scored at horizons[i]; failed[i]: how many windows
-    failed (diverged, or left the family's range) before horizons[i] (they are not in the RMSE,
-    and are reported so a model that fails often cannot look good).
+    failed (diverged, left the family's range, or grew too large to square) before horizons[i]
+    (they are not in the RMSE, and are reported so a model that fails often cannot look good).
     """
 
     horizons: tuple[int, ...]
@@ -162,10 +162,12 @@ def nstep_errors(ship: ShipConfig, trials: Sequence[Trial], horizons: Sequence[i
             err = pred - meas
             err[..., _PSI] = (err[..., _PSI] + math.pi) % (2 * math.pi) - math.pi
             err = err[..., cols]
-            ok = inside & np.all(np.isfinite(err), axis=-1)
+            with np.errstate(over='ignore', invalid='ignore'):   # a diverging window
+                e2 = np.where(np.isfinite(err), err, 0.0) ** 2
+            ok = inside & np.all(np.isfinite(err), axis=-1) & np.all(np.isfinite(e2), axis=-1)
             fail += np.sum(inside & ~ok, axis=0)
             cnt += np.sum(ok, axis=0)
-            sq += np.sum(np.where(ok[..., None], err, 0.0) ** 2, axis=0)
+            sq += np.sum(np.where(ok[..., None], e2, 0.0), axis=0)
         per[tr.name] = _score(hs, dt, sq, cnt, fail)
         total_sq += sq
         total_n += cnt
