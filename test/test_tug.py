@@ -152,3 +152,76 @@ def test_the_otter_turns_under_differential_thrust():
     # astern on one side spins it on the spot (reverse thrust 0.58 of ahead)
     spin = simulate(otter, [0, 0, 0, 0.0, 0, 0], commands((10.0, -10.0)), DT, 'rk4')
     assert spin.states[-1, 5] > 0.2 and abs(spin.states[-1, 3]) < 0.5
+
+
+def test_generate_writes_the_paper_manoeuvres_as_readable_channel_trials(tmp_path, tug):
+    from mmg_tuner.cli.generate import command
+    import yaml
+    out = tmp_path / 'tug'
+    assert command(['--ship', 'qiuxin_tug', '--out', str(out), '--no-noise', '--only',
+                    'zigzag_p20deg_5rps', 'straight_3rps', 'random_1']) == 0
+    listing = yaml.safe_load((out / 'trials.yaml').read_text())
+    assert listing['identification'] == ['straight_3rps', 'zigzag_p20deg_5rps']
+    assert listing['validation'] == ['random_1'] and listing['rate_hz'] == 5.0
+    header = (out / 'csv' / 'zigzag_p20deg_5rps.csv').read_text().splitlines()[0]
+    assert header == ('t,x,y,psi,u,v,r,n_port,n_stbd,azimuth_port,azimuth_stbd,'
+                      'azimuth_cmd_port,azimuth_cmd_stbd')
+    trials = {t.name: t for t in mt.load_trials(out / 'csv')}
+    assert sorted(trials) == ['random_1', 'straight_3rps', 'zigzag_p20deg_5rps']
+    zz = trials['zigzag_p20deg_5rps']
+    assert zz.dt == pytest.approx(0.2) and len(zz) == 501
+    # the +20/20 zigzag: commands reverse on heading, +20 deg of azimuth turns to port first
+    cmd = zz['azimuth_cmd_port']
+    assert set(np.round(np.degrees(np.unique(cmd)), 6)) == {-20.0, 0.0, 20.0}
+    k = int(np.argmax(cmd != 0))
+    first = int(np.argmax(np.abs(cmd[k:] - cmd[k]) > 0)) + k
+    turned = zz['psi'][first - 1] - zz['psi'][k]   # the sample that passed the check
+    assert -math.radians(20) - 0.05 < turned <= -math.radians(20)
+    assert np.count_nonzero(np.diff(cmd)) >= 5
+    # noise-free: the recording is the model's own run, from the commands or from the angles
+    for drop in ((), ('azimuth_cmd_port', 'azimuth_cmd_stbd')):
+        inputs = {c: v for c, v in zz.inputs.items() if c not in drop}
+        run = simulate(tug, zz.states[0], inputs, zz.dt, 'rk4')
+        np.testing.assert_allclose(run.states, zz.states, rtol=0, atol=1e-6)
+    # the bollard-pull table: n [rev/s], thrust [N per thruster], the stand-in 0.4 n|n|
+    table = np.loadtxt(out / 'bollard_pull.csv', delimiter=',', skiprows=1)
+    assert (out / 'bollard_pull.csv').read_text().startswith('n,thrust\n')
+    np.testing.assert_allclose(table[:, 1], 0.4 * table[:, 0] ** 2, atol=1e-8)
+    assert table[-1, 0] == 12.0 and np.all(np.diff(table[:, 1]) > 0)
+    # nothing is overwritten: a second run writes beside
+    assert command(['--ship', 'qiuxin_tug', '--out', str(out), '--only', 'straight_3rps']) == 0
+    assert (out / 'csv' / 'straight_3rps_2.csv').is_file()
+    assert (out / 'bollard_pull_2.csv').is_file()
+
+
+def test_a_tug_trial_missing_channels_is_refused_naming_each(tmp_path, tug):
+    f = tmp_path / 'partial.csv'
+    rows = '\n'.join(f'{0.2 * k:g},0,0,0,1,0,0,5,0.1' for k in range(30))
+    f.write_text('t,x,y,psi,u,v,r,n_port,azimuth_port\n' + rows + '\n')
+    trial, = mt.load_trials(f)   # read by name: the reader does not know the ship
+    assert sorted(trial.inputs) == ['azimuth_port', 'n_port']
+    with pytest.raises(mt.errors.MmgTunerError) as exc:
+        mt.simulate(tug, trial)
+    assert "'n_stbd'" in str(exc.value) and "'azimuth_stbd'" in str(exc.value)
+    assert 'partial' in str(exc.value)
+    # a non-uniform time column is refused, naming the time
+    f.write_text('t,x,y,psi,u,v,r,n_port,azimuth_port\n' + ''.join(
+        f'{t:g},0,0,0,1,0,0,5,0\n' for t in (0, 0.2, 0.4, 0.7, 0.9)))
+    with pytest.raises(mt.errors.TrialDataError, match='step 0.3 s at t = 0.4 s'):
+        mt.load_trials(f)
+
+
+def test_the_otter_gets_a_differential_thrust_catalogue(tmp_path):
+    from mmg_tuner.data.generate import generate_twin_trial, twin_catalogue, TwinNoise
+    otter = mt.load_ship('otter_usv')
+    cat = {m.name: m for m in twin_catalogue(otter)}
+    assert 'zigzag_p0_3_5rps' in cat and cat['zigzag_p0_3_5rps'].role == 'identification'
+    truth, meas = generate_twin_trial(otter, cat['zigzag_p0_3_5rps'], 5.0, TwinNoise(), 3)
+    assert np.all(truth['azimuth_port'] == 0) and np.all(truth['azimuth_stbd'] == 0)
+    n_p, n_s = truth['n_port'], truth['n_stbd']
+    assert n_p.max() == pytest.approx(6.5) and n_s.max() == pytest.approx(6.5)
+    # port faster first: a turn to starboard, reversed on heading
+    k = int(np.argmax(n_p != n_s))
+    assert n_p[k] > n_s[k] and truth['r'][k + 10] > 0
+    assert np.ptp(truth['psi']) > math.radians(30)
+    assert np.std(meas['x'] - truth['x']) == pytest.approx(0.015, rel=0.2)   # RTK class

@@ -84,7 +84,7 @@ class Family:
 
     name: str
     code: int
-    params: tuple[str, ...]
+    params: tuple[str, ...]   # its own PARAMS, then its actuators' (as the layout has them)
     required: tuple[str, ...]
     defaults: dict[str, float]
     actuators: tuple[str, ...]
@@ -138,7 +138,7 @@ def family(name: str) -> Family:
         if code is None:
             raise KeyError(name)
         mod = importlib.import_module(module_of(name))
-        _CACHE[name] = Family(name, code, tuple(mod.PARAMS), tuple(mod.REQUIRED),
+        _CACHE[name] = Family(name, code, declared_params(name), tuple(mod.REQUIRED),
                               dict(getattr(mod, 'DEFAULTS', {})), tuple(mod.ACTUATORS),
                               bool(mod.ASTERN_RPM), bool(mod.ASTERN_SURGE), mod.DESCRIPTION,
                               mod.forces, getattr(mod, 'wind', None),
