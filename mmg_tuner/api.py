@@ -62,6 +62,10 @@ from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
 from mmg_tuner.tuning.interval import (calibrate_interval, coverage, model_interval,
                                        with_interval)
 from mmg_tuner.tuning.lsq import local_least_squares
+from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, IdentifyResult,
+                                    METHODS, read_bollard_table)
+from mmg_tuner.tuning.lo_go import identify as _identify
+from mmg_tuner.tuning.nstep import MAX_HORIZON
 from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
@@ -72,7 +76,8 @@ import numpy as np
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
            'Model', 'TuneConfig', 'TuneResult', 'diagnose', 'load_model', 'load_ship',
            'load_trials', 'simulate',
-           'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate']
+           'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate', 'IdentifyConfig',
+           'IdentifyResult', 'identify']
 
 logger = logging.getLogger(__name__)
 
@@ -1049,10 +1054,10 @@ def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4'
                'states are NaN from there')
         notes.append(msg)
         logger.warning('%s: %s', trial.name, msg)
-    return Trial(trial.t.copy(), traj.states, trial.controls.copy(), trial.name,
-                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
-                 None if trial.wind is None else trial.wind.copy(),
-                 None if trial.thrusters is None else trial.thrusters.copy())
+    # every input channel by name (a twin-azimuth trial has no rpm/rudder pair)
+    return Trial(trial.t.copy(), traj.states, name=trial.name,
+                 source=f'simulated: {trial.source or trial.name}', notes=notes,
+                 start_s=trial.start_s, inputs={n: v.copy() for n, v in trial.inputs.items()})
 
 
 def config_fields(cls) -> list[str]:
@@ -1067,12 +1072,15 @@ class EvaluateConfig:
     Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
 
     restart_every_s: restart each simulation from the measured state every N s (Wakita et al.
-    2022 use 100 s; 0: never); integrator, substeps: as for simulate.
+    2022 use 100 s; 0: never); integrator, substeps: as for simulate; horizons: n-step
+    prediction horizons [samples] (e.g. (1, 5, 10, 20, 30, 40, 50), the MBPE-LOGO paper's):
+    also the n-step RMSE and the free-run relative errors (``tuning/nstep.py``; None: not).
     """
 
     restart_every_s: float = 100.0
     integrator: str = 'rk4'
     substeps: int = 1
+    horizons: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         _check('restart_every_s', self.restart_every_s,
@@ -1082,6 +1090,12 @@ class EvaluateConfig:
                f'one of {sorted(INTEGRATORS)}')
         _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
                'a whole number in [1, 1000]')
+        if self.horizons is not None:
+            _check('horizons', self.horizons, isinstance(self.horizons, (list, tuple)) and len(
+                self.horizons) > 0 and all(_is_int(h) and 1 <= h <= MAX_HORIZON
+                                           for h in self.horizons),
+                   f'a non-empty list of whole numbers of steps in [1, {MAX_HORIZON}]')
+            object.__setattr__(self, 'horizons', tuple(sorted(set(self.horizons))))
 
 
 def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
@@ -1107,8 +1121,89 @@ def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
     """
     cfg = _config(EvaluateConfig, config, options)
     trials = _as_list(trials)
-    res = _evaluate(ship, trials, cfg.restart_every_s, cfg.integrator, cfg.substeps)
+    res = _evaluate(ship, trials, cfg.restart_every_s, cfg.integrator, cfg.substeps,
+                    horizons=cfg.horizons)
     interval = model_interval(as_model(ship))
     if interval is not None:   # an ensemble with a calibrated interval: does it hold here?
         res.coverage = coverage(interval, trials, cfg.restart_every_s, cfg.integrator)
     return res
+
+
+# ---------------------------------------------------------------------------------- identify
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """
+    Options of :func:`identify` (``tune --method``/``--bollard-pull``), validated on creation.
+
+    method: 'lo' (the local step: one linear least-squares problem), 'go' (the global step from
+    the ship's values) or 'lo-go' (GO from LO, pulled toward it; MBPE-LOGO); bollard_pull: a
+    bollard-pull table (CSV path with columns n,thrust [rev/s, N per thruster], or a
+    ``BollardTable``; None: keep the ship's thrust curve); thrust_degree: the polynomial's
+    degree (None: by leave-one-out error, <= 5); targets: the hull coefficients (None: the
+    family's); smooth_s: Savitzky-Golay window on the velocities before LO [s] (0: none);
+    ridge: GO's pull toward LO per squared relative change; segment_s: GO simulates pieces of
+    this length from the measured state (0: whole trials, single shooting); integrator,
+    substeps: GO's simulation; max_iter: GO's Levenberg-Marquardt iterations; grow: add the
+    trials one by one (the paper's Algorithm 1).
+    """
+
+    method: str = 'lo-go'
+    bollard_pull: str | Path | BollardTable | None = None
+    thrust_degree: int | None = None
+    targets: tuple[str, ...] | None = None
+    smooth_s: float = 2.0
+    ridge: float = 1e-6
+    segment_s: float = 20.0
+    integrator: str = 'rk4'
+    substeps: int = 1
+    max_iter: int = 40
+    grow: bool = False
+
+    def __post_init__(self) -> None:
+        E = TuningError
+        _check('method', self.method, self.method in METHODS, f'one of {list(METHODS)}', E)
+        _check('thrust_degree', self.thrust_degree, self.thrust_degree is None or (
+            _is_int(self.thrust_degree) and 1 <= self.thrust_degree <= 5),
+            'a whole number in [1, 5] (or None: chosen by leave-one-out error)', E)
+        for name in ('smooth_s', 'ridge', 'segment_s'):
+            v = getattr(self, name)
+            _check(name, v, _finite(v) and v >= 0, 'a finite number >= 0', E)
+        _check('integrator', self.integrator, self.integrator in INTEGRATORS,
+               f'one of {sorted(INTEGRATORS)}', E)
+        _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
+               'a whole number in [1, 1000]', E)
+        _check('max_iter', self.max_iter, _is_int(self.max_iter) and self.max_iter >= 1,
+               'a whole number >= 1', E)
+        if self.targets is not None:
+            _check('targets', self.targets, len(self.targets) > 0 and all(
+                isinstance(t, str) for t in self.targets), 'a non-empty list of names', E)
+            object.__setattr__(self, 'targets', tuple(self.targets))
+
+
+def identify(ship: ShipConfig, trials: Trial | Sequence[Trial],
+             config: IdentifyConfig | None = None, **options) -> IdentifyResult:
+    """
+    Identify a control-oriented model local -> global (MBPE-LOGO, ``tuning/lo_go.py``).
+
+    The thrust polynomial from the bollard table, the azimuth dynamics from command and
+    feedback (when recorded), then the hull coefficients by LO, GO or LO -> GO. ``options``
+    are :class:`IdentifyConfig` fields. ``result.write(out)`` writes params.yaml (loaded by
+    ``load_ship(name, 'out/params.yaml')``), identify.md and identify.json.
+
+    Examples
+    --------
+    >>> ship = mt.load_ship('qiuxin_tug')
+    >>> res = mt.identify(ship, trials, bollard_pull='bollard.csv', method='lo-go')
+    >>> res.write('identified')
+
+    """
+    cfg = _config(IdentifyConfig, config, options)
+    trials = _as_list(trials)
+    table = cfg.bollard_pull
+    if table is not None and not isinstance(table, BollardTable):
+        table = read_bollard_table(table)
+    elif isinstance(table, BollardTable):
+        table = check_bollard_table(table.n, table.thrust, table.source or 'bollard table')
+    return _identify(ship, trials, cfg.method, table, cfg.thrust_degree, cfg.targets,
+                     cfg.smooth_s, cfg.ridge, cfg.segment_s, cfg.integrator, cfg.substeps,
+                     cfg.max_iter, cfg.grow)

@@ -5,6 +5,11 @@ Examples
 --------
 tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suzaku --out tuned
 tune --resume tuned        # continue an interrupted run (from any working directory)
+tune twin/*.csv --ship qiuxin_tug --bollard-pull bollard.csv --method lo-go --out id
+
+A control-oriented family (surge_decoupled, simplified6) is identified local -> global
+(MBPE-LOGO: thrust polynomial from the bollard pull, azimuth dynamics, LO least squares, GO
+simulation fit; ``tuning/lo_go.py``) unless --method cmaes asks for CMA-ES.
 
 """
 from __future__ import annotations
@@ -23,6 +28,8 @@ from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, nonneg_int,
                                 positive_float, positive_int, STRICT_HELP)
 from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.tuning.lo_go import METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
@@ -129,6 +136,27 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--polish', type=nonneg_int, default=0, metavar='N',
                     help='after CMA-ES, a local least-squares polish of at most N simulations '
                     '(0: none)')
+    lg = ap.add_argument_group('local -> global identification (control-oriented families)')
+    lg.add_argument('--method', choices=('cmaes',) + METHODS,
+                    help="'lo': one linear least-squares problem on measured accelerations; "
+                    "'go': simulation fit from the ship's values; 'lo-go': GO from LO, pulled "
+                    "toward it; 'cmaes': the CMA-ES tuning (default: lo-go for a "
+                    'control-oriented family, cmaes otherwise)')
+    lg.add_argument('--bollard-pull', metavar='FILE.csv',
+                    help='bollard-pull table, columns n,thrust (rev/s, N per thruster): the '
+                    'thrust polynomial is fitted to it first')
+    lg.add_argument('--thrust-degree', type=bounded(int, 1, 5, 'thrust degree'),
+                    help='degree of the thrust polynomial (default: by leave-one-out error)')
+    lg.add_argument('--smooth', type=nonneg_float, default=2.0, metavar='S',
+                    help='LO: Savitzky-Golay window on the velocities [s] (0: none)')
+    lg.add_argument('--ridge', type=nonneg_float, default=1e-6,
+                    help='GO: pull toward the LO solution per squared relative change')
+    lg.add_argument('--go-segment', type=nonneg_float, default=20.0, metavar='S',
+                    help='GO: simulate pieces of S s from the measured state (0: whole trials)')
+    lg.add_argument('--go-iter', type=positive_int, default=40, metavar='N',
+                    help='GO: most Levenberg-Marquardt iterations')
+    lg.add_argument('--grow', action='store_true',
+                    help="GO: add the trials one by one (the paper's Algorithm 1)")
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
     return ap
@@ -372,12 +400,78 @@ def apply_recipe(args: argparse.Namespace, given: dict, ship) -> list[str]:
     return applied
 
 
+def identify_method(args: argparse.Namespace, ship) -> str | None:
+    """Return the local -> global method to run (None: the CMA-ES tuning)."""
+    method = getattr(args, 'method', None)
+    if method == 'cmaes':
+        return None
+    if method is None and getattr(args, 'bollard_pull', None) is None:
+        return 'lo-go' if ship.family.motion is not None else None
+    return method or 'lo-go'
+
+
+def identify_command(args: argparse.Namespace, method: str) -> int:
+    """``tune`` for a control-oriented family: identification local -> global."""
+    if args.resume:
+        raise UsageError('--resume: an identification is not resumable (it takes seconds): '
+                         'run it again with a new --out')
+    config = api.IdentifyConfig(method=method, bollard_pull=args.bollard_pull,
+                                thrust_degree=args.thrust_degree, targets=args.targets,
+                                smooth_s=args.smooth, ridge=args.ridge,
+                                segment_s=args.go_segment, max_iter=args.go_iter,
+                                grow=args.grow)
+    with show_log(args.quiet), OutputDir.open(args.out) as out:
+        ship = api.load_ship(args.ship, args.params)
+        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
+                'trial_scale': args.trial_scale,
+                'cut_from_event': getattr(args, 'cut_from_event', None)}
+        trials = api.load_trials(args.trials, **load)
+        test = api.load_trials(args.test, **load) if args.test else []
+        store_args(out, 'tune', args)
+        result = api.identify(ship, trials, config)
+        result.write(out)
+        rep = result.report()
+        if result.thrust is not None:
+            t = result.thrust
+            print(f'thrust: degree {t.degree} polynomial, RMSE {t.rmse_N:.3g} N over '
+                  f'{t.points} bollard points')
+        if result.azimuth is not None:
+            a = result.azimuth
+            print(f'azimuth: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s (R^2 {a.r2:.5f})')
+        if 'lo' in rep:
+            print(f"LO: {rep['lo']['samples']} intervals, one least-squares problem, "
+                  f"{rep['lo']['wall_s']:.2f} s")
+        if 'go' in rep:
+            g = rep['go']
+            print(f"GO: cost {g['cost_start']:.4g} -> {g['cost']:.4g} in {g['evaluations']} "
+                  f"simulations, {g['wall_s']:.1f} s ({g['message']})")
+        if test:
+            ev = api.evaluate(result.identified_ship, test, horizons=(1, 10, 50))
+            rel = ev.relative.pooled
+            print('held-out free-run relative error: ' + ', '.join(
+                f'{k} {"-" if v is None else format(100 * v, ".3g")} %' for k, v in rel.items()))
+        print(f'identified {len(result.params)} parameters ({method}) in {result.wall_s:.1f} s; '
+              f'wrote {out.path}/params.yaml, identify.md, identify.json')
+    return 0
+
+
 def command(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args, notes, resume = parse_or_resume(parser, argv, 'tune', 'tuning trials')
+    if getattr(args, 'method', None) not in (None, 'cmaes') or getattr(args, 'bollard_pull',
+                                                                       None):
+        return identify_command(args, identify_method(args, None))
     recipe = [] if resume else apply_recipe(   # a resumed run keeps its stored options
         args, explicit_options(parser, argv), api.load_ship(args.ship, args.params))
     config = tune_config(args)             # every option checked before any work
+    if not resume:
+        try:
+            ship = api.load_ship(args.ship, args.params)
+        except MmgTunerError:   # reported where the tuning loads it, as before
+            ship = None
+        method = None if ship is None else identify_method(args, ship)
+        if method is not None:
+            return identify_command(args, method)
     with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
         for n in notes:
             logging.getLogger(__name__).warning('resume: %s', n)

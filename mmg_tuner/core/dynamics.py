@@ -420,7 +420,8 @@ def blendermann(p, ua, va):
     X = C_X q A_F, Y = C_Y q A_L, N = C_N q A_L L_OA, q = 1/2 rho_air V_A^2.
     """
     VA2 = ua * ua + va * va
-    if VA2 == 0.0:
+    if VA2 == 0.0 or not (p[_AL] > 0.0 and p[_CDt] > 0.0):
+        # no wind, or a ship file without windage (the tug's gives none): no load, not 0/0
         return 0.0, 0.0, 0.0
     gamma = math.atan2(-va, -ua)
     CDlAF = p[_CDlb] if abs(gamma) <= 0.5 * math.pi else p[_CDls]
