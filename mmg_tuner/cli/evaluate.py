@@ -19,7 +19,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float, STRICT_HELP
 from mmg_tuner.cli.common import Parser, run_command, UsageError
 from mmg_tuner.cli.tune import show_log
 from mmg_tuner.tuning.evaluate import UNITS
@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--horizons', type=bounded(int, 1, 100_000, 'horizon [steps]'), nargs='+',
                     metavar='N', help='also n-step prediction: restart from the measured state '
                     'at every sample, predict N steps; RMSE per horizon and the free-run '
@@ -62,7 +63,7 @@ def command(argv: list[str] | None = None) -> int:
         # astern and u <= 0 kept when the ship's family covers them (load_trials' default)
         trials = api.load_trials(args.trials, ship=ship, dt=args.dt, topics=args.topics,
                                  trial_scale=args.trial_scale,
-                                 cut_from_event=args.cut_from_event)
+                                 cut_from_event=args.cut_from_event, strict=args.strict)
         if not trials:
             raise UsageError(f'no usable trial in {" ".join(args.trials)}')
         result = api.evaluate(model, trials, config)
@@ -74,6 +75,10 @@ def command(argv: list[str] | None = None) -> int:
             print(f'{name:<{width}}  index {idx}')
         if result.index_all is not None:
             print(f'{"all trials":<{width}}  index {result.index_all:.4g}')
+        if result.coverage is not None:   # an ensemble with a calibrated interval
+            c = result.coverage
+            print(f'{100 * c["all"]:.1f} % of the samples inside the nominal '
+                  f'{100 * c["level"]:.0f} % prediction interval')
         if result.nstep is not None:
             print(nstep_text(result))
         print(f'wrote {out.path}/evaluate.json, evaluate.md'

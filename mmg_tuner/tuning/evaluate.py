@@ -161,6 +161,8 @@ class EvaluateResult:
     substeps: int
     model: Model = field(repr=False)
     recorded: list[Trial] = field(repr=False, default_factory=list)
+    # share of samples inside the model's prediction interval (tuning/interval.py), if any
+    coverage: dict | None = None
     nstep: NStepScore | None = None          # with horizons: over all trials
     nstep_per_trial: dict[str, NStepScore] = field(default_factory=dict)
     relative: RelativeErrors | None = None   # with horizons: free-run Table 5 errors
@@ -178,7 +180,7 @@ class EvaluateResult:
                          'pooled over all evaluated trials',
                 'restart_every_s': self.restart_every_s, 'integrator': self.integrator,
                 'substeps': self.substeps, 'sigma': dict(self.sigma),
-                'index_all': self.index_all,
+                'index_all': self.index_all, 'coverage': self.coverage,
                 'trials': {n: s.to_dict() for n, s in self.trials.items()},
                 **self._nstep_dict()}
 
@@ -210,6 +212,11 @@ class EvaluateResult:
             lines.append(f'| {n} | {idx} | {rms} |')
         if self.index_all is not None:
             lines += ['', f'All trials together: index {self.index_all:.4g}.']
+        c = self.coverage
+        if c is not None:
+            lines += ['', f'Prediction interval (nominal {100 * c["level"]:.0f} %): '
+                      f'{100 * c["all"]:.1f} % of the samples inside (' + ', '.join(
+                          f'{n} {100 * x:.0f} %' for n, x in c['states'].items()) + ').']
         for n, s in self.trials.items():
             if s.failed_at_s is not None:
                 lines.append(f'- {n}: the model failed at t = {s.failed_at_s:.2f} s '
