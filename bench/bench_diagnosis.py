@@ -11,6 +11,13 @@ direction (or none: the clean control). The diagnosis runs with the command's bu
 the public API (mt.diagnose). A case is correct when exactly the hidden effect is named
 (nothing, for clean data).
 
+Issue 26 adds harder classes: two effects at once ('current+rudder_lag', 'rudder_offset+wind';
+correct when exactly both are named), each at a realistic or a small size (the seed
+alternates), and changes outside the library made with the generator's ``out_of_library``
+('hull_scale': every hull force and moment x 1.2-1.5; 'derivative_scale': N_r alone x
+1.3-1.6; correct when nothing is named: no false cause). The summary's first column then
+reads the named set ('a+b' for two).
+
 The advice loop: for every case the plain diagnosis misses (and every clean case, to check
 that an added trial raises no false alarm), the advised trial (diagnosis.json's advice: the
 one trial chosen for all suspects jointly when there is one, else the diagnosis' own order,
@@ -62,14 +69,17 @@ import common  # noqa: F401  (puts the repository on sys.path)
 import mmg_tuner as mt
 from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship
-from mmg_tuner.data.generate import generate_trial, SensorNoise
+from mmg_tuner.data.generate import generate_trial, out_of_library, SensorNoise
 from mmg_tuner.diagnosis.advice import trial_from_spec, TrialSpec
 from mmg_tuner.tuning import ParameterSpace
 import numpy as np
 
 OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
-           'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force')
+           'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force',
+           'current+rudder_lag', 'rudder_offset+wind', 'hull_scale', 'derivative_scale')
+# classes hidden outside the effects library: nothing may be named
+OUT_OF_LIBRARY = ('hull_scale', 'derivative_scale')
 # the stages of a diagnosis, in the order they run (timings_s keys; others are appended)
 MEASUREMENT_ERROR = 0.02   # relative, 1 sigma: see the module docstring
 STAGES = ('setup', 'base_tune', 'identifiability', 'screen', 'retune', 'backward', 'advice',
@@ -80,10 +90,43 @@ def _sign(rng) -> float:
     return 1.0 if rng.uniform() < 0.5 else -1.0
 
 
-def random_effect(name: str, rng: np.random.Generator) -> dict[str, float]:
-    """Return a realistic magnitude and direction for each effect (full-scale SUZAKU, 83 m)."""
-    if name == 'clean':
+def expected(cls: str) -> list[str]:
+    """Return what a correct diagnosis names for a class, sorted."""
+    if cls == 'clean' or cls in OUT_OF_LIBRARY:
+        return []
+    return sorted(cls.split('+'))
+
+
+def out_of_library_change(cls: str, rng: np.random.Generator) -> dict:
+    """Return the generator's out_of_library arguments of a class ({} for the others)."""
+    if cls == 'hull_scale':
+        return {'hull_scale': float(rng.uniform(1.2, 1.5))}
+    if cls == 'derivative_scale':
+        return {'scale': {'N_r': float(rng.uniform(1.3, 1.6))}}
+    return {}
+
+
+def random_effect(name: str, rng: np.random.Generator, small: bool = False
+                  ) -> dict[str, float]:
+    """
+    Return a realistic magnitude and direction for each effect (full-scale SUZAKU, 83 m).
+
+    A pair ('a+b') draws both; small: each member near the small end of its range (the
+    pair classes alternate by seed).
+    """
+    if name == 'clean' or name in OUT_OF_LIBRARY:
         return {}
+    if '+' in name:
+        out = {}
+        for e in name.split('+'):
+            out.update(random_effect(e, rng))
+        if small:   # the small end: halfway between the smallest worth finding and the draw
+            for k in ('current_speed', 'wind_speed', 'rudder_offset', 'rudder_lag_tau'):
+                if k in out:
+                    lo = {'current_speed': 0.12, 'wind_speed': 6.0,
+                          'rudder_offset': math.radians(1.2), 'rudder_lag_tau': 3.0}[k]
+                    out[k] = math.copysign(0.5 * (abs(out[k]) + lo), out[k])
+        return out
     if name == 'current':
         return {'current_speed': rng.uniform(0.15, 0.6),
                 'current_dir': rng.uniform(-math.pi, math.pi)}
@@ -126,6 +169,8 @@ def random_trials(truth, rng: np.random.Generator, n: int, duration_s: float, se
 def _param_error(name: str, truth: dict, est: dict) -> dict[str, float]:
     err = {}
     for p, v in truth.items():
+        if p not in est:   # an out-of-library factor has no estimate
+            continue
         e = est.get(p, float('nan')) - v
         if p.endswith('_dir'):
             e = (e + math.pi) % (2 * math.pi) - math.pi
@@ -142,8 +187,13 @@ def make_case(ship, cls: str, seed: int, n_trials: int, duration_s: float):
     rng = np.random.default_rng(10_000 + seed)
     space = ParameterSpace.around(ship)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
-    effect = random_effect(cls, rng)
+    effect = random_effect(cls, rng, small=bool(seed % 2))
     truth = ship.with_params({**dict(zip(space.names, theta)), **effect})
+    change = out_of_library_change(cls, rng)
+    if change:
+        truth = out_of_library(truth, **change)
+        effect = {**change.get('scale', {}), **({'hull_scale': change['hull_scale']}
+                                                if 'hull_scale' in change else {})}
     return truth, effect, random_trials(truth, rng, n_trials, duration_s, seed)
 
 
@@ -173,9 +223,14 @@ def measure(truth, names, seed: int, rel_error: float = MEASUREMENT_ERROR) -> di
 def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
     named = [c.effect for c in d.causes]
     est = {p: v for c in d.causes for p, v in c.parameters.items()}
-    return {'named': named, 'correct': named == ([] if cls == 'clean' else [cls]),
+    want = expected(cls)
+    return {'named': named, 'correct': sorted(named) == want,
             'estimates': est,
-            'param_error': _param_error(cls, effect, est) if cls in named else {},
+            'param_error': _param_error(cls, effect, est) if want and set(want) <= set(named)
+            else {},
+            'mimicking': [c.effect for c in d.mimicking],
+            'structure': d.structure.get('verdict'),
+            'remaining_is_noise': d.structure.get('remaining_is_noise'),
             'rivals': {c.effect: list(c.indistinguishable_from) for c in d.causes},
             'barely_identifiable': sorted(d.barely_identifiable),
             'heldout_gain': d.final.heldout_gain_total, 'wall_s': wall,
@@ -264,7 +319,7 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
     by = defaultdict(list)
     for r in rows:
         by[r['class']].append(r)
-    cols = list(CLASSES) + ['other']
+    cols = [c for c in CLASSES if c not in OUT_OF_LIBRARY] + ['other']
     lines = [title, '',
              '| hidden \\ named | ' + ' | '.join(c.replace('_', ' ') for c in cols)
              + ' | correct | 2nd effect named | flagged barely identifiable |',
@@ -274,8 +329,8 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
         rs = by.get(cls, [])
         if not rs:
             continue
-        cnt = Counter((r['named'][0] if r['named'] else 'clean') for r in rs)
-        other = sum(v for k, v in cnt.items() if k not in CLASSES)
+        cnt = Counter(('+'.join(sorted(r['named'])) if r['named'] else 'clean') for r in rs)
+        other = sum(v for k, v in cnt.items() if k not in cols)
         ok = sum(r['correct'] for r in rs)
         second = sum(len(r['named']) > 1 for r in rs)
         flagged = sum(cls in r.get('barely_identifiable', []) for r in rs)
@@ -291,8 +346,9 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
 
 def summarise(rows: list[dict]) -> str:
     lines, _, _ = confusion(rows, 'Confusion matrix, plain diagnosis (rows: hidden effect; '
-                            'columns: first effect named; "clean" = nothing named; a case is '
-                            'correct only when exactly the hidden effect is named)')
+                            'columns: the set named, a+b for two; "clean" = nothing named; a '
+                            'case is correct only when exactly the hidden effect(s) are named, '
+                            'nothing for a change outside the library)')
     adv = [_with_advice(r) for r in rows]
     more, _, _ = confusion(adv, 'Confusion matrix with one advised trial (sailed to both sides, '
                            'one run added to the tuning trials, one to the held-out ones, in '
@@ -358,6 +414,17 @@ def summarise(rows: list[dict]) -> str:
                 errs[k].append(v)
         for k, v in errs.items():
             lines.append(f'| {cls} | {k} | {np.median(v):.3g} | {np.max(v):.3g} | {len(v)} |')
+    verdicts = defaultdict(Counter)
+    for r in rows:
+        if 'structure' in r:
+            verdicts[r['class']][(r['structure'], r.get('remaining_is_noise'),
+                                  bool(r.get('mimicking')))] += 1
+    if verdicts:
+        lines += ['', '| hidden | structure verdict | what remains is noise | effects listed as '
+                  'mimicking | cases |', '|---|---|---|---|---|']
+        for cls in CLASSES:
+            for (v, noise, mim), k in sorted(verdicts.get(cls, {}).items(), key=str):
+                lines.append(f'| {cls} | {v} | {noise} | {"yes" if mim else ""} | {k} |')
     walls = [r['wall_s'] for r in rows]
     if walls:
         lines += ['', 'Run time per plain diagnosis of 10 trials: median '

@@ -49,8 +49,8 @@ from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
 from mmg_tuner.data.generate import (bollard_pull_table, generate_trial, generate_twin_trial,
-                                     is_twin, parse_maneuver, SensorNoise, twin_catalogue,
-                                     TwinNoise)
+                                     is_twin, out_of_library, parse_maneuver, SensorNoise,
+                                     twin_catalogue, TwinNoise)
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 import yaml
 
@@ -115,6 +115,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
                     type=effect_spec,
                     help='hidden model extension parameter, e.g. current_speed=0.3 (repeatable)')
+    ap.add_argument('--hull-scale', type=positive_float, default=1.0, metavar='FACTOR',
+                    help='every hull force and moment x FACTOR, a change outside the effects '
+                    'library (the polynomial hull coefficients; e.g. 1.45)')
+    ap.add_argument('--scale', action='append', default=[], metavar='NAME=FACTOR',
+                    type=effect_spec,
+                    help='one parameter x FACTOR, e.g. N_r=1.45 (repeatable; outside the '
+                    'effects library)')
     ap.add_argument('--record-wind', action='store_true',
                     help='also record the (steady) true wind on /wind, as an anemometer would')
     ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
@@ -186,6 +193,11 @@ def command(argv: list[str] | None = None) -> int:
         return _twin(args, ship, maneuvers_given)
     if args.only:
         raise UsageError(f'--only: {ship.name} is not a twin-thruster craft; use --maneuvers')
+    if args.hull_scale != 1.0 or args.scale:
+        try:
+            ship = out_of_library(ship, args.hull_scale, dict(args.scale))
+        except ConfigError as exc:
+            raise UsageError(f'--hull-scale/--scale: {exc}') from None
     args.duration = 800.0 if args.duration is None else args.duration
     args.rate_hz = 10.0 if args.rate_hz is None else args.rate_hz
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)

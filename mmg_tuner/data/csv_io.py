@@ -23,7 +23,7 @@ import warnings
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import TABLE
-from mmg_tuner.data.files import check_regular_file, display_text, safe_name
+from mmg_tuner.data.files import brief, check_regular_file, display_text, safe_name
 from mmg_tuner.data.trial import CSV_COLUMNS, STATE_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
@@ -158,7 +158,7 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
         data = data[~bad_t]
     if data.shape[0] < 2:
         raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns'
-                             + (f' ({"; ".join(notes)})' if notes else ''))
+                             + (f' ({brief(notes)})' if notes else ''))
     for w in unit_warnings(header, data):   # read as it is: the user decides
         logger.warning('WARNING: %s: %s', display_text(str(path)), w)
     return header, data, notes

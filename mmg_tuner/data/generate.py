@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Mapping
 
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import ShipConfig
@@ -54,6 +55,41 @@ class SensorNoise:
                      thrusters=thr)
 
 
+# The polynomial hull's coefficients (paper eqs. 14-15, standard method eq. 8): the hull force
+# and moment of the container and standard families are 1/2 rho L d U^2 (or L^2 d U^2) times a
+# polynomial in v' and r' with these coefficients, so scaling all of them by k scales X_H, Y_H
+# and N_H by k at every state (as shallow water roughly does); no effect of the library can.
+HULL_COEFFICIENTS = ('R_0', 'X_vv', 'X_vr', 'X_rr', 'X_vvvr', 'X_vvvv',
+                     'Y_v', 'Y_r', 'Y_vvv', 'Y_vvr', 'Y_vrr', 'Y_rrr',
+                     'N_v', 'N_r', 'N_vvv', 'N_vvr', 'N_vrr', 'N_rrr')
+
+
+def out_of_library(ship: ShipConfig, hull_scale: float = 1.0,
+                   scale: Mapping[str, float] | None = None) -> ShipConfig:
+    """
+    Return the ship changed where no effect of the library reaches (a truth for tests).
+
+    hull_scale: every hull force and moment multiplied by this factor (the polynomial hull's
+    coefficients, :data:`HULL_COEFFICIENTS`; the family must have that hull); scale: single
+    parameters multiplied by their factors (e.g. ``{'N_r': 1.45}``: one derivative only).
+    Raises ConfigError naming the parameter when the family lacks it or a factor is not a
+    finite number.
+    """
+    factors = dict.fromkeys(HULL_COEFFICIENTS, float(hull_scale)) if hull_scale != 1.0 else {}
+    for k, f in (scale or {}).items():
+        factors[k] = factors.get(k, 1.0) * float(f)
+    own = set(ship.family.params)
+    for k, f in factors.items():
+        if not math.isfinite(f):
+            raise ConfigError(f'{ship.name}: scale factor of {k} = {f!r}: must be finite')
+        if k not in own:
+            raise ConfigError(f'{ship.name}: the {ship.model} family has no parameter {k} to '
+                              'scale' + (' (hull_scale needs the polynomial hull of the '
+                                         'container or standard family)'
+                                         if k in HULL_COEFFICIENTS else ''))
+    return ship.with_params({k: ship[k] * f for k, f in factors.items()}) if factors else ship
+
+
 def parse_maneuver(text: str) -> tuple[str, float, float | None]:
     """
     Parse a manoeuvre such as 'zigzag:20/10' into (manoeuvre, rudder_deg, check_deg).
@@ -89,15 +125,28 @@ def parse_maneuver(text: str) -> tuple[str, float, float | None]:
 def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg: float | None,
                    rpm: float, speed_ms: float, duration_s: float, rate_hz: float,
                    noise: SensorNoise, seed: int, name: str, approach_s: float = 10.0,
-                   record_wind: bool = False, thruster_rps: float = 20.0
+                   record_wind: bool = False, thruster_rps: float = 20.0,
+                   hull_scale: float = 1.0, scale: Mapping[str, float] | None = None
                    ) -> tuple[Trial, Trial]:
     """
     (truth, measured) for one manoeuvre.
 
     Truth is integrated with RK4 at <= 0.1 s. record_wind: the trial carries the (steady) true wind
     as a measurement. thruster_rps: the thrusters' speed of the low-speed manoeuvres [rev/s]
-    (mv.LOWSPEED_MANEUVERS).
+    (mv.LOWSPEED_MANEUVERS). hull_scale, scale: a change outside the effects library, see
+    :func:`out_of_library` (the truth sails with it; the notes say so).
     """
+    changed = out_of_library(ship, hull_scale, scale)
+    if changed is not ship:
+        truth, measured = generate_trial(changed, maneuver, rudder_deg, check_deg, rpm,
+                                         speed_ms, duration_s, rate_hz, noise, seed, name,
+                                         approach_s, record_wind, thruster_rps)
+        note = 'out of library: ' + ', '.join(
+            ([f'hull forces x {hull_scale:g}'] if hull_scale != 1.0 else [])
+            + [f'{k} x {f:g}' for k, f in (scale or {}).items()])
+        truth.notes.append(note)
+        measured.notes.append(note)
+        return truth, measured
     for what, v in (('rate_hz', rate_hz), ('duration_s', duration_s), ('rpm', rpm),
                     ('speed_ms', speed_ms)):
         if not (math.isfinite(v) and v > 0):

@@ -46,6 +46,9 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                             f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
                             'their combined uncertainty).' if c.get('indistinguishable_from')
                             else ''))
+    elif doc.get('mimicking'):
+        lines.append('**No cause is named: the model structure is the likely cause** (see '
+                     '"Model structure"). The effects that fit only mimic the gap.')
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
@@ -80,6 +83,10 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                             + 'impossible here: ' + c['impossible'])
             if c.get('diverged'):
                 note.append(c['diverged'])
+            if c.get('implausible'):
+                note.append('implausible: ' + c['implausible'])
+            if c.get('inconsistent'):
+                note.append('inconsistent: ' + c['inconsistent'])
             gain = _pct(c['gain']) if np.isfinite(c['gain'] if c['gain'] is not None
                                                   else np.nan) else 'diverged'
             lines.append(f"| {i} | {c['effect']} | {gain} | "

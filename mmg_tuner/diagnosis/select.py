@@ -17,7 +17,14 @@ Selection rule (stepwise, like forward-backward regression):
   with the same warm start and budget (a null candidate), so extra tuning is not mistaken for
   an effect. Nothing significant: nothing is named (clean data must name nothing);
 * an estimate smaller than the effect's smallest magnitude worth finding (e.g. a 0.02 m/s
-  current) is not accepted: such an effect fits noise or bends to mimic another;
+  current) is not accepted when the reduction of the held-out J it brings is within the noise
+  floor (diagnosis/noise.py: what sensor noise alone leaves): such an effect fits noise. A
+  reduction above the floor is no noise-fitting, whatever the estimate: the effect then bends
+  to share an error with another (a 9 m/s wind beside a rudder offset came out below 5 m/s and
+  was once rejected with a 39 % gain on a base error 12 x the clean case's);
+* the reduction must be min_abs_gain of the base model's held-out error, or above
+  noise_margin noise floors: after a large effect is named, a second one explains a small
+  share of the base error that is still far above what noise leaves;
 * an estimate pinned on its box (a non-periodic parameter within bound_tol of the box width of
   a bound that is not its neutral value) is not accepted: the optimiser is using the effect to
   absorb something else, as the paper's tuned coefficients pinned on their bounds do;
@@ -36,6 +43,12 @@ Selection rule (stepwise, like forward-backward regression):
 * checkpoint: every completed tuning is stored (atomically) under a key of what it was
   given; a resumed search replays the same steps and takes each finished one from the store.
   An interrupted tuning is never used: the interrupt propagates (KeyboardInterrupt).
+* a cause must be plausible and consistent (diagnosis/plausible.py): a fit outside the
+  effect's plausible range for the ship (config/effect_plausibility.yaml) is "implausible";
+  an effect that makes a held-out trial clearly worse (by more than clearly_worse and by more
+  than that trial's noise floor) or whose estimates, fitted on each held-out trial alone,
+  disagree beyond their errors is "inconsistent": neither is named (a physical effect has one
+  value for the whole recording); both are evidence of a structural gap;
 * plausibility (diagnosis/context.py): an effect impossible where the trials were recorded
   (wind indoors, current in a tank, an antenna offset when positions are of the reference
   point) is screened and fitted like any other but never named; a significant fit by one is
@@ -56,6 +69,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 import hashlib
+from itertools import combinations
 import json
 import logging
 import math
@@ -69,9 +83,12 @@ from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
-from mmg_tuner.diagnosis.lsq import local_least_squares
+from mmg_tuner.diagnosis.noise import noise_floor, sensor_noise
+from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
+from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.tuner import refuse_pickle, Tuner
@@ -144,6 +161,17 @@ class DiagnosisSettings:
     measured_signals: bool = True
     # advise the trial that would separate each barely identifiable effect and rival pair
     advice: bool = True
+    # a reduction of the held-out J above this many noise floors (diagnosis/noise.py: the mean
+    # held-out J noise alone leaves) is evidence whatever its share of the base error, and
+    # never noise-fitting: held-out, an effect fitted to noise gains nothing (on clean data
+    # every candidate's held-out gain is negative)
+    noise_margin: float = 0.5
+    # a held-out trial this much worse (J ratio - 1), by more than its noise floor, vetoes a
+    # cause (a wrong effect helps some trials and hurts others: +18 %, -24 %, +27 % ...)
+    clearly_worse: float = 0.2
+    # when effects compete (significant, none acceptable alone): fit the pairs of the top
+    # `pairs` screened candidates jointly (0 or 1: never)
+    pairs: int = 3
 
 
 @dataclass
@@ -162,6 +190,10 @@ class Candidate:
     diverged: str = ''               # 'diverged on trial X at t = ...' ('' if it did not)
     significant: bool = False        # passed the acceptance rule (named only if also possible,
     #                                  not on a bound and not too small)
+    implausible: str = ''            # why the fit is implausible for the ship (plausible.py)
+    inconsistent: str = ''           # why it is not one value for all trials, or makes a
+    #                                  held-out trial clearly worse ('' if neither)
+    per_trial_estimates: list[dict] = field(default_factory=list)   # fitted on each held-out
 
 
 @dataclass
@@ -214,6 +246,9 @@ class Diagnosis:
     timings_s: dict[str, float] = field(default_factory=dict)  # wall time per stage
     measured_wind_used: bool = False     # the final model is driven by the measured wind
     advice: list[dict] = field(default_factory=list)           # see diagnosis/advice.py
+    # the sensor noise estimated from the held-out recordings and the held-out J it alone
+    # leaves with the base model (diagnosis/noise.py): {'sigma': {state: sd}, 'J', 'J_se', ...}
+    noise: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -230,7 +265,7 @@ class Verdict:
 
 
 def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
-               s: DiagnosisSettings) -> Verdict:
+               s: DiagnosisSettings, J_floor: float | None = None) -> Verdict:
     """
     Return the one acceptance rule, used by the forward and the backward step.
 
@@ -240,9 +275,10 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
 
     Significant when the gain exceeds min_gain + param_penalty x n_params and min_gain_z
     jackknife standard errors, the reduction is at least min_abs_gain of the base model's
-    held-out error, and no test trial gets worse both by a factor above 1 + worse_tol and by
-    more than worse_abs of the total held-out J without it (sum(J_ref)). A run that diverges
-    (infinite J) on either side is never significant.
+    held-out error (or, given the noise floor J_floor of the held-out trials, the reduction
+    exceeds noise_margin x J_floor), and no test trial gets worse both by a factor above
+    1 + worse_tol and by more than worse_abs of the total held-out J without it (sum(J_ref)).
+    A run that diverges (infinite J) on either side is never significant.
     """
     J_ref = np.asarray(J_ref, float)
     J_new = np.asarray(J_new, float)
@@ -264,9 +300,13 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
         reasons.append(f'gain {100 * gain:.1f} % <= {100 * need:.1f} %')
     if not gain > s.min_gain_z * se:
         reasons.append(f'gain within {s.min_gain_z:g} standard error(s) ({100 * se:.1f} %)')
-    if not absolute > s.min_abs_gain:
+    above_noise = bool(J_floor and J_floor > 0
+                       and J_ref.sum() - J_new.sum() > s.noise_margin * J_floor)
+    if not (absolute > s.min_abs_gain or above_noise):
         reasons.append(f'{100 * absolute:.1f} % of the base error <= '
-                       f'{100 * s.min_abs_gain:.0f} %')
+                       f'{100 * s.min_abs_gain:.0f} %'
+                       + (f' and the reduction within {s.noise_margin:g} noise floor(s)'
+                          if J_floor else ''))
     if bad.any():
         k = int(np.flatnonzero(bad)[np.argmax(ratio[bad])])
         reasons.append(f'a test trial gets worse ({ratio[k]:.2f} x, +{100 * increase[k]:.1f} % '
@@ -466,13 +506,13 @@ def _run_fit(f: _Fit) -> np.ndarray:
             raise KeyboardInterrupt
         return np.concatenate([base_vals, res.theta])
     if f.method == 'lsq':
-        return local_least_squares(space, f.obj, x0, f.evals)
+        return local_least_squares(space, f.obj, x0, f.evals).theta
     res = Tuner(space, f.obj, seed=f.seed, max_evaluations=f.evals, max_popsize=48,
                 sigma0=0.3 if f.method == 'cmaes+lsq' else 0.1, x0=x0).run()
     if res.interrupted:
         raise KeyboardInterrupt
     if f.method == 'cmaes+lsq':   # a global search, then the local polish the others get
-        return local_least_squares(space, f.obj, res.theta, f.evals)
+        return local_least_squares(space, f.obj, res.theta, f.evals).theta
     return res.theta
 
 
@@ -616,7 +656,7 @@ def _base_tune(base: ParameterSpace, obj: Objective, s: DiagnosisSettings,
         raise KeyboardInterrupt
     theta = res.theta
     if s.base_polish > 0:   # CMA-ES stopped on stagnation: a few local steps finish it
-        theta = local_least_squares(base, obj, theta, s.base_polish)
+        theta = local_least_squares(base, obj, theta, s.base_polish).theta
     log(f'   {what}: {res.evaluations} CMA-ES evaluations, {res.restarts} restart(s)'
         + (', polished by least squares' if s.base_polish > 0 else ''))
     store.put(key, theta)
@@ -686,6 +726,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         objs = _Objectives(wind_pair or (mk(tune_trials), mk(test_trials)), None)
         measured = []
     obj, obj_test = objs.plain
+    # one objective per held-out trial (per-trial fits of a cause), as each model sees them
+    plain_test = _without_wind(test_trials) if objs.wind is not None else list(test_trials)
+    singles = {False: [mk([t]) for t in plain_test],
+               True: [mk([t]) for t in test_trials] if objs.wind is not None else []}
     base = ParameterSpace.around(ship, s.targets, s.a_r)
     fp_obj = objs.wind or objs.plain
     store = SearchCheckpoint(checkpoint, fingerprint(ship, fp_obj[0], fp_obj[1], s), resume)
@@ -713,6 +757,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         baseline['diverged'] = base_fail
     base_theta = theta.copy()
     log('   base model: J_test = ' + (f'{J_test.sum():.4g}' if not base_fail else base_fail))
+    clock('noise')
+    noise = _noise(ship, model.space.full_params(ship.params, theta)[0], plain_test, s,
+                   obj_test.weights, log)
+    J_floor = noise.get('J')
     clock('identifiability')
     aliased = _aliased_effects(ship, base, theta, obj, effects)
     for name, a in aliased.items():
@@ -791,18 +839,31 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             o_m, ot_m = objs.of(m)
             Jt = _per_trial_J(ot_m, ship, m.space, th)
             params = EFFECTS[name].params if name in EFFECTS else ()
-            v = acceptance(J_test, Jt, len(params), baseline['J_test'], s)
+            v = acceptance(J_test, Jt, len(params), baseline['J_test'], s, J_floor)
             fail = _failure_text(ot_m, ship, m.space, th) if not np.all(np.isfinite(Jt)) else ''
             vals = {p: float(x) for p, x in zip(m.space.names[base.dim:], th[base.dim:])
                     if p in params}
             pinned = pinned_on_bound(m.space, th, params, s.bound_tol)
-            tiny = EFFECTS[name].too_small(ship, vals) if name in EFFECTS else False
+            # small, and a reduction within what noise leaves: noise-fitting (a reduction far
+            # above the floor is an effect sharing an error with another, not noise)
+            tiny = (EFFECTS[name].too_small(ship, vals) if name in EFFECTS else False) \
+                and not (J_floor and J_test.sum() - Jt.sum() > s.noise_margin * J_floor)
             why_not = impossible.get(name, '')
             ok = v.significant and not pinned and not tiny and not why_not
+            implaus = implausible(ship, name, vals) if ok and name in EFFECTS else ''
+            incons, est = '', []
+            if ok and not implaus and name in EFFECTS:
+                incons = _clearly_worse(J_test, Jt, noise, s, ot_m.batch.names)
+                if not incons:
+                    clock('consistency')
+                    est = per_trial(ship, m.space, th, params, singles[m.measured_wind])
+                    incons = disagreement(ship, name, est, vals)
+                    clock('retune')
+            ok = ok and not implaus and not incons
             cand = Candidate(name, float(Jt.sum()), v.per_trial_gain.tolist(), float(v.gain),
                              v.gain_se, ok, vals, float(drop), pinned, float(J_test.sum()),
                              why_not, fail or (('reference ' + null_fail) if null_fail else ''),
-                             bool(v.significant))
+                             bool(v.significant), implaus, incons, est)
             cands.append((cand, m, th, Jt))
             verdict = 'significant' if ok else 'not significant'
             if v.significant and why_not:
@@ -816,6 +877,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 verdict = ('significant but rejected: ' + ', '.join(
                     f'{p} = {vals[p]:.4g} on its bound' for p in pinned)
                     + ' (a likely mis-attribution)')
+            elif v.significant and implaus:
+                verdict = f'significant but implausible: {implaus}'
+            elif v.significant and incons:
+                verdict = f'significant but inconsistent: {incons}'
             elif v.significant and tiny:
                 verdict = ('significant but rejected: smaller than the smallest magnitude worth '
                            'finding (noise-fitting)')
@@ -833,6 +898,26 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                     'named': ok, 'note': '' if ok else (why_not or fail or v.reason)})
         rounds.append([c[0] for c in cands])
         accepted = [c for c in cands if c[0].accepted]
+        # effects that compete or bend (significant, yet none acceptable alone): the plausible
+        # pairs of the top of the screen, fitted jointly, by the same held-out rule
+        competing = [c[0] for c in cands if c[0].significant and not c[0].accepted
+                     and not c[0].impossible]
+        if not accepted and competing and s.pairs > 1 and len(causes) + 2 <= s.max_effects:
+            clock('pairs')
+            pair = _pair_round(ship, base, model, theta, objs, screened, J_test, baseline,
+                               s, impossible, noise, singles, store, map_fn, log)
+            if pair is not None:
+                pcand, model, theta, J_test, members = pair
+                rounds[-1].append(pcand)
+                se_all = dict(zip(model.space.names,
+                                  standard_errors(objs.of(model)[0], model.space, theta)))
+                for e, vals in members:
+                    causes.append(Cause(e, vals, {p: float(se_all[p]) for p in vals},
+                                        pcand.gain, pcand.gain_se, [],
+                                        EFFECTS[e].description))
+                    remaining.remove(e)
+                log(f"   -> named (jointly): {' + '.join(e for e, _ in members)}")
+                continue
         if not accepted:
             break
         best = max(accepted, key=lambda c: c[0].gain)
@@ -860,7 +945,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     if len(model.effects) + model.measured_wind > 1:
         clock('backward')
         model, theta, J_test = _backward_pass(ship, base, model, theta, objs, causes, s,
-                                              baseline['J_test'], log, store, map_fn)
+                                              baseline['J_test'], log, store, map_fn, J_floor)
     clock('identifiability')
     o_fin, ot_fin = objs.of(model)
     if causes:  # report the final model's values (later rounds re-tuned them)
@@ -889,7 +974,106 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                      dict(zip(base.names, base_theta.tolist())),
                      time.perf_counter() - t_start, aliased, setting,
                      {e: w for e, w in impossible.items() if e in effects or e in measured},
-                     impossible_fits, measured_doc, timings, model.measured_wind, advice)
+                     impossible_fits, measured_doc, timings, model.measured_wind, advice, noise)
+
+
+def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives, screened,
+                J_ref: np.ndarray, baseline: dict, s: DiagnosisSettings,
+                impossible: dict[str, str], noise: dict, singles: dict,
+                store: SearchCheckpoint | None, map_fn: MapFn | None, log):
+    """
+    Fit the plausible pairs of the top screened candidates jointly; return the best accepted.
+
+    Each pair is re-tuned with the base targets (and the named effects) from the current
+    optimum and each member's screened values, and judged by the same rule as one effect:
+    :func:`acceptance` against the current model re-tuned (``J_ref``; parameters: both
+    members'), no member on a bound, too small for the reduction, implausible or
+    inconsistent, no held-out trial clearly worse. Returns (Candidate, model, theta, J_test,
+    [(effect, values)]) or None.
+    """
+    top = [(n, th) for _, n, th in screened
+           if n in EFFECTS and n not in impossible][:s.pairs]
+    J_floor = noise.get('J')
+    options = []
+    for (a, tha), (b, thb) in combinations(top, 2):
+        m = _Model(ship, base, model.effects + [EFFECTS[a], EFFECTS[b]], model.measured_wind)
+        x0 = np.concatenate([theta, tha[len(theta):], thb[len(theta):]])
+        options.append(((a, b), m, x0))
+    fits = [_Fit(ship, m.space, 0, objs.of(m)[0], x0, s.effect_evals, s.seed, False, s.retune)
+            for _, m, x0 in options]
+    best = None
+    for ((a, b), m, _), th in zip(options, _tune_many(fits, store, map_fn)):
+        o_m, ot_m = objs.of(m)
+        Jt = _per_trial_J(ot_m, ship, m.space, th)
+        n_par = len(EFFECTS[a].params) + len(EFFECTS[b].params)
+        v = acceptance(J_ref, Jt, n_par, baseline['J_test'], s, J_floor)
+        vals = {p: float(x) for p, x in zip(m.space.names, th)}
+        members = [(e, {p: vals[p] for p in EFFECTS[e].params}) for e in (a, b)]
+        why = [] if v.significant else [v.reason]
+        reduction = float(J_ref.sum() - Jt.sum())
+        for e, ev in members:
+            pinned = pinned_on_bound(m.space, th, EFFECTS[e].params, s.bound_tol)
+            if pinned:
+                why.append(f"{', '.join(pinned)} on its bound")
+            elif EFFECTS[e].too_small(ship, ev) and not (
+                    J_floor and reduction > s.noise_margin * J_floor):
+                why.append(f'{e} smaller than the smallest worth finding')
+            elif implausible(ship, e, ev):
+                why.append(f'{e} implausible: ' + implausible(ship, e, ev))
+        if not why:
+            worse = _clearly_worse(J_ref, Jt, noise, s, ot_m.batch.names)
+            why += [worse] if worse else []
+        if not why:
+            for e, ev in members:
+                est = per_trial(ship, m.space, th, EFFECTS[e].params, singles[m.measured_wind])
+                bad = disagreement(ship, e, est, ev)
+                if bad:
+                    why.append(f'{e}: {bad}')
+        log(f'   pair {a} + {b}: held-out gain {_pct(v.gain)} ± {_pct(v.gain_se)} '
+            + ('significant' if not why else 'not accepted (' + '; '.join(why) + ')'))
+        cand = Candidate(f'{a}+{b}', float(Jt.sum()), v.per_trial_gain.tolist(),
+                         float(v.gain), v.gain_se, not why, {**members[0][1], **members[1][1]},
+                         J_ref=float(J_ref.sum()), significant=bool(v.significant),
+                         inconsistent='; '.join(why) if v.significant else '')
+        if not why and (best is None or v.gain > best[0].gain):
+            best = (cand, m, th, Jt, members)
+    return best
+
+
+def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict, s: DiagnosisSettings,
+                   names: Sequence[str]) -> str:
+    """
+    Return which held-out trial a candidate makes clearly worse ('' if none).
+
+    Worse by more than clearly_worse (J ratio - 1) and by more than the trial's noise floor
+    (what sensor noise alone leaves on it; without a floor, any such ratio counts).
+    """
+    floor = noise.get('per_trial') or [0.0] * len(J_ref)
+    ratio = J_new / np.maximum(J_ref, 1e-300)
+    bad = (ratio > 1 + s.clearly_worse) & (J_new - J_ref > np.asarray(floor))
+    if not bad.any():
+        return ''
+    k = int(np.flatnonzero(bad)[np.argmax(ratio[bad])])
+    return (f'it makes held-out trial {names[k]} clearly worse ({100 * (ratio[k] - 1):+.0f} %, '
+            'more than its noise floor)')
+
+
+def _noise(ship: ShipConfig, params: np.ndarray, test_trials: Sequence[Trial],
+           s: DiagnosisSettings, weights: np.ndarray, log) -> dict:
+    """
+    Estimate the sensor noise and the held-out J it alone leaves with the base model.
+
+    diagnosis/noise.py; {} when the noise cannot be estimated (every simulation failed).
+    """
+    sigma = sensor_noise(test_trials, simulate_trials(ship, params, list(test_trials),
+                                                      s.integrator))
+    if sigma is None:
+        return {}
+    floor = noise_floor(ship, params, test_trials, sigma, s.integrator, weights, seed=s.seed)
+    log(f"   sensor noise from the held-out recordings: position {sigma['x']:.2g}/"
+        f"{sigma['y']:.2g} m, heading {math.degrees(sigma['psi']):.2g} deg; the held-out J "
+        f"noise alone leaves: {floor['J']:.4g} ± {floor['J_se']:.2g}")
+    return {'sigma': sigma, **floor}
 
 
 def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trials, log,
@@ -942,7 +1126,8 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
 
 def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives,
                    causes: list[Cause], s: DiagnosisSettings, J_base_test: float, log,
-                   store: SearchCheckpoint | None, map_fn: MapFn | None):
+                   store: SearchCheckpoint | None, map_fn: MapFn | None,
+                   J_floor: float | None = None):
     """
     Stepwise regression's backward step.
 
@@ -969,7 +1154,7 @@ def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Obje
         checks = []
         for (name, m, n_par), th in zip(options, _tune_many(fits, store, map_fn)):
             Jt = _per_trial_J(objs.of(m)[1], ship, m.space, th)
-            v = acceptance(Jt, J_full, n_par, J_base_test, s)
+            v = acceptance(Jt, J_full, n_par, J_base_test, s, J_floor)
             checks.append((v, name, m, th, Jt))
         v, name, m, th, Jt = min(checks, key=lambda x: x[0].gain)
         log(f'   backward check: without {name} the held-out error is '

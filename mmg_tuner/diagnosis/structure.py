@@ -22,8 +22,14 @@ Verdict ``structure``: implausible effects (impossible here, significant but pin
 bound, or named with an estimate within 10 % of its box's edge) while a large error remains
 (the final model keeps >= 30 % of the base held-out error, or a systematic error is measured),
 or base coefficients on their bounds together with a measured systematic error. Verdict
-``unexplained``: a systematic error no effect explains, without implausible effects. Otherwise
-``none``. Nothing here changes what the search named.
+``unexplained``: a systematic error no effect explains, without implausible effects. A final
+held-out error above NOISE_RATIO noise floors (diagnosis/noise.py: what sensor noise alone
+leaves) is a systematic error. Otherwise ``none``, "no sign of a structural gap" -- said only
+when what remains is noise; when the noise could not be estimated it says so instead.
+
+One verdict (:func:`one_verdict`): when the verdict is ``structure``, no effect is named as a
+CAUSE in the same report; the effects the search kept are listed as mimicking the gap (they
+stay in the fitted model, where they absorb part of it, but they are not what is wrong).
 """
 from __future__ import annotations
 
@@ -34,6 +40,7 @@ from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.noise import describe as describe_noise
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import unique_names
@@ -164,6 +171,12 @@ def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = Non
             if c.get('significant') and c.get('on_bound') and not c.get('impossible'):
                 strong.append(f"{c['effect']} fits (held-out gain {100 * c['gain']:.0f} %) only "
                               f"with {', '.join(c['on_bound'])} on its bound")
+        for c in rnd:
+            if c.get('significant') and not c.get('impossible') and not c.get('on_bound') \
+                    and (c.get('implausible') or c.get('inconsistent')):
+                strong.append(f"{c['effect']} fits (held-out gain {100 * c['gain']:.0f} %) but "
+                              + ('is implausible: ' + c['implausible'] if c.get('implausible')
+                                 else 'is inconsistent: ' + c['inconsistent']))
     for c in doc.get('causes') or []:
         near = _near_edge(ship, c['effect'], c.get('parameters') or {})
         if near:
@@ -206,6 +219,10 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
     remaining = (float(Jf) / float(Jb) if Jb and Jf is not None and math.isfinite(Jb)
                  and math.isfinite(Jf) and Jb > 0 else None)
     systematic = []
+    is_noise, noise_text = describe_noise(float(Jf) if Jf is not None else math.nan,
+                                          doc.get('noise'))
+    if is_noise is False:
+        systematic.append('an error above the noise: ' + noise_text)
     if asym and asym['significant']:
         systematic.append('a port/starboard asymmetry: ' + asym['text'])
     if learnable and learnable.get('significant'):
@@ -218,19 +235,45 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
         summary = ('the model STRUCTURE (a force or moment it lacks), not the effects that fit, '
                    'is the likely cause of the remaining error: '
                    + '; '.join((strong or weak)[:2])
-                   + ('' if not systematic else '; measured: ' + systematic[0].split(':')[0]))
+                   + ('' if not systematic else '; measured: ' + systematic[0].split(':')[0])
+                   + (f' ({noise_text})' if is_noise is False else ''))
     elif systematic:
         v = 'unexplained'
         summary = ('a systematic error remains that no effect in the library explains: '
-                   + systematic[0].split(':')[0])
+                   + systematic[0].split(':')[0]
+                   + (f' ({noise_text})' if is_noise is False else ''))
+    elif is_noise:
+        v = 'none'
+        summary = 'no sign of a structural gap: ' + noise_text
     else:
         v = 'none'
-        summary = 'no sign of a structural gap'
+        summary = 'no evidence of a structural gap, but ' + noise_text
     evidence = {'implausible_effects': strong, 'bounded_coefficients': weak,
                 'systematic': systematic}
     return {'verdict': v, 'summary': summary, 'evidence': evidence,
             'remaining_fraction': remaining, 'asymmetry': asym,
-            'learnable': dict(learnable) if learnable else None}
+            'learnable': dict(learnable) if learnable else None, 'noise': noise_text,
+            'remaining_is_noise': is_noise}
+
+
+def one_verdict(causes: list, st: dict, J_base: float | None = None,
+                noise: Mapping | None = None) -> tuple[list, list]:
+    """
+    Return (causes, mimicking): every named effect moves to mimicking when structure wins.
+
+    ``causes``: the search's named causes; ``st``: the structure verdict (:func:`verdict`),
+    updated in place. A report never names a CAUSE in the same breath as "the model
+    structure is the likely cause": if the structure check wins, the effects are listed as
+    mimicking it. What remains after the named causes is then the base model's error
+    (``J_base``, held out): the noise statement is made of it (``noise``: the floor).
+    """
+    if st.get('verdict') != 'structure' or not causes:
+        return list(causes), []
+    if J_base is not None:
+        is_noise, text = describe_noise(float(J_base), noise)
+        st['remaining_is_noise'] = is_noise
+        st['noise'] = text + ' (after the named causes: none; the tuned base model)'
+    return [], list(causes)
 
 
 def markdown_lines(doc: Mapping) -> list[str]:
@@ -240,7 +283,7 @@ def markdown_lines(doc: Mapping) -> list[str]:
         return []
     head = {'structure': '**Likely cause: the model structure.**',
             'unexplained': '**Unexplained systematic error.**',
-            'none': 'No sign of a structural gap.'}[st['verdict']]
+            'none': 'No structural gap shown.'}[st['verdict']]
     lines = ['', '## Model structure', '', f"{head} {st['summary'][0].upper()}"
              f"{st['summary'][1:]}."]
     ev = st['evidence']
@@ -248,6 +291,11 @@ def markdown_lines(doc: Mapping) -> list[str]:
     if items:
         lines += ['', 'Evidence that the effects only mimic a gap:', '']
         lines += [f'- {x}' for x in items]
+    if doc.get('mimicking'):
+        lines += ['', 'Effects kept in the fitted model that only mimic the gap (not causes):',
+                  '']
+        lines += [f"- {c['effect']}: {c['summary']} (held-out gain "
+                  f"{100 * c['heldout_gain']:.0f} %)" for c in doc['mimicking']]
     if st.get('remaining_fraction') is not None:
         lines += ['', f"The final model keeps {100 * st['remaining_fraction']:.0f} % of the "
                   "base model's held-out error."]

@@ -24,14 +24,14 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      NaN where not recorded).
    * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
      internal states (may be empty). ``DESCRIPTION``: one line with the source.
-   * njit functions (``inline='always'``). ``ctrl`` is the kernels' input array (T, n),
-     read with ``core.inputs.value(ctrl, k, j, shift, T)`` (sample k, delayed by ``shift``
-     samples); ``j`` is the column of this actuator's first input, ``a`` the float array of
-     all actuator states, ``i`` the position of this actuator's first state in it:
+   * njit functions (``inline='always'``). ``cmd`` is the tuple of this actuator's input
+     values (``INPUTS`` order; the plant reads them from the kernels' input array, delayed by
+     the time offset), ``a`` the float array of all actuator states, ``i`` the position of
+     this actuator's first state in it:
 
-     - ``start(p, ctrl, shift, T, j, a, i)``: set the internal states from the first sample;
-     - ``hold(p, ctrl, k, shift, T, j, h, astern) -> (status, held)``: once per sample
-       interval: read and convert the inputs held over it (``h``: the integration step [s];
+     - ``start(p, cmd, a, i)``: set the internal states from the first sample's inputs;
+     - ``hold(p, cmd, h, astern) -> (status, held)``: once per sample
+       interval: convert the inputs held over it (``h``: the integration step [s];
        ``astern``: whether the family covers astern revolutions); status ``layout.OK`` or a
        status code that stops the run; ``held`` a tuple of floats for ``output``;
      - ``output(p, held, a, i) -> tuple``: once per integration step: advance the internal

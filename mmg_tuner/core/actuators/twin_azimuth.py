@@ -65,7 +65,6 @@ DEFAULTS = {'thrust_p0': 0.0, 'thrust_p1': 0.0, 'thrust_p3': 0.0, 'thrust_p4': 0
 import math  # noqa: E402  (below the declarations the layout reads)
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100
-from mmg_tuner.core.inputs import value  # noqa: E402
 from mmg_tuner.core.layout import OK, PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 
@@ -127,28 +126,27 @@ def transition(k1, k2, h):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, ctrl, shift, T, j, a, i):
+def start(p, cmd, a, i):
     """Start each thruster at its first measured angle, at rest."""
-    a[i] = value(ctrl, 0, j + 2, shift, T)
+    a[i] = cmd[2]
     a[i + 1] = 0.0
-    a[i + 2] = value(ctrl, 0, j + 3, shift, T)
+    a[i + 2] = cmd[3]
     a[i + 3] = 0.0
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, ctrl, k, shift, T, j, h, astern):
+def hold(p, cmd, h, astern):
     """(OK, (F_port, F_stbd [N], meas. and cmd. angles [rad], exp(A h), max move [rad]))."""
-    f_port = thrust(p, value(ctrl, k, j, shift, T)) * p[_SP]
-    f_stbd = thrust(p, value(ctrl, k, j + 1, shift, T)) * p[_SS]
+    f_port = thrust(p, cmd[0]) * p[_SP]
+    f_stbd = thrust(p, cmd[1]) * p[_SS]
     k1 = p[_K1]
     if k1 > 0.0:
         p11, p12, p21, p22 = transition(k1, p[_K2], h)
     else:   # no dynamics: the angle follows its command at once
         p11, p12, p21, p22 = 0.0, 0.0, 0.0, 0.0
     rmax = p[_RMAX]
-    return OK, (f_port, f_stbd, value(ctrl, k, j + 2, shift, T),
-                value(ctrl, k, j + 3, shift, T), value(ctrl, k, j + 4, shift, T),
-                value(ctrl, k, j + 5, shift, T), p11, p12, p21, p22, rmax, rmax * h)
+    return OK, (f_port, f_stbd, cmd[2], cmd[3], cmd[4], cmd[5], p11, p12, p21, p22, rmax,
+                rmax * h)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')

@@ -1,0 +1,199 @@
+"""
+Issue 26: one verdict, causes that are plausible and consistent, what is left against the noise.
+
+Effects hidden with the project's generator (``generate_trial``, its ``hull_scale`` and
+``scale`` options for changes outside the library), ten SUZAKU trials of 200 s as a user
+would sail them (turning +-10/20/35/40 deg, zigzags 10/10 and 20/20; five tuned, five held
+out), the diagnose API with the quick budget.
+"""
+import math
+
+import mmg_tuner as mt
+from mmg_tuner.data.generate import generate_trial, out_of_library, SensorNoise
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.noise import describe, sensor_noise
+from mmg_tuner.diagnosis.plausible import disagreement, implausible, plausible_range
+from mmg_tuner.diagnosis.structure import one_verdict
+from mmg_tuner.errors import ConfigError
+from mmg_tuner.tuning import ParameterSpace
+import numpy as np
+import pytest
+
+SPECS = [('turning', 35, None), ('turning', -20, None), ('zigzag', 10, 10.0),
+         ('zigzag', -20, 20.0), ('turning', 10, None), ('turning', -35, None),
+         ('zigzag', -10, 10.0), ('zigzag', 20, 20.0), ('turning', -10, None),
+         ('turning', 40, None)]
+
+
+def _trials(ship, effect: dict, seed: int = 3, **change):
+    """Return (tune, test): SUZAKU's 12 targets moved inside the box, an effect hidden."""
+    space = ParameterSpace.around(ship)
+    rng = np.random.default_rng(seed)
+    theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
+    truth = ship.with_params({**dict(zip(space.names, theta)), **effect})
+    trials = [generate_trial(truth, m, a, c, 106.0, 3.086, 200.0, 1.0, SensorNoise(), 10 + i,
+                             f'{m}{a:+d}', **change)[1] for i, (m, a, c) in enumerate(SPECS)]
+    return trials[::2], trials[1::2]
+
+
+def _diagnose(ship, tune, test):
+    return mt.diagnose(ship, tune, test, budget='quick', max_effects=2)
+
+
+# ------------------------------------------------------------------------ quick, no search
+def test_the_generator_scales_hull_forces_outside_the_library(suzaku):
+    changed = out_of_library(suzaku, 1.45)
+    assert changed['N_r'] == pytest.approx(1.45 * suzaku['N_r'])
+    assert changed['R_0'] == pytest.approx(1.45 * suzaku['R_0'])
+    assert changed['t_P'] == suzaku['t_P']           # propeller and rudder untouched
+    one = out_of_library(suzaku, scale={'N_r': 1.45})
+    assert one['N_r'] == pytest.approx(1.45 * suzaku['N_r']) and one['Y_v'] == suzaku['Y_v']
+    with pytest.raises(ConfigError, match='no parameter N_xyz'):
+        out_of_library(suzaku, scale={'N_xyz': 2.0})
+    t1 = generate_trial(suzaku, 'turning', 35, None, 106.0, 3.086, 60.0, 1.0,
+                        SensorNoise.none(), 1, 't', hull_scale=1.45)[0]
+    t0 = generate_trial(suzaku, 'turning', 35, None, 106.0, 3.086, 60.0, 1.0,
+                        SensorNoise.none(), 1, 't')[0]
+    assert 'out of library: hull forces x 1.45' in t1.notes
+    assert abs(t1.states[-1, 5]) < 0.95 * abs(t0.states[-1, 5])   # more damped: turns slower
+
+
+def test_sensor_noise_is_estimated_from_the_residuals():
+    """Second differences of the residuals: a smooth model error does not count."""
+    rng = np.random.default_rng(0)
+    t = np.arange(400.0)
+    smooth = np.column_stack([5 * np.sin(t / 50), 3 * np.cos(t / 70), 0.1 * np.sin(t / 40),
+                              0.2 * np.sin(t / 30), 0.1 * np.cos(t / 35), 0.01 * np.sin(t / 20)])
+    sd = np.array([0.5, 0.5, math.radians(0.2), 0.02, 0.02, math.radians(0.05)])
+    rec = Trial(t, smooth + rng.normal(0, 1, smooth.shape) * sd, np.zeros((400, 2)))
+    sim = smooth + np.array([10.0, -4.0, 0.05, 0.1, 0.0, 0.0]) * (t[:, None] / 400) ** 2
+    est = sensor_noise([rec], [sim])
+    for name, want in zip(('x', 'y', 'psi', 'u', 'v', 'r'), sd):
+        assert est[name] == pytest.approx(want, rel=0.15), name
+    assert describe(1.0e6, {'J': 1.0e6, 'J_bound': 2.5e6})[0] is True
+    assert describe(3.0e6, {'J': 1.0e6, 'J_bound': 2.5e6})[0] is False
+    assert describe(3.0e6, {})[0] is None
+
+
+def test_plausible_ranges_are_data_and_scale_with_the_ship(suzaku, kvlcc2):
+    lo, hi, why = plausible_range(suzaku, 'antenna_x')
+    assert hi == pytest.approx(0.45 * suzaku.L_pp) and lo == -hi and 'hull' in why
+    assert implausible(suzaku, 'antenna_offset', {'antenna_x': 39.0, 'antenna_y': 0.0})
+    assert not implausible(suzaku, 'antenna_offset', {'antenna_x': 30.0, 'antenna_y': 3.0})
+    assert implausible(suzaku, 'wind', {'wind_speed': 16.0, 'wind_dir': 0.0})
+    assert not implausible(suzaku, 'wind', {'wind_speed': 13.0, 'wind_dir': 0.0})
+    # a 1:45.7 model: speeds by 1/sqrt(45.7)
+    assert plausible_range(kvlcc2, 'current_speed')[1] == pytest.approx(
+        1.0 / math.sqrt(kvlcc2.scale_ratio))
+
+
+def test_a_trial_pointing_the_other_way_contradicts_a_cause(suzaku):
+    joint = {'antenna_x': 25.0, 'antenna_y': 2.0}
+    agree = [{'antenna_x': 25.0 + d, 'antenna_x_se': 1.0, 'antenna_y': 2.0, 'antenna_y_se': 0.5}
+             for d in (-8.0, 0.5, 9.0)]     # sizes differ (start-state errors): no matter
+    assert disagreement(suzaku, 'antenna_offset', agree, joint) == ''
+    apart = agree + [{'antenna_x': -10.0, 'antenna_x_se': 1.0, 'antenna_y': 2.0,
+                      'antenna_y_se': 0.5}]
+    assert 'trial 4 points the other way' in disagreement(suzaku, 'antenna_offset', apart,
+                                                          joint)
+    # the other way, but within the smallest worth finding (5 m): no contradiction
+    near = agree + [{'antenna_x': -3.0, 'antenna_x_se': 0.1, 'antenna_y': 2.0,
+                     'antenna_y_se': 0.5}]
+    assert disagreement(suzaku, 'antenna_offset', near, joint) == ''
+    # a current along the joint direction: 0.3 m/s either side of it agrees, against it not
+    cur = [{'current_speed': 0.3, 'current_speed_se': 0.01, 'current_dir': d,
+            'current_dir_se': 0.02} for d in (0.3, -0.3)]
+    joint = {'current_speed': 0.3, 'current_dir': 0.0}
+    assert disagreement(suzaku, 'current', cur, joint) == ''
+    cur[1]['current_dir'] = math.pi
+    assert 'points the other way' in disagreement(suzaku, 'current', cur, joint)
+
+
+def test_one_verdict_never_names_a_cause_beside_a_structural_gap():
+    causes = ['a', 'b']
+    st = {'verdict': 'structure', 'remaining_is_noise': True}
+    assert one_verdict(causes, st, 4.0e6, {'J': 1.0e6, 'J_bound': 2.0e6}) == ([], causes)
+    assert st['remaining_is_noise'] is False and 'after the named causes: none' in st['noise']
+    assert one_verdict(causes, {'verdict': 'unexplained'}) == (causes, [])
+    assert one_verdict(causes, {'verdict': 'none'}) == (causes, [])
+
+
+# ------------------------------------------------------------------- hidden, then diagnosed
+def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
+    """
+    Every hull force and moment 45 % larger: out of the library, structural.
+
+    Before issue 26 this named a propeller side force (C_YPS -0.024, per held-out trial
+    -14 %, +32 %, -4 %, +48 %, +2 %) and a yaw moment bias as CAUSES while the same report
+    said the model structure was the likely cause.
+    """
+    tune, test = _trials(suzaku, {}, hull_scale=1.45)
+    dx = _diagnose(suzaku, tune, test)
+    assert dx.causes == [], [c.summary for c in dx.causes]
+    assert dx.structure['verdict'] in ('structure', 'unexplained'), dx.structure['summary']
+    assert dx.structure['remaining_is_noise'] is False   # after the named causes: none
+    doc = dx.to_dict()
+    assert doc['causes'] == [] and 'no sign of a structural gap' not in dx.structure['summary']
+
+
+def test_wind_and_a_rudder_offset_are_both_named(suzaku):
+    """
+    Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: two causes at once.
+
+    Before issue 26 the offset, second, was rejected for explaining only 3 % of the base
+    error (a base error the wind made 29 x the clean case's), and "no sign of a structural
+    gap" was said of whatever remained. Measured here: wind 8.7 m/s from 58 deg, offset
+    +0.67 +- 0.16 deg (the tuned rudder coefficients take up part of it), the rest noise
+    (1.5 x the mean noise floor).
+    """
+    tune, test = _trials(suzaku, {'wind_speed': 9.0, 'wind_dir': math.radians(45.0),
+                                  'rudder_offset': math.radians(1.5)})
+    dx = _diagnose(suzaku, tune, test)
+    assert sorted(c.effect for c in dx.causes) == ['rudder_offset', 'wind'], \
+        [c.summary for c in dx.causes]
+    p = {k: v for c in dx.causes for k, v in c.parameters.items()}
+    assert p['wind_speed'] == pytest.approx(9.0, abs=2.0)
+    assert abs((math.degrees(p['wind_dir']) - 45.0 + 180) % 360 - 180) < 40
+    assert 0.25 < math.degrees(p['rudder_offset']) < 2.5      # the sign, and a size
+    assert dx.structure['verdict'] == 'none' and dx.structure['remaining_is_noise'] is True
+
+
+def test_clean_trials_stay_clean_and_what_remains_is_noise(suzaku):
+    """Nothing named; "no sign of a structural gap" backed by the noise (1.0 x here)."""
+    tune, test = _trials(suzaku, {})
+    dx = _diagnose(suzaku, tune, test)
+    assert dx.causes == [] and dx.mimicking == []
+    assert dx.structure['remaining_is_noise'] is True
+    assert dx.structure['summary'].startswith('no sign of a structural gap: what remains is '
+                                              'noise')
+    sigma = dx.noise['sigma']
+    assert sigma['x'] == pytest.approx(0.5, rel=0.2) and sigma['y'] == pytest.approx(0.5, rel=0.2)
+
+
+def test_one_hull_derivative_45_percent_larger_is_no_library_cause(suzaku):
+    """N_r x 1.45 alone: the tuned rudder and hull targets absorb it; nothing is named."""
+    tune, test = _trials(suzaku, {}, scale={'N_r': 1.45})
+    dx = _diagnose(suzaku, tune, test)
+    assert dx.causes == [], [c.summary for c in dx.causes]
+
+
+def test_a_current_and_a_steering_gear_lag_name_no_false_cause(suzaku):
+    """
+    Current 0.25 m/s toward 200 deg and a 5 s steering-gear lag.
+
+    The current is named (measured: 0.21 m/s toward 204 deg). The lag, after it, lowers the
+    held-out error by 16 % +- 3 % of what remains, a reduction within half the noise floor
+    (as a 1.4 s time offset's would be, 22 %): not named, and flagged barely identifiable
+    with the trial that would settle it advised. A false cause is worse than a missed one.
+    """
+    tune, test = _trials(suzaku, {'current_speed': 0.25, 'current_dir': math.radians(200.0),
+                                  'rudder_lag_tau': 5.0})
+    dx = _diagnose(suzaku, tune, test)
+    named = [c.effect for c in dx.causes]
+    assert named[:1] == ['current'] and set(named) <= {'current', 'rudder_lag'}, named
+    p = dx.causes[0].parameters
+    assert p['current_speed'] == pytest.approx(0.25, abs=0.08)
+    assert abs((math.degrees(p['current_dir']) - 200.0 + 180) % 360 - 180) < 30
+    if named == ['current']:
+        assert 'rudder_lag' in dx.barely_identifiable
+    assert 'noise' in dx.structure['summary']
