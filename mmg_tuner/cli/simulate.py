@@ -183,7 +183,6 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
     max_move = rate * h if rate > 0 else math.inf
     rpm = phys['rpm']
     method = integrator_code(spec.integrator)
-    work = [np.empty(6) for _ in range(5)]
     s = np.empty(6)
     start_state(p, phys.states[0].copy(), s)
     out = np.full((T, 6), np.nan)
@@ -212,8 +211,8 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
                     cmd_zz = abs(amp)
                 cmd = cmd_zz
             row[0, 0], row[0, 1] = rpm[k], delta
-            status = advance(tag, p, s, act_states, row, 0, 0.0, 1, h, 1, method, *work, a0,
-                             a1, a2, bool(net.physics))
+            status = advance(tag, p, s, act_states, row, 0, 0.0, 1, h, 1, method, a0, a1, a2,
+                             bool(net.physics))
             if status != OK:
                 break
             delta += min(max_move, max(-max_move, cmd - delta))

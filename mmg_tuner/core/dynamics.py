@@ -468,14 +468,15 @@ def external_accelerations(kind, p, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rhs(kind, p, s, act, out, r0=0.0, r1=0.0, r2=0.0, physics=True):
+def rhs(kind, p, s, act, r0=0.0, r1=0.0, r2=0.0, physics=True):
     """
-    Write ds/dt for s = (x, y, psi, u, v, r) into out; u, v through the water.
+    Return ds/dt for s = (x, y, psi, u, v, r) as a tuple; u, v through the water.
 
     Plus the learned residual's accelerations (r0, r1, r2) [m/s^2, m/s^2, rad/s^2];
     physics False: the residual replaces the family's accelerations (a pure network).
-    Without a network the callers pass zeros and True: adding 0.0 changes no bit. (Here, not
-    in a wrapper: each inlined layer that passes the arrays on costs reference counts.)
+    Without a network the callers pass zeros and True: adding 0.0 changes no bit. s may be an
+    array or a tuple (RK4's stages). A tuple, not an output array, and no wrapper layer: each
+    array an inlined layer hands on costs an atomic reference count on the hot path.
 
     Inlined into the integrators: a compiled call passing arrays costs an atomic
     reference-count update per array argument and exit, about 40 % of an Euler step.
@@ -487,12 +488,12 @@ def rhs(kind, p, s, act, out, r0=0.0, r1=0.0, r2=0.0, physics=True):
     c = math.cos(psi)
     sn = math.sin(psi)
     du, dv, dr = accelerations(kind, p, u, v, r, act)
-    out[0] = u * c - v * sn
-    out[1] = u * sn + v * c
+    dx = u * c - v * sn
+    dy = u * sn + v * c
     Vc = p[_Vc]
     if Vc != 0.0:
-        out[0] += Vc * math.cos(p[_dirc])
-        out[1] += Vc * math.sin(p[_dirc])
+        dx += Vc * math.cos(p[_dirc])
+        dy += Vc * math.sin(p[_dirc])
     Vw = p[_Vw]
     if Vw != 0.0 or air_drag(kind):  # a family with AIR_DRAG feels its own motion's air drag
         ug = u
@@ -506,18 +507,18 @@ def rhs(kind, p, s, act, out, r0=0.0, r1=0.0, r2=0.0, physics=True):
         du += au
         dv += av
         dr += ar
-    out[2] = r
     if physics:
-        out[3] = du + r0
-        out[4] = dv + r1
-        out[5] = dr + r2
-    else:
-        out[3] = r0
-        out[4] = r1
-        out[5] = r2
+        return dx, dy, r, du + r0, dv + r1, dr + r2
+    return dx, dy, r, r0, r1, r2
 
 
 @njit(cache=True, fastmath=FASTMATH)
 def derivative(kind, p, s, act, out):
     """ds/dt for s = (x, y, psi, u, v, r) with u, v through the water (current added here)."""
-    rhs(kind, p, s, act, out)
+    d = rhs(kind, p, s, act)
+    out[0] = d[0]
+    out[1] = d[1]
+    out[2] = d[2]
+    out[3] = d[3]
+    out[4] = d[4]
+    out[5] = d[5]

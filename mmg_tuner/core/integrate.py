@@ -57,27 +57,29 @@ _dirw = PARAM_INDEX['wind_dir']
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
+def step(kind, p, s, act, h, method, r0, r1, r2, physics):
     """
     Advance s in place by one step h (Euler or classic RK4), inputs held over the step.
 
     Not inlined: the RK4 path's four right-hand sides stay one compiled function, which keeps
-    the Euler hot loop small and the compile time of every whole-run kernel down.
+    the Euler hot loop small and the compile time of every whole-run kernel down. The stages
+    are tuples (no work arrays: each array a compiled call hands on costs reference counts).
     """
-    rhs(kind, p, s, act, k1, r0, r1, r2, physics)
+    k1 = rhs(kind, p, s, act, r0, r1, r2, physics)
     if method == EULER:
         for i in range(6):
             s[i] += h * k1[i]
         return
-    for i in range(6):
-        tmp[i] = s[i] + 0.5 * h * k1[i]
-    rhs(kind, p, tmp, act, k2, r0, r1, r2, physics)
-    for i in range(6):
-        tmp[i] = s[i] + 0.5 * h * k2[i]
-    rhs(kind, p, tmp, act, k3, r0, r1, r2, physics)
-    for i in range(6):
-        tmp[i] = s[i] + h * k3[i]
-    rhs(kind, p, tmp, act, k4, r0, r1, r2, physics)
+    c = 0.5 * h
+    t = (s[0] + c * k1[0], s[1] + c * k1[1], s[2] + c * k1[2], s[3] + c * k1[3],
+         s[4] + c * k1[4], s[5] + c * k1[5])
+    k2 = rhs(kind, p, t, act, r0, r1, r2, physics)
+    t = (s[0] + c * k2[0], s[1] + c * k2[1], s[2] + c * k2[2], s[3] + c * k2[3],
+         s[4] + c * k2[4], s[5] + c * k2[5])
+    k3 = rhs(kind, p, t, act, r0, r1, r2, physics)
+    t = (s[0] + h * k3[0], s[1] + h * k3[1], s[2] + h * k3[2], s[3] + h * k3[3],
+         s[4] + h * k3[4], s[5] + h * k3[5])
+    k4 = rhs(kind, p, t, act, r0, r1, r2, physics)
     for i in range(6):
         s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
@@ -166,8 +168,8 @@ def state_status(kind, s):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3, k4, tmp,
-            r0=0.0, r1=0.0, r2=0.0, physics=True):
+def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, r0=0.0, r1=0.0, r2=0.0,
+            physics=True):
     """
     Advance the model state s (in place) over one sample interval dt: the one step function.
 
@@ -184,11 +186,11 @@ def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3, 
     for _ in range(substeps):
         act = actuate_output(kind, p, held, a)
         if method == EULER:  # the tuning hot path: keep the call chain shallow for inlining
-            rhs(kind, p, s, act, k1, r0, r1, r2, physics)
+            d = rhs(kind, p, s, act, r0, r1, r2, physics)
             for i in range(6):
-                s[i] += h * k1[i]
+                s[i] += h * d[i]
         else:
-            step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics)
+            step(kind, p, s, act, h, method, r0, r1, r2, physics)
     return state_status(kind, s)
 
 
@@ -243,11 +245,6 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     """
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
-    k1 = np.empty(6)
-    k2 = np.empty(6)
-    k3 = np.empty(6)
-    k4 = np.empty(6)
-    tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
     start_state(p, x0, s)
     observe_row(p, s, out, 0)
@@ -259,8 +256,8 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
     for k in range(T - 1):
         if measured_wind:
             use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
-                         k4, tmp, 0.0, 0.0, 0.0, True)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
+                         True)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -308,11 +305,6 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
     Returns (status, k_fail).
     """
     s = np.empty(6)
-    k1 = np.empty(6)
-    k2 = np.empty(6)
-    k3 = np.empty(6)
-    k4 = np.empty(6)
-    tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
     row = np.empty((1, ctrl.shape[1]))   # this sample's inputs, the rudder the gear's angle
     for i in range(6):
@@ -355,8 +347,7 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
             # the step sees the logged angle at its start (as a zero-order-hold replay of the
             # recorded angle does); the gear then moves toward the order
             row[0, rudder_col] = delta
-            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, k1, k2, k3, k4, tmp,
-                             0.0, 0.0, 0.0, True)
+            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0, True)
             if status == RPM_NOT_POSITIVE:
                 break
             diff = cmd - delta
@@ -396,11 +387,6 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
     o = np.empty((1, 6))
-    k1 = np.empty(6)
-    k2 = np.empty(6)
-    k3 = np.empty(6)
-    k4 = np.empty(6)
-    tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
     shift = p[_toff] / dt
     actuate_start(kind, p, ctrl, shift, T, a)
@@ -411,8 +397,8 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
             start_state(p, meas[k], s)
         if measured_wind:
             use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
-                         k4, tmp, 0.0, 0.0, 0.0, True)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
+                         True)
         if status != OK:
             return J, (k if status == RPM_NOT_POSITIVE else k + 1)
         observe_row(p, s, o, 0)

@@ -67,8 +67,8 @@ class StepFailure:
 
 
 @njit(cache=True)
-def _advance_checked(kind, p, s, a, row, dt, substeps, method, k1, k2, k3, k4, tmp, n,
-                     speed_max, yaw_rate_max, last, r0, r1, r2, physics):
+def _advance_checked(kind, p, s, a, row, dt, substeps, method, n, speed_max, yaw_rate_max, last,
+                     r0, r1, r2, physics):
     """
     N calls of advance, each followed by a per-element finiteness and plausibility check.
 
@@ -83,8 +83,8 @@ def _advance_checked(kind, p, s, a, row, dt, substeps, method, k1, k2, k3, k4, t
     for i in range(n):
         for j in range(6):
             last[j] = s[j]
-        status = advance(kind, p, s, a, row, 0, 0.0, 1, dt, substeps, method, k1, k2, k3, k4,
-                         tmp, r0, r1, r2, physics)
+        status = advance(kind, p, s, a, row, 0, 0.0, 1, dt, substeps, method, r0, r1, r2,
+                         physics)
         if status != OK:
             return status, i
         for j in range(6):
@@ -177,7 +177,6 @@ class ShipSimulator:
                                   f'(+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
         self.rpm0 = rpm
         self.rudder0 = rudder_rad
-        self._work = [np.empty(6) for _ in range(5)]
         self._last = np.empty(6)
         self._obs = np.empty(6)
         self.failure: StepFailure | None = None
@@ -370,12 +369,11 @@ class ShipSimulator:
         the offline hybrid does; the same checks follow every step.
         """
         lim = self.limits
-        k1, k2, k3, k4, tmp = self._work
         p, s, inp = self.ship.params, self.s, self._row()
         net = self.residual
         if net is None:
             return _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
-                                    self.method, k1, k2, k3, k4, tmp, n, lim.speed_max_ms,
+                                    self.method, n, lim.speed_max_ms,
                                     lim.yaw_rate_max_rad_s, self._last, 0.0, 0.0, 0.0, True)
         if getattr(self, '_residual', None) is None:
             every = int(round(net.dt_s / self.dt))
@@ -391,7 +389,7 @@ class ShipSimulator:
                     apparent_wind_body(self.ship, s))
             chunk = min(n - done, self._every - (self.steps + done) % self._every)
             status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
-                                         self.method, k1, k2, k3, k4, tmp, chunk,
+                                         self.method, chunk,
                                          lim.speed_max_ms, lim.yaw_rate_max_rad_s, self._last,
                                          *self._acc, bool(net.physics))
             done += k

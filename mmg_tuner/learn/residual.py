@@ -328,11 +328,6 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
     """
     p = p_in.copy()
     s = np.empty(6)
-    k1 = np.empty(6)
-    k2 = np.empty(6)
-    k3 = np.empty(6)
-    k4 = np.empty(6)
-    tmp = np.empty(6)
     a = np.zeros(N_ACT_STATES)
     inp = np.empty(ctrl.shape[1] - N_ENV)
     nf = x_mean.shape[0]
@@ -373,8 +368,8 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
         res_out[k, 0] = a0
         res_out[k, 1] = a1
         res_out[k, 2] = a2
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3,
-                         k4, tmp, a0, a1, a2, physics)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, a0, a1, a2,
+                         physics)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
