@@ -96,6 +96,10 @@ def test_a_trial_pointing_the_other_way_contradicts_a_cause(suzaku):
                       'antenna_y_se': 0.5}]
     assert 'trial 4 points the other way' in disagreement(suzaku, 'antenna_offset', apart,
                                                           joint)
+    # the other way, but on the box's edge: that trial alone does not determine it
+    edge = agree + [{'antenna_x': -41.5, 'antenna_x_se': 1.0, 'antenna_y': -6.75,
+                     'antenna_y_se': 1.0, 'on_bound': True}]
+    assert disagreement(suzaku, 'antenna_offset', edge, joint) == ''
     # the other way, but within the smallest worth finding (5 m): no contradiction
     near = agree + [{'antenna_x': -3.0, 'antenna_x_se': 0.1, 'antenna_y': 2.0,
                      'antenna_y_se': 0.5}]
