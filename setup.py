@@ -27,7 +27,13 @@ setup(
          glob('data/esso_osaka_frt/LICENSE') + glob('data/esso_osaka_frt/README.md')),
     ] + [('share/' + package_name + '/data/esso_osaka_frt/' + kind,
           glob('data/esso_osaka_frt/' + kind + '/*.csv'))
-         for kind in ('berthing', 'random', 'turning', 'zigzag')],
+         for kind in ('berthing', 'random', 'turning', 'zigzag')] + [
+        # seven more runs of the same data set, the test set of bench/esso_fresh.py
+        ('share/' + package_name + '/data/esso_osaka_frt_extra',
+         glob('data/esso_osaka_frt_extra/LICENSE') + glob('data/esso_osaka_frt_extra/README.md'))
+    ] + [('share/' + package_name + '/data/esso_osaka_frt_extra/' + kind,
+          glob('data/esso_osaka_frt_extra/' + kind + '/*.csv'))
+         for kind in ('turning', 'zigzag')],
     install_requires=['setuptools', 'numpy', 'pyyaml', 'numba', 'cmaes', 'rosbags', 'mcap'],
     zip_safe=False,
     maintainer='mmg_tuner developers',

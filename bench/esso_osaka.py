@@ -57,6 +57,7 @@ from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
 from mmg_tuner.data.esso import cut_from_event, esso_data_dir, read_esso_csv  # noqa: E402
 from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec  # noqa: E402
+from mmg_tuner.tuning.lsq import local_least_squares  # noqa: E402
 from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
 from mmg_tuner.tuning.report import params_yaml_text  # noqa: E402
 from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
@@ -86,14 +87,22 @@ FOLDS = (0, 1, 2)
 named (bench/esso_hybrid_cv.py scores all three: each run is held out exactly once)."""
 
 
-def split(files: list[Path], fold: int = 1) -> tuple[list[Path], list[Path]]:
-    """Return (tuning files, held-out files): positions i with i mod 3 == fold are held out."""
+def split(files: list[Path], fold: int | None = 1) -> tuple[list[Path], list[Path]]:
+    """
+    Return (tuning files, held-out files): positions i with i mod 3 == fold are held out.
+
+    ``fold`` None holds out nothing (every run tunes).
+    """
+    if fold is None:   # --fold none: every run tunes (bench/esso_fresh.py's training)
+        return list(files), []
     held = [f for i, f in enumerate(files) if i % 3 == fold]
     return [f for f in files if f not in held], held
 
 
-def params_path(fold: int) -> Path:
-    """Return the default params file of a fold (fold 1: PARAMS_OUT, as always)."""
+def params_path(fold: int | None) -> Path:
+    """Return the default params file of a fold (fold 1: PARAMS_OUT; None: params_all)."""
+    if fold is None:
+        return PARAMS_OUT.with_name('params_all.yaml')
     return PARAMS_OUT if fold == 1 else PARAMS_OUT.with_name(f'params_fold{fold}.yaml')
 
 
@@ -119,7 +128,7 @@ def inputs_fingerprint(ship_source: str | Path) -> str:
     return h.hexdigest()
 
 
-def check_provenance(path: Path, ship_source: str | Path, fold: int = 1) -> dict:
+def check_provenance(path: Path, ship_source: str | Path, fold: int | None = 1) -> dict:
     """
     Return the ``provenance`` of a params.yaml this script wrote, if its inputs are today's.
 
@@ -127,7 +136,8 @@ def check_provenance(path: Path, ship_source: str | Path, fold: int = 1) -> dict
     missing, was not written by this script, or was tuned on other inputs (a changed ship
     config or run file): tuned parameters are never reused silently.
     """
-    redo = (f'produce it with: {PARAMS_COMMAND}' + (f' --fold {fold}' if fold != 1 else '')
+    redo = (f'produce it with: {PARAMS_COMMAND}'
+            + (f' --fold {"none" if fold is None else fold}' if fold != 1 else '')
             + f' --out {path}')
     if not path.is_file():
         fail(f'tuned params file {path} does not exist; {redo}')
@@ -151,7 +161,7 @@ def read(path: Path, kind: str):
     return tr
 
 
-def load_split(fold: int = 1):
+def load_split(fold: int | None = 1):
     """(training runs, held-out runs, kind of each run by name): both Esso benches split so."""
     train, test, kind_of = [], [], {}
     for kind, files in runs_by_kind().items():
@@ -163,10 +173,24 @@ def load_split(fold: int = 1):
     return train, test, kind_of
 
 
+def _fold(text: str) -> int | None:
+    """Parse --fold: 0, 1, 2 or none."""
+    if text == 'none':
+        return None
+    if text not in ('0', '1', '2'):
+        raise argparse.ArgumentTypeError(f'{text!r}: give 0, 1, 2 or none')
+    return int(text)
+
+
 def parser() -> argparse.ArgumentParser:
     """Return the command line of this bench (its defaults are the registered tuning)."""
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
-    ap.add_argument('--max-evals', type=int, default=4000)
+    ap.add_argument('--max-evals', type=int, default=4000,
+                    help='CMA-ES budget (0: no CMA-ES, the polish alone from the published '
+                    'values)')
+    ap.add_argument('--polish', type=int, default=0,
+                    help='then a local least-squares polish of at most this many simulations '
+                    '(0: none)')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--dt', type=float, default=None, help='resample the tuning runs [s]')
     ap.add_argument('--seed', type=int, default=0)
@@ -176,9 +200,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument('--prior', type=float, default=0.05,
                     help='pull toward the published values (0: none)')
     ap.add_argument('--targets', choices=('yaml', 'lowspeed'), default='lowspeed')
-    ap.add_argument('--fold', type=int, choices=FOLDS, default=1,
+    ap.add_argument('--fold', type=_fold, default=1,
                     help='hold out the runs at positions i mod 3 == FOLD of each kind (1: the '
-                    'split of every table; 0 and 2: the cross-validation folds)')
+                    'split of every table; 0 and 2: the cross-validation folds; none: hold '
+                    'out nothing, tune on all 33: bench/esso_fresh.py)')
     ap.add_argument('--out', type=Path, default=None,
                     help='write the tuned params.yaml here (atomically; a previous output of '
                     'this script is replaced, any other file refused; default '
@@ -227,28 +252,46 @@ def main() -> None:
           f'substep(s)), balance {args.balance}, prior {args.prior:g}, {space.dim} targets; '
           f'{t_eval * 1e3:.0f} ms per evaluation; training objective per sample, published '
           f'{J0 / n_samples:.4f}')
-    tuner = Tuner(space, obj, popsize=12, max_popsize=48, max_evaluations=args.max_evals,
-                  seed=args.seed)
-    res = tuner.run()
-    values = dict(zip(space.names, map(float, res.theta)))
+    t_tune = time.perf_counter()
+    theta, evals, restarts = space.pre.copy(), 0, 0
+    if args.max_evals > 0:
+        res = Tuner(space, obj, popsize=12, max_popsize=48, max_evaluations=args.max_evals,
+                    seed=args.seed).run()
+        theta, evals, restarts = res.theta, res.evaluations, res.restarts
+        print(f'CMA-ES: {evals} evaluations, {restarts} restart(s), '
+              f'{time.perf_counter() - t_tune:.0f} s; J per sample {res.J / n_samples:.4f}')
+    if args.polish > 0:   # local least squares on the same objective's residual vector
+        t_pol = time.perf_counter()
+        loc = local_least_squares(space, obj, theta, args.polish)
+        theta = loc.theta
+        evals += loc.simulations
+        print(f'least-squares polish: {loc.simulations} simulations, '
+              f'{time.perf_counter() - t_pol:.0f} s; J per sample {loc.J / n_samples:.4f}')
+    J_end = float(obj(space.full_params(ship.params, theta[None]))[0])
+    tune_s = time.perf_counter() - t_tune
+    values = dict(zip(space.names, map(float, theta)))
     tuned = ship.with_params(values)
-    text = params_yaml_text(ship, values, f'{PARAMS_COMMAND}: CMA-ES, {res.evaluations} '
-                            'evaluations')
+    how = ' + '.join(x for x, on in (('CMA-ES', args.max_evals > 0),
+                                     ('least squares', args.polish > 0)) if on)
+    text = params_yaml_text(ship, values, f'{PARAMS_COMMAND}: {how}, {evals} evaluations')
     prov = {'command': PARAMS_COMMAND, 'options': {k: (str(v) if isinstance(v, Path) else v)
                                                    for k, v in vars(args).items()},
-            'evaluations': int(res.evaluations), 'training_runs': [t.name for t in train],
+            'evaluations': int(evals), 'training_runs': [t.name for t in train],
             'held_out_runs': [t.name for t in test], 'fold': args.fold,
             'inputs_sha256': inputs_fingerprint(ship.source)}
     write_atomic(args.out, text + yaml.safe_dump({'provenance': prov}, sort_keys=False))
-    print(f'CMA-ES: {res.evaluations} evaluations, {res.restarts} restart(s), '
-          f'{res.wall_s:.0f} s; training objective per sample {J0 / n_samples:.4f} -> '
-          f'{res.J / n_samples:.4f}')
+    print(f'tuning: {evals} evaluations ({how}), {tune_s:.0f} s; training objective per '
+          f'sample {J0 / n_samples:.4f} -> {J_end / n_samples:.4f}')
     print('| parameter | published | tuned | box |')
     print('|---|---|---|---|')
-    for n, v, lo, hi in zip(space.names, res.theta, space.lower, space.upper):
-        flag = ' (on bound)' if n in space.on_bound(res.theta) else ''
+    for n, v, lo, hi in zip(space.names, theta, space.lower, space.upper):
+        flag = ' (on bound)' if n in space.on_bound(theta) else ''
         print(f'| {n} | {ship[n]:.4g} | {v:.4g}{flag} | [{lo:g}, {hi:g}] |')
 
+    if not test:   # --fold none: nothing held out to score
+        print(f'tuned parameters: {args.out}')
+        print(f'wall time: {time.perf_counter() - t_all:.0f} s')
+        return
     pub = mt.evaluate(ship, test, restart_every_s=RESTART_S, integrator='rk4')
     tun = mt.evaluate(tuned, test, restart_every_s=RESTART_S, integrator='rk4')
     print(f'\nheld-out runs (index: Wakita et al. 2022 eq. 26, sigma pooled over the {len(test)} '

@@ -5,7 +5,8 @@ Replay a recorded trial against the model.
 [params_file:=diag/params.yaml] [speed:=10.0] [output_mcap:=replay]`.
 
 Publishes /clock, the recorded commands (rudder, rpm, thrusters when recorded) as the topic
-map describes them, /recorded/odom and the model's /odom (see README,
+map describes them, /recorded/odom and the model's /model/odom (never /odom, which a
+recording's reader takes as the measurement; config/topics.yaml, section replay; see README,
 "Simulator node"); output_mcap, when given, must name a path that does not exist yet.
 """
 from launch import LaunchDescription

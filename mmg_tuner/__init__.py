@@ -22,7 +22,8 @@ from mmg_tuner.errors import (ConfigError, DiagnosisError, MmgTunerError, Output
 _API = ('load_ship', 'load_model', 'Model', 'load_trials', 'tune', 'diagnose', 'simulate',
         'TuneConfig', 'TuneResult',
         'Fit', 'DiagnoseConfig', 'DiagnosisResult', 'ModelFit', 'Cause', 'BUDGETS',
-        'evaluate', 'EvaluateConfig', 'EvaluateResult')
+        'evaluate', 'EvaluateConfig', 'EvaluateResult', 'identify', 'IdentifyConfig',
+        'IdentifyResult')
 
 __all__ = ['ConfigError', 'DiagnosisError', 'MmgTunerError', 'OutputError', 'SimulationError',
            'TrialDataError', 'TuningError', *_API]

@@ -37,6 +37,7 @@ from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
+from mmg_tuner.data.consistency import refuse_warnings, WarningLog
 from mmg_tuner.data.topics import load_topic_map
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis import structure as _structure
@@ -47,25 +48,36 @@ from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, check_trial_sets,
                                         DiagnosisSettings, MapFn, RETUNE_METHODS)
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
-from mmg_tuner.errors import ConfigError, DiagnosisError, TuningError
+from mmg_tuner.errors import (ConfigError, DiagnosisError, MissingDependencyError, MmgTunerError,
+                              TuningError)
 from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
 from mmg_tuner.learn.model import as_model, Model
 from mmg_tuner.learn.model import load_model as _load_model
 from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
+from mmg_tuner.learn.train import split_validation
+from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.evaluate import compare_index, EvaluateResult
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.interval import (calibrate_interval, coverage, model_interval,
+                                       with_interval)
+from mmg_tuner.tuning.lsq import local_least_squares
+from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, IdentifyResult,
+                                    METHODS, read_bollard_table)
+from mmg_tuner.tuning.lo_go import identify as _identify
+from mmg_tuner.tuning.nstep import MAX_HORIZON
 from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      simulate_recorded, unique_names)
-from mmg_tuner.tuning.tuner import Progress, Tuner
+from mmg_tuner.tuning.tuner import Progress, Tuner, TuningResult
 import numpy as np
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
            'Model', 'TuneConfig', 'TuneResult', 'diagnose', 'load_model', 'load_ship',
            'load_trials', 'simulate',
-           'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate']
+           'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate', 'IdentifyConfig',
+           'IdentifyResult', 'identify']
 
 logger = logging.getLogger(__name__)
 
@@ -97,7 +109,8 @@ def load_model(name_or_path: str | Path = 'suzaku', params: str | Path | None = 
 def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | None = None, *,
                 dt: float | None = None, topics: str | Path | None = None,
                 trial_scale: str = 'ship', keep_astern: bool | None = None,
-                cut_from_event: str | tuple[str, float] | None = None) -> list[Trial]:
+                cut_from_event: str | tuple[str, float] | None = None,
+                strict: bool = False) -> list[Trial]:
     """
     Read every trial in ``paths`` as the commands read them.
 
@@ -115,6 +128,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     (default 5) before the event, one of ``rudder_first_over`` (real runs start with a
     manually steered approach) or ``propeller_first_astern``; a trial without the event is
     kept whole with a note.
+    strict: any ``WARNING:`` line logged while reading (channels that disagree, a column in a
+    likely wrong unit, a file skipped) is a TrialDataError instead (``--strict``).
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -141,8 +156,11 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
         tm = replace(tm, dt=dt)
     # one call: names unique across all paths; samples the ship cannot show dropped with a note
     limits = input_limits(ship) if ship is not None else None
-    trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
-                                          limits=limits)
+    with WarningLog() as log:
+        trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
+                                              limits=limits)
+    if strict:
+        refuse_warnings(log.lines)
     if cut is not None:
         trials = _load.cut_at_event(trials, *cut)
         for t in trials:
@@ -207,7 +225,14 @@ class TuneConfig:
     many s, each started from the measured state (0: whole trials; ``tuning/segments.py``);
     balance: 'sample' (every sample alike) or 'trial' (every trial
     the same total weight); prior: pull toward the pre-determined values, in J per sample per
-    squared box width (0: none).
+    squared box width (0: none). model: 'physics' (the tuned physics, and the residual if
+    ``residual`` is set) or 'auto' (``tune --model auto``: also train the pure network and
+    the hybrid when JAX is installed and the trials allow it, compare the candidates on the
+    last quarter of each tuning trial per kind of run (``tuning/choice.py``) and keep the
+    recommended one; with residual_seeds >= 2 the chosen network's ensemble carries a
+    prediction interval calibrated there, ``tuning/interval.py``). polish: after CMA-ES, a
+    local least-squares polish of at most this many simulations on the same objective's
+    residuals (``tuning/lsq.py``; 0: none).
     """
 
     targets: tuple[str, ...] | None = None
@@ -227,15 +252,24 @@ class TuneConfig:
     segment_s: float = 0.0
     balance: str = 'sample'
     prior: float = 0.0
+    model: str = 'physics'
+    polish: int = 0
 
     def __post_init__(self) -> None:
         E = TuningError
         _check_common(self, E)
         _check_residual(self, E)
+        _check('model', self.model, self.model in MODEL_CHOICES, f'one of {list(MODEL_CHOICES)}',
+               E)
+        _check('model', self.model, self.model == 'physics' or self.residual is None,
+               "'physics' with residual set (model 'auto' trains the networks itself)", E)
+        _check('polish', self.polish, _is_int(self.polish) and self.polish >= 0,
+               'a whole number >= 0 (0: no least-squares polish)', E)
         _check('segment_s', self.segment_s, _finite(self.segment_s) and self.segment_s >= 0,
                'a finite number >= 0 [s] (0: whole trials)', E)
-        _check('balance', self.balance, self.balance in ('sample', 'trial'),
-               "'sample' or 'trial'", E)
+        _check('balance', self.balance, self.balance in ('sample', 'trial', 'group'),
+               "'sample', 'trial' or 'group' (each kind of run the same weight: tune's "
+               'groups)', E)
         _check('prior', self.prior, _finite(self.prior) and self.prior >= 0,
                'a finite number >= 0 (0: no prior)', E)
         if self.targets is not None:
@@ -262,8 +296,11 @@ class TuneConfig:
         _check('max_popsize', self.max_popsize, _is_int(self.max_popsize)
                and self.popsize <= self.max_popsize <= 100_000,
                f'a whole number >= popsize ({self.popsize})', E)
-        _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 1,
-               'a whole number >= 1', E)
+        _check('max_evals', self.max_evals, _is_int(self.max_evals) and self.max_evals >= 0,
+               'a whole number >= 0 (0: no CMA-ES, the least-squares polish alone)', E)
+        _check('max_evals', self.max_evals, self.max_evals >= 1 or (
+            _is_int(self.polish) and self.polish >= 1), '>= 1 unless polish is set (else '
+            'nothing would tune)', E)
 
     def objective_spec(self) -> ObjectiveSpec:
         """Return what CMA-ES minimises, for the one objective factory (tuning/factory.py)."""
@@ -339,6 +376,8 @@ class TuneResult:
     test: list[Trial] = field(repr=False, default_factory=list)
     dt: float = 0.0
     residual: ResidualResult | None = None   # tune --residual / --residual-only
+    choice: Choice | None = None             # tune --model auto: the candidates compared
+    choice_notes: list[str] = field(default_factory=list)
 
     @property
     def tuned_ship(self) -> ShipConfig:
@@ -379,6 +418,8 @@ class TuneResult:
                          'popsize': [c.popsize, c.max_popsize]},
             'finite': bool(math.isfinite(self.J.tune)),
             'residual': None if self.residual is None else self.residual.report(),
+            'model_choice': None if self.choice is None else {
+                **self.choice.to_dict(), 'notes': list(self.choice_notes)},
         }
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -393,6 +434,12 @@ class TuneResult:
         rep = self.report()
         params_text = params_yaml_text(self.ship, self.params, f'tuned by mmg_tuner on {names}')
         md = markdown_report(rep)
+        if self.choice is not None:   # --model auto: what was compared, and why this one
+            md += ('\n## Model chosen (--model auto)\n\nIndex (Wakita et al. 2022 eq. 26, '
+                   'restarts every 100 s) on the last quarter of each tuning trial, mean per '
+                   'kind; score: the worst ratio to the best of the kind.\n\n'
+                   + self.choice.markdown() + f'\nRecommended: **{self.choice.chosen}**.\n'
+                   + ''.join(f'\n- {n}' for n in self.choice_notes) + '\n')
         if self.residual is not None:
             return _write_with_residual(self, out, params_text, md, plots)
         docs = [('params.yaml', params_text), ('report.md', md)]
@@ -465,14 +512,16 @@ def _config(cls, config, options: dict):
 def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
          test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
          checkpoint: str | Path | None = None, resume: bool = False,
-         progress: Callable[[Progress], None] | None = None, **options) -> TuneResult:
+         progress: Callable[[Progress], None] | None = None,
+         groups: Mapping[str, str] | None = None, **options) -> TuneResult:
     """
     Tune ``ship``'s targets on ``trials`` with IPOP-CMA-ES (the paper's formulation).
 
     ``test`` trials are only evaluated. ``options`` are :class:`TuneConfig` fields (e.g.
     ``max_evals=5000, a_r=0.5``). ``checkpoint``: a file written every generation; ``resume=True``
     continues from it. Ctrl-C stops after the current generation and returns the best so far with
-    ``interrupted=True``.
+    ``interrupted=True``. ``groups``: trial name -> kind of run (turning, zigzag, ...), for
+    ``model='auto'``'s comparison per kind (default: each trial its own kind).
     """
     cfg = _config(TuneConfig, config, options)
     trials, test = _as_list(trials), _as_list(test)
@@ -480,6 +529,9 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
     spec = cfg.objective_spec()
+    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
+        spec = replace(spec, group_of=dict(groups) if groups else
+                       {n: n for n in unique_names(trials)})
     names = unique_names(trials + test)
     obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
     sets = {'tune': (obj, names[:len(trials)])}
@@ -496,23 +548,88 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
                             0.0, False, ship, space, cfg, trials, test, obj.batch.dt)
     else:
         minimised = obj if spec == spec.plain else make_objective(ship, trials, spec, space)
+        t0 = time.perf_counter()
         tuner = Tuner(space, minimised,
                       popsize=cfg.popsize, max_popsize=cfg.max_popsize,
                       max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
-        res = tuner.run(resume=resume, progress=progress)
-        tuned = space.full_params(ship.params, res.theta)[0]
-        result = TuneResult(dict(zip(space.names, map(float, res.theta))), _fit(sets, tuned),
-                            _fit(sets, ship.params), space.on_bound(res.theta),
-                            list(res.history), res.evaluations, res.restarts, res.wall_s,
+        if cfg.max_evals:
+            res = tuner.run(resume=resume, progress=progress)
+        else:   # the polish alone, from the pre-determined values
+            J_pre = float(minimised(ship.params[None])[0])
+            res = TuningResult(space.pre.copy(), J_pre, 0, 0, 0.0, [], False)
+        theta, evaluations = res.theta, res.evaluations
+        if cfg.polish and not res.interrupted:
+            if spec.shoot_every_s:   # the residual vector has no restarts: not the same J
+                logger.warning('polish skipped: it does not model shoot_every_s restarts')
+            else:
+                loc = local_least_squares(space, minimised, theta, cfg.polish)
+                theta, evaluations = loc.theta, evaluations + loc.simulations
+                logger.info('least-squares polish: %d simulations, J %.6g -> %.6g',
+                            loc.simulations, res.J, loc.J)
+        tuned = space.full_params(ship.params, theta)[0]
+        result = TuneResult(dict(zip(space.names, map(float, theta))), _fit(sets, tuned),
+                            _fit(sets, ship.params), space.on_bound(theta),
+                            list(res.history), evaluations, res.restarts,
+                            res.wall_s + (time.perf_counter() - t0 - res.wall_s
+                                          if cfg.polish else 0.0),
                             res.interrupted, ship, space, cfg, trials, test, obj.batch.dt)
     if cfg.residual is not None and not result.interrupted:
         result.residual = _train_residual(result)
+    if cfg.model == 'auto' and not result.interrupted:
+        _choose(result, groups)
     return result
+
+
+def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
+    """
+    ``model='auto'``: train the networks the data allow, compare, keep the recommended one.
+
+    Candidates: the tuned physics; the hybrid and the pure network (each ``residual_seeds``
+    seeds, one exact ensemble) when JAX is installed and their training succeeds. Compared on
+    the last quarter of each tuning trial (``learn.train.split_validation``: the part the
+    networks only chose their epoch on) by ``tuning.choice.choose_model``, per kind of run
+    (``groups``). The chosen network, an ensemble of >= 2, carries its calibrated interval.
+    """
+    cfg = result.config
+    physics = result.tuned_ship
+    cands: dict[str, ShipConfig | Model] = {'physics': physics}
+    trained, notes = {}, []
+    try:
+        require_jax()
+    except MissingDependencyError as exc:
+        notes.append(f'networks not trained: {exc}')
+    else:
+        for kind in ('hybrid', 'network'):
+            sub = replace(result, config=replace(cfg, residual=kind, model='physics'),
+                          residual=None)
+            try:
+                r = _train_residual(sub)
+            except MmgTunerError as exc:   # e.g. trials too short for its windows
+                notes.append(f'{kind}: not trained ({exc})')
+                logger.warning('--model auto: the %s network was not trained: %s', kind, exc)
+                continue
+            trained[kind] = r
+            cands[kind] = Model(physics, r.net)
+    rc = _residual_config(cfg)
+    val = split_validation(result.trials, rc.validation_fraction, rc.window)[1]
+    choice = choose_model(cands, val, groups, integrator=rc.integrator)
+    logger.info('--model auto: candidates on the validation part of the tuning trials:\n%s'
+                'recommended: %s', choice.markdown(), choice.chosen)
+    if choice.chosen != 'physics':
+        r = trained[choice.chosen]
+        if r.seeds >= 2:
+            iv = calibrate_interval(cands[choice.chosen], val, 0.9, integrator=rc.integrator)
+            r.net = with_interval(iv).residual
+            notes.append(f'prediction interval: nominal 90 %, factors {iv.to_dict()["scale"]}'
+                         ' (calibrated on the validation part)')
+        result.residual = r
+    result.choice, result.choice_notes = choice, notes
 
 
 # ---------------------------------------------------------------------------------- residual
 RESIDUAL_FILE = 'params.residual.npz'
 RESIDUAL_KINDS = ('hybrid', 'network')
+MODEL_CHOICES = ('physics', 'auto')
 
 
 def _check_residual(cfg: TuneConfig, error) -> None:
@@ -937,10 +1054,10 @@ def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4'
                'states are NaN from there')
         notes.append(msg)
         logger.warning('%s: %s', trial.name, msg)
-    return Trial(trial.t.copy(), traj.states, trial.controls.copy(), trial.name,
-                 f'simulated: {trial.source or trial.name}', notes, trial.start_s,
-                 None if trial.wind is None else trial.wind.copy(),
-                 None if trial.thrusters is None else trial.thrusters.copy())
+    # every input channel by name (a twin-azimuth trial has no rpm/rudder pair)
+    return Trial(trial.t.copy(), traj.states, name=trial.name,
+                 source=f'simulated: {trial.source or trial.name}', notes=notes,
+                 start_s=trial.start_s, inputs={n: v.copy() for n, v in trial.inputs.items()})
 
 
 def config_fields(cls) -> list[str]:
@@ -955,12 +1072,15 @@ class EvaluateConfig:
     Options of :func:`evaluate` (the ``evaluate`` command's flags), validated on creation.
 
     restart_every_s: restart each simulation from the measured state every N s (Wakita et al.
-    2022 use 100 s; 0: never); integrator, substeps: as for simulate.
+    2022 use 100 s; 0: never); integrator, substeps: as for simulate; horizons: n-step
+    prediction horizons [samples] (e.g. (1, 5, 10, 20, 30, 40, 50), the MBPE-LOGO paper's):
+    also the n-step RMSE and the free-run relative errors (``tuning/nstep.py``; None: not).
     """
 
     restart_every_s: float = 100.0
     integrator: str = 'rk4'
     substeps: int = 1
+    horizons: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         _check('restart_every_s', self.restart_every_s,
@@ -970,6 +1090,12 @@ class EvaluateConfig:
                f'one of {sorted(INTEGRATORS)}')
         _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
                'a whole number in [1, 1000]')
+        if self.horizons is not None:
+            _check('horizons', self.horizons, isinstance(self.horizons, (list, tuple)) and len(
+                self.horizons) > 0 and all(_is_int(h) and 1 <= h <= MAX_HORIZON
+                                           for h in self.horizons),
+                   f'a non-empty list of whole numbers of steps in [1, {MAX_HORIZON}]')
+            object.__setattr__(self, 'horizons', tuple(sorted(set(self.horizons))))
 
 
 def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
@@ -981,7 +1107,9 @@ def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
     state every ``restart_every_s`` s, and scored per trial by the RMS error of each state and the
     index of Wakita et al. (2022) eq. 26 (standardised by deviations pooled over all the trials).
     ``options`` are :class:`EvaluateConfig` fields. ``result.write(out)`` writes evaluate.json,
-    evaluate.md and the plots.
+    evaluate.md and the plots. A model whose ensemble network carries a calibrated prediction
+    interval (``tune --model auto`` or ``--residual-seeds N``, N >= 2) also gets
+    ``result.coverage``: the share of samples inside its interval (``tuning/interval.py``).
 
     Examples
     --------
@@ -992,4 +1120,90 @@ def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
 
     """
     cfg = _config(EvaluateConfig, config, options)
-    return _evaluate(ship, _as_list(trials), cfg.restart_every_s, cfg.integrator, cfg.substeps)
+    trials = _as_list(trials)
+    res = _evaluate(ship, trials, cfg.restart_every_s, cfg.integrator, cfg.substeps,
+                    horizons=cfg.horizons)
+    interval = model_interval(as_model(ship))
+    if interval is not None:   # an ensemble with a calibrated interval: does it hold here?
+        res.coverage = coverage(interval, trials, cfg.restart_every_s, cfg.integrator)
+    return res
+
+
+# ---------------------------------------------------------------------------------- identify
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """
+    Options of :func:`identify` (``tune --method``/``--bollard-pull``), validated on creation.
+
+    method: 'lo' (the local step: one linear least-squares problem), 'go' (the global step from
+    the ship's values) or 'lo-go' (GO from LO, pulled toward it; MBPE-LOGO); bollard_pull: a
+    bollard-pull table (CSV path with columns n,thrust [rev/s, N per thruster], or a
+    ``BollardTable``; None: keep the ship's thrust curve); thrust_degree: the polynomial's
+    degree (None: by leave-one-out error, <= 5); targets: the hull coefficients (None: the
+    family's); smooth_s: Savitzky-Golay window on the velocities before LO [s] (0: none);
+    ridge: GO's pull toward LO per squared relative change; segment_s: GO simulates pieces of
+    this length from the measured state (0: whole trials, single shooting); integrator,
+    substeps: GO's simulation; max_iter: GO's Levenberg-Marquardt iterations; grow: add the
+    trials one by one (the paper's Algorithm 1).
+    """
+
+    method: str = 'lo-go'
+    bollard_pull: str | Path | BollardTable | None = None
+    thrust_degree: int | None = None
+    targets: tuple[str, ...] | None = None
+    smooth_s: float = 2.0
+    ridge: float = 1e-6
+    segment_s: float = 20.0
+    integrator: str = 'rk4'
+    substeps: int = 1
+    max_iter: int = 40
+    grow: bool = False
+
+    def __post_init__(self) -> None:
+        E = TuningError
+        _check('method', self.method, self.method in METHODS, f'one of {list(METHODS)}', E)
+        _check('thrust_degree', self.thrust_degree, self.thrust_degree is None or (
+            _is_int(self.thrust_degree) and 1 <= self.thrust_degree <= 5),
+            'a whole number in [1, 5] (or None: chosen by leave-one-out error)', E)
+        for name in ('smooth_s', 'ridge', 'segment_s'):
+            v = getattr(self, name)
+            _check(name, v, _finite(v) and v >= 0, 'a finite number >= 0', E)
+        _check('integrator', self.integrator, self.integrator in INTEGRATORS,
+               f'one of {sorted(INTEGRATORS)}', E)
+        _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
+               'a whole number in [1, 1000]', E)
+        _check('max_iter', self.max_iter, _is_int(self.max_iter) and self.max_iter >= 1,
+               'a whole number >= 1', E)
+        if self.targets is not None:
+            _check('targets', self.targets, len(self.targets) > 0 and all(
+                isinstance(t, str) for t in self.targets), 'a non-empty list of names', E)
+            object.__setattr__(self, 'targets', tuple(self.targets))
+
+
+def identify(ship: ShipConfig, trials: Trial | Sequence[Trial],
+             config: IdentifyConfig | None = None, **options) -> IdentifyResult:
+    """
+    Identify a control-oriented model local -> global (MBPE-LOGO, ``tuning/lo_go.py``).
+
+    The thrust polynomial from the bollard table, the azimuth dynamics from command and
+    feedback (when recorded), then the hull coefficients by LO, GO or LO -> GO. ``options``
+    are :class:`IdentifyConfig` fields. ``result.write(out)`` writes params.yaml (loaded by
+    ``load_ship(name, 'out/params.yaml')``), identify.md and identify.json.
+
+    Examples
+    --------
+    >>> ship = mt.load_ship('qiuxin_tug')
+    >>> res = mt.identify(ship, trials, bollard_pull='bollard.csv', method='lo-go')
+    >>> res.write('identified')
+
+    """
+    cfg = _config(IdentifyConfig, config, options)
+    trials = _as_list(trials)
+    table = cfg.bollard_pull
+    if table is not None and not isinstance(table, BollardTable):
+        table = read_bollard_table(table)
+    elif isinstance(table, BollardTable):
+        table = check_bollard_table(table.n, table.thrust, table.source or 'bollard table')
+    return _identify(ship, trials, cfg.method, table, cfg.thrust_degree, cfg.targets,
+                     cfg.smooth_s, cfg.ridge, cfg.segment_s, cfg.integrator, cfg.substeps,
+                     cfg.max_iter, cfg.grow)

@@ -7,6 +7,7 @@ tag must select its own family (a tag mapped to the wrong forces would pass a te
 compares a family with itself, not this one).
 """
 from mmg_tuner.core import dynamics, integrate
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from mmg_tuner.core.models import REGISTRY
 from mmg_tuner.core.ship import config_dirs, load_ship
@@ -88,11 +89,15 @@ def test_entry_points_run_the_family_kernel(name):
     T, N, dt = 120, 3, 0.5
     x0 = _state(ship, rng)
     x0[2] = 0.0
-    rpm = self_propulsion_rpm(ship, _speed(ship))
-    ctrl = input_array(ship.family.channels, {
-        'rpm': np.full(T, rpm), 'rudder': np.radians(20) * np.sin(np.arange(T) / 10),
-        'wind_n': np.full(T, 3.0), 'wind_e': np.full(T, -2.0),
-        'bow_thruster': np.full(T, 2.0), 'stern_thruster': np.full(T, -1.0)}, T)
+    swing = np.radians(20) * np.sin(np.arange(T) / 10)
+    cmds = {'wind_n': np.full(T, 3.0), 'wind_e': np.full(T, -2.0),
+            'bow_thruster': np.full(T, 2.0), 'stern_thruster': np.full(T, -1.0)}
+    if 'rpm' in ship.family.inputs:
+        cmds.update(rpm=np.full(T, self_propulsion_rpm(ship, _speed(ship))), rudder=swing)
+    else:   # another actuator: its own channels, angles swinging, speeds held
+        cmds.update({c: swing if TABLE[c].unit == 'rad' else np.full(T, 3.0)
+                     for c in ship.family.inputs if TABLE[c].default is None})
+    ctrl = input_array(ship.family.channels, cmds, T)
     ctrls = np.stack([ctrl, ctrl[::-1].copy()])
     x0s = np.stack([x0, x0])
     lengths = np.array([T, T - 30])

@@ -119,3 +119,99 @@ def test_tuning_lowspeed_parameters_recovers_them(esso):
     assert fit.J.tune < 0.1 * fit.J_pre.tune
     for k, v in truth.items():
         assert fit.params[k] == pytest.approx(v, rel=0.25), k
+
+
+# ------------------------------------------------------------ n-step prediction (issue 24)
+@pytest.fixture(scope='module')
+def suzaku_runs():
+    """SUZAKU zigzag and turning from the generator: (truth, noisy measured) pairs."""
+    from mmg_tuner.data.generate import generate_trial, SensorNoise
+    ship = mt.load_ship('suzaku')
+    runs = [generate_trial(ship, m, a, None, 106.0, 3.086, 120.0, 1.0, SensorNoise(), 7 + i,
+                           m) for i, (m, a) in enumerate((('zigzag', 20.0), ('turning', 25.0)))]
+    return ship, runs
+
+
+def test_nstep_perfect_model_is_exact_and_errors_grow_with_the_horizon(suzaku_runs):
+    """
+    On noise-free data the true model predicts every horizon exactly.
+
+    On noisy data horizon 1 is at the noise level while a wrong model's error grows with n.
+    """
+    ship, runs = suzaku_runs
+    hs = (1, 5, 10, 20, 30)
+    # the generator's truth moves the rudder within a sample (steering gear, 10 substeps):
+    # re-simulated with its logged inputs as evaluate runs them, the true model is exact
+    clean = []
+    for t, _ in runs:
+        sim = simulate(ship, t.states[0], t, t.dt, 'rk4')
+        clean.append(Trial(t.t, sim.states, inputs=t.inputs, name=t.name))
+    res = mt.evaluate(ship, clean, horizons=list(hs))
+    assert res.nstep.horizons == hs
+    for s, v in res.nstep.rmse.items():
+        assert max(v) < 1e-8, (s, v)
+    # every sample but the last starts a window; horizon n reaches T - n of them
+    T = sum(len(t) for t in clean)
+    assert res.nstep.windows == [T - len(clean) * h for h in hs]
+    assert max(res.relative.pooled.values()) < 1e-10
+    # a wrong model (weaker yaw damping) on the noisy recordings
+    noisy = [m for _, m in runs]
+    wrong = ship.with_params({'N_r': 0.6 * ship['N_r']})
+    res = mt.evaluate(wrong, noisy, horizons=list(hs))
+    r = res.nstep.rmse
+    noise = 0.02   # SensorNoise().speed_ms: horizon 1 sees about one noise sigma
+    assert r['u'][0] < 2 * noise and r['v'][0] < 2 * noise
+    for s in ('psi', 'r'):   # (x, y: the 0.5 m GNSS noise dominates at these horizons)
+        assert r[s][-1] > 3 * r[s][0], (s, r[s])
+        assert all(a <= b * 1.05 for a, b in zip(r[s], r[s][1:])), (s, r[s])
+    assert res.relative.pooled['r'] > 0.1   # the free run of the wrong model is off
+    per = res.relative.per_trial
+    assert set(per) == {'zigzag', 'turning'} and all(v['u'] > 0 for v in per.values())
+
+
+def test_nstep_matches_a_python_loop_of_simulate(suzaku_runs):
+    """One horizon checked against single simulations from the measured states."""
+    from mmg_tuner.tuning.nstep import nstep_errors
+    ship, runs = suzaku_runs
+    meas = runs[0][1]
+    wrong = ship.with_params({'N_r': 0.7 * ship['N_r']})
+    score, per = nstep_errors(wrong, [meas], [7], 'rk4')
+    inputs = meas.input_array(ship.family.channels)
+    err = []
+    for k in range(len(meas) - 7):
+        run = simulate(wrong, meas.states[k], inputs[k:k + 8], meas.dt, 'rk4', check=False)
+        err.append(run.states[7] - meas.states[k + 7])
+    err = np.array(err)
+    assert score.rmse['u'][0] == pytest.approx(np.sqrt(np.mean(err[:, 3] ** 2)), rel=1e-9)
+    assert score.rmse['x'][0] == pytest.approx(np.sqrt(np.mean(err[:, 0] ** 2)), rel=1e-9)
+    assert per[meas.name].rmse['r'] == score.rmse['r']
+
+
+def test_evaluate_command_with_horizons_writes_json_and_plot(suzaku_runs, tmp_path, capsys):
+    from mmg_tuner.data.csv_io import write_trial_csv
+    ship, runs = suzaku_runs
+    paths = []
+    for _, m in runs:
+        p = tmp_path / f'{m.name}.csv'
+        write_trial_csv(m, p)
+        paths.append(str(p))
+    out = tmp_path / 'ev'
+    rc = run_command(command, paths + ['--ship', 'suzaku', '--horizons', '1', '5', '10',
+                                       '--out', str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert 'n-step RMSE' in text and 'free-run relative error' in text
+    doc = json.loads((out / 'evaluate.json').read_text())
+    assert doc['n_step']['horizons'] == [1, 5, 10]
+    assert set(doc['n_step']['rmse']) == {'u', 'v', 'r', 'x', 'y', 'psi'}
+    assert set(doc['relative_error']['pooled']) == {'u', 'v', 'r'}
+    assert (out / 'evaluate_nstep.png').stat().st_size > 1000
+    assert 'n-step prediction' in (out / 'evaluate.md').read_text()
+
+
+def test_horizons_are_checked(esso):
+    with pytest.raises(mt.ConfigError, match='horizons'):
+        mt.EvaluateConfig(horizons=(0, 5))
+    with pytest.raises(mt.ConfigError, match='horizons'):
+        mt.EvaluateConfig(horizons=())
+    assert mt.EvaluateConfig(horizons=(10, 1, 10)).horizons == (1, 10)

@@ -26,7 +26,8 @@ LINT_ENFORCED = True
 def lint_paths() -> list[str]:
     """Return the package's own Python sources (never .venv, build, install or log)."""
     paths = [ROOT / 'mmg_tuner', ROOT / 'test', ROOT / 'bench', ROOT / 'launch',
-             ROOT / 'setup.py', *sorted((ROOT / 'scripts').glob('*.py'))]
+             ROOT / 'doc', ROOT / 'setup.py', *sorted((ROOT / 'scripts').glob('*.py')),
+             *sorted((ROOT / 'doc' / '_ext').glob('*.py'))]   # a folder walk skips _ext
     return [str(p) for p in paths if p.exists()]
 
 

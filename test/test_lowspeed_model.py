@@ -2,7 +2,7 @@
 The low-speed four-quadrant MMG against the reference's sanity numbers.
 
 The low-speed four-quadrant MMG (core/models/lowspeed.py) against the sanity numbers of
-docs/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with the
+doc/reference/esso_osaka_lowspeed_mmg.md §14 (an independent implementation that agrees with the
 lab's Fortran to 2e-10), with config/esso_osaka_3m.yaml; and the family through the generic kernels
 (core/dynamics.py, core/integrate.py) against the standalone form.
 """

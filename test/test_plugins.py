@@ -25,7 +25,6 @@ DESCRIPTION = 'toy water jet (test plugin)'
 
 import math
 
-from mmg_tuner.core.inputs import value
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from numba import njit
 
@@ -34,14 +33,13 @@ _TAU = PARAM_INDEX['toy_tau_nozzle']
 
 
 @njit(inline='always')
-def start(p, ctrl, shift, T, j, a, i):
-    a[i] = value(ctrl, 0, j + 1, shift, T)
+def start(p, cmd, a, i):
+    a[i] = cmd[1]
 
 
 @njit(inline='always')
-def hold(p, ctrl, k, shift, T, j, h, astern):
-    return OK, (value(ctrl, k, j, shift, T), value(ctrl, k, j + 1, shift, T),
-                math.exp(-h / p[_TAU]))
+def hold(p, cmd, h, astern):
+    return OK, (cmd[0], cmd[1], math.exp(-h / p[_TAU]))
 
 
 @njit(inline='always')

@@ -65,7 +65,7 @@ def test_sim_node_equals_offline_simulation(ros, sim_proc):
     # REP-103/105: a starboard turn is negative angular.z in FLU and clockwise in ENU
     last = got[-1]
     assert last.twist.twist.angular.z < 0
-    assert last.header.frame_id == 'map' and last.child_frame_id == 'base_link'
+    assert last.header.frame_id == 'odom' and last.child_frame_id == 'base_link'   # REP-105
     yaw = [math.atan2(2 * m.pose.pose.orientation.w * m.pose.pose.orientation.z,
                       1 - 2 * m.pose.pose.orientation.z ** 2) for m in got]
     assert np.all(np.diff(np.unwrap(yaw))[len(yaw) // 4:] < 0)
@@ -239,7 +239,7 @@ def test_replay_node_publishes_and_writes_mcap(ros, tmp_path):
                      '120', '--rate-hz', '2']) == 0
     rec, sim = [], []
     node.create_subscription(Odometry, '/recorded/odom', lambda m: rec.append(m), 50)
-    node.create_subscription(Odometry, '/odom', lambda m: sim.append(m), 50)
+    node.create_subscription(Odometry, '/model/odom', lambda m: sim.append(m), 50)
     out = tmp_path / 'replay'
     proc = start('replay_node', env, f"trial:={tmp_path / 'g' / 'zigzag_p20'}", 'speed:=20.0',
                  f'output_mcap:={out}')
@@ -249,7 +249,10 @@ def test_replay_node_publishes_and_writes_mcap(ros, tmp_path):
     assert 'replay finished: position error rms' in log
     assert len(rec) > 50 and len(sim) > 50
     trial = load_trials(tmp_path / 'g' / 'zigzag_p20')[0]
-    (from_mcap,) = load_trials(out)  # /odom in the file is the model's odometry
+    (recorded,) = load_trials(out)  # /odom in the file: the recording, as inspect reads it
+    np.testing.assert_allclose(recorded.states, trial.states, atol=1e-6)
+    from mmg_tuner.data.topics import topic_map_from_dict
+    (from_mcap,) = load_trials(out, topic_map_from_dict({'odom': {'topic': '/model/odom'}}))
     offline = simulate(load_ship('suzaku'), trial.states[0], trial.controls, 1.0, 'rk4',
                        check=False)
     np.testing.assert_allclose(from_mcap.states, offline.states, atol=1e-6)

@@ -239,9 +239,10 @@ def test_two_ships_in_two_namespaces_follow_their_own_commands(ros, tmp_path):
     for s in subs + [s3, s4]:
         if s is not None:
             node.destroy_subscription(s)
-    for ns, sign, world in (('ship1', -1, 'map'), ('ship2', 1, 'world')):
+    for ns, sign in (('ship1', -1), ('ship2', 1)):
         last = odom[ns][-1]
-        assert last.header.frame_id == world and last.child_frame_id == f'{ns}/base_link'
+        # REP-105: odometry in the ship's odom frame; the world frame is map -> odom's parent
+        assert last.header.frame_id == f'{ns}/odom' and last.child_frame_id == f'{ns}/base_link'
         # starboard turn: clockwise in ENU, angular.z < 0; port: > 0
         assert sign * last.twist.twist.angular.z > 0, ns
         yaw = np.unwrap([yaw_from_quaternion(m.pose.pose.orientation) for m in odom[ns]])

@@ -72,6 +72,12 @@ def bounded(kind, lo: float, hi: float, what: str = 'value'):
     return parse
 
 
+STRICT_HELP = ('make any WARNING about the recordings an error (exit status 2): inconsistent '
+               'channels (a heading flip, a position jump or outlier, a clock reset, astern '
+               'motion with the propeller ahead), a column in a likely wrong unit, a file '
+               'skipped; without it they are cut out or left out with the WARNING line')
+
+
 CUT_HELP = ('cut every trial from S seconds (default 5) before EVENT: rudder_first_over (the '
             'first held helm order; real runs start with a manually steered approach) or '
             'propeller_first_astern; a trial without the event is kept whole, with a note')

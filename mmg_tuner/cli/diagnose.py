@@ -19,7 +19,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, positive_float
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, positive_float, STRICT_HELP
 from mmg_tuner.cli.common import run_command
 from mmg_tuner.cli.tune import (DT, parse_or_resume, Parser, SEED, show_log, sigterm_as_interrupt,
                                 store_args, UsageError)
@@ -50,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--dt', type=DT, default=1.0, help='resampling step [s]')
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship')
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
     ap.add_argument('--residual', action='store_true',
@@ -87,7 +88,8 @@ def command(argv: list[str] | None = None) -> int:
         ship = api.load_ship(args.ship, args.params)
         load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
                 'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None)}  # (older runs: none)
+                'cut_from_event': getattr(args, 'cut_from_event', None),  # (older runs: none)
+                'strict': getattr(args, 'strict', False)}
         trials = api.load_trials(args.trials, **load)
         test = api.load_trials(args.test, **load) if args.test else None
         if test is None:

@@ -14,14 +14,25 @@ it as NAME_2, NAME_3, ...
 
 Examples
 --------
+A craft driven by two thrusters (the twin_azimuth actuator: qiuxin_tug, otter_usv) sails its
+own catalogue instead (data/generate.py twin_catalogue: the MBPE-LOGO paper's 12
+identification manoeuvres, then mirrored zigzags, turns, random command sequences and
+differential thrust; --only picks some by name) at 5 Hz with RTK-class noise, written as
+channel CSVs (DIR/csv/NAME.csv: t,x,y,psi,u,v,r,n_port,n_stbd,azimuth_port,azimuth_stbd,
+azimuth_cmd_port,azimuth_cmd_stbd), a bollard-pull table (DIR/bollard_pull.csv: n,thrust in
+rev/s and N per thruster) and DIR/trials.yaml (which trial is for identification, which for
+validation; the stand-ins used).
+
 generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20 random:30
 generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
     --duration 300
+generate --ship qiuxin_tug --out tug
 
 """
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import math
 from pathlib import Path
 import shutil
@@ -37,9 +48,11 @@ from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
-from mmg_tuner.data.generate import (generate_trial, out_of_library, parse_maneuver,
-                                     SensorNoise)
+from mmg_tuner.data.generate import (bollard_pull_table, generate_trial, generate_twin_trial,
+                                     is_twin, out_of_library, parse_maneuver, SensorNoise,
+                                     twin_catalogue, TwinNoise)
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
+import yaml
 
 # per trial: 1e6 samples is ~0.8 GB of bag (three topics a sample); a day at 10 Hz fits
 MAX_TRIAL_SAMPLES = 1_000_000
@@ -90,9 +103,14 @@ def build_parser() -> argparse.ArgumentParser:
                     f'{FALLBACK_FROUDE:g} for a ship that cannot make it, e.g. a pond model)')
     ap.add_argument('--thruster-rps', type=THRUSTER_RPS, default=20.0,
                     help='thruster speed of berthing / random_astern [rev/s] (0-200)')
-    ap.add_argument('--duration', type=positive_float, default=800.0, help='[s] per trial')
-    ap.add_argument('--rate-hz', type=RATE_HZ, default=10.0,
-                    help='sensor/recording rate (0.001-1000 Hz)')
+    ap.add_argument('--duration', type=positive_float,
+                    help='[s] per trial (default 800; a twin-thruster craft: each catalogue '
+                    "manoeuvre's own)")
+    ap.add_argument('--rate-hz', type=RATE_HZ,
+                    help='sensor/recording rate (0.001-1000 Hz; default 10, a twin-thruster '
+                    'craft 5)')
+    ap.add_argument('--only', nargs='+', metavar='NAME',
+                    help='a twin-thruster craft: only these manoeuvres of its catalogue')
     ap.add_argument('--no-noise', action='store_true', help='write the truth, no sensor noise')
     ap.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
                     type=effect_spec,
@@ -162,6 +180,7 @@ def approach(ship, rpm: float | None, speed_kn: float | None) -> tuple[float, fl
 
 def command(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    maneuvers_given = bool(args.maneuvers)
     if not args.maneuvers:
         args.maneuvers = [parse_maneuver(m) for m in DEFAULT_MANEUVERS]
     ship = load_ship_with_params(args.ship, args.params)   # refuses another ship's params
@@ -170,11 +189,17 @@ def command(argv: list[str] | None = None) -> int:
             ship = ship.with_params(dict(args.effect))
         except ConfigError as exc:
             raise UsageError(f'--effect: {exc}') from None
+    if is_twin(ship):   # two thrusters: its own catalogue, channel CSVs, a bollard table
+        return _twin(args, ship, maneuvers_given)
+    if args.only:
+        raise UsageError(f'--only: {ship.name} is not a twin-thruster craft; use --maneuvers')
     if args.hull_scale != 1.0 or args.scale:
         try:
             ship = out_of_library(ship, args.hull_scale, dict(args.scale))
         except ConfigError as exc:
             raise UsageError(f'--hull-scale/--scale: {exc}') from None
+    args.duration = 800.0 if args.duration is None else args.duration
+    args.rate_hz = 10.0 if args.rate_hz is None else args.rate_hz
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)
         return _from_advice(args, ship)
     for kind, rud, _ in args.maneuvers:
@@ -254,6 +279,74 @@ def _from_advice(args, ship) -> int:
             written.append(name)
             print(f'{name}: {spec.instruction()} -> {out.path / name}/ and '
                   f'{out.path / "csv" / name}.csv')
+    finally:
+        out.close()
+    return 0
+
+
+def _free_file(out: Path, stem: str, suffix: str) -> str:
+    """stem, or stem_2, stem_3, ...: the first whose file stem + suffix is free in out."""
+    cand, k = stem, 1
+    while (out / f'{cand}{suffix}').exists():
+        k += 1
+        cand = f'{stem}_{k}'
+    return cand
+
+
+def _twin(args, ship, maneuvers_given: bool) -> int:
+    """Sail a twin-thruster craft's catalogue; write channel CSVs, bollard table, trials.yaml."""
+    for flag, given in (('--maneuvers', maneuvers_given), ('--rpm', args.rpm),
+                        ('--speed-kn', args.speed_kn), ('--from-advice', args.from_advice),
+                        ('--record-wind', args.record_wind)):
+        if given:
+            raise UsageError(f'{flag}: {ship.name} is a twin-thruster craft: it sails its own '
+                             'catalogue (--only NAME ... picks some)')
+    catalogue = twin_catalogue(ship)
+    if args.only:
+        names = [m.name for m in catalogue]
+        unknown = [n for n in args.only if n not in names]
+        if unknown:
+            raise UsageError(f'--only: no manoeuvre {", ".join(unknown)} in the catalogue of '
+                             f'{ship.name}: {", ".join(names)}')
+        catalogue = [m for m in catalogue if m.name in args.only]
+    if args.duration is not None:
+        catalogue = [replace(m, duration_s=args.duration) for m in catalogue]
+    rate = 5.0 if args.rate_hz is None else args.rate_hz
+    for m in catalogue:
+        n = check_samples(m.duration_s * rate + 1, f'{m.name}: duration {m.duration_s:g} s x '
+                          f'--rate-hz {rate:g}', MAX_TRIAL_SAMPLES)
+        if n < MIN_SAMPLES:
+            raise UsageError(f'{m.name}: {n} sample(s); a usable trial needs {MIN_SAMPLES}')
+    noise = TwinNoise.none() if args.no_noise else TwinNoise()
+    out = OutputDir.open(args.out, resume=True)
+    roles: dict[str, list[str]] = {'identification': [], 'validation': []}
+    taken: set[str] = set()
+    try:
+        for i, m in enumerate(catalogue):
+            name = free_name(out.path, m.name, taken)
+            _, measured = generate_twin_trial(ship, replace(m, name=name), rate, noise,
+                                              args.seed + 100 * i)
+            out.write_text(Path('csv') / f'{name}.csv', trial_csv_text(measured))
+            taken.add(name)
+            roles[m.role].append(name)
+            print(f'{name}: {len(measured)} samples at {rate:g} Hz ({m.role}) -> '
+                  f'{out.path / "csv" / name}.csv')
+        table = bollard_pull_table(ship, noise, args.seed)
+        bollard = _free_file(out.path, 'bollard_pull', '.csv')
+        out.write_text(f'{bollard}.csv', 'n,thrust\n' + ''.join(
+            f'{n:.10g},{f:.10g}\n' for n, f in table))
+        listing = _free_file(out.path, 'trials', '.yaml')
+        out.write_text(f'{listing}.yaml', yaml.safe_dump({
+            'ship': ship.name, 'rate_hz': rate, 'noise': 'none' if args.no_noise else
+            {k: float(v) for k, v in noise.__dict__.items()}, 'seed': args.seed,
+            'bollard_pull': f'{bollard}.csv', **roles,
+            'assumptions': 'thrust curve, azimuth constants and sensor noise are stand-ins '
+                           f'(see {ship.source or ship.name} and data/generate.py TwinNoise)'},
+            sort_keys=False))
+        print(f'{bollard}.csv: {len(table)} rows (n [rev/s], thrust [N per thruster]); '
+              f'{len(roles["identification"])} identification and '
+              f'{len(roles["validation"])} validation trials listed in '
+              f'{out.path / listing}.yaml')
     finally:
         out.close()
     return 0

@@ -18,8 +18,9 @@ from dataclasses import replace
 import sys
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut
+from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, STRICT_HELP
 from mmg_tuner.cli.common import Parser, run_command
+from mmg_tuner.data.consistency import refuse_warnings, WarningLog
 from mmg_tuner.data.csv_io import trial_csv_text
 from mmg_tuner.data.load import parse_event_cut
 from mmg_tuner.data.summary import format_summary, summarize_many
@@ -40,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    'generic limits that fit any ship); astern propeller and '
                                    'u <= 0 are kept when its family covers them (lowspeed)')
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--csv', metavar='OUT_DIR',
                     help='write each trial as CSV into this new (or empty) folder')
     return ap
@@ -61,7 +63,10 @@ def command(argv: list[str] | None = None) -> int:
     cut = parse_event_cut(args.cut_from_event) if args.cut_from_event else None
     out = OutputDir.open(args.csv, option='--csv') if args.csv else None
     try:
-        summaries, trials = summarize_many(args.inputs, tm, limits, keep_astern, cut)
+        with WarningLog() as log:
+            summaries, trials = summarize_many(args.inputs, tm, limits, keep_astern, cut)
+        if args.strict:
+            refuse_warnings(log.lines)
         for rs in summaries:
             print(format_summary(rs))
         if out is not None:

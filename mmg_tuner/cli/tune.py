@@ -5,6 +5,11 @@ Examples
 --------
 tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suzaku --out tuned
 tune --resume tuned        # continue an interrupted run (from any working directory)
+tune twin/*.csv --ship qiuxin_tug --bollard-pull bollard.csv --method lo-go --out id
+
+A control-oriented family (surge_decoupled, simplified6) is identified local -> global
+(MBPE-LOGO: thrust polynomial from the bollard pull, azimuth dynamics, LO least squares, GO
+simulation fit; ``tuning/lo_go.py``) unless --method cmaes asks for CMA-ES.
 
 """
 from __future__ import annotations
@@ -20,9 +25,11 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, positive_float,
-                                positive_int)
+from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, nonneg_int,
+                                positive_float, positive_int, STRICT_HELP)
 from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.tuning.lo_go import METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
@@ -80,8 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--segment', type=nonneg_float, default=0.0, metavar='S',
                     help='tune on pieces of S s, each started from the recorded state '
                     '(multiple shooting at the data level; 0: whole trials)')
-    ap.add_argument('--balance', choices=('sample', 'trial'), default='sample',
-                    help="'trial': every tuning trial weighs the same, whatever its length")
+    ap.add_argument('--balance', choices=('sample', 'trial', 'group'), default='sample',
+                    help="'trial': every tuning trial weighs the same, whatever its length; "
+                    "'group': every kind of run (the trials' folders) weighs the same")
     ap.add_argument('--prior', type=nonneg_float, default=0.0, metavar='W',
                     help='pull toward the pre-determined values: W x J per sample per squared '
                     'box width (0: none)')
@@ -90,11 +98,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
                     help="'full': trials are full scale, Froude-scale them to the ship config")
     ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--popsize', type=POPSIZE, default=12)
     ap.add_argument('--max-popsize', type=POPSIZE, default=128)
-    ap.add_argument('--max-evals', type=positive_int, default=200_000)
+    ap.add_argument('--max-evals', type=nonneg_int, default=200_000,
+                    help='CMA-ES budget (0: none, the --polish alone from the pre-determined '
+                    'values)')
     ap.add_argument('--seed', type=SEED, default=0)
     res = ap.add_mutually_exclusive_group()
     res.add_argument('--residual', action='store_true',
@@ -116,9 +127,49 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--residual-seeds', type=bounded(int, 1, 32, 'residual seeds'), metavar='N',
                     help='residual: train N networks (seeds --seed, --seed + 1, ...) and keep '
                     'their mean, one exact ensemble (default 1; N times the training time)')
+    ap.add_argument('--model', choices=api.MODEL_CHOICES, default='physics',
+                    help='auto: also train the pure network and the hybrid (when JAX is '
+                    'installed and the trials allow it), compare them with the tuned physics '
+                    'on the last quarter of each trial per kind of run (the folder of the trial) '
+                    'and write the recommended one (report.md: the table); with '
+                    '--residual-seeds N >= 2 it carries a calibrated 90 %% interval')
+    ap.add_argument('--polish', type=nonneg_int, default=0, metavar='N',
+                    help='after CMA-ES, a local least-squares polish of at most N simulations '
+                    '(0: none)')
+    lg = ap.add_argument_group('local -> global identification (control-oriented families)')
+    lg.add_argument('--method', choices=('cmaes',) + METHODS,
+                    help="'lo': one linear least-squares problem on measured accelerations; "
+                    "'go': simulation fit from the ship's values; 'lo-go': GO from LO, pulled "
+                    "toward it; 'cmaes': the CMA-ES tuning (default: lo-go for a "
+                    'control-oriented family, cmaes otherwise)')
+    lg.add_argument('--bollard-pull', metavar='FILE.csv',
+                    help='bollard-pull table, columns n,thrust (rev/s, N per thruster): the '
+                    'thrust polynomial is fitted to it first')
+    lg.add_argument('--thrust-degree', type=bounded(int, 1, 5, 'thrust degree'),
+                    help='degree of the thrust polynomial (default: by leave-one-out error)')
+    lg.add_argument('--smooth', type=nonneg_float, default=2.0, metavar='S',
+                    help='LO: Savitzky-Golay window on the velocities [s] (0: none)')
+    lg.add_argument('--ridge', type=nonneg_float, default=1e-6,
+                    help='GO: pull toward the LO solution per squared relative change')
+    lg.add_argument('--go-segment', type=nonneg_float, default=20.0, metavar='S',
+                    help='GO: simulate pieces of S s from the measured state (0: whole trials)')
+    lg.add_argument('--go-iter', type=positive_int, default=40, metavar='N',
+                    help='GO: most Levenberg-Marquardt iterations')
+    lg.add_argument('--grow', action='store_true',
+                    help="GO: add the trials one by one (the paper's Algorithm 1)")
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
     return ap
+
+
+def trial_kinds(trials) -> dict[str, str] | None:
+    """
+    Return trial name -> kind of run: the name of the folder each trial was read from.
+
+    None when the trials come from one folder (each trial is then its own kind).
+    """
+    kinds = {t.name: Path(str(t.source).split('#')[0]).parent.name for t in trials if t.source}
+    return kinds if len(set(kinds.values())) > 1 and len(kinds) == len(trials) else None
 
 
 # ----------------------------------------------------------------- shared with ``diagnose``
@@ -300,11 +351,12 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
     opts = {field: getattr(args, dest) for dest, field in RESIDUAL_OPTIONS.items()
             if getattr(args, dest, None) is not None}
     seeds = getattr(args, 'residual_seeds', None)
-    if (opts or seeds is not None) and kind is None:
+    auto = getattr(args, 'model', 'physics') == 'auto'
+    if (opts or seeds is not None) and kind is None and not auto:
         given = [d for d in (*RESIDUAL_OPTIONS, 'residual_seeds')
                  if getattr(args, d, None) is not None]
         raise UsageError(', '.join('--' + d.replace('_', '-') for d in given)
-                         + ': only with --residual or --residual-only')
+                         + ': only with --residual, --residual-only or --model auto')
     if 'hidden' in opts:
         opts['hidden'] = tuple(opts['hidden'])
     return api.TuneConfig(targets=args.targets, a_r=args.ar, bounds=dict(args.bound),
@@ -315,19 +367,123 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
                           seed=args.seed, segment_s=getattr(args, 'segment', 0.0),
                           balance=getattr(args, 'balance', 'sample'),
                           prior=getattr(args, 'prior', 0.0), residual=kind, residual_options=opts,
-                          residual_seeds=1 if seeds is None else seeds)
+                          residual_seeds=1 if seeds is None else seeds,
+                          model=getattr(args, 'model', 'physics'),
+                          polish=getattr(args, 'polish', 0))
 
 
-def command(argv: list[str] | None = None) -> int:
-    args, notes, resume = parse_or_resume(build_parser(), argv, 'tune', 'tuning trials')
-    config = tune_config(args)             # every option checked before any work
-    with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
-        for n in notes:
-            logging.getLogger(__name__).warning('resume: %s', n)
+RECIPE_KEYS = ('targets', 'segment', 'balance', 'prior', 'max_evals', 'polish', 'integrator',
+               'substeps', 'popsize', 'max_popsize')
+"""What a ship config's ``tuning.recipe`` may set (the dests of this command's options)."""
+
+
+def apply_recipe(args: argparse.Namespace, given: dict, ship) -> list[str]:
+    """
+    Fill the options not given on the command line from the ship config's ``tuning.recipe``.
+
+    A plain ``tune TRIALS --ship NAME`` then tunes as that ship's config says works on its
+    kind of data (config/esso_osaka_3m.yaml: the low-speed recipe of bench/esso_osaka.py);
+    an option given on the command line always wins. Returns what was applied.
+    """
+    recipe = (ship.extra.get('tuning') or {}).get('recipe') or {}
+    if not isinstance(recipe, dict):
+        raise UsageError(f'{ship.source}: tuning.recipe must be a mapping of option: value')
+    bad = sorted(set(recipe) - set(RECIPE_KEYS))
+    if bad:
+        raise UsageError(f'{ship.source}: tuning.recipe: unknown option(s) {bad} (known: '
+                         f'{list(RECIPE_KEYS)})')
+    applied = []
+    for k, v in recipe.items():
+        if k not in given:
+            setattr(args, k, list(v) if k == 'targets' else v)
+            applied.append(f'{k}={v if k != "targets" else len(v)}')
+    return applied
+
+
+def identify_method(args: argparse.Namespace, ship) -> str | None:
+    """Return the local -> global method to run (None: the CMA-ES tuning)."""
+    method = getattr(args, 'method', None)
+    if method == 'cmaes':
+        return None
+    if method is None and getattr(args, 'bollard_pull', None) is None:
+        return 'lo-go' if ship.family.motion is not None else None
+    return method or 'lo-go'
+
+
+def identify_command(args: argparse.Namespace, method: str) -> int:
+    """``tune`` for a control-oriented family: identification local -> global."""
+    if args.resume:
+        raise UsageError('--resume: an identification is not resumable (it takes seconds): '
+                         'run it again with a new --out')
+    config = api.IdentifyConfig(method=method, bollard_pull=args.bollard_pull,
+                                thrust_degree=args.thrust_degree, targets=args.targets,
+                                smooth_s=args.smooth, ridge=args.ridge,
+                                segment_s=args.go_segment, max_iter=args.go_iter,
+                                grow=args.grow)
+    with show_log(args.quiet), OutputDir.open(args.out) as out:
         ship = api.load_ship(args.ship, args.params)
         load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
                 'trial_scale': args.trial_scale,
                 'cut_from_event': getattr(args, 'cut_from_event', None)}
+        trials = api.load_trials(args.trials, **load)
+        test = api.load_trials(args.test, **load) if args.test else []
+        store_args(out, 'tune', args)
+        result = api.identify(ship, trials, config)
+        result.write(out)
+        rep = result.report()
+        if result.thrust is not None:
+            t = result.thrust
+            print(f'thrust: degree {t.degree} polynomial, RMSE {t.rmse_N:.3g} N over '
+                  f'{t.points} bollard points')
+        if result.azimuth is not None:
+            a = result.azimuth
+            print(f'azimuth: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s (R^2 {a.r2:.5f})')
+        if 'lo' in rep:
+            print(f"LO: {rep['lo']['samples']} intervals, one least-squares problem, "
+                  f"{rep['lo']['wall_s']:.2f} s")
+        if 'go' in rep:
+            g = rep['go']
+            print(f"GO: cost {g['cost_start']:.4g} -> {g['cost']:.4g} in {g['evaluations']} "
+                  f"simulations, {g['wall_s']:.1f} s ({g['message']})")
+        if test:
+            ev = api.evaluate(result.identified_ship, test, horizons=(1, 10, 50))
+            rel = ev.relative.pooled
+            print('held-out free-run relative error: ' + ', '.join(
+                f'{k} {"-" if v is None else format(100 * v, ".3g")} %' for k, v in rel.items()))
+        print(f'identified {len(result.params)} parameters ({method}) in {result.wall_s:.1f} s; '
+              f'wrote {out.path}/params.yaml, identify.md, identify.json')
+    return 0
+
+
+def command(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args, notes, resume = parse_or_resume(parser, argv, 'tune', 'tuning trials')
+    if getattr(args, 'method', None) not in (None, 'cmaes') or getattr(args, 'bollard_pull',
+                                                                       None):
+        return identify_command(args, identify_method(args, None))
+    recipe = [] if resume else apply_recipe(   # a resumed run keeps its stored options
+        args, explicit_options(parser, argv), api.load_ship(args.ship, args.params))
+    config = tune_config(args)             # every option checked before any work
+    if not resume:
+        try:
+            ship = api.load_ship(args.ship, args.params)
+        except MmgTunerError:   # reported where the tuning loads it, as before
+            ship = None
+        method = None if ship is None else identify_method(args, ship)
+        if method is not None:
+            return identify_command(args, method)
+    with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
+        for n in notes:
+            logging.getLogger(__name__).warning('resume: %s', n)
+        if recipe:
+            logging.getLogger(__name__).info(
+                "options from the ship config's tuning.recipe: %s (options given on the "
+                'command line win)', ', '.join(recipe))
+        ship = api.load_ship(args.ship, args.params)
+        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
+                'trial_scale': args.trial_scale,
+                'cut_from_event': getattr(args, 'cut_from_event', None),
+                'strict': getattr(args, 'strict', False)}
         tune_trials = api.load_trials(args.trials, **load)
         test_trials = api.load_trials(args.test, **load) if args.test else []
         if not resume:
@@ -337,7 +493,7 @@ def command(argv: list[str] | None = None) -> int:
             with sigterm_as_interrupt():
                 result = api.tune(ship, tune_trials, test_trials, config,
                                   checkpoint=out.path / CHECKPOINT, resume=resume,
-                                  progress=bar)
+                                  progress=bar, groups=trial_kinds(tune_trials))
         finally:
             if bar is not None:
                 bar.close()
@@ -348,6 +504,10 @@ def command(argv: list[str] | None = None) -> int:
                  f'({fmt_gain(J0.test, J.test)} lower)' if test_trials else ''))
         for n, t in J.failed_at_s.items():
             print(f'the tuned model diverges on {n} at t = {t:.1f} s')
+        if result.choice is not None:
+            print('--model auto: candidates on the last quarter of each tuning trial (index, '
+                  'mean per kind):\n' + result.choice.markdown()
+                  + f'recommended: {result.choice.chosen} (written as params.yaml)')
         if result.residual is not None:
             print(_residual_line(result.residual))
         if result.bounds_hit:

@@ -78,4 +78,4 @@ def cache_dir() -> Path:
 def configure() -> None:
     """Set numba's cache folder (idempotent; call before importing any kernel module)."""
     import numba
-    numba.config.CACHE_DIR = str(cache_dir())
+    numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]  # set at run time

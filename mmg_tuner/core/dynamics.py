@@ -25,6 +25,7 @@ import warnings
 
 from mmg_tuner.core._jit import FASTMATH, U_MIN
 from mmg_tuner.core.actuators import actuator
+from mmg_tuner.core.inputs import commands, where
 from mmg_tuner.core.layout import OK, PARAM_INDEX
 from mmg_tuner.core.models import families
 from numba import njit, types
@@ -229,23 +230,26 @@ def actuate_start(kind, p, ctrl, shift, T, a):
 @overload(actuate_start, inline='always', jit_options={'fastmath': FASTMATH})
 def _actuate_start_impl(kind, p, ctrl, shift, T, a):
     plant = _plant(_tag_code(kind))
-    s0, j0, i0 = plant[0][0].start, plant[0][1], plant[0][2]
+    s0, r0, j0, i0 = plant[0][0].start, commands(len(plant[0][0].inputs)), plant[0][1], plant[0][2]
     if len(plant) == 1:
         def start1(kind, p, ctrl, shift, T, a):
-            s0(p, ctrl, shift, T, j0, a, i0)
+            k0, k1, w = where(0, shift, T)
+            s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
         return start1
-    s1, j1, i1 = plant[1][0].start, plant[1][1], plant[1][2]
+    s1, r1, j1, i1 = plant[1][0].start, commands(len(plant[1][0].inputs)), plant[1][1], plant[1][2]
     if len(plant) == 2:
         def start2(kind, p, ctrl, shift, T, a):
-            s0(p, ctrl, shift, T, j0, a, i0)
-            s1(p, ctrl, shift, T, j1, a, i1)
+            k0, k1, w = where(0, shift, T)
+            s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
+            s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
         return start2
-    s2, j2, i2 = plant[2][0].start, plant[2][1], plant[2][2]
+    s2, r2, j2, i2 = plant[2][0].start, commands(len(plant[2][0].inputs)), plant[2][1], plant[2][2]
 
     def start3(kind, p, ctrl, shift, T, a):
-        s0(p, ctrl, shift, T, j0, a, i0)
-        s1(p, ctrl, shift, T, j1, a, i1)
-        s2(p, ctrl, shift, T, j2, a, i2)
+        k0, k1, w = where(0, shift, T)
+        s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
+        s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
+        s2(p, r2(ctrl, k0, k1, w, j2), a, i2)
     return start3
 
 
@@ -259,25 +263,28 @@ def _actuate_hold_impl(kind, p, ctrl, k, shift, T, h):
     code = _tag_code(kind)
     astern = ASTERN_RPM[code]
     plant = _plant(code)
-    h0, j0 = plant[0][0].hold, plant[0][1]
+    h0, r0, j0 = plant[0][0].hold, commands(len(plant[0][0].inputs)), plant[0][1]
     if len(plant) == 1:
         def hold1(kind, p, ctrl, k, shift, T, h):
-            st, held = h0(p, ctrl, k, shift, T, j0, h, astern)
+            k0, k1, w = where(k, shift, T)
+            st, held = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
             return st, (held,)
         return hold1
-    h1, j1 = plant[1][0].hold, plant[1][1]
+    h1, r1, j1 = plant[1][0].hold, commands(len(plant[1][0].inputs)), plant[1][1]
     if len(plant) == 2:
         def hold2(kind, p, ctrl, k, shift, T, h):
-            st0, held0 = h0(p, ctrl, k, shift, T, j0, h, astern)
-            st1, held1 = h1(p, ctrl, k, shift, T, j1, h, astern)
+            k0, k1, w = where(k, shift, T)
+            st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
+            st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
             return (st0 if st0 != OK else st1), (held0, held1)
         return hold2
-    h2, j2 = plant[2][0].hold, plant[2][1]
+    h2, r2, j2 = plant[2][0].hold, commands(len(plant[2][0].inputs)), plant[2][1]
 
     def hold3(kind, p, ctrl, k, shift, T, h):
-        st0, held0 = h0(p, ctrl, k, shift, T, j0, h, astern)
-        st1, held1 = h1(p, ctrl, k, shift, T, j1, h, astern)
-        st2, held2 = h2(p, ctrl, k, shift, T, j2, h, astern)
+        k0, k1, w = where(k, shift, T)
+        st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
+        st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
+        st2, held2 = h2(p, r2(ctrl, k0, k1, w, j2), h, astern)
         st = st0 if st0 != OK else (st1 if st1 != OK else st2)
         return st, (held0, held1, held2)
     return hold3
@@ -413,7 +420,8 @@ def blendermann(p, ua, va):
     X = C_X q A_F, Y = C_Y q A_L, N = C_N q A_L L_OA, q = 1/2 rho_air V_A^2.
     """
     VA2 = ua * ua + va * va
-    if VA2 == 0.0:
+    if VA2 == 0.0 or not (p[_AL] > 0.0 and p[_CDt] > 0.0):
+        # no wind, or a ship file without windage (the tug's gives none): no load, not 0/0
         return 0.0, 0.0, 0.0
     gamma = math.atan2(-va, -ua)
     CDlAF = p[_CDlb] if abs(gamma) <= 0.5 * math.pi else p[_CDls]
@@ -460,9 +468,14 @@ def external_accelerations(kind, p, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rhs(kind, p, s, act, out):
+def rhs(kind, p, s, act, out, r0=0.0, r1=0.0, r2=0.0, physics=True):
     """
     Write ds/dt for s = (x, y, psi, u, v, r) into out; u, v through the water.
+
+    Plus the learned residual's accelerations (r0, r1, r2) [m/s^2, m/s^2, rad/s^2];
+    physics False: the residual replaces the family's accelerations (a pure network).
+    Without a network the callers pass zeros and True: adding 0.0 changes no bit. (Here, not
+    in a wrapper: each inlined layer that passes the arrays on costs reference counts.)
 
     Inlined into the integrators: a compiled call passing arrays costs an atomic
     reference-count update per array argument and exit, about 40 % of an Euler step.
@@ -494,9 +507,14 @@ def rhs(kind, p, s, act, out):
         dv += av
         dr += ar
     out[2] = r
-    out[3] = du
-    out[4] = dv
-    out[5] = dr
+    if physics:
+        out[3] = du + r0
+        out[4] = dv + r1
+        out[5] = dr + r2
+    else:
+        out[3] = r0
+        out[4] = r1
+        out[5] = r2
 
 
 @njit(cache=True, fastmath=FASTMATH)

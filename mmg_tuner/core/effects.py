@@ -92,7 +92,8 @@ class Effect:
         out = []
         for box, unit in zip(self.boxes, self.units):
             if callable(box):
-                out.append(tuple(float(b) for b in box(ship)))
+                lo, hi = box(ship)
+                out.append((float(lo), float(hi)))
             else:
                 f = froude_factor(unit, ship.scale_ratio)
                 out.append((box[0] * f, box[1] * f))

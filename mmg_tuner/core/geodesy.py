@@ -3,7 +3,7 @@ Geodetic (WGS84 latitude, longitude, ellipsoidal height) <-> a local tangent pla
 
 A thin wrapper over pymap3d (a maintained, pure-Python geodesy library) so that the rest of the
 package never does ellipsoid maths by hand. The local frame is ENU at a datum: x east,
-y north, z up [m] -- the ROS ``map`` frame of REP-103/105 (see docs/conventions.md).
+y north, z up [m] -- the ROS ``map`` frame of REP-103/105 (see doc/conventions.md).
 
 Examples
 --------

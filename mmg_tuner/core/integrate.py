@@ -56,25 +56,6 @@ _Vw = PARAM_INDEX['wind_speed']
 _dirw = PARAM_INDEX['wind_dir']
 
 
-@njit(cache=True, fastmath=FASTMATH, inline='always')
-def deriv(kind, p, s, act, r0, r1, r2, physics, out):
-    """
-    ds/dt into out, plus the learned residual's accelerations (r0, r1, r2).
-
-    physics False: the residual replaces the family's accelerations (a pure network).
-    Without a network the callers pass zeros and True: adding 0.0 changes no bit.
-    """
-    rhs(kind, p, s, act, out)
-    if physics:
-        out[3] += r0
-        out[4] += r1
-        out[5] += r2
-    else:
-        out[3] = r0
-        out[4] = r1
-        out[5] = r2
-
-
 @njit(cache=True, fastmath=FASTMATH)
 def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
     """
@@ -83,20 +64,20 @@ def step(kind, p, s, act, h, method, k1, k2, k3, k4, tmp, r0, r1, r2, physics):
     Not inlined: the RK4 path's four right-hand sides stay one compiled function, which keeps
     the Euler hot loop small and the compile time of every whole-run kernel down.
     """
-    deriv(kind, p, s, act, r0, r1, r2, physics, k1)
+    rhs(kind, p, s, act, k1, r0, r1, r2, physics)
     if method == EULER:
         for i in range(6):
             s[i] += h * k1[i]
         return
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k1[i]
-    deriv(kind, p, tmp, act, r0, r1, r2, physics, k2)
+    rhs(kind, p, tmp, act, k2, r0, r1, r2, physics)
     for i in range(6):
         tmp[i] = s[i] + 0.5 * h * k2[i]
-    deriv(kind, p, tmp, act, r0, r1, r2, physics, k3)
+    rhs(kind, p, tmp, act, k3, r0, r1, r2, physics)
     for i in range(6):
         tmp[i] = s[i] + h * k3[i]
-    deriv(kind, p, tmp, act, r0, r1, r2, physics, k4)
+    rhs(kind, p, tmp, act, k4, r0, r1, r2, physics)
     for i in range(6):
         s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
@@ -203,7 +184,7 @@ def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, k1, k2, k3, 
     for _ in range(substeps):
         act = actuate_output(kind, p, held, a)
         if method == EULER:  # the tuning hot path: keep the call chain shallow for inlining
-            deriv(kind, p, s, act, r0, r1, r2, physics, k1)
+            rhs(kind, p, s, act, k1, r0, r1, r2, physics)
             for i in range(6):
                 s[i] += h * k1[i]
         else:

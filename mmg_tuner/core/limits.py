@@ -75,6 +75,8 @@ class InputLimits:
         0 when the family has no thruster inputs (every thruster command is refused).
     thruster_basis: where thruster_max_rps comes from (for messages).
     model: the ship's model family (for messages).
+    length_m: the ship's length between perpendiculars [m] (0: not known, generic limits);
+        it scales the readers' consistency checks (data/consistency.py).
 
     """
 
@@ -92,6 +94,7 @@ class InputLimits:
     thruster_max_rps: float = 0.0
     thruster_basis: str = ''
     model: str = ''
+    length_m: float = 0.0
 
     @property
     def thrusters(self) -> bool:
@@ -224,7 +227,8 @@ def _compute(ship: ShipConfig) -> InputLimits:
         astern_rpm=fam.astern_rpm,
         thruster_max_rps=thr,
         thruster_basis=thr_basis,
-        model=ship.model)
+        model=ship.model,
+        length_m=float(L))
 
 
 def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:

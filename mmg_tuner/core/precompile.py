@@ -43,8 +43,9 @@ def _stepper(ship_yaml: Path) -> None:
 def kernels() -> dict[str, Callable[[], None]]:
     """Return what to run, by name: each family's whole-run kernel, then the stepper."""
     ships = ships_by_family()
-    jobs = {f'simulate, {family} family (simulate, replay_node)': partial(_whole_run, f)
-            for family, f in ships.items()}
+    jobs: dict[str, Callable[[], None]] = {
+        f'simulate, {family} family (simulate, replay_node)': partial(_whole_run, f)
+        for family, f in ships.items()}
     jobs['stepper, every family (sim_node)'] = partial(_stepper, next(iter(ships.values())))
     return jobs
 

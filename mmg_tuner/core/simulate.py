@@ -84,21 +84,33 @@ def check_inputs(x0: np.ndarray, controls: np.ndarray, dt: float, t0: float = 0.
     if x0[3] <= 0 and not astern_surge:
         raise SimulationError(f'{what}: initial surge u = {x0[3]:.3f} m/s; the MMG model '
                               'covers u > 0 only')
+    # channels whose default is NaN ("not recorded", e.g. an azimuth command) may be NaN
     n_cmd = len(fam.inputs)
-    cmd = controls[:, :n_cmd]
+    cols = [j for j, c in enumerate(fam.inputs) if not _optional(c)]
+    cmd = controls[:, cols] if len(cols) < n_cmd else controls[:, :n_cmd]
     # one pass on the usual path (a sum of finite values can still overflow: then look closer)
     bad = None if np.isfinite(cmd.sum()) else ~np.all(np.isfinite(cmd), axis=1)
     if bad is not None and bad.any():
         k = int(np.argmax(bad))
-        j = int(np.argmax(~np.isfinite(controls[k, :n_cmd])))
+        j = cols[int(np.argmax(~np.isfinite(cmd[k])))]
         raise SimulationError(f'{what}: non-finite control at t = {t0 + k * dt:.2f} s '
                               f'({fam.inputs[j]})')
+    for j, c in enumerate(fam.inputs):
+        if _optional(c) and np.isinf(controls[:, j]).any():
+            k = int(np.argmax(np.isinf(controls[:, j])))
+            raise SimulationError(f'{what}: infinite control at t = {t0 + k * dt:.2f} s ({c})')
     if 'rpm' in fam.inputs and not astern_rpm:
         rpm = controls[:-1, fam.inputs.index('rpm')]
         if rpm.min(initial=1.0) <= 0:
             k = int(np.argmax(rpm <= 0))
             raise SimulationError(f'{what}: rpm = {rpm[k]:.2f} at t = {t0 + k * dt:.2f} s;'
                                   ' the MMG model covers forward propeller revolutions only')
+
+
+def _optional(channel: str) -> bool:
+    """Whether a command channel may be NaN: its default says "not recorded"."""
+    default = TABLE[channel].default
+    return default is not None and default != default
 
 
 def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',

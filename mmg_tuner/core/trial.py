@@ -200,10 +200,11 @@ def input_array(channels, values: Mapping[str, Any], T: int, where: str = 'input
     """
     Stack the named channels of ``values`` (name -> (T,) array) into one (T, n) array.
 
-    Absent channels take their default (``channels.TABLE``); a required one is a
-    TrialDataError naming it and what the trial has.
+    Absent channels take their default (``channels.TABLE``); required ones missing are a
+    TrialDataError naming each of them and what the trial has.
     """
     out = np.empty((T, len(channels)))
+    missing = []
     for j, n in enumerate(channels):
         if n in values:
             out[:, j] = values[n]
@@ -211,10 +212,13 @@ def input_array(channels, values: Mapping[str, Any], T: int, where: str = 'input
         ch = TABLE.get(n)
         if ch is None or ch.default is None:
             what = f'{ch.description} [{ch.unit}]' if ch else 'an unknown channel'
-            raise TrialDataError(f'{where}: no input channel {n!r} ({what}); the ship needs '
-                                 f'{", ".join(channels)}, the trial has '
-                                 f'{", ".join(values) or "none"}')
+            missing.append(f'{n!r} ({what})')
+            continue
         out[:, j] = ch.default
+    if missing:   # every one named: a user fixes the file once
+        raise TrialDataError(f'{where}: no input channel {", ".join(missing)}; the ship needs '
+                             f'{", ".join(channels)}, the trial has '
+                             f'{", ".join(values) or "none"}')
     return out
 
 

@@ -23,6 +23,10 @@ from mmg_tuner.core import frames
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
 from mmg_tuner.core.limits import InputLimits, RUDDER_HARD_CAP_RAD
 from mmg_tuner.data.bag import RawRecording, Series
+from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion,
+                                        reset_findings, split_at, unusable_reason,
+                                        UnusableRecordingError, warn)
+from mmg_tuner.data.files import brief
 from mmg_tuner.data.topics import IMU, NAVSATFIX, THRUSTER_ROLES, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -122,13 +126,18 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
             s.stamps_ns, s.values = s.stamps_ns[~dup], s.values[~dup]
     if s.stamps_ns.size < 2:
         raise TrialDataError(f'{path}: topic {s.topic} has fewer than 2 usable samples'
-                             + (f' ({"; ".join(s.notes)})' if s.notes else ''))
+                             + (f' ({brief(s.notes)})' if s.notes else ''))
     return s
 
 
-def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int, notes: list[str]
-              ) -> list[tuple[float, float]]:
-    """Time ranges [s] covered by every topic without a gap longer than max_gap_s."""
+def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int, notes: list[str],
+              faults: list[tuple[float, float]] = ()) -> list[tuple[float, float]]:
+    """
+    Time ranges [s] covered by every topic without a gap longer than max_gap_s.
+
+    faults: open ranges (last good sample, first good sample) [s] the consistency checks cut
+    out; they split the ranges as a gap does.
+    """
     start = max(float((s.stamps_ns[0] - t0_ns) * 1e-9) for s in series)
     end = min(float((s.stamps_ns[-1] - t0_ns) * 1e-9) for s in series)
     if end <= start:
@@ -141,6 +150,7 @@ def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int,
             cuts.append((t[g], t[g + 1]))
             notes.append(f'{s.topic}: gap of {t[g + 1] - t[g]:.1f} s at t = {t[g]:.1f} s '
                          f'(> {tm.max_gap_s:g} s): trial split there')
+    cuts.extend(faults)
     segs = [(start, end)]
     for a, b in sorted(cuts):
         new = []
@@ -169,6 +179,9 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     to every trial's notes.
     """
     tm = rec.topic_map or tm
+    resets = {r: clock_resets(s.stamps_ns * 1e-9) for r, s in rec.series.items()}
+    if any(v.size for v in resets.values()):
+        return _split_at_clock_resets(rec, tm, name, limits, keep_astern, resets)
     needed = ['odom', 'rudder', 'rpm']
     for role in needed:
         if role not in rec.series:
@@ -204,8 +217,15 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     how += _describe_times({**cleaned, **thr}, wind)
     rec.reading.extend(h for h in how if h not in rec.reading)
     notes.extend(how)
+    # the channels against each other, at the recording's own times (before resampling)
+    findings = check_motion(name, _motion(kin, cleaned['rpm'], tm, t0_ns),
+                            limits.length_m if limits is not None else 0.0)
+    warn(findings)
+    notes.extend(f.note() for f in findings)
+    if any(f.long for f in findings):
+        raise UnusableRecordingError(f'{rec.path}: not used: {unusable_reason(findings)}')
     trials = []
-    for lo, hi in _segments(rec, series, tm, t0_ns, notes):
+    for lo, hi in _segments(rec, series, tm, t0_ns, notes, cuts(findings)):
         n = int(math.floor((hi - lo) / tm.dt + 1e-9)) + 1
         if n > MAX_SAMPLES:
             raise TrialDataError(f'{rec.path}: segment {lo:.1f}-{hi:.1f} s would need {n} '
@@ -218,7 +238,7 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
         trials.extend(_resample(kin, cleaned['rudder'], cleaned['rpm'], tm, t0_ns, grid,
                                 rec.path, name, notes, wind, thr, keep_astern))
     if not trials:
-        raise TrialDataError(f'{rec.path}: no usable trial ({"; ".join(notes) or "too short"})')
+        raise TrialDataError(f'{rec.path}: no usable trial ({brief(notes) or "too short"})')
     for tr in trials:
         lag = command_lag_s(tr, window_s=tm.smooth_s)
         if lag is not None:
@@ -227,6 +247,64 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
         for i, tr in enumerate(trials, 1):
             tr.name = f'{name}_{i}'
     return trials
+
+
+def _split_at_clock_resets(rec: RawRecording, tm: TopicMap, name: str,
+                           limits: InputLimits | None, keep_astern: bool,
+                           resets: dict[str, np.ndarray]) -> list[Trial]:
+    """
+    Assemble each stretch between clock resets on its own (never sorted into one splice).
+
+    Every topic must go back as often as the others (one clock for all); otherwise which
+    samples belong together cannot be told, and the recording is refused naming the topics.
+    """
+    counts = {rec.series[r].topic: int(v.size) for r, v in resets.items()}
+    if len(set(counts.values())) > 1:
+        raise TrialDataError(f'{rec.path}: the time goes backwards (a clock reset) a different '
+                             f'number of times per topic ({counts}): which samples belong '
+                             'together cannot be told; split the recording at the reset')
+    lead = 'odom' if 'odom' in rec.series else next(iter(rec.series))
+    stamps = rec.series[lead].stamps_ns
+    found = reset_findings(name, stamps * 1e-9, resets[lead], stamps[0] * 1e-9)
+    warn(found)
+    n_parts = int(resets[lead].size) + 1
+    trials: list[Trial] = []
+    why: list[str] = []
+    for i in range(n_parts):
+        series = {}
+        for r, s in rec.series.items():
+            sl = split_at(s.stamps_ns.size, resets[r])[i]
+            series[r] = Series(s.topic, s.msgtype, s.stamps_ns[sl], s.values[sl],
+                               s.receive_ns[sl], list(s.notes), s.frame, s.frame_ids, s.base,
+                               s.lag_s)
+        part = RawRecording(rec.path, series, rec.topics_found, rec.start_ns, rec.end_ns,
+                            list(rec.notes) + [f.note() for f in found], rec.topic_map,
+                            rec.reading)
+        try:
+            got = assemble_trials(part, tm, f'{name}_part{i + 1}', limits, keep_astern)
+        except TrialDataError as exc:   # one stretch too short or faulty: the others count
+            why.append(f'stretch {i + 1} of {n_parts}: {exc}')
+            continue
+        for tr in got:
+            tr.notes.extend(why)
+        trials.extend(got)
+    if not trials:
+        raise TrialDataError(f'{rec.path}: no usable trial ({brief(why)})')
+    if len(trials) > 1:
+        for i, tr in enumerate(trials, 1):
+            tr.name = f'{name}_{i}'
+    else:
+        trials[0].name = name
+    return trials
+
+
+def _motion(kin: 'Kinematics', rpm: Series, tm: TopicMap, t0_ns: int) -> Motion:
+    """Return the motion at the pose's own times in the model frame (consistency checks)."""
+    t = kin.t_pos
+    yaw = np.interp(t, kin.t_yaw, kin.yaw)
+    return Motion(t, kin.north, kin.east, frames.enu_yaw_to_psi(yaw),
+                  np.interp(t, kin.t_vel, kin.u_flu), -np.interp(t, kin.t_vel, kin.v_flu),
+                  -np.interp(t, kin.t_rate, kin.wz), _interp(rpm, t0_ns, t, 0) * tm.rpm_factor)
 
 
 # ------------------------------------------------------------------------------------ frames

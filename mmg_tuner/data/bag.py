@@ -681,13 +681,17 @@ def odometry_msg(state: np.ndarray, stamp_ns: int):
 
 
 def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
-                     storage: str = 'mcap') -> None:
+                     storage: str = 'mcap', model_topic: str = '/model/odom') -> None:
     """
     Write recorded and simulated odometry and the recorded commands as a rosbag2.
 
-    Recorded odometry (/recorded/odom), simulated odometry (/odom) and the recorded commands,
-    stamped in trial time, as a rosbag2 (MCAP: Foxglove opens the .mcap inside).
+    Recorded odometry on /odom (so that ``inspect`` and ``tune`` read the measurement, as
+    from the recording), the model's odometry on model_topic (never /odom) and the recorded
+    commands, stamped in trial time, as a rosbag2 (MCAP: Foxglove opens the .mcap inside).
     """
+    if model_topic.strip('/') == 'odom':
+        raise OutputError(f'model odometry topic {model_topic!r}: /odom holds the recorded '
+                          'odometry (the measurement); choose another, e.g. /model/odom')
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
 
@@ -700,8 +704,8 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
         raise OutputError(f'{path} exists; nothing is overwritten: choose a new path')
     try:
         with Writer(path, version=9, storage_plugin=plugin) as w:
-            c_sim = w.add_connection('/odom', Odometry, typestore=ts)
-            c_rec = w.add_connection('/recorded/odom', Odometry, typestore=ts)
+            c_sim = w.add_connection('/' + model_topic.lstrip('/'), Odometry, typestore=ts)
+            c_rec = w.add_connection('/odom', Odometry, typestore=ts)
             c_rud = w.add_connection('/rudder_angle', Float64.__msgtype__, typestore=ts)
             c_rpm = w.add_connection('/propeller_rpm', Float64.__msgtype__, typestore=ts)
             for k in range(len(trial)):

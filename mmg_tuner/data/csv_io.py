@@ -5,6 +5,12 @@ CSV trials: header row t,x,y,psi,u,v,r,rpm,rudder, model frame, SI units, radian
 wind_n,wind_e: measured true wind as the air's velocity north/east [m/s]; optional
 bow_thruster,stern_thruster: thruster speeds [rev/s], + pushes the ship to starboard (one alone:
 the other is 0).
+
+A trial of another actuator (no rpm and rudder columns) is a *channel CSV*: t,x,y,psi,u,v,r and
+its input channels by their names (``core/channels.TABLE``, units there), e.g. the twin-azimuth
+tug's n_port,n_stbd,azimuth_port,azimuth_stbd[,azimuth_cmd_port,azimuth_cmd_stbd]. It is read
+at its own (uniform) rate, like a MARIN .dat: :func:`read_channel_csv`. Whether it has the
+channels a ship needs is checked where a ship meets it (a missing one is named then).
 """
 from __future__ import annotations
 
@@ -16,8 +22,9 @@ import warnings
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.core import frames
-from mmg_tuner.data.files import check_regular_file, display_text, safe_name
-from mmg_tuner.data.trial import CSV_COLUMNS, Trial
+from mmg_tuner.core.channels import TABLE
+from mmg_tuner.data.files import brief, check_regular_file, display_text, safe_name
+from mmg_tuner.data.trial import CSV_COLUMNS, STATE_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
 
@@ -46,8 +53,25 @@ def csv_text(t: np.ndarray, states: np.ndarray, controls: np.ndarray,
 
 
 def trial_csv_text(trial: Trial) -> str:
-    """Return csv_text of a trial, with its measured wind and thrusters when it has them."""
+    """
+    Return csv_text of a trial, with its measured wind and thrusters when it has them.
+
+    A trial without rpm and rudder (another actuator's) is written as a channel CSV: the states,
+    then each of its input channels under its own name.
+    """
+    if not all(c in trial.inputs for c in CSV_COLUMNS[7:]):
+        return channel_csv_text(trial)
     return csv_text(trial.t, trial.states, trial.controls, trial.wind, trial.thrusters)
+
+
+def channel_csv_text(trial: Trial) -> str:
+    """Return a trial as a channel CSV: t, the states, every input channel by name."""
+    names = tuple(trial.inputs)
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack([trial.t, trial.states] + [trial.inputs[n] for n in names]),
+               delimiter=',', header=','.join(STATE_COLUMNS + names), comments='',
+               fmt='%.10g')
+    return buf.getvalue()
 
 
 def write_trial_csv(trial: Trial, path: str | Path) -> None:
@@ -102,7 +126,7 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
                                  f'{header.index(h) + 1} and {k + 1}, names compared without '
                                  'case); rename or remove one')
     missing = [c for c in CSV_COLUMNS if c not in header]
-    if missing:
+    if missing and not (set(STATE_COLUMNS) <= set(header) and is_channel_header(header)):
         raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
     rows = [(k, ln) for k, ln in enumerate(lines[1:], 1) if ln.strip()]
     if len(rows) > MAX_CSV_ROWS:
@@ -134,7 +158,7 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
         data = data[~bad_t]
     if data.shape[0] < 2:
         raise TrialDataError(f'{path}: fewer than 2 complete rows of {len(header)} columns'
-                             + (f' ({"; ".join(notes)})' if notes else ''))
+                             + (f' ({brief(notes)})' if notes else ''))
     for w in unit_warnings(header, data):   # read as it is: the user decides
         logger.warning('WARNING: %s: %s', display_text(str(path)), w)
     return header, data, notes
@@ -201,7 +225,8 @@ def unit_warnings(header: list[str], data: np.ndarray) -> list[str]:
     left out.
     """
     names = ('t', 'x', 'y', 'psi', 'u', 'v', 'r', 'rudder')
-    cols = np.column_stack([data[:, header.index(c)] for c in names])
+    cols = np.column_stack([data[:, header.index(c)] if c in header else np.zeros(len(data))
+                            for c in names])   # a channel CSV has no rudder: 0 says nothing
     cols = cols[np.all(np.isfinite(cols), axis=1)]
     if len(cols) < 20:
         return []
@@ -252,6 +277,8 @@ def read_trial_csv(path: str | Path) -> Trial:
     """
     path = Path(path)
     header, data, notes = read_csv_table(path)
+    if is_channel_header(header):
+        return read_channel_csv(path)
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     wind = None
     if all(c in header for c in WIND_COLUMNS):
@@ -260,6 +287,71 @@ def read_trial_csv(path: str | Path) -> Trial:
                  np.column_stack([col['rpm'], col['rudder']]), name=safe_name(path.stem),
                  source=display_text(str(path)), wind=wind,
                  thrusters=_thruster_columns(header, data), notes=notes)
+
+
+def is_channel_header(header: list[str]) -> bool:
+    """Whether a CSV header is a channel CSV's: no rpm and rudder, another known channel."""
+    return (not all(c in header for c in CSV_COLUMNS[7:])
+            and any(h in TABLE for h in header if h not in CSV_COLUMNS))
+
+
+def is_channel_csv(path: str | Path) -> bool:
+    """Whether the file's header row is a channel CSV's (see the module docstring)."""
+    try:
+        with open(path, 'rb') as f:
+            first = f.readline(100_000).decode('utf-8-sig', errors='replace')
+    except OSError:
+        return False
+    return is_channel_header([h.strip().strip('"').strip().lower() for h in first.split(',')])
+
+
+UNIFORM_TOL = 0.01   # a sample interval off the median by more than 1 %: not a uniform grid
+
+
+def read_channel_csv(path: str | Path) -> Trial:
+    """
+    Read a channel CSV (module docstring) as a trial on its own uniform time grid.
+
+    Every column named like a known input channel becomes that channel; other columns are
+    ignored with a note. Refused, naming the column and time: a non-uniform or decreasing time
+    column, a non-finite state, a non-finite command in a channel that must be recorded (only
+    channels whose default is "not recorded", e.g. an azimuth command, may hold NaN).
+    """
+    path = Path(path)
+    header, data, notes = read_csv_table(path)
+    where = display_text(str(path))
+    t = data[:, header.index('t')]
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    if not med > 0 or np.any(np.abs(dt - med) > UNIFORM_TOL * med):
+        k = int(np.argmax(np.abs(dt - med))) if med > 0 else 0
+        raise TrialDataError(f'{where}: column t is not a uniform increasing grid (median step '
+                             f'{med:g} s, step {dt[k]:g} s at t = {t[k]:g} s); a channel CSV is '
+                             'read at its own rate: resample it first')
+    states = np.column_stack([data[:, header.index(c)] for c in STATE_COLUMNS[1:]])
+    bad = ~np.all(np.isfinite(states), axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        col = STATE_COLUMNS[1 + int(np.argmax(~np.isfinite(states[k])))]
+        raise TrialDataError(f'{where}: column {col} is not a finite number at t = {t[k]:g} s')
+    inputs = {}
+    for h in header:
+        if h in STATE_COLUMNS or h not in TABLE:
+            continue
+        a = data[:, header.index(h)]
+        ch = TABLE[h]
+        optional = ch.default is not None and ch.default != ch.default
+        bad = ~np.isfinite(a) if not optional else np.isinf(a)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise TrialDataError(f'{where}: column {h} ({ch.description} [{ch.unit}]) is '
+                                 f'{a[k]} at t = {t[k]:g} s')
+        inputs[h] = a
+    ignored = [h for h in header if h not in STATE_COLUMNS and h not in TABLE]
+    if ignored:
+        notes.append(f'{path.name}: columns {", ".join(ignored)} are no known channel: ignored')
+    return Trial(t - t[0], states, name=safe_name(path.stem), source=where, notes=notes,
+                 start_s=float(t[0]), inputs=inputs)
 
 
 def csv_recording(path: str | Path):
@@ -271,6 +363,9 @@ def csv_recording(path: str | Path):
     from mmg_tuner.data.bag import RawRecording, Series
     path = Path(path)
     header, data, notes = read_csv_table(path)
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:   # a channel CSV: read_channel_csv reads it, not the bag-like path
+        raise TrialDataError(f'{path}: missing columns {missing} (header: {header})')
     col = {c: data[:, header.index(c)] for c in CSV_COLUMNS}
     ns = np.round(col['t'] * 1e9).astype(np.int64)
     odom = np.column_stack([col['y'], col['x'], frames.psi_to_enu_yaw(col['psi']), col['u'],

@@ -36,6 +36,10 @@ from pathlib import Path
 import warnings
 
 from mmg_tuner.core import frames
+from mmg_tuner.data.consistency import (check_motion, clock_resets, keep_slices, Motion,
+                                        reset_findings, split_at, unusable_reason,
+                                        UnusableRecordingError, warn)
+from mmg_tuner.data.files import brief
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
@@ -193,21 +197,53 @@ def _wind_from_table(cols, psi, u, v, notes, name) -> np.ndarray | None:
 
 
 def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float = 1.0,
-                  dt: float | None = None) -> list[Trial]:
+                  dt: float | None = None, length_m: float = 0.0) -> list[Trial]:
     """
     One FRT-DS-ESSO run -> trials in the model frame (SI, rpm = 60 n, wind north/east).
 
     keep_astern: keep astern propeller (rpm <= 0) and u <= 0 samples (for a family that
     handles them); by default the run is split around them with a note, as every reader does.
     Gaps longer than max_gap_s split the run. dt: resampling step [s] (default the file's
-    median step, 0.1 s). Every repair is in the trials' notes.
+    median step, 0.1 s). Every repair is in the trials' notes. The channels are checked against
+    each other first (:mod:`.consistency`, length_m the ship's length, 0 if not known): a
+    clock reset splits the run, a short fault is cut out, a long one leaves it unused; each is
+    a WARNING line.
     """
     path = Path(path)
     name = path.stem
     cols, notes = read_esso_table(path)
     t = cols[ESSO_COLUMNS['t']]
+    resets = clock_resets(t)
+    if not resets.size:
+        return _esso_trials(path, name, cols, notes, keep_astern, max_gap_s, dt, length_m)
+    found = reset_findings(name, t, resets)
+    warn(found)
+    trials: list[Trial] = []
+    why: list[str] = []
+    for i, sl in enumerate(split_at(t.size, resets)):
+        part = {h: c[sl] for h, c in cols.items()}
+        try:
+            trials.extend(_esso_trials(path, f'{name}_part{i + 1}', part,
+                                       notes + [f.note() for f in found], keep_astern,
+                                       max_gap_s, dt, length_m))
+        except TrialDataError as exc:   # one stretch too short or faulty: the others count
+            why.append(f'stretch {i + 1} of {resets.size + 1}: {exc}')
+    if not trials:
+        raise TrialDataError(f'{path}: no usable trial ({brief(why)})')
+    for i, tr in enumerate(trials, 1):
+        tr.name = f'{name}_{i}' if len(trials) > 1 else name
+        tr.notes.extend(why)
+    return trials
+
+
+def _esso_trials(path: Path, name: str, cols: dict[str, np.ndarray], notes: list[str],
+                 keep_astern: bool, max_gap_s: float, dt: float | None, length_m: float
+                 ) -> list[Trial]:
+    """Return the trials of one stretch of a run without clock resets (read_esso_csv)."""
+    notes = list(notes)
+    t = cols[ESSO_COLUMNS['t']]
     order = np.argsort(t, kind='stable')
-    if np.any(np.diff(t) < 0):
+    if np.any(np.diff(t) < 0):   # out of order by less than a reset: delivery, sorted
         notes.append(f'{name}: time not sorted; sorted')
         cols = {h: c[order] for h, c in cols.items()}
         t = cols[ESSO_COLUMNS['t']]
@@ -227,14 +263,24 @@ def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float 
     wind = _wind_from_table(cols, raw['psi'], raw['u'], raw['v'], notes, name)
     notes.append(f'{name}: FRT-DS-ESSO CSV, pond frame = MMG earth frame, n_prop [rps] x 60 '
                  '-> rpm')
-    # segments between gaps
+    # the channels against each other, at the file's own samples
+    findings = check_motion(name, Motion(t, raw['x'], raw['y'], raw['psi'], raw['u'],
+                                         raw['v'], raw['r'], 60.0 * raw['n']), length_m)
+    warn(findings)
+    notes.extend(f.note() for f in findings)
+    if any(f.long for f in findings):
+        raise UnusableRecordingError(f'{path}: not used: {unusable_reason(findings)}')
+    # segments between gaps and around the faults cut out
     gaps = np.nonzero(np.diff(t) > max_gap_s)[0]
-    bounds = [0] + [int(g) + 1 for g in gaps] + [t.size]
     for g in gaps:
         notes.append(f'{name}: gap of {t[g + 1] - t[g]:.1f} s at t = {t[g]:.1f} s '
                      f'(> {max_gap_s:g} s): trial split there')
+    spans = []
+    for sl in keep_slices(t, findings):
+        edges = [sl.start] + [int(g) + 1 for g in gaps if sl.start < g + 1 < sl.stop] + [sl.stop]
+        spans.extend(zip(edges[:-1], edges[1:]))
     trials: list[Trial] = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in spans:
         ts = t[a:b]
         n = int(math.floor((ts[-1] - ts[0]) / step + 1e-6)) + 1   # 1e-6: float time stamps
         if n < MIN_SAMPLES:
@@ -269,7 +315,7 @@ def read_esso_csv(path: str | Path, keep_astern: bool = False, max_gap_s: float 
                                     wind=None if w is None else w[k:j], notes=[]))
             k = j
     if not trials:
-        raise TrialDataError(f'{path}: no usable trial ({"; ".join(notes[-3:])})')
+        raise TrialDataError(f'{path}: no usable trial ({brief(notes[-3:])})')
     for i, tr in enumerate(trials, 1):
         tr.notes = list(notes) + [f'starts at {tr.start_s:.2f} s of the recording']
         if len(trials) > 1:

@@ -86,3 +86,33 @@ def unique_names(trials: list, sources: list[str] | None = None) -> list:
                         'has the same name')
         tr.name = cand
     return trials
+
+
+MAX_MESSAGE_CHARS = 600   # a reason inside an error line: what a terminal shows in a few rows
+_NUMBER = re.compile(r'[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?')
+
+
+def brief(items: list[str], max_chars: int = MAX_MESSAGE_CHARS) -> str:
+    """
+    Join items into one readable line: repeats counted, the whole capped at max_chars.
+
+    Items that differ only in their numbers ('gap of 1.0 s at t = 3.0 s', '... t = 7.0 s') are
+    one kind: the first is shown with '(and N more like it)'. Kinds beyond max_chars are
+    counted, not shown (a recording with time in milliseconds once gave a 710 KB line).
+    """
+    kinds: dict[str, list[str]] = {}
+    for it in items:
+        kinds.setdefault(_NUMBER.sub('#', it), []).append(it)
+    parts = [v[0] + (f' (and {len(v) - 1} more like it)' if len(v) > 1 else '')
+             for v in kinds.values()]
+    out: list[str] = []
+    used = 0
+    for k, p in enumerate(parts):
+        if out and used + len(p) + 2 > max_chars:
+            out.append(f'... and {len(parts) - k} more kind(s) of note')
+            break
+        if len(p) > max_chars:
+            p = p[:max_chars - 3] + '...'
+        out.append(p)
+        used += len(p) + 2
+    return '; '.join(out)

@@ -14,7 +14,8 @@ from pathlib import Path
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import IncompleteMcapError, read_series
-from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording
+from mmg_tuner.data.consistency import UnusableRecordingError
+from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording, is_channel_csv, read_channel_csv
 from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
 from mmg_tuner.data.marin import read_marin_dat
@@ -138,11 +139,11 @@ def load_trials(path: str | Path, tm: TopicMap | None = None,
         raise TrialDataError(f'{path}: no such file or directory')
     trials: list[Trial] = []
     inputs = find_inputs(path)
-    skipped: list[IncompleteMcapError] = []
+    skipped: list[TrialDataError] = []
     for p in inputs:
         try:
             found = load_one(p, tm, keep_astern, limits)
-        except IncompleteMcapError as exc:
+        except (IncompleteMcapError, UnusableRecordingError) as exc:
             if inputs == [path]:   # the file (or bag) asked for: its error
                 raise
             # one recorder that stopped at once must not cost the whole folder
@@ -195,7 +196,10 @@ def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
     if p.suffix == '.dat':
         found = [read_marin_dat(p)]
     elif p.suffix == '.csv' and is_esso_csv(p):
-        found = read_esso_csv(p, keep_astern=keep_astern)
+        found = read_esso_csv(p, keep_astern=keep_astern,
+                              length_m=limits.length_m if limits is not None else 0.0)
+    elif p.suffix == '.csv' and is_channel_csv(p):   # another actuator's channels, own rate
+        found = [read_channel_csv(p)]
     elif p.suffix == '.csv':
         found = assemble_trials(csv_recording(p), replace(tm, **_CSV_TOPICS), name=name,
                                 limits=limits, keep_astern=keep_astern)

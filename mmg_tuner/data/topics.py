@@ -43,7 +43,7 @@ WIND_FRAMES = ('true_enu', 'apparent_flu')
 THRUSTER_UNITS = {'rps': 1.0, 'rpm': 1.0 / 60.0, 'rad_s': 1.0 / (2.0 * math.pi)}
 THRUSTER_ROLES = ('bow_thruster', 'stern_thruster')
 SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'rudder', 'rpm', 'wind') + \
-    THRUSTER_ROLES + ('frames', 'time', 'resample')
+    THRUSTER_ROLES + ('frames', 'time', 'resample', 'replay')
 STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind') + THRUSTER_ROLES
 MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
@@ -126,6 +126,10 @@ class TopicMap:
     dt: float = 1.0
     max_gap_s: float = 5.0
     smooth_s: float = 10.0  # window of the local linear fit that derives velocities [s]
+    # replay_node's outputs: the model's odometry never on the recording's odometry topic,
+    # where inspect would read it as the measurement
+    replay_model_odom_topic: str = 'model/odom'
+    replay_recorded_odom_topic: str = 'recorded/odom'
     given: frozenset = frozenset()
 
     @property

@@ -9,6 +9,7 @@ from __future__ import annotations
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.trial import Trial
 
-__all__ = ['CSV_COLUMNS', 'Trial']
+__all__ = ['CSV_COLUMNS', 'STATE_COLUMNS', 'Trial']
 
-CSV_COLUMNS = ('t',) + STATE_NAMES + ('rpm', 'rudder')
+STATE_COLUMNS = ('t',) + STATE_NAMES
+CSV_COLUMNS = STATE_COLUMNS + ('rpm', 'rudder')

@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 from mmg_tuner.core.effects import EFFECTS, froude_factor
 from mmg_tuner.core.ship import resolve_config_path, ShipConfig
-from mmg_tuner.diagnosis.lsq import local_least_squares
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.errors import ConfigError
 from mmg_tuner.tuning.identifiability import standard_errors
 from mmg_tuner.tuning.objective import Objective

@@ -83,12 +83,12 @@ from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
-from mmg_tuner.diagnosis.lsq import local_least_squares
 from mmg_tuner.diagnosis.noise import noise_floor, sensor_noise
 from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.errors import DiagnosisError, OutputError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.tuner import refuse_pickle, Tuner
@@ -506,13 +506,13 @@ def _run_fit(f: _Fit) -> np.ndarray:
             raise KeyboardInterrupt
         return np.concatenate([base_vals, res.theta])
     if f.method == 'lsq':
-        return local_least_squares(space, f.obj, x0, f.evals)
+        return local_least_squares(space, f.obj, x0, f.evals).theta
     res = Tuner(space, f.obj, seed=f.seed, max_evaluations=f.evals, max_popsize=48,
                 sigma0=0.3 if f.method == 'cmaes+lsq' else 0.1, x0=x0).run()
     if res.interrupted:
         raise KeyboardInterrupt
     if f.method == 'cmaes+lsq':   # a global search, then the local polish the others get
-        return local_least_squares(space, f.obj, res.theta, f.evals)
+        return local_least_squares(space, f.obj, res.theta, f.evals).theta
     return res.theta
 
 
@@ -656,7 +656,7 @@ def _base_tune(base: ParameterSpace, obj: Objective, s: DiagnosisSettings,
         raise KeyboardInterrupt
     theta = res.theta
     if s.base_polish > 0:   # CMA-ES stopped on stagnation: a few local steps finish it
-        theta = local_least_squares(base, obj, theta, s.base_polish)
+        theta = local_least_squares(base, obj, theta, s.base_polish).theta
     log(f'   {what}: {res.evaluations} CMA-ES evaluations, {res.restarts} restart(s)'
         + (', polished by least squares' if s.base_polish > 0 else ''))
     store.put(key, theta)

@@ -552,10 +552,49 @@ def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
                 r, c = r + w.shape[0], c + w.shape[1]
             ws.append(out)
             bs.append(np.concatenate(b))
+    # each member's output bias (the ensemble keeps only their mean): members() splits it back
     meta = {'ensemble_of_seeds': [n.seed for n in nets],
-            'members': [n.meta for n in nets]}
+            'members': [n.meta for n in nets],
+            'member_output_biases': [np.asarray(n.biases[-1], float).tolist() for n in nets]}
     return ResidualNet(a.window, a.dt_s, tuple(ws), tuple(bs), a.x_mean, a.x_std, a.y_scale,
                        a.physics, a.seed, meta)
+
+
+def members(net: ResidualNet) -> list[ResidualNet]:
+    """
+    Return the networks an :func:`ensemble` was made of (exactly), or ``[net]`` for one net.
+
+    The ensemble's hidden layers are the members' stacked side by side (block-diagonal), so
+    each member is a block: its rows of the first layer, its diagonal block of each deeper
+    one, its columns of the output layer times the number of members. Their spread is the
+    ensemble's uncertainty (``tuning/interval.py``).
+    """
+    seeds = net.meta.get('ensemble_of_seeds') if isinstance(net.meta, dict) else None
+    if not seeds or len(seeds) < 2:
+        return [net]
+    k, L = len(seeds), len(net.weights)
+    infos = net.meta.get('members') or [{}] * k
+    out = []
+    for m in range(k):
+        ws, bs = [], []
+        for layer in range(L):
+            W, b = net.weights[layer], net.biases[layer]
+            if layer == L - 1:
+                h = W.shape[1] // k
+                ws.append(W[:, m * h:(m + 1) * h] * k)
+                own = net.meta.get('member_output_biases')
+                # the ensemble averaged the members' output biases; each kept its own in meta
+                bs.append(np.asarray(own[m], float) if own else b)
+            else:
+                h = W.shape[0] // k
+                cols = slice(None) if layer == 0 else slice(m * (W.shape[1] // k),
+                                                            (m + 1) * (W.shape[1] // k))
+                ws.append(W[m * h:(m + 1) * h, cols])
+                bs.append(b[m * h:(m + 1) * h])
+        out.append(ResidualNet(net.window, net.dt_s, tuple(ws), tuple(bs), net.x_mean,
+                               net.x_std, net.y_scale, net.physics, int(seeds[m]),
+                               dict(infos[m]) if m < len(infos) else {}))
+    return out
 
 
 def _share(net: ResidualNet, arrs, F_phys: np.ndarray, teacher_residuals

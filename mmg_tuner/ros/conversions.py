@@ -29,7 +29,7 @@ def seconds_from_stamp(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'map',
+def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'odom',
                         child_frame_id: str = 'base_link', msg: Odometry | None = None
                         ) -> Odometry:
     """

@@ -3,9 +3,11 @@
 
 Publishes /clock (trial time), the recorded commands (rudder, rpm and any thrusters) on the
 topic map's topics in its message types, units and signs (as the recording had them), the
-recorded odometry on ``recorded/odom`` and the model's odometry on ``odom`` (relative names),
-at ``speed`` x real time; logs the error summary at the end; optionally writes everything to
-an MCAP that Foxglove opens.
+recorded odometry on ``recorded/odom`` and the model's odometry on ``model/odom`` (relative
+names; the topic map's ``replay`` section renames them), at ``speed`` x real time; logs the
+error summary at the end; optionally writes everything to an MCAP that Foxglove opens, with
+the recorded odometry on the map's odometry topic (``/odom``: ``inspect`` reads the
+measurement from it) and the model's on ``/model/odom``.
 
     ros2 run mmg_tuner replay_node --ros-args -p trial:=trials/zigzag_p20 -p speed:=10.0
 """
@@ -85,7 +87,7 @@ def check_new_output(path: str) -> Path:
     return out
 
 
-def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
+def write_new_bag(trial, sim_states: np.ndarray, out: Path, tm: TopicMap | None = None) -> None:
     """
     Write the replay bag beside ``out`` and move it into place when complete.
 
@@ -95,7 +97,8 @@ def write_new_bag(trial, sim_states: np.ndarray, out: Path) -> None:
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f'.{out.name}.'))
     try:
         staged = tmp / out.name  # rosbag2 names its file after the folder
-        write_replay_bag(trial, sim_states, staged)
+        write_replay_bag(trial, sim_states, staged, model_topic=(
+            tm or TopicMap()).replay_model_odom_topic)
         if os.path.lexists(out):
             raise OutputError(f'output_mcap {out} appeared while writing; nothing is '
                               f'overwritten: choose a new path')
@@ -196,12 +199,12 @@ class ReplayNode(Node):
         self.sim_states = sim.states
         self.summary = error_summary(self.trial.states, self.sim_states)
         if out is not None:
-            write_new_bag(self.trial, self.sim_states, out)
+            write_new_bag(self.trial, self.sim_states, out, tm)
             self.get_logger().info(f'wrote {out} (open it in Foxglove)')
         self.speed = float(p['speed'])
         self.exit_at_end = bool(p['exit_at_end'])
-        self.pub_odom = self.create_publisher(Odometry, 'odom', 10)
-        self.pub_rec = self.create_publisher(Odometry, 'recorded/odom', 10)
+        self.pub_odom = self.create_publisher(Odometry, tm.replay_model_odom_topic, 10)
+        self.pub_rec = self.create_publisher(Odometry, tm.replay_recorded_odom_topic, 10)
         self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None)
         self.inputs = self.trial.inputs   # channel name -> values
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)

@@ -2,8 +2,11 @@
 ``sim_node``: the tuned ship as a ROS 2 simulator.
 
 Subscribes rudder, propeller and (for a model with them) bow and stern thruster commands
-(last value holds; astern rpm where the model covers it), publishes nav_msgs/Odometry
-(REP-103/105) and TF (``odom -> base_link``, static ``map -> odom``) at ``rate_hz``, optional
+(last value holds; astern rpm where the model covers it), publishes nav_msgs/Odometry in the
+``odom`` frame (REP-105: header ``odom``, child ``base_link``) and TF ``odom -> base_link``
+whenever the state has advanced (checked at ``rate_hz``, so at most once per step ``dt``: never
+a repeated stamp), the static ``map -> odom`` unless ``publish_map_to_odom`` is false (another
+localisation source owns it), optional
 simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) on simulated time, and its
 health on ``/diagnostics`` at 1 Hz; ``~/reset`` (std_srvs/Trigger) returns to the initial
 state. Topic names are relative and the ship's frames carry ``frame_prefix`` (default: the
@@ -51,10 +54,14 @@ PARAMS = {
     'ship': Param('suzaku', 'ship config name or YAML path (a change restarts the simulation)'),
     'params_file': Param('', 'tuned params.yaml from tune/diagnose, empty: none (a change '
                          'restarts the simulation)'),
-    'rate_hz': Param(50.0, 'odometry publication rate [Hz, wall clock]', (1.0, 1000.0),
+    'rate_hz': Param(50.0, 'timer rate [Hz, wall clock]: the simulation is stepped to the '
+                     'clock and odometry/TF published when the state has advanced (at most '
+                     'once per step dt of simulated time: no stamp repeats)', (1.0, 1000.0),
                      read_only=True),
     'dt': Param(0.1, 'integration step [s of simulated time]; at most the time to sail one '
-                'ship length at its top speed', (DT_MIN_S, 10.0)),
+                'ship length at its top speed. A change restarts the run from the initial '
+                "state (the step is the simulated clock, the sensors' sampling grid and a "
+                "residual network's window: see doc/conventions.md)", (DT_MIN_S, 10.0)),
     'integrator': Param('rk4', 'integration method', constraints='euler or rk4'),
     'real_time_factor': Param(1.0, 'simulated seconds per wall second; 0: as fast as possible',
                               (0.0, 1e4)),
@@ -85,15 +92,20 @@ PARAMS = {
     'stern_thruster_topic': Param('stern_thruster', 'std_msgs/Float64 stern thruster command '
                                   '[rev/s, + pushes the stern to starboard]; only for a model '
                                   'with thrusters', read_only=True),
-    'frame_id': Param('map', 'world frame of the odometry (ENU), shared by all ships: not '
-                      'prefixed'),
-    'odom_frame_id': Param('odom', "the ship's odometry frame (ENU; TF map -> odom is a static "
-                           'identity); prefixed with frame_prefix'),
+    'frame_id': Param('map', 'world frame (ENU), shared by all ships: not prefixed; the '
+                      'parent of the static map -> odom'),
+    'odom_frame_id': Param('odom', "the ship's odometry frame (ENU): Odometry.header.frame_id "
+                           '(REP-105) and the parent of base_link in TF; prefixed with '
+                           'frame_prefix'),
     'child_frame_id': Param('base_link', 'body frame (FLU); prefixed with frame_prefix'),
     'frame_prefix': Param('', 'prefix of the ship\'s own frames, joined with "/" (default: the '
                           "node's namespace, e.g. ship2 -> ship2/base_link)"),
     'publish_tf': Param(True, 'publish odom -> base_link on /tf and map -> odom on /tf_static '
                         '(needs tf2_msgs)', read_only=True),
+    'publish_map_to_odom': Param(True, 'publish the static identity map -> odom; false when '
+                                 'another localisation source (a localisation node, a GNSS '
+                                 'fusion) owns map -> odom: two parents would clash',
+                                 read_only=True),
     'gnss_topic': Param('fix', 'simulated sensor_msgs/NavSatFix (relative)', read_only=True),
     'gnss_rate_hz': Param(0.0, 'simulated GNSS rate [Hz of simulated time]; 0: off',
                           (0.0, 100.0), read_only=True),
@@ -182,7 +194,8 @@ class SimNode(Node):
         self._warned: dict[str, float] = {}
         self._failure_logged, self._unlogged_failures = -math.inf, 0
         self._restart_clock()
-        self._odom = odometry_from_state(self.sim.observed(), 0.0, world, body)
+        self._odom = odometry_from_state(self.sim.observed(), 0.0, odom, body)   # REP-105
+        self._published: tuple[int, int] | None = None   # (run, step) last published
         self._tf = None if self.tf_pub is None else \
             TFMessage(transforms=[transform_from_state(self.sim.observed(), 0.0, odom, body)])
         self._publish_static_tf()
@@ -253,6 +266,7 @@ class SimNode(Node):
                                 f'{odom!r}')
 
     def _restart_clock(self) -> None:
+        self._runs = getattr(self, '_runs', 0) + 1   # a new run: its first state is new
         self.wall0 = self._steady_s()
         self.stamp0 = 0.0 if self.p['publish_clock'] else \
             seconds_from_stamp(self.get_clock().now().to_msg())
@@ -268,7 +282,7 @@ class SimNode(Node):
     def _publish_static_tf(self) -> None:
         """Map -> odom, identity (the simulator knows its pose exactly: no drift to correct)."""
         world, odom, _ = self.frames
-        if self.tf_static_pub is not None and world != odom:
+        if self.tf_static_pub is not None and world != odom and self.p['publish_map_to_odom']:
             self.tf_static_pub.publish(TFMessage(transforms=[identity_transform(
                 self.stamp0, world, odom)]))
 
@@ -337,6 +351,12 @@ class SimNode(Node):
             self._report(now)
         if not self.started:
             return
+        # only a state that has advanced (or a new run's first): at rate_hz > 1/dt the same
+        # state would go out several times with the same stamp
+        key = (self._runs, self.sim.steps)
+        if key == self._published:
+            return
+        self._published = key
         t = self.stamp0 + self.sim.t
         state = self.sim.observed()
         msg = odometry_from_state(state, t, msg=self._odom)
@@ -489,7 +509,7 @@ class SimNode(Node):
         if names & FRAME_PARAMS:
             self.frames = self._frames(self.p)
             world, odom, body = self.frames
-            self._odom.header.frame_id, self._odom.child_frame_id = world, body
+            self._odom.header.frame_id, self._odom.child_frame_id = odom, body
             if self._tf is not None:
                 tf = self._tf.transforms[0]
                 tf.header.frame_id, tf.child_frame_id = odom, body

@@ -20,13 +20,19 @@ The paper restarts long runs every 100 s from the measured state "to avoid the a
 of error"; so does :func:`evaluate` (``restart_every_s``, 0: never). The heading error is
 wrapped to [-pi, pi].
 
+With ``horizons`` it also scores the n-step prediction (restart from the measured state at
+every sample, predict n steps: RMSE of u, v, r, x, y, psi per horizon) and the free-running
+relative errors ||y_model - y|| / ||y|| of u, v, r (the MBPE-LOGO paper's Table 5 measure):
+``tuning/nstep.py``.
+
 Outputs (:meth:`EvaluateResult.write`): ``evaluate.json``
-``{"trials": {"<name>": {"index": ..., "rms": {"x": ..., ...}}}, ...}``, ``evaluate.md`` and
-one overlay plot per trial (states recorded vs model, rudder and rpm beside them).
+``{"trials": {"<name>": {"index": ..., "rms": {"x": ..., ...}}}, ...}`` (with horizons also
+``"n_step"`` and ``"relative_error"``), ``evaluate.md`` and one overlay plot per trial (states
+recorded vs model, rudder and rpm beside them), plus ``evaluate_nstep.png`` with horizons.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 from pathlib import Path
 from typing import Sequence
@@ -39,6 +45,8 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.learn.model import as_model, Model
 from mmg_tuner.learn.residual import simulate_segments
+from mmg_tuner.tuning.nstep import (check_horizons, nstep_errors, nstep_figure, NSTEP_STATES,
+                                    NStepScore, REL_STATES, relative_errors, RelativeErrors)
 from mmg_tuner.tuning.plots import png_bytes, trial_figure, trial_title
 from mmg_tuner.tuning.report import file_stems, json_text, unique_names
 import numpy as np
@@ -153,6 +161,11 @@ class EvaluateResult:
     substeps: int
     model: Model = field(repr=False)
     recorded: list[Trial] = field(repr=False, default_factory=list)
+    # share of samples inside the model's prediction interval (tuning/interval.py), if any
+    coverage: dict | None = None
+    nstep: NStepScore | None = None          # with horizons: over all trials
+    nstep_per_trial: dict[str, NStepScore] = field(default_factory=dict)
+    relative: RelativeErrors | None = None   # with horizons: free-run Table 5 errors
 
     @property
     def ship(self) -> ShipConfig:
@@ -167,8 +180,22 @@ class EvaluateResult:
                          'pooled over all evaluated trials',
                 'restart_every_s': self.restart_every_s, 'integrator': self.integrator,
                 'substeps': self.substeps, 'sigma': dict(self.sigma),
-                'index_all': self.index_all,
-                'trials': {n: s.to_dict() for n, s in self.trials.items()}}
+                'index_all': self.index_all, 'coverage': self.coverage,
+                'trials': {n: s.to_dict() for n, s in self.trials.items()},
+                **self._nstep_dict()}
+
+    def _nstep_dict(self) -> dict:
+        if self.nstep is None:
+            return {}
+        d = {'n_step': {'definition': 'restart from the measured state at every sample, '
+                                      'predict n steps with the measured inputs; RMSE of '
+                                      'each state at step n [SI units, psi rad wrapped]',
+                        **self.nstep.to_dict(),
+                        'per_trial': {n: s.to_dict()['rmse']
+                                      for n, s in self.nstep_per_trial.items()}}}
+        if self.relative is not None:
+            d['relative_error'] = self.relative.to_dict()
+        return d
 
     def markdown(self) -> str:
         lines = [f'# evaluate: {self.ship.name} ({self.ship.model}, {self.model.kind})', '',
@@ -185,10 +212,17 @@ class EvaluateResult:
             lines.append(f'| {n} | {idx} | {rms} |')
         if self.index_all is not None:
             lines += ['', f'All trials together: index {self.index_all:.4g}.']
+        c = self.coverage
+        if c is not None:
+            lines += ['', f'Prediction interval (nominal {100 * c["level"]:.0f} %): '
+                      f'{100 * c["all"]:.1f} % of the samples inside (' + ', '.join(
+                          f'{n} {100 * x:.0f} %' for n, x in c['states'].items()) + ').']
         for n, s in self.trials.items():
             if s.failed_at_s is not None:
                 lines.append(f'- {n}: the model failed at t = {s.failed_at_s:.2f} s '
                              f'({s.failure}); its index is not given.')
+        if self.nstep is not None:
+            lines += ['', nstep_markdown(self.nstep, self.relative)]
         return '\n'.join(lines) + '\n'
 
     def plots(self) -> dict[str, bytes]:
@@ -206,6 +240,13 @@ class EvaluateResult:
             fig = trial_figure(tr, {'model': s.predicted}, title,
                                states=('x', 'y', 'psi', 'r', 'u', 'v'), restarts_s=restarts)
             images[f'evaluate_{stem}.png'] = png_bytes(fig)
+        if self.nstep is not None:
+            scores = {'all trials': self.nstep}
+            if 1 < len(self.nstep_per_trial) <= 6:   # more lines would be unreadable
+                scores.update(self.nstep_per_trial)
+            images['evaluate_nstep.png'] = png_bytes(nstep_figure(
+                scores, f'{self.ship.name}: n-step prediction from the measured state at '
+                        f'every sample ({self.integrator})'))
         return images
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -227,18 +268,50 @@ class EvaluateResult:
         return paths
 
 
+def nstep_markdown(score: NStepScore, rel: RelativeErrors | None) -> str:
+    """Return the n-step RMSE table (and the free-run relative errors) as Markdown."""
+    lines = ['## n-step prediction (restart from the measured state at every sample)', '',
+             '| n | t [s] | windows | failed | ' + ' | '.join(
+                 f'RMSE {s} [{UNITS[s]}]' for s in NSTEP_STATES) + ' |',
+             '|---|---|---|---' + '|---' * len(NSTEP_STATES) + '|']
+    for i, h in enumerate(score.horizons):
+        vals = ' | '.join('-' if score.rmse[s][i] is None else f'{score.rmse[s][i]:.4g}'
+                          for s in NSTEP_STATES)
+        lines.append(f'| {h} | {h * score.dt:g} | {score.windows[i]} | {score.failed[i]} | '
+                     f'{vals} |')
+    if rel is not None:
+        lines += ['', '## Free-run relative errors ||y_model - y|| / ||y|| (MBPE-LOGO Table 5)',
+                  '', '| trial | ' + ' | '.join(REL_STATES) + ' |',
+                  '|---' + '|---' * len(REL_STATES) + '|']
+        for n, v in [('all trials (pooled)', rel.pooled)] + list(rel.per_trial.items()):
+            lines.append(f'| {n} | ' + ' | '.join(
+                '-' if v[s] is None else f'{100 * v[s]:.3g} %' for s in REL_STATES) + ' |')
+        for n, t in rel.failed.items():
+            lines.append(f'- {n}: the free run failed at t = {t:.2f} s.')
+    return '\n'.join(lines)
+
+
 def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s: float = 100.0,
              integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None,
-             sigma: dict[str, float] | None = None) -> EvaluateResult:
+             sigma: dict[str, float] | None = None, horizons: Sequence[int] | None = None
+             ) -> EvaluateResult:
     """
     Score a model on recorded trials.
 
     A ship, a ship with a residual network, or the parameter vector ``params``.
 
     (see the module docstring). ``sigma``: the standardising deviations to use (default: pooled
-    over these trials, as the paper does).
+    over these trials, as the paper does). ``horizons`` [steps]: also the n-step prediction
+    RMSE at these horizons and the free-run relative errors (``tuning/nstep.py``; the physics
+    alone: a model with a residual network is refused).
     """
     model = as_model(model)
+    if horizons is not None:
+        horizons = check_horizons(horizons)
+        if model.residual is not None:
+            raise TuningError('evaluate: n-step prediction (horizons) runs the physics '
+                              f'alone; this model has a {model.kind} network (give the '
+                              'params without it, or no horizons)')
     trials = list(trials)
     if not trials:
         raise TuningError('evaluate: no trials given')
@@ -259,8 +332,19 @@ def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s
         all_err.append(err)
     every = np.concatenate(all_err)
     index_all = index_of(every, sig) if np.all(np.isfinite(every)) else None
-    return EvaluateResult(scores, sig, index_all, float(restart_every_s), integrator,
-                          int(substeps), model, trials)
+    res = EvaluateResult(scores, sig, index_all, float(restart_every_s), integrator,
+                         int(substeps), model, trials)
+    if horizons is not None:
+        names = list(scores)
+        renamed = [t if t.name == n else replace(t, name=n) for t, n in zip(trials, names)]
+        res.nstep, per = nstep_errors(model.ship, renamed, horizons, integrator, substeps,
+                                      params)
+        res.nstep_per_trial = per
+        runs = [s.predicted if not restart_every_s else
+                predict(model, tr, 0.0, integrator, substeps, params)[0]
+                for tr, s in zip(trials, scores.values())]
+        res.relative = relative_errors(names, trials, runs)
+    return res
 
 
 def compare_index(physics: ShipConfig | Model, model: ShipConfig | Model,

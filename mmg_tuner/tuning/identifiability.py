@@ -23,7 +23,10 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     Return the weighted residual vectors (N, n) of each candidate over all trials.
 
     Weighted residual vectors (N, n) of each candidate over all trials (NaN-free: a failed run
-    gives large residuals).
+    gives large residuals). Each trial's residuals carry the square root of its factor in the
+    objective (``trial_weights``: the segmented objective's balance) and the prior's terms
+    come last, so the sum of squares is what the objective minimises (exactly, for a run
+    without restarts: ``shoot_every`` is not modelled here).
     """
     b = objective.batch
     x0s = np.ascontiguousarray(b.meas[:, 0, :])
@@ -35,8 +38,15 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     mask = np.arange(b.meas.shape[1])[None, :] < b.lengths[:, None]
     mask[:, 0] = False
     err = err * np.sqrt(objective.weights)
+    if objective.trial_weights is not None:   # the balance of trials, pieces or groups
+        err = err * np.sqrt(objective.trial_weights)[None, :, None, None]
     err = np.where(np.isfinite(err), err, 1e6)
-    return err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
+    r = err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
+    pr = objective.prior
+    if pr is None:
+        return r
+    z = (np.atleast_2d(params)[:, pr.indices] - pr.centre) / pr.scale
+    return np.hstack([r, np.sqrt(pr.weight) * z])
 
 
 def jacobian(objective: Objective, space: ParameterSpace, theta: np.ndarray, h: float

@@ -5,8 +5,8 @@ One layout for the tuning report, the diagnosis overlays and ``evaluate``: the t
 horizontal plane, the states over time, and beside them the inputs that drove the ship (rudder,
 propeller, thrusters and measured wind when present): a zigzag cannot be read without the
 rudder. Every axis states its unit, sign and frame (model frame: x_E north, y_E east, psi
-clockwise from north, rudder + to starboard; ``docs/`` has the conventions). Titles say
-whether a trial was used for tuning or held out, with its error.
+clockwise from north, rudder + to starboard; ``doc/conventions.md`` has the conventions).
+Titles say whether a trial was used for tuning or held out, with its error.
 
 matplotlib is imported inside the functions (it is optional for the core), and only its object
 API is used (Figure + the Agg canvas): no global backend is set here.

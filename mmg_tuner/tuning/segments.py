@@ -71,12 +71,10 @@ def split_trial(trial: Trial, segment_s: float, min_s: float | None = None) -> l
 
 def _piece(trial: Trial, a: int, b: int) -> Trial:
     """Make samples a..b-1 a trial of their own (time kept, name tagged with the start)."""
-    def cut(x):
-        return None if x is None else x[a:b]
+    # every input channel by name (a twin-azimuth trial has no rpm/rudder pair)
     return replace(trial, t=trial.t[a:b], states=trial.states[a:b],
-                   controls=trial.controls[a:b], wind=cut(trial.wind),
-                   thrusters=cut(trial.thrusters), notes=list(trial.notes),
-                   name=f'{trial.name}@{trial.t[a] - trial.t[0]:.0f}s')
+                   inputs={n: v[a:b] for n, v in trial.inputs.items()},
+                   notes=list(trial.notes), name=f'{trial.name}@{trial.t[a] - trial.t[0]:.0f}s')
 
 
 def split_trials(trials: Sequence[Trial], segment_s: float, min_s: float | None = None

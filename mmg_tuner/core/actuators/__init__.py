@@ -20,17 +20,18 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * ``PARAMS = (...)``: a literal tuple of its own parameter slots (the layout reads it
      without importing the module); effect parameters stay in ``core/effects.py``.
    * ``INPUTS``: the channels it reads, in order; ``CHANNELS``: the new ones among them,
-     name -> (unit, description, default) (default None: required).
+     name -> (unit, description, default) (default None: required; ``'nan'``: optional,
+     NaN where not recorded).
    * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
      internal states (may be empty). ``DESCRIPTION``: one line with the source.
-   * njit functions (``inline='always'``). ``ctrl`` is the kernels' input array (T, n),
-     read with ``core.inputs.value(ctrl, k, j, shift, T)`` (sample k, delayed by ``shift``
-     samples); ``j`` is the column of this actuator's first input, ``a`` the float array of
-     all actuator states, ``i`` the position of this actuator's first state in it:
+   * njit functions (``inline='always'``). ``cmd`` is the tuple of this actuator's input
+     values (``INPUTS`` order; the plant reads them from the kernels' input array, delayed by
+     the time offset), ``a`` the float array of all actuator states, ``i`` the position of
+     this actuator's first state in it:
 
-     - ``start(p, ctrl, shift, T, j, a, i)``: set the internal states from the first sample;
-     - ``hold(p, ctrl, k, shift, T, j, h, astern) -> (status, held)``: once per sample
-       interval: read and convert the inputs held over it (``h``: the integration step [s];
+     - ``start(p, cmd, a, i)``: set the internal states from the first sample's inputs;
+     - ``hold(p, cmd, h, astern) -> (status, held)``: once per sample
+       interval: convert the inputs held over it (``h``: the integration step [s];
        ``astern``: whether the family covers astern revolutions); status ``layout.OK`` or a
        status code that stops the run; ``held`` a tuple of floats for ``output``;
      - ``output(p, held, a, i) -> tuple``: once per integration step: advance the internal
@@ -44,13 +45,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import importlib
+import math
 from typing import Any, Callable
 
 from mmg_tuner.core import plugins
 from mmg_tuner.core._registry import declared, module_name, plugin_map
 from mmg_tuner.core.channels import add_channel, Channel
 
-BUILTIN: tuple[str, ...] = ('screw_rudder', 'tunnel_thrusters')
+BUILTIN: tuple[str, ...] = ('screw_rudder', 'tunnel_thrusters', 'twin_azimuth')
 _PLUGINS = plugin_map(plugins.modules('actuators'), BUILTIN, 'actuator')
 REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
 """Registered actuator models, by name."""
@@ -107,6 +109,8 @@ def register_channels() -> None:
     """Add every registered actuator's new channels to the channel table."""
     for name in REGISTRY:
         for ch, (unit, description, default) in declared_channels(name).items():
+            if default == 'nan':   # NaN has no literal: 'nan' spells "not recorded"
+                default = math.nan
             add_channel(Channel(ch, unit, description, default))
 
 

@@ -20,7 +20,6 @@ DESCRIPTION = 'propeller [rev/min] and rudder [rad] behind a first-order steerin
 import math  # noqa: E402  (below the declarations the layout reads)
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100
-from mmg_tuner.core.inputs import value  # noqa: E402
 from mmg_tuner.core.layout import OK, PARAM_INDEX, RPM_NOT_POSITIVE  # noqa: E402
 from numba import njit  # noqa: E402
 
@@ -43,18 +42,18 @@ def rpm_status(n_rps, astern):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, ctrl, shift, T, j, a, i):
+def start(p, cmd, a, i):
     """Start the gear where the first logged angle (plus the offset) puts it."""
-    a[i] = value(ctrl, 0, j + 1, shift, T) + p[_doff]
+    a[i] = cmd[1] + p[_doff]
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, ctrl, k, shift, T, j, h, astern):
+def hold(p, cmd, h, astern):
     """(status, (n_P [rev/s], rudder order [rad], gear decay over h)) for the held inputs."""
-    n_rps = value(ctrl, k, j, shift, T) * p[_nscale] / 60.0
+    n_rps = cmd[0] * p[_nscale] / 60.0
     tau = p[_tau]
     decay = math.exp(-h / tau) if tau > 0.0 else 0.0
-    return rpm_status(n_rps, astern), (n_rps, value(ctrl, k, j + 1, shift, T) + p[_doff], decay)
+    return rpm_status(n_rps, astern), (n_rps, cmd[1] + p[_doff], decay)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')

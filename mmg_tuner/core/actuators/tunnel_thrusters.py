@@ -15,21 +15,20 @@ STATES = ()
 DESCRIPTION = 'bow and stern tunnel thrusters [rev/s], no lag'
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declarations)
-from mmg_tuner.core.inputs import value  # noqa: E402
 from mmg_tuner.core.layout import OK  # noqa: E402
 from numba import njit  # noqa: E402
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, ctrl, shift, T, j, a, i):
+def start(p, cmd, a, i):
     """No internal state."""
     return
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, ctrl, k, shift, T, j, h, astern):
+def hold(p, cmd, h, astern):
     """Return the held speeds."""
-    return OK, (value(ctrl, k, j, shift, T), value(ctrl, k, j + 1, shift, T))
+    return OK, cmd
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')

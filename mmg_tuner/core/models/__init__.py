@@ -71,7 +71,8 @@ from mmg_tuner.core._registry import declared, module_name, plugin_map
 from mmg_tuner.core.actuators import actuator, declared_params as actuator_params
 from mmg_tuner.core.channels import ENVIRONMENT
 
-BUILTIN: tuple[str, ...] = ('container', 'standard', 'lowspeed')
+BUILTIN: tuple[str, ...] = (
+    'container', 'standard', 'lowspeed', 'surge_decoupled', 'simplified6')
 _PLUGINS = plugin_map(plugins.modules('families'), BUILTIN, 'family')
 REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
 """Registered families; the position is the family's code (built-ins first, then plugins)."""
@@ -83,7 +84,7 @@ class Family:
 
     name: str
     code: int
-    params: tuple[str, ...]
+    params: tuple[str, ...]   # its own PARAMS, then its actuators' (as the layout has them)
     required: tuple[str, ...]
     defaults: dict[str, float]
     actuators: tuple[str, ...]
@@ -137,7 +138,7 @@ def family(name: str) -> Family:
         if code is None:
             raise KeyError(name)
         mod = importlib.import_module(module_of(name))
-        _CACHE[name] = Family(name, code, tuple(mod.PARAMS), tuple(mod.REQUIRED),
+        _CACHE[name] = Family(name, code, declared_params(name), tuple(mod.REQUIRED),
                               dict(getattr(mod, 'DEFAULTS', {})), tuple(mod.ACTUATORS),
                               bool(mod.ASTERN_RPM), bool(mod.ASTERN_SURGE), mod.DESCRIPTION,
                               mod.forces, getattr(mod, 'wind', None),

@@ -6,7 +6,7 @@ four-quadrant propeller, rudder with the reverse-propeller inflow, bow/stern thr
 wind model, Fujiwara's regression on the apparent wind (acting even without true wind: the air drag
 of the ship's own motion is part of the model).
 
-Written from the reference restatement docs/reference/esso_osaka_lowspeed_mmg.md (section
+Written from the reference restatement doc/reference/esso_osaka_lowspeed_mmg.md (section
 numbers below are its own); parameter values and sources in config/esso_osaka_3m.yaml.
 
 Frames, units and signs (reference §2):

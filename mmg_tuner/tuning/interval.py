@@ -1,0 +1,162 @@
+"""
+How sure a model is: a prediction interval from an ensemble's spread, and its coverage.
+
+An ensemble of networks trained alike but from different seeds (``tune --residual-seeds``,
+``learn.ensemble``) predicts one trajectory (the mean network's); its members, simulated one
+by one, disagree where the data did not pin the network down. The interval of state i at a
+sample is
+
+    prediction_i ± c_i × (standard deviation of the members' predictions of state i),
+
+each simulation restarted from the measured state every ``restart_every_s`` as the index's
+are. A handful of seeds underestimates the error (their spread says nothing about what all of
+them miss), so the factors c_i are calibrated: on trials the models did not train on (the
+validation part of the training runs), c_i is the ``level`` quantile of |error_i| / spread_i,
+so that share of their samples falls inside. Coverage on other held-out trials then says
+whether the interval holds (a nominal 90 % interval should cover about 90 % of the samples).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TuningError
+from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.train import members as net_members
+from mmg_tuner.tuning.evaluate import errors, INDEX_STATES, predict
+from mmg_tuner.tuning.report import unique_names
+import numpy as np
+
+TINY = 1e-12
+"""A spread below this is zero (a restart sample, where every member starts from the
+measurement): an error there is outside unless it is zero too."""
+_COL = {n: STATE_NAMES.index(n) for n in INDEX_STATES}
+
+
+@dataclass(frozen=True)
+class Interval:
+    """
+    A calibrated prediction interval: the model, its members, a factor per state.
+
+    model: the ensemble (its prediction is the interval's centre); members: the networks it
+    averages, each with the same physics; scale: c_i per state of INDEX_STATES (x, u, y, v,
+    psi, r); level: the nominal share of samples inside (e.g. 0.9).
+    """
+
+    model: Model
+    members: tuple[Model, ...]
+    scale: tuple[float, ...]
+    level: float
+
+    def to_dict(self) -> dict:
+        return {'level': self.level, 'members': len(self.members),
+                'scale': dict(zip(INDEX_STATES, self.scale))}
+
+
+def ensemble_members(model: Model) -> tuple[Model, ...]:
+    """Return the member models of an ensemble model (its physics, each member's network)."""
+    net = as_model(model).residual
+    if net is None:
+        raise TuningError('an interval needs an ensemble network (tune --residual-seeds N, '
+                          'N >= 2); this model is the physics alone')
+    nets = net_members(net)
+    if len(nets) < 2:
+        raise TuningError('an interval needs an ensemble of at least 2 networks '
+                          '(tune --residual-seeds N, N >= 2); this network is one')
+    return tuple(Model(model.ship, n) for n in nets)
+
+
+def _centre_and_spread(model: Model, members: Sequence[Model], trial: Trial,
+                       restart_every_s: float, integrator: str
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the model's error (T, 6) and the members' spread (T, 6), in STATE_NAMES order."""
+    pred, _, _ = predict(model, trial, restart_every_s, integrator)
+    err = errors(pred, trial.states)
+    runs = np.stack([predict(m, trial, restart_every_s, integrator)[0] for m in members])
+    # heading: spread of the members' differences from the centre, wrapped
+    dev = runs - pred[None]
+    k = _COL['psi']
+    dev[..., k] = (dev[..., k] + np.pi) % (2 * np.pi) - np.pi
+    spread = np.sqrt(np.sum(dev ** 2, axis=0) / max(len(members) - 1, 1))
+    return err, spread
+
+
+def _ratios(model, members, trials, restart_every_s, integrator) -> list[np.ndarray]:
+    out = []
+    for tr in trials:
+        err, spread = _centre_and_spread(model, members, tr, restart_every_s, integrator)
+        cols = [_COL[n] for n in INDEX_STATES]
+        e, s = np.abs(err[:, cols]), spread[:, cols]
+        r = np.where(s > TINY, e / np.maximum(s, TINY), np.where(e > TINY, np.inf, 0.0))
+        out.append(np.where(np.isfinite(err[:, cols]), r, np.inf))
+    return out
+
+
+def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9,
+                       restart_every_s: float = 100.0, integrator: str = 'rk4') -> Interval:
+    """
+    Return the interval of an ensemble ``model`` with factors calibrated on ``trials``.
+
+    ``trials``: trials the networks did not train on (e.g. the validation part of the
+    training runs); per state, c = the ``level`` quantile of |error| / spread over their
+    samples.
+    """
+    if not 0 < level < 1:
+        raise TuningError(f'interval level {level!r}: give a share in (0, 1), e.g. 0.9')
+    model = as_model(model)
+    mem = ensemble_members(model)
+    R = np.concatenate(_ratios(model, mem, list(trials), restart_every_s, integrator))
+    # the order statistic at or above the level (no interpolation): at least that share of
+    # the calibration samples is inside
+    scale = tuple(float(np.quantile(R[:, i], level, method='higher'))
+                  for i in range(len(INDEX_STATES)))
+    if not all(np.isfinite(scale)):
+        raise TuningError('the interval could not be calibrated: the model failed on a '
+                          'calibration trial (its errors are not finite)')
+    return Interval(model, mem, scale, float(level))
+
+
+def coverage(interval: Interval, trials: Sequence[Trial], restart_every_s: float = 100.0,
+             integrator: str = 'rk4') -> dict:
+    """
+    Return the share of samples inside the interval on ``trials``.
+
+    {'all': share of (sample, state) pairs inside over every trial and state, 'states':
+    {state: share}, 'trials': {trial: share}, 'level': the nominal share}.
+    """
+    trials = list(trials)
+    R = _ratios(interval.model, interval.members, trials, restart_every_s, integrator)
+    c = np.asarray(interval.scale)
+    inside = [r <= c[None, :] for r in R]
+    every = np.concatenate(inside)
+    return {'level': interval.level, 'all': float(every.mean()),
+            'states': {n: float(every[:, i].mean()) for i, n in enumerate(INDEX_STATES)},
+            'trials': {n: float(x.mean()) for n, x in zip(unique_names(trials), inside)}}
+
+
+def with_interval(interval: Interval) -> Model:
+    """
+    Return the interval's model with the calibration stored in its network's meta.
+
+    Saved with the network (params.residual.npz), so ``evaluate`` reports the coverage and the
+    simulator node the uncertainty of a model loaded from its params.yaml
+    (:func:`model_interval`).
+    """
+    net = interval.model.residual
+    meta = {**net.meta, 'interval': {'level': interval.level,
+                                     'scale': list(interval.scale),
+                                     'states': list(INDEX_STATES)}}
+    return Model(interval.model.ship, replace(net, meta=meta))
+
+
+def model_interval(model: Model) -> Interval | None:
+    """Return the interval a model's network carries (:func:`with_interval`), or None."""
+    model = as_model(model)
+    net = model.residual
+    info = None if net is None or not isinstance(net.meta, dict) else net.meta.get('interval')
+    if not info:
+        return None
+    return Interval(model, ensemble_members(model), tuple(float(c) for c in info['scale']),
+                    float(info['level']))

@@ -1,0 +1,760 @@
+"""
+Identification local -> global of a control-oriented model (MBPE-LOGO, arXiv 2312.05644).
+
+The whole ship, in the paper's order (shared/reference/mbpe_logo_tug.md):
+
+1. **Thrust** (:func:`fit_thrust`): the polynomial F(n) = p0 + p1 n + ... + p5 n^5 per
+   thruster (eq. 20) fitted to a bollard-pull table (columns ``n,thrust``: rev/s, N per
+   thruster; :func:`read_bollard_table` refuses a table that is too short or not monotone,
+   saying why). Its degree is chosen by leave-one-out error among 1 ... min(5, points - 3).
+2. **Azimuth dynamics** (:func:`fit_azimuth`): alpha'' = k1 (alpha_c - alpha) - k2 alpha'
+   (eq. 9) from the commanded and the measured angles, when a trial recorded both: the core's
+   actuator kernel (``core.integrate.actuator_outputs``) replays the commands and SciPy's
+   least squares matches its angles to the measured ones.
+3. **LO** (:func:`lo_fit`): given measured accelerations, M nu_dot + C(nu) nu + D(nu) nu = tau
+   is linear in the hull coefficients, so the local step is *one* linear least-squares
+   problem. Its regressor is read from the family's own compiled functions (``forces``,
+   ``motion``, ``mass_solve``): the equation error is evaluated for the coefficients and for
+   each one moved by a step, and linearity (checked) turns the differences into the columns.
+   No equation is written twice, and any family linear in its coefficients (the 22 of
+   ``surge_decoupled``, the 6 of ``simplified6``, either Coriolis form) works. Accelerations
+   come from the (Savitzky-Golay smoothed) velocities over each sample interval, the forces of
+   the interval averaged over its two ends (trapezoid), the thrust held as the kernels hold it.
+4. **GO** (:func:`go_fit`): the multi-step simulation error of u, v, r (each over its pooled
+   standard deviation) minimised from the LO solution with a ridge pull toward it, by SciPy's
+   trust-region least squares; the residuals of all candidates of a finite-difference
+   Jacobian are simulated in one batched call of the core's kernel
+   (``core.simulate.simulate_batch``). Multiple shooting at the data level: the trials are
+   cut into pieces of ``segment_s`` seconds, each started from its measured state
+   (``tuning/segments.py``; 0: single shooting, the paper's). ``grow``: manoeuvres are added
+   one by one, each stage started from the previous one's solution (the paper's Algorithm 1;
+   the LO step needs no repetition, being exact and global on each set).
+
+:func:`identify` runs them in that order and returns an :class:`IdentifyResult` whose
+:meth:`~IdentifyResult.write` gives ``params.yaml`` (loaded by ``load_ship(name, params)``),
+``identify.json`` and ``identify.md``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+import importlib
+import logging
+import math
+from pathlib import Path
+import time
+from typing import Sequence
+
+from mmg_tuner._outdir import OutputDir
+from mmg_tuner.core.actuators import actuator
+from mmg_tuner.core.channels import TABLE
+from mmg_tuner.core.integrate import actuator_outputs
+from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.core.models import module_of
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.simulate import simulate_batch
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.errors import TuningError
+from mmg_tuner.tuning.objective import TrialBatch
+from mmg_tuner.tuning.report import json_text, params_yaml_text, unique_names
+from mmg_tuner.tuning.segments import split_trials
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+METHODS = ('lo', 'go', 'lo-go')
+"""lo: the local step alone; go: the global step from the ship's values; lo-go: both."""
+MIN_BOLLARD_POINTS = 4
+"""A bollard table needs this many rows (n, thrust): a curve from fewer is a guess."""
+MAX_THRUST_DEGREE = 5
+THRUST_PARAMS = tuple(f'thrust_p{k}' for k in range(MAX_THRUST_DEGREE + 1))
+AZIMUTH_PARAMS = ('azimuth_k1', 'azimuth_k2')
+_VEL = (3, 4, 5)   # u, v, r in the state
+
+
+# ------------------------------------------------------------------------------- thrust
+@dataclass(frozen=True)
+class BollardTable:
+    """A bollard-pull test: shaft speed n [rev/s] and thrust [N] per thruster, n ascending."""
+
+    n: np.ndarray
+    thrust: np.ndarray
+    source: str = ''
+
+
+def read_bollard_table(path: str | Path) -> BollardTable:
+    """Read a CSV with a header ``n,thrust`` (rev/s, N per thruster) and check it."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding='utf-8')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TuningError(f'bollard-pull table {path}: cannot read it ({exc})') from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith('#')]
+    if not lines:
+        raise TuningError(f'bollard-pull table {path}: empty; expected a header n,thrust '
+                          '(rev/s, N per thruster) and one row per shaft speed')
+    header = [h.strip() for h in lines[0].split(',')]
+    if 'n' not in header or 'thrust' not in header:
+        raise TuningError(f'bollard-pull table {path}: header {",".join(header)!r} lacks '
+                          'column n (rev/s) or thrust (N per thruster)')
+    jn, jt = header.index('n'), header.index('thrust')
+    n, F = [], []
+    for i, ln in enumerate(lines[1:], start=2):
+        cells = [c.strip() for c in ln.split(',')]
+        try:
+            n.append(float(cells[jn]))
+            F.append(float(cells[jt]))
+        except (IndexError, ValueError):
+            raise TuningError(f'bollard-pull table {path}, row {i}: {ln!r} is not two '
+                              'numbers n, thrust') from None
+    return check_bollard_table(np.array(n), np.array(F), str(path))
+
+
+def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> BollardTable:
+    """Return the table, or a TuningError naming what makes it unusable."""
+    n = np.asarray(n, dtype=float)
+    F = np.asarray(thrust, dtype=float)
+    if n.shape != F.shape or n.ndim != 1:
+        raise TuningError(f'{source}: n and thrust must be two columns of equal length')
+    if len(n) < MIN_BOLLARD_POINTS:
+        raise TuningError(f'{source}: too short: {len(n)} rows; a thrust curve needs at least '
+                          f'{MIN_BOLLARD_POINTS} shaft speeds (n, thrust)')
+    if not (np.all(np.isfinite(n)) and np.all(np.isfinite(F))):
+        k = int(np.argmax(~(np.isfinite(n) & np.isfinite(F))))
+        raise TuningError(f'{source}: row {k + 1} has a non-finite value (n = {n[k]}, '
+                          f'thrust = {F[k]})')
+    if np.any(n < 0):
+        k = int(np.argmax(n < 0))
+        raise TuningError(f'{source}: n = {n[k]:g} rev/s at row {k + 1}: give the ahead '
+                          'curve (n >= 0); astern thrust is the ship config value '
+                          'thrust_astern_ratio')
+    order = np.argsort(n, kind='stable')
+    n, F = n[order], F[order]
+    if np.any(np.diff(n) <= 0):
+        k = int(np.argmax(np.diff(n) <= 0))
+        raise TuningError(f'{source}: shaft speed n = {n[k]:g} rev/s appears twice; one '
+                          'thrust per speed')
+    if np.any(np.diff(F) < 0):
+        k = int(np.argmax(np.diff(F) < 0))
+        raise TuningError(f'{source}: not monotone: thrust falls from {F[k]:g} N at n = '
+                          f'{n[k]:g} to {F[k + 1]:g} N at n = {n[k + 1]:g} rev/s; a bollard '
+                          'pull grows with shaft speed (check the units and the rows)')
+    if not F[-1] > 0:
+        raise TuningError(f'{source}: no positive thrust at any shaft speed')
+    return BollardTable(n, F, source)
+
+
+@dataclass(frozen=True)
+class ThrustFit:
+    """Thrust polynomial coefficients p0..p5 [N / (rev/s)^k], its degree and fit quality."""
+
+    coefficients: tuple[float, ...]
+    degree: int
+    rmse_N: float
+    r2: float
+    points: int
+
+    @property
+    def params(self) -> dict[str, float]:
+        return dict(zip(THRUST_PARAMS, self.coefficients))
+
+
+def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
+    """
+    Fit F(n) = sum_k p_k n^k (eq. 20) to a bollard table, degree <= 5.
+
+    ``degree`` None: the degree 1 ... min(5, points - 3) with the least leave-one-out error
+    whose curve grows over the table's speeds.
+    """
+    n, F = table.n, table.thrust
+    top = min(MAX_THRUST_DEGREE, len(n) - 3)
+    if degree is not None and not 1 <= degree <= min(MAX_THRUST_DEGREE, len(n) - 1):
+        raise TuningError(f'{table.source}: thrust degree {degree} needs 1 <= degree <= '
+                          f'{min(MAX_THRUST_DEGREE, len(n) - 1)} with {len(n)} rows')
+    grid = np.linspace(n[0], n[-1], 200)
+    best = None
+    for d in ([degree] if degree is not None else range(1, max(1, top) + 1)):
+        A = np.vander(n, d + 1, increasing=True)
+        c, *_ = np.linalg.lstsq(A, F, rcond=None)
+        H = A @ np.linalg.pinv(A)
+        e = F - A @ c
+        loo = float(np.mean((e / np.maximum(1e-12, 1 - np.diag(H))) ** 2))
+        monotone = bool(np.all(np.diff(np.vander(grid, d + 1, increasing=True) @ c) >= -1e-9))
+        if degree is None and not monotone:
+            continue
+        if best is None or loo < best[0]:
+            best = (loo, d, c, e)
+    if best is None:
+        raise TuningError(f'{table.source}: no polynomial of degree <= {top} grows with n '
+                          'over the table; check the rows')
+    _, d, c, e = best
+    coef = tuple(float(x) for x in c) + (0.0,) * (MAX_THRUST_DEGREE - d)
+    ss = float(np.sum((F - F.mean()) ** 2))
+    return ThrustFit(coef, d, float(np.sqrt(np.mean(e ** 2))),
+                     1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0, len(n))
+
+
+# ------------------------------------------------------------------------------ azimuth
+@dataclass(frozen=True)
+class AzimuthFit:
+    """alpha'' = k1 (alpha_c - alpha) - k2 alpha': k1 [1/s^2], k2 [1/s]; R^2 of the angles."""
+
+    k1: float
+    k2: float
+    r2: float
+    rmse_rad: float
+    samples: int
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {'azimuth_k1': self.k1, 'azimuth_k2': self.k2}
+
+
+def _has_commands(trial: Trial, cmd_channels: Sequence[str]) -> bool:
+    return all(c in trial.inputs and np.any(np.isfinite(trial.inputs[c]))
+               for c in cmd_channels)
+
+
+def _azimuth_channels(ship: ShipConfig) -> tuple[list[str], list[str], list[int]]:
+    """(measured angle channels, command channels, their columns in the actuator outputs)."""
+    ins = ship.family.inputs
+    cmds = [c for c in ins if c.startswith('azimuth_cmd_')]
+    meas = [c.replace('azimuth_cmd_', 'azimuth_') for c in cmds]
+    outs = [ship.family.outputs.index('alpha_' + c.split('_')[-1]) for c in cmds]
+    return meas, cmds, outs
+
+
+def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
+    """
+    Fit k1, k2 to the trials that recorded commanded and measured angles (None: none did).
+
+    The actuator kernel replays each command from the first measured angle; the angle acting
+    over interval k is compared with the measurement at k + 1 (its end). The ship's rate limit
+    (``azimuth_rate_max``) is kept.
+    """
+    from scipy.optimize import least_squares
+
+    meas_ch, cmd_ch, cols = _azimuth_channels(ship)
+    if not cmd_ch:
+        return None
+    used = [t for t in trials if _has_commands(t, cmd_ch)]
+    if not used:
+        return None
+    fam = ship.family
+    base = ship.params.copy()
+    for k in ('azimuth_offset_port', 'azimuth_offset_stbd'):
+        if k in PARAM_INDEX:
+            base[PARAM_INDEX[k]] = 0.0
+    data = []
+    for tr in used:
+        ctrl = np.ascontiguousarray(tr.input_array(fam.channels))
+        data.append((ctrl, np.column_stack([tr.inputs[c] for c in meas_ch])[1:], tr.dt))
+    i1, i2 = PARAM_INDEX['azimuth_k1'], PARAM_INDEX['azimuth_k2']
+
+    def angles(z):
+        p = base.copy()
+        p[i1], p[i2] = math.exp(z[0]), math.exp(z[1])
+        out = []
+        for ctrl, _, dt in data:
+            T = len(ctrl)
+            a = np.zeros((T, len(fam.outputs)))
+            actuator_outputs(ship.kind, p, ctrl, T, dt, a)
+            out.append(a[:-1][:, cols])
+        return out
+
+    def resid(z):
+        return np.concatenate([(a - m).ravel() for a, (_, m, _) in zip(angles(z), data)])
+
+    k1, k2 = (ship['azimuth_k1'], ship['azimuth_k2'])
+    z0 = np.log([k1 if k1 > 0 else 4.0, k2 if k2 > 0 else 3.0])
+    sol = least_squares(resid, z0, method='trf', x_scale=1.0, diff_step=1e-4)
+    e = resid(sol.x)
+    m = np.concatenate([d[1].ravel() for d in data])
+    ss = float(np.sum((m - m.mean()) ** 2))
+    return AzimuthFit(float(math.exp(sol.x[0])), float(math.exp(sol.x[1])),
+                      1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0,
+                      float(np.sqrt(np.mean(e ** 2))), int(e.size))
+
+
+# ----------------------------------------------------------------------------------- LO
+def coefficient_names(ship: ShipConfig) -> tuple[str, ...]:
+    """Return the family's model coefficients (its ``COEFFICIENTS``), else the ship's targets."""
+    mod = importlib.import_module(module_of(ship.model))
+    names = tuple(getattr(mod, 'COEFFICIENTS', ()) or ship.tuning_targets)
+    if not names:
+        raise TuningError(f'{ship.name}: the family {ship.model!r} declares no COEFFICIENTS '
+                          'and the ship no tuning targets: nothing to identify')
+    return names
+
+
+def _check_family(ship: ShipConfig) -> None:
+    fam = ship.family
+    if fam.motion is None or fam.mass_solve is None:
+        raise TuningError(f'{ship.name}: LO/GO identification needs a control-oriented family '
+                          f'(its own M, C(nu), D(nu): surge_decoupled, simplified6); '
+                          f'{ship.model!r} uses the MMG equations: tune it with CMA-ES '
+                          '(no --method, no --bollard-pull)')
+
+
+def _smooth(x: np.ndarray, dt: float, smooth_s: float) -> np.ndarray:
+    """Savitzky-Golay (cubic) smoothing over ``smooth_s`` seconds (0 or too short: as is)."""
+    w = int(round(smooth_s / dt)) | 1
+    if smooth_s <= 0 or w < 5 or len(x) < w:
+        return x
+    from scipy.signal import savgol_filter
+    return savgol_filter(x, w, 3, axis=0)
+
+
+def actuator_forces(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
+                    commands: bool = False) -> np.ndarray:
+    """
+    Return tau (T, 3) [N, N, N m] of each sample interval from the recorded inputs.
+
+    Through the core's actuator kernel and the actuators' own ``forces``. ``commands`` False:
+    recorded commands are ignored, so the measured angles act, held over the interval (the
+    local step's view); True: the actuator dynamics replay them.
+    """
+    fam = ship.family
+    p = ship.params if params is None else params
+    ctrl = np.array(trial.input_array(fam.channels))
+    if not commands:
+        for j, c in enumerate(fam.channels):
+            if TABLE[c].default is not None and TABLE[c].default != TABLE[c].default:
+                ctrl[:, j] = np.nan   # an optional command: "not recorded"
+    T = len(trial)
+    act = np.zeros((T, len(fam.outputs)))
+    actuator_outputs(ship.kind, p, np.ascontiguousarray(ctrl), T, trial.dt, act)
+    tau = np.zeros((T, 3))
+    k = 0
+    for name in fam.actuators:
+        a = actuator(name)
+        if a.forces is not None:
+            for i in range(T):
+                tau[i] += a.forces(p, 0.0, 0.0, 0.0, tuple(act[i]), k)
+        k += len(a.outputs)
+    return tau
+
+
+def _mass_and_hull(fam, p: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return M (3, 3) and C(nu) nu + D(nu) nu (T, 3) from the family's compiled functions.
+
+    M is the inverse of mass_solve's response to unit forces; C(nu) nu + D(nu) nu =
+    -M motion(nu, 0) - forces(nu), since motion(nu, F) = M^-1 (F - C(nu) nu).
+    """
+    M = np.linalg.inv(np.column_stack([fam.mass_solve(p, *e) for e in np.eye(3)]))
+    act = (0.0,) * len(fam.outputs)   # the hull's forces of these families ignore it
+    a = np.empty((len(nu), 3))
+    f = np.empty((len(nu), 3))
+    for i in range(len(nu)):
+        u, v, r = nu[i]
+        a[i] = fam.motion(p, u, v, r, 0.0, 0.0, 0.0)
+        f[i] = fam.forces(p, u, v, r, act)
+    return M, -(a @ M.T) - f
+
+
+def _interval_data(ship: ShipConfig, trial: Trial, smooth_s: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    (nu (T, 3), dnu/dt over each interval (T-1, 3), tau of each interval (T-1, 3)).
+
+    When the trial recorded azimuth commands, the angle moves within an interval: tau is then
+    the mean of tau with the measured angles at its start and at its end (the shaft speeds
+    held); without commands the kernels hold the measured angle, and so does tau here.
+    """
+    nu = _smooth(trial.states[:, _VEL], trial.dt, smooth_s)
+    dnu = np.diff(nu, axis=0) / trial.dt
+    tau = actuator_forces(ship, trial)
+    meas_ch, cmd_ch, _ = _azimuth_channels(ship)
+    if cmd_ch and _has_commands(trial, cmd_ch):
+        ahead = {c: np.append(trial.inputs[c][1:], trial.inputs[c][-1]) for c in meas_ch}
+        tau_end = actuator_forces(ship, replace(trial, inputs={**trial.inputs, **ahead}))
+        return nu, dnu, 0.5 * (tau[:-1] + tau_end[:-1])
+    return nu, dnu, tau[:-1]
+
+
+def regressor(ship: ShipConfig, names: Sequence[str], nu: np.ndarray, dnu: np.ndarray
+              ) -> np.ndarray:
+    """
+    Return A (T-1, 3, d) with A theta = M dnu + the mean of C nu + D nu at both interval ends.
+
+    Columns by differences of the family's equation terms around the ship's values; a family
+    not linear in these coefficients is refused.
+    """
+    fam = ship.family
+    p0 = ship.params.copy()
+    idx = [PARAM_INDEX[n] for n in names]
+
+    def terms(p):
+        M, g = _mass_and_hull(fam, p, nu)
+        return dnu @ M.T + 0.5 * (g[:-1] + g[1:])
+    base = terms(p0)
+    cols = []
+    for j in idx:
+        step = max(abs(p0[j]), 1.0)
+        p = p0.copy()
+        p[j] += step
+        cols.append((terms(p) - base) / step)
+    A = np.stack(cols, axis=-1)
+    # linearity: the terms at the ship's values are A theta (no part the coefficients miss)
+    scale = max(float(np.max(np.abs(base))), 1e-9)
+    off = float(np.max(np.abs(base - A @ p0[idx])))
+    if off > 1e-6 * scale:
+        raise TuningError(f'{ship.name}: the family {ship.model!r} is not linear in '
+                          f'{", ".join(names)} (with the switches as set: e.g. '
+                          'simplified6 needs tau_v = 1); the local step needs a model linear '
+                          'in its coefficients')
+    return A
+
+
+@dataclass
+class LoResult:
+    """The local step: coefficients, the equation-error RMS per DOF, the regressor's cond."""
+
+    names: tuple[str, ...]
+    theta: np.ndarray
+    residual_rms: tuple[float, float, float]   # [N, N, N m]
+    condition: float
+    samples: int
+    wall_s: float
+
+
+def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | None = None,
+           smooth_s: float = 2.0) -> LoResult:
+    """
+    Solve the local step: one linear least-squares problem over all samples of all trials.
+
+    Rows: the three equations of every sample interval, each DOF scaled by the RMS of its
+    thrust (N and N m made comparable); columns scaled to unit norm (conditioning).
+    """
+    t0 = time.perf_counter()
+    _check_family(ship)
+    names = tuple(names or coefficient_names(ship))
+    As, bs = [], []
+    for tr in trials:
+        if len(tr) < 3:
+            raise TuningError(f'trial {tr.name}: fewer than 3 samples, no acceleration to fit')
+        nu, dnu, tau = _interval_data(ship, tr, smooth_s)
+        As.append(regressor(ship, names, nu, dnu))
+        bs.append(tau)
+    A = np.concatenate(As)
+    b = np.concatenate(bs)
+    w = np.sqrt(np.mean(b ** 2, axis=0))
+    w[~(w > 0)] = 1.0
+    Aw = (A / w[None, :, None]).reshape(-1, len(names))
+    bw = (b / w[None, :]).ravel()
+    cn = np.linalg.norm(Aw, axis=0)
+    cn[~(cn > 0)] = 1.0
+    sol, *_ = np.linalg.lstsq(Aw / cn, bw, rcond=None)
+    theta = sol / cn
+    s = np.linalg.svd(Aw / cn, compute_uv=False)
+    res = (A @ theta) - b
+    return LoResult(names, theta, tuple(float(x) for x in np.sqrt(np.mean(res ** 2, axis=0))),
+                    float(s[0] / s[-1]) if s[-1] > 0 else math.inf, len(b),
+                    time.perf_counter() - t0)
+
+
+# ----------------------------------------------------------------------------------- GO
+@dataclass
+class GoResult:
+    """The global step: coefficients, its cost before and after, evaluations, stages."""
+
+    names: tuple[str, ...]
+    theta: np.ndarray
+    cost_start: float
+    cost: float
+    evaluations: int
+    stages: int
+    wall_s: float
+    success: bool
+    message: str
+
+
+class _Simulator:
+    """u, v, r residuals of the (segmented) trials for a batch of coefficient vectors."""
+
+    def __init__(self, ship: ShipConfig, trials: Sequence[Trial], names, segment_s: float,
+                 integrator: str, substeps: int, sigma: np.ndarray):
+        named = [replace(t, name=n) for t, n in zip(trials, unique_names(trials))]
+        segs = split_trials(named, segment_s)
+        batch = TrialBatch.from_trials([s.trial for s in segs], x0_window_s=0.0)
+        self.ship, self.idx = ship, [PARAM_INDEX[n] for n in names]
+        self.meas = batch.meas
+        self.ctrls = batch.inputs_for(ship.family.channels, ship.name)
+        self.lengths = batch.lengths
+        self.dt = batch.dt
+        self.integrator, self.substeps = integrator, substeps
+        T = self.meas.shape[1]
+        self.mask = (np.arange(T)[None, :] < self.lengths[:, None])
+        self.mask[:, 0] = False
+        self.n = int(self.mask.sum())
+        self.sigma = sigma
+        self.target = (self.meas[..., _VEL] / sigma)[self.mask]
+
+    def residuals(self, thetas: np.ndarray) -> np.ndarray:
+        """(N, n * 3) residuals / sqrt(n) of coefficient vectors (N, d), each within +-10 sigma."""
+        P = np.repeat(self.ship.params[None, :], len(thetas), axis=0)
+        P[:, self.idx] = thetas
+        out, _, _ = simulate_batch(self.ship.kind, P, self.meas[:, 0], self.ctrls, self.dt,
+                                   self.lengths, self.integrator, self.substeps)
+        sim = (out[..., _VEL] / self.sigma)[:, self.mask]
+        r = sim - self.target[None]
+        # a diverging candidate: bounded residuals keep the step finite and the cost comparable
+        r[~np.isfinite(r)] = 10.0
+        np.clip(r, -10.0, 10.0, out=r)
+        return r.reshape(len(thetas), -1) / math.sqrt(self.n)
+
+
+def pooled_velocity_sigma(trials: Sequence[Trial]) -> np.ndarray:
+    """Return the std of u, v, r over all samples (a floor keeps a flat one usable)."""
+    st = np.concatenate([t.states[:, _VEL] for t in trials])
+    s = np.std(st, axis=0)
+    return np.maximum(s, 1e-3 * max(float(np.max(s)), 1e-9))
+
+
+def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 40,
+                        rtol: float = 1e-9) -> tuple[np.ndarray, float, int, int, str]:
+    """
+    Minimise ||r(z)||^2 by Levenberg-Marquardt on the normal equations (Marquardt scaling).
+
+    ``residuals_and_jacobian(z, jacobian)`` returns r (and J when ``jacobian``). The normal
+    equations are d x d, so no factorisation of the tall Jacobian is needed (SciPy's
+    ``least_squares`` spends most of its time there: an SVD of the (n, d) matrix per step, slow
+    when other jobs share the cores). Returns (z, cost, residual evaluations, Jacobians, why
+    it stopped).
+    """
+    z = np.asarray(z0, dtype=float).copy()
+    r, J = residuals_and_jacobian(z, True)
+    cost = float(r @ r)
+    mu, nfev, njev = 1e-3, 1, 1
+    why = f'{max_iter} iterations'
+    for _ in range(max_iter):
+        H = J.T @ J
+        g = J.T @ r
+        d = np.maximum(np.diag(H), 1e-12 * max(float(np.max(np.diag(H))), 1e-300))
+        while True:
+            step = np.linalg.solve(H + mu * np.diag(d), -g)
+            r_new = residuals_and_jacobian(z + step, False)[0]
+            nfev += 1
+            c_new = float(r_new @ r_new)
+            if c_new < cost:
+                break
+            mu *= 4.0
+            if mu > 1e12:
+                return z, cost, nfev, njev, 'no step lowers the cost (converged)'
+        gain = cost - c_new
+        z = z + step
+        mu = max(mu / 3.0, 1e-12)
+        cost = c_new
+        if gain <= rtol * cost or np.linalg.norm(step) <= 1e-10 * (1 + np.linalg.norm(z)):
+            why = 'converged (relative cost decrease below tolerance)'
+            break
+        r, J = residuals_and_jacobian(z, True)
+        njev += 1
+    return z, cost, nfev, njev, why
+
+
+def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
+           names: Sequence[str] | None = None, prior: np.ndarray | None = None,
+           ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
+           substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> GoResult:
+    """
+    Minimise the simulation error of u, v, r from theta0, pulled toward ``prior`` (LO).
+
+    cost = mean over samples of sum_{u,v,r} ((sim - meas) / sigma)^2
+    + ridge * sum_j ((theta_j - prior_j) / s_j)^2, s_j = max(|prior_j|, a floor): a
+    coefficient the data do not determine stays at its local value. Levenberg-Marquardt
+    (:func:`levenberg_marquardt`), at most ``max_nfev`` iterations; each Jacobian is one batched
+    simulation of the d + 1 candidates. ``grow``: the trials are added one by one
+    (Algorithm 1), each stage from the last one's solution or from LO, whichever fits that
+    stage's trials better (the paper's "from LO if GO fails"), earlier stages a quarter of the
+    iterations.
+    """
+    t0 = time.perf_counter()
+    _check_family(ship)
+    names = tuple(names or coefficient_names(ship))
+    theta0 = np.asarray(theta0, dtype=float)
+    prior = theta0.copy() if prior is None else np.asarray(prior, dtype=float)
+    scale = np.maximum(np.abs(prior), 0.02 * max(float(np.median(np.abs(prior))), 1e-6))
+    sigma = pooled_velocity_sigma(trials)
+    trials = list(trials)
+    stages = ([trials[:j] for j in range(1, len(trials) + 1)] if grow and len(trials) > 1
+              else [trials])
+    theta = theta0.copy()
+    evals = 0
+    cost_start = cost = math.nan
+    why = ''
+    rw = math.sqrt(ridge)
+    h = 1e-6
+    for si, subset in enumerate(stages):
+        sim = _Simulator(ship, subset, names, segment_s, integrator, substeps, sigma)
+
+        def rj(z, jacobian, sim=sim):
+            th = prior + z * scale
+            cand = np.vstack([th[None], th[None] + np.diag(h * scale)]) if jacobian \
+                else th[None]
+            R = sim.residuals(cand)
+            r = np.concatenate([R[0], rw * z])
+            if not jacobian:
+                return r, None
+            J = np.vstack([((R[1:] - R[0]) / h).T, rw * np.eye(len(z))])
+            return r, J
+
+        z0 = (theta - prior) / scale
+        if si > 0:   # Algorithm 1: from the last stage's GO, or from LO where that fits worse
+            r_go, r_lo = rj(z0, False)[0], rj(np.zeros_like(z0), False)[0]
+            if not float(r_go @ r_go) <= float(r_lo @ r_lo):
+                z0 = np.zeros_like(z0)
+        last = si == len(stages) - 1
+        if last:
+            r0 = rj(z0, False)[0]
+            cost_start = float(r0 @ r0)
+        z, cost, nfev, njev, why = levenberg_marquardt(
+            rj, z0, max_nfev if last else max(3, max_nfev // 4))
+        evals += nfev + njev * (len(names) + 1)
+        theta = prior + z * scale
+    return GoResult(names, theta, cost_start, cost, evals, len(stages),
+                    time.perf_counter() - t0, True, why)
+
+
+# ------------------------------------------------------------------------------ identify
+@dataclass
+class IdentifyResult:
+    """Everything :func:`identify` found; ``params`` the values written to params.yaml."""
+
+    ship: ShipConfig = field(repr=False)
+    method: str
+    params: dict[str, float]
+    thrust: ThrustFit | None
+    azimuth: AzimuthFit | None
+    lo: LoResult | None
+    go: GoResult | None
+    wall_s: float
+    trials: list[str] = field(default_factory=list)
+
+    @property
+    def identified_ship(self) -> ShipConfig:
+        return self.ship.with_params(self.params, 'identified parameters')
+
+    def report(self) -> dict:
+        """identify.json's content."""
+        d: dict = {'ship': self.ship.name, 'model': self.ship.model, 'method': self.method,
+                   'trials': list(self.trials), 'wall_s': self.wall_s,
+                   'params': {n: {'pre': float(self.ship[n]), 'identified': float(v)}
+                              for n, v in self.params.items()}}
+        if self.thrust is not None:
+            t = self.thrust
+            d['thrust'] = {'coefficients': list(t.coefficients), 'degree': t.degree,
+                           'rmse_N': t.rmse_N, 'r2': t.r2, 'points': t.points}
+        if self.azimuth is not None:
+            a = self.azimuth
+            d['azimuth'] = {'k1': a.k1, 'k2': a.k2, 'r2': a.r2, 'rmse_rad': a.rmse_rad,
+                            'samples': a.samples}
+        if self.lo is not None:
+            d['lo'] = {'residual_rms': list(self.lo.residual_rms),
+                       'condition': self.lo.condition, 'samples': self.lo.samples,
+                       'wall_s': self.lo.wall_s}
+        if self.go is not None:
+            g = self.go
+            d['go'] = {'cost_start': g.cost_start, 'cost': g.cost, 'evaluations': g.evaluations,
+                       'stages': g.stages, 'wall_s': g.wall_s, 'success': g.success,
+                       'message': g.message}
+        return d
+
+    def markdown(self) -> str:
+        r = self.report()
+        lines = [f'# identify: {self.ship.name} ({self.ship.model}), method {self.method}', '',
+                 f'{len(self.trials)} trial(s), {self.wall_s:.1f} s.', '']
+        if self.thrust is not None:
+            t = self.thrust
+            lines.append(f'- thrust polynomial, degree {t.degree} from {t.points} bollard '
+                         f'points: RMSE {t.rmse_N:.3g} N, R^2 {t.r2:.5f}')
+        if self.azimuth is not None:
+            a = self.azimuth
+            lines.append(f'- azimuth dynamics: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s, '
+                         f'R^2 {a.r2:.5f} over {a.samples} angles')
+        if self.lo is not None:
+            lines.append(f'- LO: one least-squares problem over {self.lo.samples} intervals, '
+                         f'condition {self.lo.condition:.3g}, equation error RMS '
+                         + ', '.join(f'{x:.3g}' for x in self.lo.residual_rms)
+                         + ' [N, N, N m]')
+        if self.go is not None:
+            g = self.go
+            lines.append(f'- GO: cost {g.cost_start:.4g} -> {g.cost:.4g} in {g.evaluations} '
+                         f'simulations ({g.stages} stage(s)), {g.wall_s:.1f} s; {g.message}')
+        lines += ['', '| parameter | pre-determined | identified |', '|---|---|---|']
+        for n, v in r['params'].items():
+            lines.append(f'| {n} | {v["pre"]:.6g} | {v["identified"]:.6g} |')
+        return '\n'.join(lines) + '\n'
+
+    def write(self, out: str | Path | OutputDir) -> list[Path]:
+        """params.yaml, identify.md, then identify.json (its presence: the set is complete)."""
+        own = not isinstance(out, OutputDir)
+        od = OutputDir.open(out) if own else out
+        try:
+            note = (f'identified by mmg_tuner ({self.method}) on '
+                    + (', '.join(self.trials) or 'the trials'))
+            paths = [od.write_text('params.yaml', params_yaml_text(self.ship, self.params,
+                                                                   note)),
+                     od.write_text('identify.md', self.markdown()),
+                     od.write_text('identify.json', json_text(self.report()))]
+        finally:
+            if own:
+                od.close()
+        return paths
+
+
+def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
+             bollard: BollardTable | None = None, thrust_degree: int | None = None,
+             names: Sequence[str] | None = None, smooth_s: float = 2.0,
+             ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
+             substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> IdentifyResult:
+    """
+    Identify the whole ship: thrust curve, azimuth dynamics, hull coefficients (LO, GO).
+
+    ``method``: 'lo', 'go' (from the ship's values) or 'lo-go' (GO from LO, pulled toward
+    it). ``bollard``: the bollard-pull table (None: the ship's thrust curve is kept).
+    """
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise TuningError(f'method {method!r}: use one of {", ".join(METHODS)}')
+    _check_family(ship)
+    trials = list(trials)
+    if not trials:
+        raise TuningError('identify: no trials given')
+    names = tuple(names or coefficient_names(ship))
+    params: dict[str, float] = {}
+    thrust = None
+    if bollard is not None:
+        thrust = fit_thrust(bollard, thrust_degree)
+        params.update(thrust.params)
+        logger.info('thrust: degree %d, RMSE %.3g N over %d bollard points', thrust.degree,
+                    thrust.rmse_N, thrust.points)
+    az = (fit_azimuth(ship.with_params(params), trials)
+          if 'azimuth_k1' in _actuator_params(ship) else None)
+    if az is not None:
+        params.update(az.params)
+        logger.info('azimuth: k1 = %.4g, k2 = %.4g (R^2 %.5f)', az.k1, az.k2, az.r2)
+    work = ship.with_params(params)
+    lo = go = None
+    theta = np.array([work[n] for n in names])
+    if method in ('lo', 'lo-go'):
+        lo = lo_fit(work, trials, names, smooth_s)
+        theta = lo.theta
+        logger.info('LO: %d intervals, %.2f s', lo.samples, lo.wall_s)
+    if method in ('go', 'lo-go'):
+        go = go_fit(work, trials, theta, names, prior=theta, ridge=ridge, segment_s=segment_s,
+                    integrator=integrator, substeps=substeps, max_nfev=max_nfev, grow=grow)
+        theta = go.theta
+        logger.info('GO: cost %.4g -> %.4g, %.1f s', go.cost_start, go.cost, go.wall_s)
+    params.update({n: float(v) for n, v in zip(names, theta)})
+    return IdentifyResult(ship, method, params, thrust, az, lo, go, time.perf_counter() - t0,
+                          unique_names(trials))
+
+
+def _actuator_params(ship: ShipConfig) -> tuple[str, ...]:
+    return tuple(q for a in ship.family.actuators for q in actuator(a).params)
+
+
+__all__ = ['AzimuthFit', 'BollardTable', 'GoResult', 'IdentifyResult', 'LoResult', 'METHODS',
+           'ThrustFit', 'check_bollard_table', 'fit_azimuth', 'fit_thrust', 'go_fit',
+           'identify', 'lo_fit', 'read_bollard_table']

@@ -1,0 +1,132 @@
+"""
+tune --model auto (the candidates compared per kind), the ensemble's interval and coverage.
+
+Also: issue 25's registered test was written down (bench/esso_fresh_preregistration.md)
+before the seven fresh runs were added.
+"""
+from pathlib import Path
+
+import mmg_tuner as mt
+from mmg_tuner.learn import ensemble, members
+from mmg_tuner.learn.residual import ResidualNet, zero_net
+from mmg_tuner.tuning.choice import choose_model
+from mmg_tuner.tuning.interval import (calibrate_interval, coverage, Interval,
+                                       model_interval, with_interval)
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+KINDS = {'turning_p35': 'turning', 'turning_m25': 'turning', 'zigzag_p20': 'zigzag',
+         'zigzag_m15': 'zigzag'}
+
+
+@pytest.fixture(scope='module')
+def trials(tmp_path_factory):
+    from mmg_tuner.cli.generate import command as generate
+    d = tmp_path_factory.mktemp('auto') / 'trials'
+    assert generate(['--out', str(d), '--duration', '120', '--rate-hz', '1', '--maneuvers',
+                     'turning:35', 'zigzag:20', 'turning:-25', 'zigzag:-15']) == 0
+    return [mt.load_trials(d / n)[0] for n in KINDS]
+
+
+def _kick(dr: float) -> ResidualNet:
+    """Return a network whose output is a constant yaw acceleration dr [rad/s^2]."""
+    net = zero_net(2, 1.0)
+    b = list(net.biases)
+    b[-1] = np.array([0.0, 0.0, dr])
+    return ResidualNet(net.window, net.dt_s, net.weights, tuple(b), net.x_mean, net.x_std,
+                       net.y_scale, True, seed=len(str(dr)))
+
+
+def test_choose_model_takes_the_one_best_on_its_worst_kind(trials):
+    ship = mt.load_ship('suzaku')   # the trials' own ship: best on every kind
+    off = ship.with_params({'N_r': 1.3 * ship['N_r']})
+    groups = {t.name: KINDS[t.name] for t in trials}
+    c = choose_model({'off': off, 'true': ship}, trials, groups)
+    assert c.chosen == 'true' and c.score['true'] == 1.0 and c.score['off'] > 1.0
+    assert set(c.by_kind['off']) == {'turning', 'zigzag'}
+    assert '(recommended)' in c.markdown() and c.to_dict()['chosen'] == 'true'
+
+
+def test_members_split_an_ensemble_exactly():
+    a, b = _kick(1e-4), _kick(-3e-4)
+    ens = ensemble([a, b])
+    for m, orig in zip(members(ens), (a, b)):
+        for w, v in zip(m.weights + m.biases, orig.weights + orig.biases):
+            np.testing.assert_array_equal(w, v)
+    assert members(a) == [a]
+
+
+def test_interval_calibrated_on_trials_covers_its_level_and_travels_with_the_model(trials):
+    ship = mt.load_ship('suzaku')
+    model = mt.Model(ship, ensemble([_kick(2e-4), _kick(-2e-4)]))
+    iv = calibrate_interval(model, trials, 0.9, integrator='euler')
+    cov = coverage(iv, trials, integrator='euler')
+    # the level quantile of the same samples: at least 90 % inside, ties add a few
+    assert 0.9 <= cov['all'] <= 0.95 and set(cov['trials']) == {t.name for t in trials}
+    wide = coverage(Interval(iv.model, iv.members, (1e9,) * 6, 0.9), trials)
+    narrow = coverage(Interval(iv.model, iv.members, (0.0,) * 6, 0.9), trials)
+    assert wide['all'] == 1.0 and narrow['all'] < 0.1
+    carried = model_interval(with_interval(iv))
+    assert carried.scale == iv.scale and len(carried.members) == 2
+    res = mt.evaluate(with_interval(iv), trials, integrator='euler')
+    assert res.coverage['all'] == pytest.approx(cov['all'])
+    assert 'Prediction interval (nominal 90 %)' in res.markdown()
+
+
+def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials, tmp_path):
+    pytest.importorskip('jax')
+    groups = {t.name: KINDS[t.name] for t in trials}
+    res = mt.tune(mt.load_ship('suzaku'), trials, max_evals=40, model='auto',
+                  residual_seeds=2, groups=groups,
+                  residual_options={'epochs': 2, 'hidden': (6,), 'horizon_s': 6.0})
+    c = res.choice
+    assert set(c.by_kind) == {'physics', 'hybrid', 'network'}
+    assert c.score[c.chosen] == min(c.score.values()) >= 1.0
+    res.write(tmp_path / 'out', plots=False)
+    params = (tmp_path / 'out' / 'params.yaml').read_text()
+    assert '## Model chosen (--model auto)' in (tmp_path / 'out' / 'report.md').read_text()
+    if c.chosen == 'physics':
+        assert res.residual is None and 'residual:' not in params
+    else:
+        assert 'residual:' in params and 'interval' in res.residual.net.meta
+    with pytest.raises(mt.MmgTunerError, match='model'):
+        mt.TuneConfig(model='best')
+
+
+def test_the_fresh_test_was_registered_with_its_hypotheses():
+    reg = (ROOT / 'bench' / 'esso_fresh_preregistration.md').read_text()
+    for what in ('H1', 'H2', 'H3', 'H4', 'bench/esso_fresh.py', '80 %', '95 %'):
+        assert what in reg
+    readme = (ROOT / 'data' / 'esso_osaka_frt_extra' / 'README.md').read_text()
+    assert 'esso_fresh_preregistration.md' in readme
+    assert (ROOT / 'data' / 'esso_osaka_frt_extra' / 'LICENSE').is_file()
+
+
+def test_polish_alone_tunes_from_the_pre_determined_values(trials):
+    # max_evals 0: no CMA-ES, the least-squares polish on the objective's residuals alone
+    ship = mt.load_ship('suzaku')
+    start = ship.with_params({'N_r': 1.2 * ship['N_r']})
+    res = mt.tune(start, trials[:2], targets=['N_r'], max_evals=0, polish=60,
+                  balance='group', groups={t.name: KINDS[t.name] for t in trials})
+    assert 0 < res.evaluations <= 62 and res.J.tune < 0.5 * res.J_pre.tune
+    assert res.params['N_r'] == pytest.approx(ship['N_r'], rel=0.05)
+    with pytest.raises(mt.MmgTunerError, match='max_evals'):
+        mt.TuneConfig(max_evals=0)
+
+
+def test_ship_recipe_fills_only_the_options_not_given():
+    from types import SimpleNamespace
+
+    from mmg_tuner.cli.tune import apply_recipe, build_parser, explicit_options
+    argv = ['runs/', '--ship', 'esso_osaka_3m', '--out', 'o', '--prior', '0.2']
+    args = build_parser().parse_args(argv)
+    ship = SimpleNamespace(extra={'tuning': {'recipe': {'prior': 0.05, 'segment': 100.0,
+                                                        'max_evals': 0, 'polish': 700}}},
+                           source='esso.yaml')
+    applied = apply_recipe(args, explicit_options(build_parser(), argv), ship)
+    assert args.prior == 0.2 and args.segment == 100.0 and args.max_evals == 0
+    assert args.polish == 700 and 'prior=0.05' not in applied
+    ship.extra['tuning']['recipe'] = {'nope': 1}
+    with pytest.raises(Exception, match='nope'):
+        apply_recipe(args, {}, ship)
