@@ -61,10 +61,10 @@ from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
 from mmg_tuner.tuning.interval import (calibrate_interval, coverage, model_interval,
                                        with_interval)
-from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, IdentifyResult,
                                     METHODS, read_bollard_table)
 from mmg_tuner.tuning.lo_go import identify as _identify
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.nstep import MAX_HORIZON
 from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace

@@ -22,9 +22,9 @@ from typing import Mapping, Sequence
 
 from mmg_tuner.core.effects import EFFECTS, froude_factor
 from mmg_tuner.core.ship import resolve_config_path, ShipConfig
-from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.errors import ConfigError
 from mmg_tuner.tuning.identifiability import standard_errors
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
@@ -105,7 +105,7 @@ def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
         shipb = o.ship.with_params(held)
         ob = Objective(shipb, o.batch, o.weights, 0.0, {0: 'euler', 1: 'rk4'}[o.method],
                        o.substeps)
-        x = local_least_squares(sub, ob, theta[idx], PER_TRIAL_SIMS)
+        x = local_least_squares(sub, ob, theta[idx], PER_TRIAL_SIMS).theta
         se = standard_errors(ob, sub, x)
         w = ON_BOUND * (sub.upper - sub.lower)
         edge = [bool(x[i] - sub.lower[i] < w[i] or sub.upper[i] - x[i] < w[i])
