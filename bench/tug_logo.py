@@ -60,7 +60,7 @@ def _record(truth, ch, T, name, rng, noise):
     ctrl = run.input_array(truth.family.channels)
     act = np.zeros((T, len(truth.family.outputs)))
     actuator_outputs(truth.kind, truth.params, ctrl, T, DT, act)
-    fb = np.vstack([ctrl[:1, 2:4], act[:-1, 2:4]])   # angle at each sample (feedback)
+    fb = act[:, 2:4]   # the angle acting over each interval (the repository's convention)
     st = run.states.copy()
     inputs = dict(ch, azimuth_port=fb[:, 0], azimuth_stbd=fb[:, 1])
     if noise:
@@ -142,6 +142,24 @@ def twin(truth, seed: int, noise: bool) -> tuple[list[Trial], list[Trial]]:
     return train, test
 
 
+def generated_twin(noise: bool, seed: int, folder: Path) -> tuple[list, list, Path]:
+    """Return (identification, validation trials, bollard table) of ``generate``'s twin."""
+    import yaml
+
+    from mmg_tuner.cli.generate import command as generate
+    out = folder / ('tug' if noise else 'tug_clean')
+    if not (out / 'trials.yaml').is_file():
+        args = ['--ship', 'qiuxin_tug', '--out', str(out), '--seed', str(seed)]
+        if generate(args + ([] if noise else ['--no-noise'])) != 0:
+            raise RuntimeError('generate failed')
+    doc = yaml.safe_load((out / 'trials.yaml').read_text())
+    ship = mt.load_ship('qiuxin_tug')
+
+    def load(names):
+        return mt.load_trials([str(out / 'csv' / f'{n}.csv') for n in names], ship=ship)
+    return load(doc['identification']), load(doc['validation']), out / doc['bollard_pull']
+
+
 def score(ship, test) -> dict:
     ev = mt.evaluate(ship, test, restart_every_s=0, horizons=PAPER_HORIZONS)
     return {'rel': ev.relative.pooled, 'nstep': ev.nstep, 'failed': ev.relative.failed}
@@ -157,18 +175,26 @@ def main() -> None:
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--cmaes-evals', type=int, default=3000, help='0: skip CMA-ES')
     ap.add_argument('--out', help='folder for the n-step figure')
+    ap.add_argument('--twin', choices=('generate', 'builtin'), default='generate',
+                    help="'generate': the repository's twin (generate --ship qiuxin_tug); "
+                    "'builtin': this file's smaller catalogue")
+    ap.add_argument('--data', default='bench/out/tug_logo', help='where generate writes')
     a = ap.parse_args()
     truth = mt.load_ship('qiuxin_tug')
     names = lo_go.coefficient_names(truth)
     theta_true = np.array([truth[n] for n in names])
     t0 = time.perf_counter()
-    train, test = twin(truth, a.seed, a.noise == 'rtk')
-    print(f'twin: {len(train)} identification manoeuvres ({sum(len(t) for t in train)} '
-          f'samples), {len(test)} held out; noise {a.noise}; built in '
+    if a.twin == 'generate':
+        train, test, table = generated_twin(a.noise == 'rtk', a.seed, Path(a.data))
+        bollard = lo_go.read_bollard_table(table)
+    else:
+        train, test = twin(truth, a.seed, a.noise == 'rtk')
+        nb = np.arange(0.0, 12.5, 1.0)
+        noise_1pc = 1 + 0.01 * np.random.default_rng(a.seed).normal(size=nb.size)
+        bollard = lo_go.check_bollard_table(nb, 0.4 * nb * nb * noise_1pc, 'bollard, 1 % noise')
+    print(f'twin ({a.twin}): {len(train)} identification manoeuvres ({sum(len(t) for t in train)} '
+          f'samples), {len(test)} held out; noise {a.noise}; ready in '
           f'{time.perf_counter() - t0:.1f} s')
-    nb = np.arange(0.0, 12.5, 1.0)
-    noise_1pc = 1 + 0.01 * np.random.default_rng(a.seed).normal(size=nb.size)
-    bollard = lo_go.check_bollard_table(nb, 0.4 * nb * nb * noise_1pc, 'twin bollard (1 % noise)')
     rows, scores = [], {}
     s6 = mt.load_ship('qiuxin_tug_simplified6')
     for ship in (truth, s6):   # compile every kernel first: wall times without compilation

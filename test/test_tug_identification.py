@@ -44,7 +44,7 @@ def _trial(ship, kind, n, a_deg, T=250, seed=0, commands=False, name=None):
         ctrl = run.input_array(ship.family.channels)
         act = np.zeros((T, len(ship.family.outputs)))
         actuator_outputs(ship.kind, ship.params, ctrl, T, DT, act)
-        fb = np.vstack([ctrl[:1, 2:4], act[:-1, 2:4]])
+        fb = act[:, 2:4]   # the angle acting over each interval (doc/guides/tug.md)
         ch = dict(ch, azimuth_port=fb[:, 0], azimuth_stbd=fb[:, 1])
     return Trial(run.t, run.states, inputs=ch, name=name or f'{kind}_{n:g}_{a_deg:+g}')
 

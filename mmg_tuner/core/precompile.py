@@ -28,10 +28,15 @@ def ships_by_family() -> dict[str, Path]:
 
 
 def _whole_run(ship_yaml: Path) -> None:
+    from mmg_tuner.core.channels import TABLE
     from mmg_tuner.core.ship import load_ship
     from mmg_tuner.core.simulate import simulate
-    simulate(load_ship(ship_yaml), [0.0, 0.0, 0.0, 1.0, 0.0, 0.0], np.tile([60.0, 0.1], (3, 1)),
-             1.0, 'rk4')
+    ship = load_ship(ship_yaml)
+    inputs = ship.family.inputs
+    ctrl: object = np.tile([60.0, 0.1], (3, 1))
+    if 'rpm' not in inputs:   # another actuator (twin thrusters): its required channels
+        ctrl = {c: np.full(3, 0.1) for c in inputs if TABLE[c].default is None}
+    simulate(ship, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0], ctrl, 1.0, 'rk4')
 
 
 def _stepper(ship_yaml: Path) -> None:

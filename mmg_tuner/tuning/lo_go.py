@@ -18,8 +18,8 @@ The whole ship, in the paper's order (shared/reference/mbpe_logo_tug.md):
    each one moved by a step, and linearity (checked) turns the differences into the columns.
    No equation is written twice, and any family linear in its coefficients (the 22 of
    ``surge_decoupled``, the 6 of ``simplified6``, either Coriolis form) works. Accelerations
-   come from the (Savitzky-Golay smoothed) velocities over each sample interval, the forces of
-   the interval averaged over its two ends (trapezoid), the thrust held as the kernels hold it.
+   come from the (Savitzky-Golay smoothed) velocities over each sample interval, the hull's
+   forces averaged over its two ends (trapezoid), the thrust held as the kernels hold it.
 4. **GO** (:func:`go_fit`): the multi-step simulation error of u, v, r (each over its pooled
    standard deviation) minimised from the LO solution with a ridge pull toward it, by SciPy's
    trust-region least squares; the residuals of all candidates of a finite-difference
@@ -228,7 +228,8 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
     Fit k1, k2 to the trials that recorded commanded and measured angles (None: none did).
 
     The actuator kernel replays each command from the first measured angle; the angle acting
-    over interval k is compared with the measurement at k + 1 (its end). The ship's rate limit
+    over interval k is compared with the angle recorded at sample k (the angle acting over its
+    interval: the repository's convention, doc/guides/tug.md). The ship's rate limit
     (``azimuth_rate_max``) is kept.
     """
     from scipy.optimize import least_squares
@@ -248,6 +249,7 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
     for tr in used:
         ctrl = np.ascontiguousarray(tr.input_array(fam.channels))
         data.append((ctrl, np.column_stack([tr.inputs[c] for c in meas_ch])[1:], tr.dt))
+        # row 0 is where the replay starts: compared from row 1 on
     i1, i2 = PARAM_INDEX['azimuth_k1'], PARAM_INDEX['azimuth_k2']
 
     def angles(z):
@@ -258,7 +260,7 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
             T = len(ctrl)
             a = np.zeros((T, len(fam.outputs)))
             actuator_outputs(ship.kind, p, ctrl, T, dt, a)
-            out.append(a[:-1][:, cols])
+            out.append(a[1:][:, cols])
         return out
 
     def resid(z):
@@ -357,19 +359,14 @@ def _interval_data(ship: ShipConfig, trial: Trial, smooth_s: float
     """
     (nu (T, 3), dnu/dt over each interval (T-1, 3), tau of each interval (T-1, 3)).
 
-    When the trial recorded azimuth commands, the angle moves within an interval: tau is then
-    the mean of tau with the measured angles at its start and at its end (the shaft speeds
-    held); without commands the kernels hold the measured angle, and so does tau here.
+    tau from the recorded shaft speeds and measured azimuth angles, held over the interval as
+    the kernels hold them: a recorded angle is the one acting over its sample interval (the
+    repository's convention, doc/guides/tug.md), so a simulation driven by the recorded angles
+    reproduces the run.
     """
     nu = _smooth(trial.states[:, _VEL], trial.dt, smooth_s)
     dnu = np.diff(nu, axis=0) / trial.dt
-    tau = actuator_forces(ship, trial)
-    meas_ch, cmd_ch, _ = _azimuth_channels(ship)
-    if cmd_ch and _has_commands(trial, cmd_ch):
-        ahead = {c: np.append(trial.inputs[c][1:], trial.inputs[c][-1]) for c in meas_ch}
-        tau_end = actuator_forces(ship, replace(trial, inputs={**trial.inputs, **ahead}))
-        return nu, dnu, 0.5 * (tau[:-1] + tau_end[:-1])
-    return nu, dnu, tau[:-1]
+    return nu, dnu, actuator_forces(ship, trial)[:-1]
 
 
 def regressor(ship: ShipConfig, names: Sequence[str], nu: np.ndarray, dnu: np.ndarray

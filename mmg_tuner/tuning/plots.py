@@ -85,13 +85,28 @@ def _fmt(e: float | None) -> str:
     return f'{e:.3g}'
 
 
+_KNOWN = ('rudder', 'rpm', 'bow_thruster', 'stern_thruster', 'wind_n', 'wind_e')
+
+
 def input_panels(trial: Trial) -> list[str]:
-    """Input panels a trial needs: rudder and rpm always, thrusters and wind when recorded."""
-    panels = ['rudder', 'rpm']
+    """
+    Return the input panels a trial needs.
+
+    Rudder and rpm (always for a screw-and-rudder trial), thrusters and wind when recorded;
+    any other channels (e.g. a twin-azimuth tug's shaft speeds and angles) one panel per
+    unit, named ``unit:<unit>``.
+    """
+    from mmg_tuner.core.channels import TABLE
+
+    others = [c for c in trial.inputs if c not in _KNOWN]
+    panels = [k for k in ('rudder', 'rpm') if k in trial.inputs or not others]
     if trial.thrusters is not None:
         panels.append('thrusters')
     if trial.wind is not None and not np.all(np.isnan(trial.wind)):
         panels.append('wind')
+    for unit in dict.fromkeys(TABLE[c].unit for c in others
+                              if np.any(np.isfinite(trial.inputs[c]))):
+        panels.append(f'unit:{unit}')
     return panels
 
 
@@ -162,7 +177,7 @@ def trial_figure(trial: Trial, runs: Mapping[str, np.ndarray], title: str = '',
         a = fig.add_subplot(sub[i, 0], sharex=share)
         share = share or a
         _plot_input(a, trial, k)
-        a.set_ylabel(INPUT_AXES[k], fontsize=8)
+        a.set_ylabel(INPUT_AXES.get(k) or _unit_label(k[5:]), fontsize=8)
         time_axes.append(a)
         if i == 0:
             a.set_title('recorded inputs (drive every simulation)', fontsize=10)
@@ -202,11 +217,24 @@ def _plot_input(a, trial: Trial, k: str) -> None:
         a.plot(t, trial.thrusters[:, 0], color=INPUT_COLORS['bow'], lw=1.0, label='bow')
         a.plot(t, trial.thrusters[:, 1], color=INPUT_COLORS['stern'], lw=1.0, label='stern')
         a.legend(fontsize=7, loc='best')
+    elif k.startswith('unit:'):
+        from mmg_tuner.core.channels import TABLE
+        unit = k[5:]
+        f = DEG if unit == 'rad' else 1.0
+        for c, v in trial.inputs.items():
+            if c not in _KNOWN and TABLE[c].unit == unit and np.any(np.isfinite(v)):
+                a.plot(t, f * v, lw=1.0, label=c)
+        a.legend(fontsize=7, loc='best')
     elif k == 'wind':
         a.plot(t, trial.wind[:, 0], color=INPUT_COLORS['wind_n'], lw=1.0,
                label='toward north')
         a.plot(t, trial.wind[:, 1], color=INPUT_COLORS['wind_e'], lw=1.0, label='toward east')
         a.legend(fontsize=7, loc='best')
+
+
+def _unit_label(unit: str) -> str:
+    """Axis label of a panel of other input channels: their unit (radians shown in degrees)."""
+    return 'angles [deg]' if unit == 'rad' else f'inputs [{unit}]'
 
 
 def _min_span(a, y: np.ndarray, span: float) -> None:
