@@ -96,6 +96,10 @@ def test_a_trial_pointing_the_other_way_contradicts_a_cause(suzaku):
                       'antenna_y_se': 0.5}]
     assert 'trial 4 points the other way' in disagreement(suzaku, 'antenna_offset', apart,
                                                           joint)
+    # the other way, but on the box's edge: that trial alone does not determine it
+    edge = agree + [{'antenna_x': -41.5, 'antenna_x_se': 1.0, 'antenna_y': -6.75,
+                     'antenna_y_se': 1.0, 'on_bound': True}]
+    assert disagreement(suzaku, 'antenna_offset', edge, joint) == ''
     # the other way, but within the smallest worth finding (5 m): no contradiction
     near = agree + [{'antenna_x': -3.0, 'antenna_x_se': 0.1, 'antenna_y': 2.0,
                      'antenna_y_se': 0.5}]
@@ -136,26 +140,32 @@ def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
     assert doc['causes'] == [] and 'no sign of a structural gap' not in dx.structure['summary']
 
 
-def test_wind_and_a_rudder_offset_are_both_named(suzaku):
+def test_wind_and_a_rudder_offset_name_the_wind_and_say_what_remains(suzaku):
     """
     Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: two causes at once.
 
     Before issue 26 the offset, second, was rejected for explaining only 3 % of the base
     error (a base error the wind made 29 x the clean case's), and "no sign of a structural
-    gap" was said of whatever remained. Measured here: wind 8.7 m/s from 58 deg, offset
-    +0.67 +- 0.16 deg (the tuned rudder coefficients take up part of it), the rest noise
-    (1.5 x the mean noise floor).
+    gap" was said of whatever remained. Now the wind is named (8.9 m/s from 65 deg here) and
+    the offset fits at +0.67 deg, below the smallest worth finding (1 deg: the tuned rudder
+    coefficients take up the rest); it is not named (never alone below that size: a 0.04 m/s
+    current once fitted a rudder stall so), but the report no longer calls what remains noise.
+    Either outcome of the offset passes; a false cause or "no sign of a structural gap" with
+    the offset unnamed does not.
     """
     tune, test = _trials(suzaku, {'wind_speed': 9.0, 'wind_dir': math.radians(45.0),
                                   'rudder_offset': math.radians(1.5)})
     dx = _diagnose(suzaku, tune, test)
-    assert sorted(c.effect for c in dx.causes) == ['rudder_offset', 'wind'], \
-        [c.summary for c in dx.causes]
+    named = sorted(c.effect for c in dx.causes)
+    assert named in (['wind'], ['rudder_offset', 'wind']), [c.summary for c in dx.causes]
     p = {k: v for c in dx.causes for k, v in c.parameters.items()}
     assert p['wind_speed'] == pytest.approx(9.0, abs=2.0)
     assert abs((math.degrees(p['wind_dir']) - 45.0 + 180) % 360 - 180) < 40
-    assert 0.25 < math.degrees(p['rudder_offset']) < 2.5      # the sign, and a size
-    assert dx.structure['verdict'] == 'none' and dx.structure['remaining_is_noise'] is True
+    if named == ['wind']:
+        assert dx.structure['remaining_is_noise'] is False, dx.structure['summary']
+        assert 'no sign of a structural gap' not in dx.structure['summary']
+    else:
+        assert 0.25 < math.degrees(p['rudder_offset']) < 2.5
 
 
 def test_clean_trials_stay_clean_and_what_remains_is_noise(suzaku):

@@ -33,6 +33,8 @@ import yaml
 RANGES_FILE = 'effect_plausibility'
 DISAGREE_Z = 3.0
 PER_TRIAL_SIMS = 60      # least-squares simulations per trial (1-2 parameters from the fit)
+ON_BOUND = 0.01          # a per-trial estimate this close to its box's edge (fraction of width)
+_PERIODIC = {p for e in EFFECTS.values() for p, per in zip(e.params, e.periodic) if per}
 _KEYS = {'min', 'max', 'max_abs', 'max_abs_deg', 'max_abs_L', 'max_abs_B', 'why'}
 _cache: dict[str, dict] = {}
 
@@ -91,8 +93,9 @@ def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
     Fit an effect's parameters on each trial alone, the rest of the model held at theta.
 
     ``space``/``theta``: the joint fit; ``params``: the effect's parameters; ``trial_objs``:
-    one objective per trial (the model's inputs). Returns per trial {param: estimate} and
-    {param + '_se': standard error}.
+    one objective per trial (the model's inputs). Returns per trial {param: estimate},
+    {param + '_se': standard error} and 'on_bound': whether a (non-periodic) estimate ran to
+    an edge of its box (one trial alone may not determine it: such an estimate says nothing).
     """
     idx = [space.names.index(p) for p in params]
     held = {n: float(v) for i, (n, v) in enumerate(zip(space.names, theta)) if i not in idx}
@@ -104,8 +107,12 @@ def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
                        o.substeps)
         x = local_least_squares(sub, ob, theta[idx], PER_TRIAL_SIMS).theta
         se = standard_errors(ob, sub, x)
+        w = ON_BOUND * (sub.upper - sub.lower)
+        edge = [bool(x[i] - sub.lower[i] < w[i] or sub.upper[i] - x[i] < w[i])
+                for i, p in enumerate(params) if p not in _PERIODIC]
         out.append({**{p: float(v) for p, v in zip(params, x)},
-                    **{p + '_se': float(e) for p, e in zip(params, se)}})
+                    **{p + '_se': float(e) for p, e in zip(params, se)},
+                    'on_bound': any(edge)})
     return out
 
 
@@ -144,8 +151,10 @@ def disagreement(ship: ShipConfig, effect: str, est: list[dict],
     than DISAGREE_Z standard errors, while the joint fit is at least that smallest magnitude:
     one trial says the rudder is offset to port, another to starboard. Differences of size
     alone are not judged: the Gauss-Newton errors of one trial omit its start-state error,
-    which moves a single trial's estimate by more than they say.
+    which moves a single trial's estimate by more than they say. A trial whose estimate ran
+    to its box's edge (``on_bound``) is left out: alone it does not determine the effect.
     """
+    est = [x for x in est if not x.get('on_bound')]   # undetermined by its trial alone
     if effect not in EFFECTS or len(est) < 2:
         return ''
     x, se, j, smallest = _along(effect, est, joint)

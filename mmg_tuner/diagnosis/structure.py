@@ -160,13 +160,17 @@ def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = Non
     Implausible effects (strong evidence) and base coefficients on their bounds (weak).
 
     ``doc``: diagnosis.json's content (causes, candidates, would_fit_but_impossible,
-    baseline). Returns (strong, weak) lists of sentences.
+    baseline). Candidates count from the last round only (the earlier ones may have bent to
+    mimic a cause named later). Returns (strong, weak) lists of sentences.
     """
     strong, weak = [], []
     for x in doc.get('would_fit_but_impossible') or []:
         strong.append(f"{x['effect']} would fit (held-out gain {100 * x['gain']:.0f} %) but "
                       f"is impossible here ({x['reason']})")
-    for rnd in doc.get('candidates') or []:
+    # only the last round's candidates: they were judged against the model with every cause
+    # named before them; a candidate that bent on its bound in an earlier round (a yaw moment
+    # bias pinned while the current was not yet named) mimicked a cause found later
+    for rnd in (doc.get('candidates') or [])[-1:]:
         for c in rnd:
             if c.get('significant') and c.get('on_bound') and not c.get('impossible'):
                 strong.append(f"{c['effect']} fits (held-out gain {100 * c['gain']:.0f} %) only "
@@ -221,16 +225,24 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
     systematic = []
     is_noise, noise_text = describe_noise(float(Jf) if Jf is not None else math.nan,
                                           doc.get('noise'))
-    if is_noise is False:
-        systematic.append('an error above the noise: ' + noise_text)
     if asym and asym['significant']:
         systematic.append('a port/starboard asymmetry: ' + asym['text'])
     if learnable and learnable.get('significant'):
         systematic.append('learnable structure: a residual network removes '
                           f"{100 * learnable['share']:.0f} % ± "
                           f"{100 * learnable['share_se']:.0f} of the remaining held-out error")
-    large = (remaining is not None and remaining >= REMAINING_LARGE) or bool(systematic)
-    if strong and large or weak and systematic:
+    # an error above the noise is systematic, but says nothing of its kind: with implausible
+    # effects it makes the structure verdict, alone 'unexplained'; beside coefficients on
+    # their bounds (common on real data) it is not the measured asymmetry or learnable
+    # structure that blames the structure
+    measured = list(systematic)
+    if is_noise is False:
+        systematic.append('an error above the noise: ' + noise_text)
+    # large: the named causes left much of the base error, or a measured systematic error
+    # (an error merely above the noise after causes that explained 98 % of it is no reason
+    # to call those causes mimics: it makes the verdict 'unexplained')
+    large = (remaining is not None and remaining >= REMAINING_LARGE) or bool(measured)
+    if strong and large or weak and measured:
         v = 'structure'
         summary = ('the model STRUCTURE (a force or moment it lacks), not the effects that fit, '
                    'is the likely cause of the remaining error: '
