@@ -73,8 +73,14 @@ def plausible_range(ship: ShipConfig, param: str) -> tuple[float, float, str] | 
     return lo, hi, str(entry.get('why', ''))
 
 
-def implausible(ship: ShipConfig, effect: str, values: Mapping[str, float]) -> str:
-    """Return why an effect's fitted values are implausible for the ship ('' if plausible)."""
+def implausible(ship: ShipConfig, effect: str, values: Mapping[str, float],
+                se: Mapping[str, float] | None = None) -> str:
+    """
+    Return why an effect's fitted values are implausible for the ship ('' if plausible).
+
+    se: standard errors of poorly determined estimates; a value within two of them of the
+    plausible range is not called implausible (an 8 s gear lag estimated at 16 +- 6 s is).
+    """
     out = []
     for p in EFFECTS[effect].params if effect in EFFECTS else ():
         r = plausible_range(ship, p)
@@ -82,7 +88,8 @@ def implausible(ship: ShipConfig, effect: str, values: Mapping[str, float]) -> s
             continue
         lo, hi, why = r
         v = float(values[p])
-        if not lo <= v <= hi:
+        margin = 2.0 * float((se or {}).get(p, 0.0))
+        if not lo - margin <= v <= hi + margin:
             out.append(f'{p} = {v:.4g} outside the plausible {lo:.4g} .. {hi:.4g} ({why})')
     return '; '.join(out)
 

@@ -853,7 +853,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                           and J_test.sum() - Jt.sum() > s.noise_margin * J_floor)
             why_not = impossible.get(name, '')
             ok = v.significant and not pinned and not tiny and not why_not
-            implaus = implausible(ship, name, vals) if ok and name in EFFECTS else ''
+            # a barely identifiable estimate is judged with its standard error
+            se = ({params[0]: float(aliased[name]['se'])}
+                  if name in aliased and len(params) == 1 else {})
+            implaus = implausible(ship, name, vals, se) if ok and name in EFFECTS else ''
             incons, est = '', []
             if ok and not implaus and name in EFFECTS:
                 incons = _clearly_worse(J_test, Jt, noise, s, ot_m.batch.names)
