@@ -127,7 +127,7 @@ def test_tune_options_segments_balance_prior(ship):
     assert abs(free.params['C_D'] - 1.3) < abs(ship['C_D'] - 1.3) / 2   # the data pull it
     assert abs(held.params['C_D'] - ship['C_D']) < 0.01 * (hi - lo)    # the prior holds it
     with pytest.raises(TuningError, match='balance'):
-        mt.TuneConfig(balance='group')
+        mt.TuneConfig(balance='everything')
     with pytest.raises(TuningError, match='prior'):
         mt.TuneConfig(prior=-1.0)
     with pytest.raises(TuningError, match='segment_s'):

@@ -159,7 +159,6 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
     start_state(p, fitted_start(trial), s)
     stepper = ResidualStepper(net)
     stepper.reset(s)
-    work = [np.empty(6) for _ in range(5)]
     gear = np.zeros(N_ACT_STATES)   # the screw-and-rudder actuator's state: the actual angle
     gear[0] = trial.controls[0, 1] + suzaku['rudder_offset']
     tag = family_tag(suzaku.kind)
@@ -168,8 +167,8 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
         rpm, rudder = trial.controls[k]
         a = stepper.accelerations(s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
         row = np.array([[rpm, rudder, np.nan, np.nan]])   # one sample: commands, no wind
-        st = advance(tag, p, s, gear, row, 0, 0.0, 1, trial.dt, 1, INTEGRATORS[integrator],
-                     *work, *a, True)
+        st = advance(tag, p, s, gear, row, 0, 0.0, 1, trial.dt, 1, INTEGRATORS[integrator], *a,
+                     True)
         assert st == OK
         got.append(s.copy())
     np.testing.assert_allclose(np.array(got), ref.states, rtol=1e-12, atol=1e-12)
