@@ -26,12 +26,18 @@ Astern and thrusters follow the ship's model family (``core/models``): a family 
 astern revolutions (``astern_rpm``) accepts rpm in [-rpm_max, rpm_max]; one with thruster
 inputs accepts thruster revolutions up to the ship's ``steering.max_thruster_rps`` (clamped
 beyond it, refused beyond twice it, like the rudder). Other families refuse both.
+
+A family without a screw and rudder (the twin-azimuth tug) is commanded channel by channel:
+:func:`command_limits` gives each command channel its clamp and plausibility cap by the
+channel's unit -- a shaft speed [rev/s] the YAML's ``steering.max_thruster_rps``, an azimuth
+angle [rad] its ``steering.max_azimuth_deg`` (0: a fixed thruster).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
 
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.errors import ConfigError, SimulationError
@@ -45,6 +51,7 @@ DT_MIN_S = 1e-3  # finer than any manoeuvring dynamics; real time then costs 100
 POSITION_MAX_M = 2.0e7  # half the Earth's circumference: no local frame reaches farther
 THRUSTER_PLAUSIBLE_FACTOR = 2.0  # beyond 2 x the thruster limit: a unit error, not a command
 THRUSTER_CHANNELS = ('bow_thruster', 'stern_thruster')
+AZIMUTH_PLAUSIBLE_RAD = 2 * math.pi  # beyond one turn: degrees read as radians, not a command
 
 
 @dataclass(frozen=True)
@@ -250,3 +257,77 @@ def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:
         raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps = {value!r} '
                           'must be a positive number of rev/s')
     return rps, f'steering.max_thruster_rps of {ship.name}'
+
+
+@dataclass(frozen=True)
+class CommandLimit:
+    """
+    The range of one command channel of a family commanded channel by channel.
+
+    channel: its name (``core/channels.py``); unit: its unit; limit: |value| beyond it is
+    clamped to it; plausible: |value| beyond it is refused (a unit error, not a command);
+    basis: where the limit comes from (for messages).
+    """
+
+    channel: str
+    unit: str
+    limit: float
+    plausible: float
+    basis: str
+
+    def check(self, value) -> tuple[float | None, str]:
+        """Return (the value to apply or None: refused, the problem or '')."""
+        name = f'{self.channel} command'
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            return None, f'{name} {value!r} is not a number: ignored'
+        if not math.isfinite(value):
+            return None, f'{name} {value} {self.unit} is not finite: ignored'
+        if abs(value) > self.plausible:
+            return None, (f'{name} {value:g} {self.unit} is beyond the plausible '
+                          f'+-{self.plausible:g} {self.unit}: ignored')
+        if abs(value) > self.limit:
+            clamped = math.copysign(self.limit, value)
+            deg = f' ({math.degrees(value):.1f} deg)' if self.unit == 'rad' else ''
+            lim = f' ({math.degrees(self.limit):.1f} deg)' if self.unit == 'rad' else ''
+            return clamped, (f'{name} {value:g} {self.unit}{deg} beyond the +-{self.limit:.6g} '
+                             f'{self.unit}{lim} limit ({self.basis}): clamped to '
+                             f'{clamped:.6g}')
+        return value, ''
+
+
+def command_limits(ship: ShipConfig, channels) -> dict[str, CommandLimit]:
+    """
+    Return the clamp and cap of each command channel, by its unit (module docstring).
+
+    A shaft speed [rev/s] is clamped to ``steering.max_thruster_rps`` (refused beyond twice
+    it), an angle [rad] to ``steering.max_azimuth_deg`` (refused beyond one turn); a channel
+    in another unit gets no limit beyond finiteness. A bad YAML value is a ConfigError naming
+    the file and field.
+    """
+    steering = ship.extra.get('steering') or {}
+    if not isinstance(steering, dict):
+        steering = {}
+    out = {}
+    for ch in channels:
+        unit = TABLE[ch].unit
+        if unit == 'rev/s':
+            rps, basis = _thruster_limit(ship, 0.0)
+            if rps == 0.0:
+                raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps is '
+                                  f'needed to command {ch} (the shaft speed limit, rev/s)')
+            out[ch] = CommandLimit(ch, unit, rps, THRUSTER_PLAUSIBLE_FACTOR * rps, basis)
+        elif unit == 'rad':
+            value = steering.get('max_azimuth_deg', 180.0)
+            deg = float(value) if isinstance(value, (int, float)) and \
+                not isinstance(value, bool) else math.nan
+            if not (math.isfinite(deg) and 0.0 <= deg <= 180.0):
+                raise ConfigError(f'{ship.source or ship.name}: steering.max_azimuth_deg = '
+                                  f'{value!r} must be a number of degrees in [0, 180]')
+            basis = (f'steering.max_azimuth_deg of {ship.name}' if 'max_azimuth_deg' in steering
+                     else 'no steering.max_azimuth_deg: a half turn')
+            out[ch] = CommandLimit(ch, unit, math.radians(deg), AZIMUTH_PLAUSIBLE_RAD, basis)
+        else:
+            out[ch] = CommandLimit(ch, unit, math.inf, math.inf, 'no limit for this unit')
+    return out

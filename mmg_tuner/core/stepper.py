@@ -2,18 +2,23 @@
 A stateful ship for interactive simulation (the ROS node's engine; no ROS here).
 
 It steps the same compiled :func:`~mmg_tuner.core.integrate.advance` as the offline simulation,
-so a command history held per step reproduces :func:`~mmg_tuner.core.simulate.simulate`
-exactly.
+for every model family, so a command history held per step reproduces
+:func:`~mmg_tuner.core.simulate.simulate` exactly. Commands are held per channel
+(``core/channels.py``): rpm and rudder (and thrusters) for a screw-and-rudder ship, the
+shaft speeds and azimuth angles of a twin-azimuth tug; the actuators' internal states (the
+actual rudder angle, the azimuth angles and rates) carry over from step to step.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Mapping
 
+from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
 from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
-from mmg_tuner.core.limits import input_limits, InputLimits
+from mmg_tuner.core.limits import command_limits, CommandLimit, input_limits, InputLimits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
@@ -24,6 +29,7 @@ IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed o
 ARITHMETIC = -2   # the compiled model raised ZeroDivisionError
 MAX_SUBSTEPS = 1000
 THRUSTERS = ('bow', 'stern')  # thruster commands, in the order of the input channels
+SCREW_RUDDER = ('rpm', 'rudder')  # the first inputs of a screw-and-rudder family
 
 
 @dataclass
@@ -42,7 +48,9 @@ class StepFailure:
     time_s: simulated time of the step that failed [s]; reason: what was wrong;
     last_state / bad_state: the model state (x, y, psi, u, v, r; SI, rad) before and after it;
     rpm, rudder_rad, delta_act_rad: the commands held and the actual rudder angle;
-    bow_rps, stern_rps: the thruster commands held [rev/s].
+    bow_rps, stern_rps: the thruster commands held [rev/s]; commands: every command held,
+    (channel, value) in the channel's unit, for a family commanded channel by channel (its
+    rpm, rudder_rad and delta_act_rad are NaN).
     """
 
     time_s: float
@@ -54,10 +62,15 @@ class StepFailure:
     delta_act_rad: float
     bow_rps: float = 0.0
     stern_rps: float = 0.0
+    commands: tuple[tuple[str, float], ...] = ()
 
     def __str__(self) -> str:
         def fmt(state):
             return ', '.join(f'{n} {v:.4g}' for n, v in zip(STATE_NAMES, state))
+        if self.commands:
+            held = ', '.join(f'{n} {v:.6g}' for n, v in self.commands)
+            return (f'at t = {self.time_s:.2f} s: {self.reason}; commands {held}; last good '
+                    f'state [{fmt(self.last_state)}]; failed state [{fmt(self.bad_state)}]')
         thrusters = f', thrusters bow {self.bow_rps:.4g} stern {self.stern_rps:.4g} rev/s' \
             if self.bow_rps or self.stern_rps else ''
         return (f'at t = {self.time_s:.2f} s: {self.reason}; commands rpm {self.rpm:.6g}, '
@@ -114,7 +127,7 @@ def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
 
 class ShipSimulator:
     """
-    Fixed-step simulation of one ship driven by held rpm, rudder and thruster commands.
+    Fixed-step simulation of one ship of any model family driven by held commands.
 
     Everything is validated against the ship's plausibility ranges
     (:func:`~mmg_tuner.core.limits.input_limits`): construction refuses bad settings with a
@@ -124,33 +137,56 @@ class ShipSimulator:
     decides the rest: astern rpm (rpm <= 0) and u <= 0 only where the family has them, thruster
     commands (``set_thruster``) only for a family with thruster inputs.
 
+    Any family is commanded by channel name (``command_channels``; ``set_command``): a
+    screw-and-rudder ship by rpm, rudder and its thrusters (``rpm``/``rudder_rad`` give
+    their initial values), a twin-azimuth tug by ``n_port``, ``n_stbd`` [rev/s] and
+    ``azimuth_port``, ``azimuth_stbd`` [rad], each clamped to the ship YAML's limits
+    (``steering.max_thruster_rps``, ``steering.max_azimuth_deg``; ``command_limits``) with
+    the problem returned. An azimuth command is the angle the thruster turns to: the
+    actuator's dynamics (``azimuth_k1``, ``azimuth_k2`` and the rate limit
+    ``azimuth_rate_max`` of the YAML) move it there over the following steps
+    (``actuator_states``).
+
     Examples
     --------
     >>> sim = ShipSimulator(load_ship('suzaku'), dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106)
     >>> sim.set_rudder(math.radians(10)); sim.step(100)
     >>> sim.observed()  # x, y, psi, u, v, r in the model frame
+    >>> tug = ShipSimulator(load_ship('qiuxin_tug'), dt=0.2, x0=[0, 0, 0, 0.0, 0, 0])
+    >>> tug.set_command('n_port', 7.0); tug.set_command('azimuth_port', math.radians(20))
+    >>> tug.step(50); tug.actuator_states()['alpha_port']   # approaching 0.349 rad
 
     """
 
     def __init__(self, ship: ShipConfig, dt: float = 0.1, x0=None, rpm: float = 100.0,
                  rudder_rad: float = 0.0, integrator: str = 'rk4', substeps: int = 1,
-                 residual=None):
+                 residual=None, commands: Mapping[str, float] | None = None):
         self.ship = ship
         # a learned residual network (``learn.ResidualNet``, or anything with dt_s, physics and
         # stepper() -> .accelerations(state, commands, wind_body), .reset()) or None
         self.residual = residual
         self._tag = family_tag(ship.kind)
         fam = ship.family
-        if fam.inputs[:2] != ('rpm', 'rudder'):
-            raise SimulationError(f'{ship.name}: the interactive simulator drives ships whose '
-                                  f'first actuator is a screw and rudder; the {fam.name!r} '
-                                  f'family reads {", ".join(fam.inputs)}')
-        self._thr = {w: fam.inputs.index(f'{w}_thruster') for w in THRUSTERS
-                     if f'{w}_thruster' in fam.inputs}
+        self.screw_rudder = fam.inputs[:2] == SCREW_RUDDER
+        acts = [actuator(a) for a in fam.actuators]
+        # measured channel -> the channel its command goes to (the actuator moves the former)
+        self._commanded = {m: c for a in acts for m, c in a.commanded.items()}
+        self.command_channels: tuple[str, ...] = tuple(
+            c for c in fam.inputs if c not in self._commanded.values())
+        self._col = {c: j for j, c in enumerate(fam.channels)}
+        # the actuators' internal states, by name, at their place in the state array
+        names = [n for a in acts for n in a.states]
+        self._state_index = {n: i for i, n in enumerate(names)}
         self._inp = np.full((1, len(fam.channels)), np.nan)   # the held commands; wind: none
         self._inp[0, :len(fam.inputs)] = 0.0
         self._a = np.zeros(N_ACT_STATES)
         self.limits: InputLimits = input_limits(ship)
+        self.command_limits: dict[str, CommandLimit] = {} if self.screw_rudder else \
+            command_limits(ship, self.command_channels)
+        if residual is not None and not self.screw_rudder:
+            raise SimulationError(f'{ship.name}: a residual network drives screw-and-rudder '
+                                  f'ships only; the {fam.name!r} family reads '
+                                  f'{", ".join(fam.inputs)}')
         lim = self.limits
         try:
             dt = float(dt)
@@ -168,15 +204,25 @@ class ShipSimulator:
                                   f'got {substeps!r}')
         self.substeps = int(substeps)
         self.x0 = self._check_x0(x0)
-        rpm, rudder_rad = float(rpm), float(rudder_rad)
-        if problem := lim.check_rpm(rpm):
-            raise SimulationError(f'{ship.name}: initial {problem}')
-        if not (math.isfinite(rudder_rad) and abs(rudder_rad) <= lim.rudder_max_rad):
-            raise SimulationError(f'{ship.name}: initial rudder {rudder_rad:g} rad is outside '
-                                  f"the steering gear's +-{lim.rudder_max_rad:.4f} rad "
-                                  f'(+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
+        self._cmd: dict[str, float] = dict.fromkeys(self.command_channels, 0.0)
+        if self.screw_rudder:
+            rpm, rudder_rad = float(rpm), float(rudder_rad)
+            if problem := lim.check_rpm(rpm):
+                raise SimulationError(f'{ship.name}: initial {problem}')
+            if not (math.isfinite(rudder_rad) and abs(rudder_rad) <= lim.rudder_max_rad):
+                raise SimulationError(f'{ship.name}: initial rudder {rudder_rad:g} rad is '
+                                      f"outside the steering gear's +-{lim.rudder_max_rad:.4f} "
+                                      f'rad (+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
+        else:   # rpm and rudder mean nothing here: the initial commands come from ``commands``
+            rpm = rudder_rad = math.nan
         self.rpm0 = rpm
         self.rudder0 = rudder_rad
+        self._cmd0 = dict(self._cmd)
+        for name, value in (commands or {}).items():
+            c = self.check_command(name, value)
+            if c.problem:   # an initial command is a setting: refused, never clamped
+                raise SimulationError(f'{ship.name}: initial {c.problem}')
+            self._cmd0[name] = float(value)
         self._last = np.empty(6)
         self._obs = np.empty(6)
         self.failure: StepFailure | None = None
@@ -222,9 +268,12 @@ class ShipSimulator:
         """Back to the initial state and the initial commands."""
         self.t = 0.0
         self.steps = 0
-        self.rpm = self.rpm0
-        self.rudder = self.rudder0
-        self.bow = self.stern = 0.0  # thruster revolutions [rev/s]; 0 without thrusters
+        self._cmd.update(self._cmd0)
+        if self.screw_rudder:
+            self.rpm = self.rpm0
+            self.rudder = self.rudder0
+        for measured in self._commanded:   # an actuator starts at rest at its command
+            self._inp[0, self._col[measured]] = self._cmd[measured]
         self.s = np.empty(6)
         start_state(self.ship.params, self.x0, self.s)
         start_actuators(self._tag, self.ship.params, self._row(), 0.0, 1, self._a)
@@ -234,16 +283,74 @@ class ShipSimulator:
 
     def _row(self) -> np.ndarray:
         """Return the held commands as one sample of the family's input array."""
-        self._inp[0, 0] = self.rpm
-        self._inp[0, 1] = self.rudder
-        for w, j in self._thr.items():
-            self._inp[0, j] = getattr(self, w)
+        for name, value in self._cmd.items():
+            self._inp[0, self._col[self._commanded.get(name, name)]] = value
         return self._inp
+
+    def _get(self, channel: str) -> float:
+        return self._cmd.get(channel, 0.0)
+
+    def _set(self, channel: str, value: float) -> None:
+        if channel in self._cmd:   # a channel the family lacks holds nothing
+            self._cmd[channel] = float(value)
+
+    rpm = property(lambda self: self._get('rpm'), lambda self, v: self._set('rpm', v),
+                   doc='the propeller command held [rev/min] (screw and rudder)')
+    rudder = property(lambda self: self._get('rudder'), lambda self, v: self._set('rudder', v),
+                      doc='the rudder command held [rad] (screw and rudder)')
+    bow = property(lambda self: self._get('bow_thruster'),
+                   lambda self, v: self._set('bow_thruster', v),
+                   doc='the bow thruster command held [rev/s]; 0 without one')
+    stern = property(lambda self: self._get('stern_thruster'),
+                     lambda self, v: self._set('stern_thruster', v),
+                     doc='the stern thruster command held [rev/s]; 0 without one')
+
+    @property
+    def commands(self) -> dict[str, float]:
+        """Return the commands held, channel -> value in the channel's unit."""
+        return dict(self._cmd)
+
+    def actuator_states(self) -> dict[str, float]:
+        """
+        Return the actuators' internal states by name, as they stand after the last step.
+
+        delta_actual [rad] for a screw and rudder; alpha_port, alpha_rate_port, alpha_stbd,
+        alpha_rate_stbd [rad, rad/s; + toward starboard] for twin azimuths.
+        """
+        return {n: float(self._a[i]) for n, i in self._state_index.items()}
 
     @property
     def delta_act(self) -> float:
         """Return the actual rudder angle [rad] (the screw-and-rudder actuator's state)."""
-        return float(self._a[0])
+        return float(self._a[0]) if self.screw_rudder else math.nan
+
+    def check_command(self, channel: str, value: float) -> CommandCheck:
+        """
+        Check a command of any channel in ``command_channels`` (ValueError for another).
+
+        rpm, rudder and thrusters as :meth:`check_rpm`, :meth:`check_rudder` and
+        :meth:`check_thruster`; a channel-by-channel family's commands against
+        ``command_limits`` (clamped beyond the YAML's limit, ignored when not a plausible
+        value), the problem said.
+        """
+        if channel not in self.command_channels:
+            raise ValueError(f'{self.ship.name}: {channel!r} is no command of the '
+                             f'{self.ship.family.name} family; its commands: '
+                             f'{", ".join(self.command_channels)}')
+        if self.screw_rudder:
+            if channel == 'rpm':
+                return self.check_rpm(value)
+            if channel == 'rudder':
+                return self.check_rudder(value)
+            return self.check_thruster(channel.removesuffix('_thruster'), value)
+        return CommandCheck(*self.command_limits[channel].check(value))
+
+    def set_command(self, channel: str, value: float) -> str:
+        """Apply a command of any channel (validated); a problem description or ''."""
+        c = self.check_command(channel, value)
+        if c.value is not None:
+            self._cmd[channel] = c.value
+        return c.problem
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
         """
@@ -354,7 +461,8 @@ class ShipSimulator:
             time_s=self.t + self.dt, reason=reason,
             last_state=tuple(float(a) for a in self._last),
             bad_state=tuple(float(a) for a in self.s), rpm=self.rpm, rudder_rad=self.rudder,
-            delta_act_rad=float(delta), bow_rps=self.bow, stern_rps=self.stern)
+            delta_act_rad=float(delta), bow_rps=self.bow, stern_rps=self.stern,
+            commands=() if self.screw_rudder else tuple(self._cmd.items()))
         self.failures += 1
         self.reset()
         self.status = reason

@@ -24,6 +24,9 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      NaN where not recorded).
    * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
      internal states (may be empty). ``DESCRIPTION``: one line with the source.
+   * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
+     (``core/stepper.py``) writes its command to, when the actuator's own dynamics move the
+     measured value toward a commanded one (an azimuth angle and its command).
    * njit functions (``inline='always'``). ``cmd`` is the tuple of this actuator's input
      values (``INPUTS`` order; the plant reads them from the kernels' input array, delayed by
      the time offset), ``a`` the float array of all actuator states, ``i`` the position of
@@ -72,6 +75,7 @@ class Actuator:
     hold: Callable[..., Any] = field(repr=False)
     output: Callable[..., Any] = field(repr=False)
     forces: Callable[..., Any] | None = field(default=None, repr=False)
+    commanded: dict[str, str] = field(default_factory=dict)
 
 
 def module_of(name: str) -> str:
@@ -101,7 +105,8 @@ def actuator(name: str) -> Actuator:
         _CACHE[name] = Actuator(name, tuple(mod.PARAMS), tuple(mod.INPUTS),
                                 tuple(mod.OUTPUTS), tuple(mod.STATES), mod.DESCRIPTION,
                                 mod.start, mod.hold, mod.output,
-                                getattr(mod, 'forces', None))
+                                getattr(mod, 'forces', None),
+                                dict(getattr(mod, 'COMMANDED', {})))
     return _CACHE[name]
 
 

@@ -51,6 +51,9 @@ CHANNELS = {
                          'nan'),
 }
 OUTPUTS = ('thrust_port', 'thrust_stbd', 'alpha_port', 'alpha_stbd')
+# an interactive simulator's command of a measured angle goes to its command channel: the angle
+# dynamics then move the thruster (core/stepper.py)
+COMMANDED = {'azimuth_port': 'azimuth_cmd_port', 'azimuth_stbd': 'azimuth_cmd_stbd'}
 STATES = ('alpha_port', 'alpha_rate_port', 'alpha_stbd', 'alpha_rate_stbd')
 DESCRIPTION = ('two azimuth thrusters: polynomial thrust in rev/s, second-order angle '
                'dynamics, tau = T(alpha) f (MBPE-LOGO eqs. 8, 9, 20)')
