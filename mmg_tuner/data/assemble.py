@@ -11,7 +11,11 @@ a rudder leading the yaw response by more than time.max_lag_s is reported.
 Repairs are documented in each trial's notes: non-finite samples dropped, unsorted stamps
 sorted, duplicate stamps dropped, gaps longer than max_gap_s split the trial, samples outside
 the model's range (rpm <= 0, u <= 0) split it too unless keep_astern (a family that covers
-them). Optional thruster topics become Trial.thrusters [rev/s] (a missing one is 0). Anything
+them). Optional thruster topics become Trial.thrusters [rev/s] (a missing one is 0). A
+recording of a craft commanded per thruster (any of the topic map's n_port, n_stbd,
+azimuth_port, azimuth_stbd topics present: a twin-azimuth tug) needs odometry and all four
+instead of rudder and rpm, and becomes a trial of those channels (plus azimuth_cmd_port,
+azimuth_cmd_stbd when mapped); nothing is split for astern (its models cover it). Anything
 unrepairable raises TrialDataError naming the file, topic and time.
 """
 from __future__ import annotations
@@ -20,14 +24,16 @@ from dataclasses import dataclass
 import math
 
 from mmg_tuner.core import frames
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
-from mmg_tuner.core.limits import InputLimits, RUDDER_HARD_CAP_RAD
+from mmg_tuner.core.limits import AZIMUTH_PLAUSIBLE_RAD, InputLimits, RUDDER_HARD_CAP_RAD
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion,
                                         reset_findings, split_at, unusable_reason,
                                         UnusableRecordingError, warn)
 from mmg_tuner.data.files import brief
-from mmg_tuner.data.topics import IMU, NAVSATFIX, THRUSTER_ROLES, TopicMap
+from mmg_tuner.data.topics import (AZIMUTH_REQUIRED, AZIMUTH_ROLES, IMU, NAVSATFIX,
+                                   THRUSTER_ROLES, TopicMap)
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
@@ -82,6 +88,10 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
     if role in THRUSTER_ROLES:
         return (np.abs(v[:, 0] * tm.thruster_factor(role)) > MAX_THRUSTER_RPS,
                 f'|{role}| > {MAX_THRUSTER_RPS:g} rev/s')
+    if role in AZIMUTH_ROLES:
+        cap = MAX_THRUSTER_RPS if role.startswith('n_') else AZIMUTH_PLAUSIBLE_RAD
+        return (np.abs(v[:, 0] * tm.channel_factor(role)) > cap,
+                f'|{role}| > {cap:g} {TABLE[role].unit}')
     return none, ''
 
 
@@ -182,14 +192,20 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     resets = {r: clock_resets(s.stamps_ns * 1e-9) for r, s in rec.series.items()}
     if any(v.size for v in resets.values()):
         return _split_at_clock_resets(rec, tm, name, limits, keep_astern, resets)
-    needed = ['odom', 'rudder', 'rpm']
+    # a craft commanded per thruster: its four channels in place of rudder and rpm
+    per_thruster = any(r in rec.series for r in AZIMUTH_REQUIRED)
+    needed = ['odom', *AZIMUTH_REQUIRED] if per_thruster else ['odom', 'rudder', 'rpm']
     for role in needed:
         if role not in rec.series:
-            topic = getattr(tm, f'{role}_topic')
+            topic = getattr(tm, f'{role}_topic') or f'(none mapped: {role}.topic)'
             found = ', '.join(f'{t} ({ty}, {n} msgs)' for t, (ty, n) in sorted(
                 rec.topics_found.items())) or 'nothing'
-            raise TrialDataError(f'{rec.path}: topic {topic} missing or empty; found: {found}. '
-                                 'Use --topics MAP.yaml to map other names.')
+            channel = f' for channel {role!r} ({TABLE[role].description}, ' \
+                f'{TABLE[role].unit}); a recording with thruster topics needs ' \
+                f'{", ".join(getattr(tm, r + "_topic") or r for r in AZIMUTH_REQUIRED)}' \
+                if per_thruster else ''
+            raise TrialDataError(f'{rec.path}: topic {topic} missing or empty{channel}; found: '
+                                 f'{found}. Use --topics MAP.yaml to map other names.')
     kinds = check_frames(rec, tm)
     t0_ns = int(min(s.stamps_ns.min() for s in rec.series.values()))
     optional = [r for r in ('twist', 'imu', 'heading') if r in rec.series]
@@ -203,10 +219,15 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
             wind.frame = tm.wind_frame
     thr = {r: clean_series(rec.series[r], rec.path, t0_ns, r, tm, limits)
            for r in THRUSTER_ROLES if r in rec.series}
-    check_clocks(rec.path, {**cleaned, **({'wind': wind} if wind is not None else {}), **thr},
-                 tm)
+    # the per-thruster channels (required ones cleaned above; commanded angles when mapped)
+    chan = {r: cleaned[r] if r in cleaned else
+            clean_series(rec.series[r], rec.path, t0_ns, r, tm, limits)
+            for r in AZIMUTH_ROLES if r in rec.series} if per_thruster else {}
+    check_clocks(rec.path, {**cleaned, **({'wind': wind} if wind is not None else {}), **thr,
+                            **chan}, tm)
     notes = list(rec.notes) + list(rec.reading) + [n for s in series for n in s.notes] + \
-        (wind.notes if wind is not None else []) + [n for s in thr.values() for n in s.notes]
+        (wind.notes if wind is not None else []) + [n for s in thr.values() for n in s.notes] + \
+        [n for r, s in chan.items() if r not in cleaned for n in s.notes]
     for r in THRUSTER_ROLES:
         if thr and r not in thr:
             notes.append(f'{getattr(tm, r + "_topic") or r}: not recorded, {r} taken as '
@@ -214,11 +235,11 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     if series[0].base == 'header':  # a CSV has neither: its one time column
         notes.append(f'{cleaned["odom"].topic}: header stamps used (not receive time)')
     kin, how = _kinematics(cleaned, kinds, tm, t0_ns, rec.path)
-    how += _describe_times({**cleaned, **thr}, wind)
+    how += _describe_times({**cleaned, **thr, **chan}, wind)
     rec.reading.extend(h for h in how if h not in rec.reading)
     notes.extend(how)
     # the channels against each other, at the recording's own times (before resampling)
-    findings = check_motion(name, _motion(kin, cleaned['rpm'], tm, t0_ns),
+    findings = check_motion(name, _motion(kin, cleaned.get('rpm'), tm, t0_ns),
                             limits.length_m if limits is not None else 0.0)
     warn(findings)
     notes.extend(f.note() for f in findings)
@@ -235,11 +256,12 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
                          'dropped')
             continue
         grid = lo + tm.dt * np.arange(n)
-        trials.extend(_resample(kin, cleaned['rudder'], cleaned['rpm'], tm, t0_ns, grid,
-                                rec.path, name, notes, wind, thr, keep_astern))
+        trials.extend(_resample(kin, cleaned.get('rudder'), cleaned.get('rpm'), tm, t0_ns,
+                                grid, rec.path, name, notes, wind, thr,
+                                keep_astern or per_thruster, chan))
     if not trials:
         raise TrialDataError(f'{rec.path}: no usable trial ({brief(notes) or "too short"})')
-    for tr in trials:
+    for tr in trials if not per_thruster else ():   # the lag is dated by the rudder
         lag = command_lag_s(tr, window_s=tm.smooth_s)
         if lag is not None:
             tr.notes.append(_lag_note(lag, tm, cleaned['rudder'].topic))
@@ -298,13 +320,18 @@ def _split_at_clock_resets(rec: RawRecording, tm: TopicMap, name: str,
     return trials
 
 
-def _motion(kin: 'Kinematics', rpm: Series, tm: TopicMap, t0_ns: int) -> Motion:
-    """Return the motion at the pose's own times in the model frame (consistency checks)."""
+def _motion(kin: 'Kinematics', rpm: Series | None, tm: TopicMap, t0_ns: int) -> Motion:
+    """
+    Return the motion at the pose's own times in the model frame (consistency checks).
+
+    rpm None (a craft commanded per thruster): NaN, so no check reads a propeller.
+    """
     t = kin.t_pos
     yaw = np.interp(t, kin.t_yaw, kin.yaw)
+    n = np.full(t.size, np.nan) if rpm is None else _interp(rpm, t0_ns, t, 0) * tm.rpm_factor
     return Motion(t, kin.north, kin.east, frames.enu_yaw_to_psi(yaw),
                   np.interp(t, kin.t_vel, kin.u_flu), -np.interp(t, kin.t_vel, kin.v_flu),
-                  -np.interp(t, kin.t_rate, kin.wz), _interp(rpm, t0_ns, t, 0) * tm.rpm_factor)
+                  -np.interp(t, kin.t_rate, kin.wz), n)
 
 
 # ------------------------------------------------------------------------------------ frames
@@ -691,9 +718,16 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
     return k, how
 
 
-def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, grid, path,
-              name, notes, wind=None, thr: dict[str, Series] | None = None,
-              keep_astern: bool = False) -> list[Trial]:
+def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: TopicMap, t0_ns,
+              grid, path, name, notes, wind=None, thr: dict[str, Series] | None = None,
+              keep_astern: bool = False, chan: dict[str, Series] | None = None
+              ) -> list[Trial]:
+    """
+    Return the trials of one segment on ``grid``, split where it leaves the model's range.
+
+    rud and rpm are None for a craft commanded per thruster, whose channels come in ``chan``
+    (role = channel name, in the channel's unit after the map's unit and sign).
+    """
     # ENU map / FLU base_link (REP-103/105) -> MMG: x_E = y_map, y_E = x_map, psi = pi/2 - yaw
     x = np.interp(grid, kin.t_pos, kin.north)
     y = np.interp(grid, kin.t_pos, kin.east)
@@ -701,10 +735,16 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
     u = np.interp(grid, kin.t_vel, kin.u_flu)
     v = -np.interp(grid, kin.t_vel, kin.v_flu)
     r = -np.interp(grid, kin.t_rate, kin.wz)
-    rudder = _interp(rud, t0_ns, grid, 0) * tm.rudder_to_rad
-    rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.rpm_factor
     states = np.column_stack([x, y, psi, u, v, r])
-    controls = np.column_stack([rpm_v, rudder])
+    if rpm is None:   # per thruster: no propeller to split astern by (keep_astern is set)
+        rpm_v = np.full(grid.size, np.nan)
+        controls = None
+    else:
+        rudder = _interp(rud, t0_ns, grid, 0) * tm.rudder_to_rad
+        rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.rpm_factor
+        controls = np.column_stack([rpm_v, rudder])
+    channels = {ch: _interp(s, t0_ns, grid, 0) * tm.channel_factor(ch)
+                for ch, s in (chan or {}).items()}
     wind_ne = None if wind is None else _true_wind(wind, t0_ns, grid, psi, u, v)
     thrusters = None
     if thr:  # rev/s, + to starboard; a thruster not recorded is 0
@@ -735,7 +775,9 @@ def _resample(kin: Kinematics, rud: Series, rpm: Series, tm: TopicMap, t0_ns, gr
         while j < grid.size and good[j]:
             j += 1
         if j - k >= MIN_SAMPLES:
-            out.append(Trial(grid[k:j] - grid[k], states[k:j], controls[k:j], name=name,
+            out.append(Trial(grid[k:j] - grid[k], states[k:j],
+                             None if controls is None else controls[k:j], name=name,
+                             inputs={ch: a[k:j] for ch, a in channels.items()},
                              source=str(path), start_s=float(grid[k]),
                              wind=None if wind_ne is None else wind_ne[k:j],
                              thrusters=None if thrusters is None else thrusters[k:j],

@@ -17,7 +17,8 @@ import struct
 from mmg_tuner.core import frames
 from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.files import _why, check_regular_file, display_text
-from mmg_tuner.data.topics import CLOCK, IMU, NAVSATFIX, POSE_TYPES, THRUSTER_ROLES, TopicMap
+from mmg_tuner.data.topics import (AZIMUTH_ROLES, CLOCK, IMU, NAVSATFIX, POSE_TYPES,
+                                   THRUSTER_ROLES, TopicMap)
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
 import numpy as np
@@ -99,7 +100,8 @@ def _quat_ok(q) -> float:
     return 1.0 if 0.81 <= n <= 1.21 else 0.0
 
 
-SPEED_ROLES = ('rpm',) + THRUSTER_ROLES  # a JointState gives these as its velocity
+# a JointState gives these as its velocity (a shaft's speed), the rest as its position
+SPEED_ROLES = ('rpm',) + THRUSTER_ROLES + ('n_port', 'n_stbd')
 
 
 def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
@@ -201,7 +203,7 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
         roles['heading'] = (tm.heading_topic, tm.heading_type, '')
     if tm.wind_topic:
         roles['wind'] = (tm.wind_topic, tm.wind_type, '')
-    for role in THRUSTER_ROLES:  # optional: read when the recording has them
+    for role in THRUSTER_ROLES + AZIMUTH_ROLES:  # optional: read when the recording has them
         if getattr(tm, f'{role}_topic'):
             roles[role] = (getattr(tm, f'{role}_topic'), getattr(tm, f'{role}_type'),
                            getattr(tm, f'{role}_joint'))
@@ -595,7 +597,10 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
     Odometry in map/base_link (REP-103/105) and Float64 commands. The trial's own samples are
     written; each message is stamped at its sample time (ns since start_ns). A trial with measured
     wind also gets the wind topic (Vector3Stamped, true wind in ENU), one with thrusters the two
-    thruster topics (Float64 in the map's unit and sign).
+    thruster topics (Float64 in the map's unit and sign). A trial of a craft commanded per
+    thruster (no rpm and rudder: a twin-azimuth tug) gets odometry and a Float64 topic per
+    channel it has among the map's n_port, n_stbd, azimuth_port, azimuth_stbd (and the
+    commanded angles where the map names a topic for them).
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.errors import WriterError
@@ -609,8 +614,14 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
     try:
         with Writer(path, version=9, storage_plugin=plugin) as w:
             c_odom = w.add_connection(tm.odom_topic, Odometry.__msgtype__, typestore=ts)
-            c_rud = w.add_connection(tm.rudder_topic, Float64.__msgtype__, typestore=ts)
-            c_rpm = w.add_connection(tm.rpm_topic, Float64.__msgtype__, typestore=ts)
+            screw = 'rpm' in trial.inputs and 'rudder' in trial.inputs
+            if screw:
+                c_rud = w.add_connection(tm.rudder_topic, Float64.__msgtype__, typestore=ts)
+                c_rpm = w.add_connection(tm.rpm_topic, Float64.__msgtype__, typestore=ts)
+            c_chan = [(w.add_connection(getattr(tm, f'{r}_topic'), Float64.__msgtype__,
+                                        typestore=ts), trial.inputs[r], tm.channel_factor(r))
+                      for r in AZIMUTH_ROLES
+                      if r in trial.inputs and getattr(tm, f'{r}_topic') and not screw]
             V3S = ts.types['geometry_msgs/msg/Vector3Stamped']
             c_wind = None
             if trial.wind is not None:
@@ -626,12 +637,16 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                 stamp = start_ns + int(round(trial.t[k] * 1e9))
                 w.write(c_odom, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
                                                         Odometry.__msgtype__))
-                w.write(c_rud, stamp, ts.serialize_cdr(
-                    Float64(data=float(trial.controls[k, 1] / tm.rudder_to_rad)),
-                    Float64.__msgtype__))
-                w.write(c_rpm, stamp, ts.serialize_cdr(
-                    Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
-                    Float64.__msgtype__))
+                if screw:
+                    w.write(c_rud, stamp, ts.serialize_cdr(
+                        Float64(data=float(trial.controls[k, 1] / tm.rudder_to_rad)),
+                        Float64.__msgtype__))
+                    w.write(c_rpm, stamp, ts.serialize_cdr(
+                        Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
+                        Float64.__msgtype__))
+                for c, values, factor in c_chan:
+                    w.write(c, stamp, ts.serialize_cdr(Float64(data=float(values[k] / factor)),
+                                                       Float64.__msgtype__))
                 for j, (c, factor) in enumerate(c_thr):
                     w.write(c, stamp, ts.serialize_cdr(
                         Float64(data=float(trial.thrusters[k, j] / factor)),
@@ -706,8 +721,15 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
         with Writer(path, version=9, storage_plugin=plugin) as w:
             c_sim = w.add_connection('/' + model_topic.lstrip('/'), Odometry, typestore=ts)
             c_rec = w.add_connection('/odom', Odometry, typestore=ts)
-            c_rud = w.add_connection('/rudder_angle', Float64.__msgtype__, typestore=ts)
-            c_rpm = w.add_connection('/propeller_rpm', Float64.__msgtype__, typestore=ts)
+            screw = 'rpm' in trial.inputs and 'rudder' in trial.inputs
+            if screw:
+                c_rud = w.add_connection('/rudder_angle', Float64.__msgtype__, typestore=ts)
+                c_rpm = w.add_connection('/propeller_rpm', Float64.__msgtype__, typestore=ts)
+            # a craft commanded per thruster: its channels on the default map's topics
+            c_chan = [] if screw else [
+                (w.add_connection(getattr(TopicMap, f'{r}_topic'), Float64.__msgtype__,
+                                  typestore=ts), trial.inputs[r])
+                for r in AZIMUTH_ROLES if r in trial.inputs and getattr(TopicMap, f'{r}_topic')]
             for k in range(len(trial)):
                 stamp = int(round((trial.t[k] - trial.t[0]) * 1e9)) + 1
                 w.write(c_rec, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
@@ -715,6 +737,11 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
                 if np.all(np.isfinite(simulated[k])):
                     w.write(c_sim, stamp, ts.serialize_cdr(odometry_msg(simulated[k], stamp),
                                                            Odometry))
+                for c, values in c_chan:
+                    w.write(c, stamp, ts.serialize_cdr(Float64(data=float(values[k])),
+                                                       Float64.__msgtype__))
+                if not screw:
+                    continue
                 w.write(c_rud, stamp, ts.serialize_cdr(Float64(data=float(trial.controls[k, 1])),
                                                        Float64.__msgtype__))
                 w.write(c_rpm, stamp, ts.serialize_cdr(Float64(data=float(trial.controls[k, 0])),

@@ -42,9 +42,18 @@ WIND_FRAMES = ('true_enu', 'apparent_flu')
 # thruster revolutions -> rev/s (the input channels' unit, core/channels.py)
 THRUSTER_UNITS = {'rps': 1.0, 'rpm': 1.0 / 60.0, 'rad_s': 1.0 / (2.0 * math.pi)}
 THRUSTER_ROLES = ('bow_thruster', 'stern_thruster')
+# a craft commanded per thruster (twin azimuths, core/actuators/twin_azimuth.py): its channels,
+# one Float64 topic each, named as VRX names its thruster topics (osrf/vrx,
+# vrx_urdf/wamv_gazebo/urdf/thruster_layouts/wamv_gazebo_thruster_config.xacro:
+# thrusters/<name>/thrust, thrusters/<name>/pos); the first four are what such a recording
+# needs, the commanded angles are read only when mapped
+AZIMUTH_REQUIRED = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd')
+AZIMUTH_ROLES = AZIMUTH_REQUIRED + ('azimuth_cmd_port', 'azimuth_cmd_stbd')
+ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
 SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'rudder', 'rpm', 'wind') + \
-    THRUSTER_ROLES + ('frames', 'time', 'resample', 'replay')
-STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind') + THRUSTER_ROLES
+    THRUSTER_ROLES + AZIMUTH_ROLES + ('frames', 'time', 'resample', 'replay')
+STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind') + \
+    THRUSTER_ROLES + AZIMUTH_ROLES
 MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
 
@@ -115,6 +124,50 @@ class TopicMap:
     stern_thruster_sign: float = 1.0
     stern_thruster_stamp: str = 'header'
     stern_thruster_offset_s: float = 0.0
+    # a craft commanded per thruster (rev/s, + ahead; rad, 0 = thrust ahead, + = thrust
+    # toward starboard, after unit and sign): read when the recording has them
+    n_port_topic: str = '/thrusters/port/thrust'
+    n_port_type: str = 'std_msgs/msg/Float64'
+    n_port_joint: str = ''
+    n_port_unit: str = 'rps'
+    n_port_sign: float = 1.0
+    n_port_stamp: str = 'header'
+    n_port_offset_s: float = 0.0
+    n_stbd_topic: str = '/thrusters/stbd/thrust'
+    n_stbd_type: str = 'std_msgs/msg/Float64'
+    n_stbd_joint: str = ''
+    n_stbd_unit: str = 'rps'
+    n_stbd_sign: float = 1.0
+    n_stbd_stamp: str = 'header'
+    n_stbd_offset_s: float = 0.0
+    azimuth_port_topic: str = '/thrusters/port/pos'
+    azimuth_port_type: str = 'std_msgs/msg/Float64'
+    azimuth_port_joint: str = ''
+    azimuth_port_unit: str = 'rad'
+    azimuth_port_sign: float = 1.0
+    azimuth_port_stamp: str = 'header'
+    azimuth_port_offset_s: float = 0.0
+    azimuth_stbd_topic: str = '/thrusters/stbd/pos'
+    azimuth_stbd_type: str = 'std_msgs/msg/Float64'
+    azimuth_stbd_joint: str = ''
+    azimuth_stbd_unit: str = 'rad'
+    azimuth_stbd_sign: float = 1.0
+    azimuth_stbd_stamp: str = 'header'
+    azimuth_stbd_offset_s: float = 0.0
+    azimuth_cmd_port_topic: str = ''
+    azimuth_cmd_port_type: str = 'std_msgs/msg/Float64'
+    azimuth_cmd_port_joint: str = ''
+    azimuth_cmd_port_unit: str = 'rad'
+    azimuth_cmd_port_sign: float = 1.0
+    azimuth_cmd_port_stamp: str = 'header'
+    azimuth_cmd_port_offset_s: float = 0.0
+    azimuth_cmd_stbd_topic: str = ''
+    azimuth_cmd_stbd_type: str = 'std_msgs/msg/Float64'
+    azimuth_cmd_stbd_joint: str = ''
+    azimuth_cmd_stbd_unit: str = 'rad'
+    azimuth_cmd_stbd_sign: float = 1.0
+    azimuth_cmd_stbd_stamp: str = 'header'
+    azimuth_cmd_stbd_offset_s: float = 0.0
     frames_earth: tuple[str, ...] = EARTH_FRAMES
     frames_body: tuple[str, ...] = BODY_FRAMES
     # two streams whose header-vs-receive offsets differ by more than this are on two clocks
@@ -155,6 +208,11 @@ class TopicMap:
     def thruster_factor(self, role: str) -> float:
         """Return the factor from a recorded value to rev/s (+ to starboard) of a thruster."""
         return THRUSTER_UNITS[getattr(self, f'{role}_unit')] * getattr(self, f'{role}_sign')
+
+    def channel_factor(self, role: str) -> float:
+        """Return the factor from a recorded value to its channel's unit (AZIMUTH_ROLES)."""
+        units = THRUSTER_UNITS if role.startswith('n_') else ANGLE_UNITS
+        return units[getattr(self, f'{role}_unit')] * getattr(self, f'{role}_sign')
 
 
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
@@ -227,7 +285,8 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
         raise ConfigError(f'{source}: odom.type {tm.odom_type!r} not one of {POSE_TYPES}')
     for name, typ in (('rudder', tm.rudder_type), ('rpm', tm.rpm_type),
                       ('bow_thruster', tm.bow_thruster_type),
-                      ('stern_thruster', tm.stern_thruster_type)):
+                      ('stern_thruster', tm.stern_thruster_type),
+                      *((r, getattr(tm, f'{r}_type')) for r in AZIMUTH_ROLES)):
         if typ not in SCALAR_TYPES:
             raise ConfigError(f'{source}: {name}.type {typ!r} not one of {SCALAR_TYPES}')
     if tm.rudder_unit not in RUDDER_UNITS or tm.rpm_unit not in RPM_UNITS:
@@ -240,6 +299,14 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
         if getattr(tm, f'{role}_sign') not in (1, -1):
             raise ConfigError(f'{source}: {role}.sign must be 1 (+ pushes the ship to '
                               'starboard) or -1')
+    for role in AZIMUTH_ROLES:
+        units = THRUSTER_UNITS if role.startswith('n_') else ANGLE_UNITS
+        if getattr(tm, f'{role}_unit') not in units:
+            raise ConfigError(f'{source}: {role}.unit {getattr(tm, role + "_unit")!r} not one '
+                              f'of {list(units)}')
+        if getattr(tm, f'{role}_sign') not in (1, -1):
+            raise ConfigError(f'{source}: {role}.sign must be 1 (the sense of the channel, '
+                              'core/channels.py) or -1')
     if tm.wind_type not in WIND_TYPES or tm.wind_frame not in WIND_FRAMES:
         raise ConfigError(f'{source}: wind.type must be one of {WIND_TYPES} and wind.frame one '
                           f'of {WIND_FRAMES}')
