@@ -1,13 +1,14 @@
 """
 ``replay_node``: plays a recorded trial through the model beside the recording.
 
-Publishes /clock (trial time), the recorded commands (rudder, rpm and any thrusters) on the
-topic map's topics in its message types, units and signs (as the recording had them), the
-recorded odometry on ``recorded/odom`` and the model's odometry on ``model/odom`` (relative
-names; the topic map's ``replay`` section renames them), at ``speed`` x real time; logs the
-error summary at the end; optionally writes everything to an MCAP that Foxglove opens, with
-the recorded odometry on the map's odometry topic (``/odom``: ``inspect`` reads the
-measurement from it) and the model's on ``/model/odom``.
+Publishes /clock (trial time), the recorded commands (rudder, rpm and any thrusters; a
+twin-azimuth craft's shaft speeds and azimuth angles on ``/thrusters/<name>/thrust`` and
+``.../pos``) on the topic map's topics in its message types, units and signs (as the
+recording had them), the recorded odometry on ``recorded/odom`` and the model's odometry
+on ``model/odom`` (relative names; the topic map's ``replay`` section renames them), at
+``speed`` x real time; logs the error summary at the end; optionally writes everything to an
+MCAP that Foxglove opens, with the recorded odometry on the map's odometry topic (``/odom``:
+``inspect`` reads the measurement from it) and the model's on ``/model/odom``.
 
     ros2 run mmg_tuner replay_node --ros-args -p trial:=trials/zigzag_p20 -p speed:=10.0
 """
@@ -22,7 +23,7 @@ import tempfile
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import load_topic_map, THRUSTER_ROLES, TopicMap
+from mmg_tuner.data.topics import AZIMUTH_ROLES, load_topic_map, THRUSTER_ROLES, TopicMap
 from mmg_tuner.errors import MmgTunerError, OutputError
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import simulate_hybrid
@@ -117,17 +118,25 @@ class CommandPublisher:
     Rudder [rad, MMG sign], rpm and, when the trial has them, the bow and stern thrusters
     [rev/s, + to starboard], each on its topic, in its message type (Float64, Float32 or
     JointState with its joint: rudder as position, shaft speeds as velocity, one message per
-    shared topic), unit and sign.
+    shared topic), unit and sign. A trial of a craft commanded per thruster (``channels``:
+    those of the map's n_port, n_stbd, azimuth_port, ... it has) publishes those instead of
+    rudder and rpm (angles as a JointState's position).
     """
 
     SCALARS = {'std_msgs/msg/Float64': Float64, 'std_msgs/msg/Float32': Float32}
     JOINT = 'sensor_msgs/msg/JointState'
 
-    def __init__(self, node: Node, tm: TopicMap, thrusters: bool = False) -> None:
+    def __init__(self, node: Node, tm: TopicMap, thrusters: bool = False,
+                 channels: tuple[str, ...] = ()) -> None:
         # role -> (topic, type, joint, scale from the model's unit to the map's unit and sign)
         self.roles = {'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint,
                                  1.0 / tm.rudder_to_rad),
-                      'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint, 1.0 / tm.rpm_factor)}
+                      'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint, 1.0 / tm.rpm_factor)} \
+            if not channels else {}
+        for role in channels:   # a role with no topic in the map ('') is not published
+            if getattr(tm, f'{role}_topic'):
+                self.roles[role] = (getattr(tm, f'{role}_topic'), getattr(tm, f'{role}_type'),
+                                    getattr(tm, f'{role}_joint'), 1.0 / tm.channel_factor(role))
         if thrusters:
             for role in THRUSTER_ROLES:
                 topic = getattr(tm, f'{role}_topic') or getattr(TopicMap, f'{role}_topic')
@@ -165,9 +174,10 @@ class CommandPublisher:
             msg = joints.setdefault(topic, JointState())
             msg.header.stamp = stamp
             msg.name.append(joint)
-            # the rudder's angle is the joint position, a shaft's speed its velocity
-            msg.position.append(v if role == 'rudder' else float('nan'))
-            msg.velocity.append(float('nan') if role == 'rudder' else v)
+            # an angle (rudder, azimuth) is the joint position, a shaft's speed its velocity
+            angle = role == 'rudder' or role.startswith('azimuth_')
+            msg.position.append(v if angle else float('nan'))
+            msg.velocity.append(float('nan') if angle else v)
         for topic, msg in joints.items():
             self.pubs[topic].publish(msg)
 
@@ -205,7 +215,8 @@ class ReplayNode(Node):
         self.exit_at_end = bool(p['exit_at_end'])
         self.pub_odom = self.create_publisher(Odometry, tm.replay_model_odom_topic, 10)
         self.pub_rec = self.create_publisher(Odometry, tm.replay_recorded_odom_topic, 10)
-        self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None)
+        self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None, tuple(
+            r for r in AZIMUTH_ROLES if r in self.trial.inputs))
         self.inputs = self.trial.inputs   # channel name -> values
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)

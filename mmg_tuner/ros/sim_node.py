@@ -2,7 +2,10 @@
 ``sim_node``: the tuned ship as a ROS 2 simulator.
 
 Subscribes rudder, propeller and (for a model with them) bow and stern thruster commands
-(last value holds; astern rpm where the model covers it), publishes nav_msgs/Odometry in the
+(last value holds; astern rpm where the model covers it) -- or, for a craft commanded per
+thruster (the twin-azimuth tug, the Otter), each thruster's shaft speed and azimuth angle on
+VRX-style topics ``thrusters/<name>/thrust`` and ``thrusters/<name>/pos``, publishing the
+azimuth angles as sensor_msgs/JointState -- publishes nav_msgs/Odometry in the
 ``odom`` frame (REP-105: header ``odom``, child ``base_link``) and TF ``odom -> base_link``
 whenever the state has advanced (checked at ``rate_hz``, so at most once per step ``dt``: never
 a repeated stamp), the static ``map -> odom`` unless ``publish_map_to_odom`` is false (another
@@ -39,7 +42,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import Imu, NavSatFix
+from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -92,6 +95,23 @@ PARAMS = {
     'stern_thruster_topic': Param('stern_thruster', 'std_msgs/Float64 stern thruster command '
                                   '[rev/s, + pushes the stern to starboard]; only for a model '
                                   'with thrusters', read_only=True),
+    # a craft commanded per thruster (a model without a screw and rudder: the twin-azimuth
+    # tug, the Otter): VRX's topic names (osrf/vrx, vrx_urdf/wamv_gazebo/urdf/thruster_layouts/
+    # wamv_gazebo_thruster_config.xacro: thrusters/<name>/thrust and thrusters/<name>/pos),
+    # with this package's units and signs; <name> = the ship's thruster names (port, stbd)
+    'thrust_topic': Param('thrusters/{name}/thrust', 'std_msgs/Float64 shaft speed command of '
+                          'thruster {name} [rev/s, + thrust ahead at azimuth 0], clamped to the '
+                          "ship's steering.max_thruster_rps; only for a model commanded per "
+                          'thruster ({name}: port, stbd)', read_only=True),
+    'azimuth_topic': Param('thrusters/{name}/pos', 'std_msgs/Float64 azimuth angle command of '
+                           'thruster {name} [rad, 0 = thrust ahead, + = thrust toward '
+                           "starboard], clamped to the ship's steering.max_azimuth_deg; the "
+                           "thruster turns there with the actuator's dynamics; only for a "
+                           'model commanded per thruster', read_only=True),
+    'joint_states_topic': Param('joint_states', 'sensor_msgs/JointState of the azimuth angles '
+                                '(joints {name}_azimuth_joint: position [rad], velocity '
+                                '[rad/s], + = thrust toward starboard) with the odometry; only '
+                                'for a model with azimuth thrusters', read_only=True),
     'frame_id': Param('map', 'world frame (ENU), shared by all ships: not prefixed; the '
                       'parent of the static map -> odom'),
     'odom_frame_id': Param('odom', "the ship's odometry frame (ENU): Odometry.header.frame_id "
@@ -174,21 +194,41 @@ class SimNode(Node):
         if self.p['imu_rate_hz'] > 0:
             pubs['imu'] = self.create_publisher(Imu, self.p['imu_topic'], 10).publish
         self.sensors = SimulatedSensors(self.p, self.sim.dt, pubs, body)
-        self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
-        self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
-        for which in THRUSTERS:  # always subscribed: a ship without them says so, once
-            self.create_subscription(Float64, self.p[f'{which}_thruster_topic'],
-                                     lambda msg, w=which: self._on_thruster(w, msg), 10)
+        # a craft commanded per thruster: channel -> topic (empty for a screw and rudder)
+        self.channel_topics = thruster_topics(self.sim.command_channels, self.p) \
+            if not self.sim.screw_rudder else {}
+        self.joint_pub = self._joint_msg = None
+        if self.channel_topics:
+            for ch, topic in self.channel_topics.items():
+                self.create_subscription(Float64, topic,
+                                         lambda msg, c=ch: self._on_channel(c, msg), 10)
+            self._joints = azimuth_joints(self.sim.command_channels)
+            if self._joints:
+                self.joint_pub = self.create_publisher(JointState,
+                                                       self.p['joint_states_topic'], 10)
+                self._joint_msg = JointState(name=[f'{n}_azimuth_joint' for n in self._joints])
+        else:
+            self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
+            self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
+            for which in THRUSTERS:  # always subscribed: a ship without them says so, once
+                self.create_subscription(Float64, self.p[f'{which}_thruster_topic'],
+                                         lambda msg, w=which: self._on_thruster(w, msg), 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         thrusters = self.sim.limits.thrusters
-        self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name, commands={
-            'rudder': CommandHealth('rad', self.sim.rudder),
-            'rpm': CommandHealth('rpm', self.sim.rpm),
-            **{f'{w}_thruster': CommandHealth('rev/s', 0.0, required=False,
-                                              supported=thrusters) for w in THRUSTERS}})
+        if self.channel_topics:
+            commands = {ch: CommandHealth(lim.unit, self.sim.commands[ch])
+                        for ch, lim in self.sim.command_limits.items()}
+        else:
+            commands = {
+                'rudder': CommandHealth('rad', self.sim.rudder),
+                'rpm': CommandHealth('rpm', self.sim.rpm),
+                **{f'{w}_thruster': CommandHealth('rev/s', 0.0, required=False,
+                                                  supported=thrusters) for w in THRUSTERS}}
+        self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name,
+                             commands=commands)
         self._unsupported_logged: set[str] = set()
         self.health.rtf_requested = self.p['real_time_factor']
         self._warned: dict[str, float] = {}
@@ -234,6 +274,9 @@ class SimNode(Node):
 
     def _accepted(self) -> str:
         """Describe the command ranges of the current ship, for the log."""
+        if self.channel_topics:
+            return ', '.join(f'{ch} on {self.channel_topics[ch]} clamped to +-{c.limit:.4g} '
+                             f'{c.unit}' for ch, c in self.sim.command_limits.items())
         lim = self.sim.limits
         rpm = f'[-{lim.rpm_max:.0f}, {lim.rpm_max:.0f}]' if lim.astern_rpm else \
             f'(0, {lim.rpm_max:.0f}]'
@@ -314,6 +357,13 @@ class SimNode(Node):
             self.sim.set_thruster(which, c.value)
         self._command_received(name, c.value, c.problem)
 
+    def _on_channel(self, channel: str, msg: Float64) -> None:
+        """Take one thruster command of a craft commanded per thruster (checked, clamped)."""
+        c = self.sim.check_command(channel, msg.data)
+        if c.value is not None:
+            self.sim.set_command(channel, c.value)
+        self._command_received(channel, c.value, c.problem)
+
     def _command_received(self, which: str, value: float | None, problem: str) -> None:
         now = self._steady_s()
         cmd = self.health.commands[which]
@@ -364,6 +414,13 @@ class SimNode(Node):
         if self._tf is not None:
             transform_from_state(state, t, msg=self._tf.transforms[0])
             self.tf_pub.publish(self._tf)
+        if self.joint_pub is not None:
+            act = self.sim.actuator_states()
+            js = self._joint_msg
+            js.header.stamp = msg.header.stamp
+            js.position = [act[f'alpha_{n}'] for n in self._joints]
+            js.velocity = [act[f'alpha_rate_{n}'] for n in self._joints]
+            self.joint_pub.publish(js)
         if self.clock_pub is not None:
             self._clock_msg.clock = msg.header.stamp
             self.clock_pub.publish(self._clock_msg)
@@ -477,6 +534,14 @@ class SimNode(Node):
                 datum_from_params(trial)
             if names & RESTART_PARAMS:
                 self._pending = self._build(trial)
+                old, new = self.sim.command_channels, self._pending.command_channels
+                # the subscriptions are made for the commands at start (a screw-and-rudder
+                # ship's take every ship of that kind, thrusters or not)
+                if new != old and not (self.sim.screw_rudder and self._pending.screw_rudder):
+                    self._pending = None
+                    raise MmgTunerError(
+                        f'{trial["ship"]} is commanded by {", ".join(new)}, the running ship '
+                        f'by {", ".join(old)}: start a new node for it')
         except MmgTunerError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -494,8 +559,8 @@ class SimNode(Node):
             self.sim = self._pending or self._build(self.p)
             self._pending = None
             self.health.hardware_id = self.sim.ship.name
-            for w in THRUSTERS:  # the new ship may or may not have thrusters
-                cmd = self.health.commands[f'{w}_thruster']
+            for w in THRUSTERS if not self.channel_topics else ():
+                cmd = self.health.commands[f'{w}_thruster']   # the new ship may have some
                 cmd.supported, cmd.value = self.sim.limits.thrusters, 0.0
             self._unsupported_logged.clear()
             self._restart_clock()
@@ -522,6 +587,40 @@ class SimNode(Node):
         self.get_logger().info(f'applied {sorted(names)}'
                                + (f': restarted {self.sim.ship.name}'
                                   if names & RESTART_PARAMS else ''))
+
+
+def thruster_topics(channels, p: dict) -> dict[str, str]:
+    """
+    Return channel -> command topic for a craft commanded per thruster.
+
+    ``n_<name>`` (shaft speed) on ``thrust_topic``, ``azimuth_<name>`` (angle) on
+    ``azimuth_topic``, ``{name}`` replaced by the thruster's name (port, stbd); a template
+    without ``{name}`` (every thruster on one topic) or with another field is refused.
+    """
+    out = {}
+    for ch in channels:
+        for prefix, key in (('n_', 'thrust_topic'), ('azimuth_', 'azimuth_topic')):
+            if not ch.startswith(prefix):
+                continue
+            template = p[key]
+            try:
+                topic = template.format(name=ch[len(prefix):])
+            except (KeyError, IndexError, ValueError):
+                topic = template
+            if topic == template:
+                raise MmgTunerError(f'parameter {key} = {template!r} must contain {{name}} '
+                                    '(the thruster: port, stbd) and no other field')
+            out[ch] = topic
+    missing = [c for c in channels if c not in out]
+    if missing:
+        raise MmgTunerError(f'no topic for the command(s) {", ".join(missing)}: sim_node takes '
+                            'a screw and rudder, or n_<name> and azimuth_<name> per thruster')
+    return out
+
+
+def azimuth_joints(channels) -> list[str]:
+    """Return the names of the thrusters with an azimuth angle command (JointState joints)."""
+    return [c[len('azimuth_'):] for c in channels if c.startswith('azimuth_')]
 
 
 def main(args=None) -> None:
