@@ -13,11 +13,14 @@ The whole ship, in the paper's order (shared/reference/mbpe_logo_tug.md):
    least squares matches its angles to the measured ones.
 3. **LO** (:func:`lo_fit`): given measured accelerations, M nu_dot + C(nu) nu + D(nu) nu = tau
    is linear in the hull coefficients, so the local step is *one* linear least-squares
-   problem. Its regressor is read from the family's own compiled functions (``forces``,
-   ``motion``, ``mass_solve``): the equation error is evaluated for the coefficients and for
-   each one moved by a step, and linearity (checked) turns the differences into the columns.
-   No equation is written twice, and any family linear in its coefficients (the 22 of
-   ``surge_decoupled``, the 6 of ``simplified6``, either Coriolis form) works. Accelerations
+   problem. Its regressor is read from the family's own compiled equations (the core's
+   accelerations and the family's ``mass_solve``): the equation error is evaluated for the
+   coefficients and for each one moved by a step, and linearity (checked) turns the
+   differences into the columns; what no coefficient scales (a mass matrix or a thrust kept
+   at known values) is the right-hand side. No equation is written twice, and any family
+   linear in its coefficients (the 22 of ``surge_decoupled``, the 6 of ``simplified6``,
+   either Coriolis form; an actuator whose tau is linear in its own coefficients,
+   ``screw_rudder_tau``, identified with the hull's) works. Accelerations
    come from the (Savitzky-Golay smoothed) velocities over each sample interval, the hull's
    forces averaged over its two ends (trapezoid), the thrust held as the kernels hold it.
 4. **GO** (:func:`go_fit`): the multi-step simulation error of u, v, r (each over its pooled
