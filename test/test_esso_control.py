@@ -93,3 +93,23 @@ def test_lo_refuses_a_scale_it_cannot_determine(ship):
     every = ('m11', 'm22', 'm23', 'm32', 'm33') + ship.tuning_targets
     with pytest.raises(mt.TuningError, match='homogeneous'):
         lo_fit(ship, [tr], every)
+
+
+def test_nstep_scores_a_network_restarted_from_every_measured_state(ship):
+    from mmg_tuner.learn.residual import zero_net
+    from mmg_tuner.tuning.nstep import nstep_errors
+    tr = read_esso_csv(ZIGZAG, keep_astern=True)[0].resampled(0.5)
+    tr = tr.slice(tr.t[0], tr.t[0] + 60.0)
+    hs = (1, 4, 20)
+    physics, _ = nstep_errors(ship, [tr], hs)
+    hybrid, _ = nstep_errors(mt.Model(ship, zero_net(5, 0.5)), [tr], hs)
+    for s in ('u', 'v', 'r', 'x', 'y', 'psi'):   # a zero residual: the physics, window by window
+        assert hybrid.rmse[s] == pytest.approx(physics.rmse[s], rel=1e-9, abs=1e-12), s
+    # a pure network predicting no acceleration holds the measured velocities of sample k
+    coast, _ = nstep_errors(mt.Model(ship, zero_net(5, 0.5, physics=False)), [tr], hs)
+    for i, h in enumerate(hs):
+        for j, s in ((3, 'u'), (4, 'v'), (5, 'r')):
+            d = tr.states[h:, j] - tr.states[:-h, j]
+            assert coast.rmse[s][i] == pytest.approx(np.sqrt(np.mean(d ** 2)), rel=1e-9), (s, h)
+    with pytest.raises(mt.TuningError, match='resample'):
+        nstep_errors(mt.Model(ship, zero_net(5, 0.2)), [tr], hs)
