@@ -7,9 +7,9 @@ tune trials/turning_p10 trials/turning_m20 --test trials/turning_m10 --ship suza
 tune --resume tuned        # continue an interrupted run (from any working directory)
 tune twin/*.csv --ship qiuxin_tug --bollard-pull bollard.csv --method lo-go --out id
 
-A control-oriented family (surge_decoupled, simplified6) is identified local -> global
-(MBPE-LOGO: thrust polynomial from the bollard pull, azimuth dynamics, LO least squares, GO
-simulation fit; ``tuning/lo_go.py``) unless --method cmaes asks for CMA-ES.
+A control-oriented family (surge_decoupled, simplified6, surge_decoupled_rudder) is identified
+local -> global (MBPE-LOGO: thrust polynomial from the bollard pull, azimuth dynamics, LO least
+squares, GO simulation fit; ``tuning/lo_go.py``) unless --method cmaes asks for CMA-ES.
 
 """
 from __future__ import annotations

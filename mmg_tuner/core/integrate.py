@@ -30,8 +30,9 @@ import math
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH
-from mmg_tuner.core.dynamics import (actuate_hold, actuate_output, actuate_start, astern_surge,
-                                     family_tag, N_ACT_STATES, rhs)
+from mmg_tuner.core.dynamics import (accelerations, act_tuple, actuate_hold, actuate_output,
+                                     actuate_start, astern_surge, family_tag, N_ACT_STATES,
+                                     rhs)
 from mmg_tuner.core.frames import wrap_pi
 from mmg_tuner.core.inputs import value
 from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POSITIVE,
@@ -449,6 +450,23 @@ def _actuator_outputs(kind, p, ctrl, T, dt, out):
             out[k, i] = act[i]
 
 
+@njit(cache=True, fastmath=FASTMATH)
+def _accelerations_many(kind, p, nu, act, out):
+    """
+    Fill out (B, 3) with (du/dt, dv_m/dt, dr/dt) of the family (``dynamics.accelerations``).
+
+    nu (B, 3): velocities through the water (u, v_m [m/s], r [rad/s]); act (B, outputs): the
+    actuator outputs acting (``Family.outputs``). No wind: the local step of the
+    identification (``tuning/lo_go.py``) reads the equations of motion this way.
+    """
+    for b in range(nu.shape[0]):
+        du, dv, dr = accelerations(kind, p, nu[b, 0], nu[b, 1], nu[b, 2],
+                                   act_tuple(kind, act, b))
+        out[b, 0] = du
+        out[b, 1] = dv
+        out[b, 2] = dr
+
+
 def _for_family(kernel):
     """
     Make the Python entry point of a whole-run kernel.
@@ -469,3 +487,4 @@ run_maneuver = _for_family(_run_maneuver)
 trajectory_cost = _for_family(_trajectory_cost)
 cost_many = _for_family(_cost_many)
 actuator_outputs = _for_family(_actuator_outputs)
+accelerations_many = _for_family(_accelerations_many)

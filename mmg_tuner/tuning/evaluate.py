@@ -302,16 +302,12 @@ def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s
 
     (see the module docstring). ``sigma``: the standardising deviations to use (default: pooled
     over these trials, as the paper does). ``horizons`` [steps]: also the n-step prediction
-    RMSE at these horizons and the free-run relative errors (``tuning/nstep.py``; the physics
-    alone: a model with a residual network is refused).
+    RMSE at these horizons and the free-run relative errors (``tuning/nstep.py``; a residual
+    network restarts with its history window holding the measured samples before each window).
     """
     model = as_model(model)
     if horizons is not None:
         horizons = check_horizons(horizons)
-        if model.residual is not None:
-            raise TuningError('evaluate: n-step prediction (horizons) runs the physics '
-                              f'alone; this model has a {model.kind} network (give the '
-                              'params without it, or no horizons)')
     trials = list(trials)
     if not trials:
         raise TuningError('evaluate: no trials given')
@@ -337,8 +333,7 @@ def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s
     if horizons is not None:
         names = list(scores)
         renamed = [t if t.name == n else replace(t, name=n) for t, n in zip(trials, names)]
-        res.nstep, per = nstep_errors(model.ship, renamed, horizons, integrator, substeps,
-                                      params)
+        res.nstep, per = nstep_errors(model, renamed, horizons, integrator, substeps, params)
         res.nstep_per_trial = per
         runs = [s.predicted if not restart_every_s else
                 predict(model, tr, 0.0, integrator, substeps, params)[0]

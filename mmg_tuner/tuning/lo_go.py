@@ -13,11 +13,14 @@ The whole ship, in the paper's order (shared/reference/mbpe_logo_tug.md):
    least squares matches its angles to the measured ones.
 3. **LO** (:func:`lo_fit`): given measured accelerations, M nu_dot + C(nu) nu + D(nu) nu = tau
    is linear in the hull coefficients, so the local step is *one* linear least-squares
-   problem. Its regressor is read from the family's own compiled functions (``forces``,
-   ``motion``, ``mass_solve``): the equation error is evaluated for the coefficients and for
-   each one moved by a step, and linearity (checked) turns the differences into the columns.
-   No equation is written twice, and any family linear in its coefficients (the 22 of
-   ``surge_decoupled``, the 6 of ``simplified6``, either Coriolis form) works. Accelerations
+   problem. Its regressor is read from the family's own compiled equations (the core's
+   accelerations and the family's ``mass_solve``): the equation error is evaluated for the
+   coefficients and for each one moved by a step, and linearity (checked) turns the
+   differences into the columns; what no coefficient scales (a mass matrix or a thrust kept
+   at known values) is the right-hand side. No equation is written twice, and any family
+   linear in its coefficients (the 22 of ``surge_decoupled``, the 6 of ``simplified6``,
+   either Coriolis form; an actuator whose tau is linear in its own coefficients,
+   ``screw_rudder_tau``, identified with the hull's) works. Accelerations
    come from the (Savitzky-Golay smoothed) velocities over each sample interval, the hull's
    forces averaged over its two ends (trapezoid), the thrust held as the kernels hold it.
 4. **GO** (:func:`go_fit`): the multi-step simulation error of u, v, r (each over its pooled
@@ -47,7 +50,7 @@ from typing import Sequence
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.channels import TABLE
-from mmg_tuner.core.integrate import actuator_outputs
+from mmg_tuner.core.integrate import accelerations_many, actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import module_of
 from mmg_tuner.core.ship import ShipConfig
@@ -306,14 +309,14 @@ def _smooth(x: np.ndarray, dt: float, smooth_s: float) -> np.ndarray:
     return savgol_filter(x, w, 3, axis=0)
 
 
-def actuator_forces(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
-                    commands: bool = False) -> np.ndarray:
+def actuator_outputs_of(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
+                        commands: bool = False) -> np.ndarray:
     """
-    Return tau (T, 3) [N, N, N m] of each sample interval from the recorded inputs.
+    Return the actuator outputs (T, outputs) acting over each sample interval.
 
-    Through the core's actuator kernel and the actuators' own ``forces``. ``commands`` False:
-    recorded commands are ignored, so the measured angles act, held over the interval (the
-    local step's view); True: the actuator dynamics replay them.
+    Through the core's actuator kernel from the recorded inputs. ``commands`` False: recorded
+    commands are ignored, so the measured angles act, held over the interval (the local step's
+    view); True: the actuator dynamics replay them.
     """
     fam = ship.family
     p = ship.params if params is None else params
@@ -325,82 +328,114 @@ def actuator_forces(ship: ShipConfig, trial: Trial, params: np.ndarray | None = 
     T = len(trial)
     act = np.zeros((T, len(fam.outputs)))
     actuator_outputs(ship.kind, p, np.ascontiguousarray(ctrl), T, trial.dt, act)
-    tau = np.zeros((T, 3))
+    return act
+
+
+def _tau(ship: ShipConfig, p: np.ndarray, nu: np.ndarray, act: np.ndarray) -> np.ndarray:
+    """Return tau (len(nu), 3): the actuators' own ``forces`` at velocities nu, outputs act."""
+    tau = np.zeros((len(nu), 3))
     k = 0
-    for name in fam.actuators:
+    for name in ship.family.actuators:
         a = actuator(name)
         if a.forces is not None:
-            for i in range(T):
-                tau[i] += a.forces(p, 0.0, 0.0, 0.0, tuple(act[i]), k)
+            for i in range(len(nu)):
+                u, v, r = nu[i]
+                tau[i] += a.forces(p, u, v, r, tuple(act[i]), k)
         k += len(a.outputs)
     return tau
 
 
-def _mass_and_hull(fam, p: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def actuator_forces(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
+                    commands: bool = False) -> np.ndarray:
     """
-    Return M (3, 3) and C(nu) nu + D(nu) nu (T, 3) from the family's compiled functions.
+    Return tau (T, 3) [N, N, N m] of each sample interval from the recorded inputs.
 
-    M is the inverse of mass_solve's response to unit forces; C(nu) nu + D(nu) nu =
-    -M motion(nu, 0) - forces(nu), since motion(nu, F) = M^-1 (F - C(nu) nu).
+    Through the core's actuator kernel (:func:`actuator_outputs_of`, ``commands`` as there)
+    and the actuators' own ``forces``, at the measured velocities of each sample (an actuator
+    whose force depends on the ship's speed, ``screw_rudder_tau``, reads them).
     """
-    M = np.linalg.inv(np.column_stack([fam.mass_solve(p, *e) for e in np.eye(3)]))
-    act = (0.0,) * len(fam.outputs)   # the hull's forces of these families ignore it
-    a = np.empty((len(nu), 3))
-    f = np.empty((len(nu), 3))
-    for i in range(len(nu)):
-        u, v, r = nu[i]
-        a[i] = fam.motion(p, u, v, r, 0.0, 0.0, 0.0)
-        f[i] = fam.forces(p, u, v, r, act)
-    return M, -(a @ M.T) - f
+    p = ship.params if params is None else params
+    act = actuator_outputs_of(ship, trial, p, commands)
+    return _tau(ship, p, trial.states[:, _VEL], act)
 
 
-def _interval_data(ship: ShipConfig, trial: Trial, smooth_s: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mass_matrix(ship: ShipConfig, p: np.ndarray) -> np.ndarray:
+    """Return M (3, 3) of a control-oriented family (mass_solve's response to unit forces)^-1."""
+    return np.linalg.inv(np.column_stack([ship.family.mass_solve(p, *e) for e in np.eye(3)]))
+
+
+@dataclass(frozen=True)
+class Intervals:
+    """Hold one trial's local-step data: nu (T, 3), dnu/dt (T-1, 3), actuator outputs (T-1, k)."""
+
+    nu: np.ndarray
+    dnu: np.ndarray
+    act: np.ndarray
+
+
+def interval_data(ship: ShipConfig, trial: Trial, smooth_s: float) -> Intervals:
     """
-    (nu (T, 3), dnu/dt over each interval (T-1, 3), tau of each interval (T-1, 3)).
+    Return the smoothed velocities, their differences and each interval's actuator outputs.
 
-    tau from the recorded shaft speeds and measured azimuth angles, held over the interval as
-    the kernels hold them: a recorded angle is the one acting over its sample interval (the
-    repository's convention, doc/guides/tug.md), so a simulation driven by the recorded angles
-    reproduces the run.
+    The outputs from the recorded shaft speeds, rudder and measured azimuth angles, held over
+    the interval as the kernels hold them: a recorded angle is the one acting over its sample
+    interval (the repository's convention, doc/guides/tug.md), so a simulation driven by the
+    recorded inputs reproduces the run.
     """
     nu = _smooth(trial.states[:, _VEL], trial.dt, smooth_s)
     dnu = np.diff(nu, axis=0) / trial.dt
-    return nu, dnu, actuator_forces(ship, trial)[:-1]
+    return Intervals(nu, dnu, actuator_outputs_of(ship, trial)[:-1])
 
 
-def regressor(ship: ShipConfig, names: Sequence[str], nu: np.ndarray, dnu: np.ndarray
-              ) -> np.ndarray:
+def equation_error(ship: ShipConfig, p: np.ndarray, data: Intervals) -> np.ndarray:
     """
-    Return A (T-1, 3, d) with A theta = M dnu + the mean of C nu + D nu at both interval ends.
+    M (dnu - the mean of the model's accelerations at both interval ends) (T-1, 3) [N, N, N m].
 
-    Columns by differences of the family's equation terms around the ship's values; a family
-    not linear in these coefficients is refused.
+    That is M nu_dot + C nu + D nu - tau - F: the family's equations of motion read through
+    the core's compiled accelerations (``core.integrate.accelerations_many``: hull, actuators'
+    tau, the family's other forces such as tunnel thrusters, effects; no wind), each
+    interval's actuator outputs held over it, evaluated at the velocities of both of its ends
+    (trapezoid).
     """
-    fam = ship.family
+    acc = np.empty((2 * len(data.dnu), 3))
+    nu = np.ascontiguousarray(np.concatenate([data.nu[:-1], data.nu[1:]]))
+    act = np.ascontiguousarray(np.concatenate([data.act, data.act]))
+    accelerations_many(ship.kind, p, nu, act, acc)
+    n = len(data.dnu)
+    return (data.dnu - 0.5 * (acc[:n] + acc[n:])) @ mass_matrix(ship, p).T
+
+
+def regressor(ship: ShipConfig, names: Sequence[str], data: Intervals
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return A (T-1, 3, d) and c (T-1, 3) with equation_error = A theta + c.
+
+    Columns by differences of the family's and the actuators' terms around the ship's values
+    (c: the part no named coefficient scales: the inertia of a fixed mass matrix, a fixed
+    thrust); a model not linear in these coefficients (checked by a second, combined step) is
+    refused.
+    """
     p0 = ship.params.copy()
     idx = [PARAM_INDEX[n] for n in names]
-
-    def terms(p):
-        M, g = _mass_and_hull(fam, p, nu)
-        return dnu @ M.T + 0.5 * (g[:-1] + g[1:])
-    base = terms(p0)
+    base = equation_error(ship, p0, data)
+    steps = np.array([max(abs(p0[j]), 1.0) for j in idx])
     cols = []
-    for j in idx:
-        step = max(abs(p0[j]), 1.0)
+    for j, step in zip(idx, steps):
         p = p0.copy()
         p[j] += step
-        cols.append((terms(p) - base) / step)
+        cols.append((equation_error(ship, p, data) - base) / step)
     A = np.stack(cols, axis=-1)
-    # linearity: the terms at the ship's values are A theta (no part the coefficients miss)
-    scale = max(float(np.max(np.abs(base))), 1e-9)
-    off = float(np.max(np.abs(base - A @ p0[idx])))
-    if off > 1e-6 * scale:
+    # linearity: all coefficients moved at once by half their steps, predicted by A
+    p = p0.copy()
+    p[idx] += 0.5 * steps
+    probe = equation_error(ship, p, data)
+    scale = max(float(np.max(np.abs(base))), float(np.max(np.abs(probe))), 1e-9)
+    if float(np.max(np.abs(probe - base - A @ (0.5 * steps)))) > 1e-6 * scale:
         raise TuningError(f'{ship.name}: the family {ship.model!r} is not linear in '
                           f'{", ".join(names)} (with the switches as set: e.g. '
                           'simplified6 needs tau_v = 1); the local step needs a model linear '
                           'in its coefficients')
-    return A
+    return A, base - A @ p0[idx]
 
 
 @dataclass
@@ -420,8 +455,12 @@ def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | Non
     """
     Solve the local step: one linear least-squares problem over all samples of all trials.
 
-    Rows: the three equations of every sample interval, each DOF scaled by the RMS of its
-    thrust (N and N m made comparable); columns scaled to unit norm (conditioning).
+    A theta = -c (:func:`regressor`): with the hull's coefficients alone, c is minus the
+    thrust and this is M nu_dot + C nu + D nu = tau; with the actuator's coefficients among
+    them (``screw_rudder_tau``), their columns come from tau and c holds what stays fixed (a
+    mass matrix kept at its published values). Rows: the three equations of every sample
+    interval, each DOF scaled by the RMS of its right-hand side (N and N m made comparable);
+    columns scaled to unit norm (conditioning).
     """
     t0 = time.perf_counter()
     _check_family(ship)
@@ -430,11 +469,17 @@ def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | Non
     for tr in trials:
         if len(tr) < 3:
             raise TuningError(f'trial {tr.name}: fewer than 3 samples, no acceleration to fit')
-        nu, dnu, tau = _interval_data(ship, tr, smooth_s)
-        As.append(regressor(ship, names, nu, dnu))
-        bs.append(tau)
+        A, c = regressor(ship, names, interval_data(ship, tr, smooth_s))
+        As.append(A)
+        bs.append(-c)
     A = np.concatenate(As)
     b = np.concatenate(bs)
+    if not float(np.max(np.abs(b))) > 1e-9 * max(float(np.max(np.abs(A))), 1e-300):
+        raise TuningError(f'{ship.name}: the local step is homogeneous in '
+                          f'{", ".join(names)} (the mass matrix, the damping and the thrust '
+                          'all free: only their ratios are determined); keep the mass matrix '
+                          'or a thrust coefficient at a known value (leave it out of the '
+                          'tuning targets) or give a bollard-pull table')
     w = np.sqrt(np.mean(b ** 2, axis=0))
     w[~(w > 0)] = 1.0
     Aw = (A / w[None, :, None]).reshape(-1, len(names))

@@ -18,6 +18,12 @@ the relative errors of a free run (its Table 5). Both work for every family:
 
 The actuators restart with every window from the inputs at its first sample
 (``actuate_start``), as they do at every restart of a simulation.
+
+A learned model (``learn.Model`` with a residual network: hybrid or pure network) is scored
+the same way: every window restarts from the measured state, and the network's history
+window holds the *measured* feature rows of the samples before it (as ``evaluate``'s restarts
+do; before a trial's first sample it is padded with that sample's row). Its windows run one
+by one through the residual's compiled kernel (``learn.residual.simulate_hybrid_one``).
 """
 from __future__ import annotations
 
@@ -25,11 +31,14 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
+from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import simulate_batch
+from mmg_tuner.core.simulate import integrator_code, simulate_batch
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
+from mmg_tuner.learn.model import Model
+from mmg_tuner.learn.residual import N_FEATURES, simulate_hybrid_one, trial_rows
 import numpy as np
 
 NSTEP_STATES = ('u', 'v', 'r', 'x', 'y', 'psi')
@@ -113,7 +122,33 @@ def _window_arrays(trial: Trial, inputs: np.ndarray, n_max: int
     return np.ascontiguousarray(trial.states[:M]), np.ascontiguousarray(ctrl), lengths
 
 
-def nstep_errors(ship: ShipConfig, trials: Sequence[Trial], horizons: Sequence[int],
+def _learned_windows(model: Model, trial: Trial, x0s: np.ndarray, ctrl: np.ndarray,
+                     lengths: np.ndarray, first: int, integrator: str, substeps: int,
+                     p: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """States (m, n_max + 1, 6) of the windows starting at samples first ... first + m - 1."""
+    net = model.residual
+    sizes, flat = net.packed()
+    w = int(net.window)
+    method = integrator_code(integrator)
+    tag = family_tag(model.ship.kind)
+    out = np.full((len(x0s), ctrl.shape[1], 6), np.nan)
+    res = np.empty((ctrl.shape[1], 3))
+    empty = np.zeros((max(1, w - 1), N_FEATURES))
+    for i in range(len(x0s)):
+        k = first + i
+        lo = max(0, k - (w - 1))
+        hist = np.ascontiguousarray(rows[lo:k]) if k > lo else empty
+        L = int(lengths[i])
+        seg = np.full((L, 6), np.nan)
+        simulate_hybrid_one(tag, p, x0s[i], hist, k - lo, np.ascontiguousarray(ctrl[i, :L]),
+                            L, float(trial.dt), int(substeps), method, w, sizes, flat,
+                            net.x_mean, net.x_std, net.y_scale, bool(net.physics), seg,
+                            res[:L])
+        out[i, :L] = seg
+    return out
+
+
+def nstep_errors(ship: ShipConfig | Model, trials: Sequence[Trial], horizons: Sequence[int],
                  integrator: str = 'rk4', substeps: int = 1, params: np.ndarray | None = None
                  ) -> tuple[NStepScore, dict[str, NStepScore]]:
     """
@@ -123,7 +158,13 @@ def nstep_errors(ship: ShipConfig, trials: Sequence[Trial], horizons: Sequence[i
     the measured inputs k, k + 1, ...; its prediction n steps on is compared with sample k + n
     (windows that run past the trial's end score only the horizons inside it). ``params``:
     a parameter vector instead of ``ship.params``. All trials must share one sample step.
+    ``ship`` may be a ``learn.Model``: with a residual network, its history window holds the
+    measured samples before each window's start (module docstring); the trials' step must
+    be the network's.
     """
+    model = ship if isinstance(ship, Model) else Model(ship)
+    ship = model.ship
+    net = model.residual
     hs = check_horizons(horizons)
     trials = list(trials)
     if not trials:
@@ -133,7 +174,11 @@ def nstep_errors(ship: ShipConfig, trials: Sequence[Trial], horizons: Sequence[i
         raise TuningError(f'n-step prediction: the trials have different sample steps '
                           f'{sorted(dts)} s; resample them to one (--dt)')
     dt = trials[0].dt
-    p = np.asarray(ship.params if params is None else params, dtype=float)
+    if net is not None and abs(dt - net.dt_s) > 1e-6 * net.dt_s:
+        raise TuningError(f'n-step prediction: trial {trials[0].name} has a sample step of '
+                          f'{dt:g} s, but the residual network was trained on {net.dt_s:g} s '
+                          f'samples; resample the trials to dt = {net.dt_s:g} s')
+    p = np.ascontiguousarray(ship.params if params is None else params, dtype=float)
     n_max = hs[-1]
     cols = [STATE_NAMES.index(s) for s in NSTEP_STATES]
     H = np.asarray(hs)
@@ -146,13 +191,18 @@ def nstep_errors(ship: ShipConfig, trials: Sequence[Trial], horizons: Sequence[i
             raise TuningError(f'n-step prediction: trial {tr.name} has fewer than 2 samples')
         inputs = tr.input_array(ship.family.channels)
         x0s, ctrl, lengths = _window_arrays(tr, inputs, n_max)
+        rows = trial_rows(ship, tr)[0] if net is not None else None
         sq = np.zeros_like(total_sq)
         cnt = np.zeros(len(hs), dtype=np.int64)
         fail = np.zeros(len(hs), dtype=np.int64)
         for a in range(0, len(x0s), _CHUNK):
             b = min(len(x0s), a + _CHUNK)
-            out, _, _ = simulate_batch(ship.kind, p, x0s[a:b], ctrl[a:b], dt, lengths[a:b],
-                                       integrator, substeps)
+            if net is None:
+                out, _, _ = simulate_batch(ship.kind, p, x0s[a:b], ctrl[a:b], dt,
+                                           lengths[a:b], integrator, substeps)
+            else:
+                out = _learned_windows(model, tr, x0s[a:b], ctrl[a:b], lengths[a:b], a,
+                                       integrator, substeps, p, rows)[None]
             k = np.arange(a, b)
             target = k[:, None] + H[None, :]            # (m, nh) sample index predicted
             inside = target < len(tr)

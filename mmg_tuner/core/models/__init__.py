@@ -72,7 +72,8 @@ from mmg_tuner.core.actuators import actuator, declared_params as actuator_param
 from mmg_tuner.core.channels import ENVIRONMENT
 
 BUILTIN: tuple[str, ...] = (
-    'container', 'standard', 'lowspeed', 'surge_decoupled', 'simplified6')
+    'container', 'standard', 'lowspeed', 'surge_decoupled', 'simplified6',
+    'surge_decoupled_rudder')
 _PLUGINS = plugin_map(plugins.modules('families'), BUILTIN, 'family')
 REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
 """Registered families; the position is the family's code (built-ins first, then plugins)."""
