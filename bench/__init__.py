@@ -24,6 +24,7 @@ import datetime as dt
 import importlib
 from importlib import metadata
 import json
+import math
 import os
 from pathlib import Path
 import platform
@@ -109,16 +110,21 @@ def git_state(root: Path = ROOT) -> dict:
     return {'commit': commit, 'dirty': None if status is None else bool(status)}
 
 
-def _plain(value):
-    """Return value as JSON-ready data (numpy numbers and arrays, paths, tuples)."""
+def plain(value, nan=math.nan):
+    """
+    Return value as plain data for JSON or YAML: dicts, lists, numbers, strings.
+
+    numpy scalars and arrays become numbers and lists, tuples lists, mapping keys strings,
+    anything else (a path) its string; a non-finite float becomes ``nan`` (JSON has none).
+    """
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v, nan) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v, nan) for v in value]
     if hasattr(value, 'tolist'):      # numpy scalars and arrays
-        return _plain(value.tolist())
-    if isinstance(value, float) and value != value:
-        return None                   # NaN is not JSON
+        return plain(value.tolist(), nan)
+    if isinstance(value, float) and not math.isfinite(value):
+        return value if nan is math.nan else nan
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     return str(value)
@@ -150,7 +156,7 @@ def run_benchmark(name: str, quick: bool = False, argv: list[str] | None = None,
            'command': command, 'quick': quick, 'argv': argv,
            'date': started.isoformat(timespec='seconds'),
            'wall_s': round(time.perf_counter() - t0, 1), **state, 'machine': machine(),
-           'figures': _plain(figures or {})}
+           'figures': plain(figures or {}, nan=None)}
     path = Path(results_dir) / f'{name}.json'
     write_atomic(path, json.dumps(doc, indent=1, ensure_ascii=False) + '\n')
     return path

@@ -29,8 +29,9 @@ from pathlib import Path
 import subprocess
 import time
 
+from bench import plain
 from bench.esso_hybrid import (
-    _plain, held_out_scores, parser as hybrid_parser, train_network, tuned_ship)
+    held_out_scores, parser as hybrid_parser, train_network, tuned_ship)
 from bench.esso_osaka import params_path
 import mmg_tuner as mt
 from mmg_tuner._atomic import write_atomic
@@ -207,7 +208,7 @@ def main(argv: list[str] | None = None) -> dict:
                'interval': None if interval is None else interval.to_dict(),
                'coverage': cov, 'verdict': verdict,
                'test_kind': test_kind}
-    write_atomic(args.out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
+    write_atomic(args.out / 'summary.yaml', yaml.safe_dump(plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
     return {'commit': commit, 'seeds': hargs.seeds, 'index_by_kind': kind_rows,
             'auto_recommends': choice.chosen, 'interval_coverage': cov['all'],

@@ -53,6 +53,7 @@ import hashlib
 from pathlib import Path
 import time
 
+from bench import plain
 from bench.esso_osaka import check_provenance, fail, params_path, RESTART_S
 import mmg_tuner as mt
 from mmg_tuner._atomic import write_atomic
@@ -304,7 +305,7 @@ def main(argv: list[str] | None = None) -> dict:
         'tuned_sha256': hashlib.sha256(args.tuned.read_bytes()).hexdigest(),
         'tuned_provenance': (yaml.safe_load(args.tuned.read_text()) or {}).get('provenance')}
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
+    write_atomic(out / 'summary.yaml', yaml.safe_dump(plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
     rows.append({'kind': 'all', 'run': 'together', **{c: _fmt(scores[c]['all']) for c in cols},
                  'best': min(cols, key=lambda c: _mean(scores[c]['all']))})
@@ -336,16 +337,6 @@ def _fmt(v: list) -> str:
     if len(v) == 1:
         return f'{v[0]:.4f}'
     return f'{np.mean(v):.4f} ± {np.std(v):.4f}'
-
-
-def _plain(o):
-    if isinstance(o, dict):
-        return {str(k): _plain(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_plain(v) for v in o]
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    return o
 
 
 if __name__ == '__main__':

@@ -103,3 +103,13 @@ def test_documented_bench_commands_name_a_benchmark():
     assert len(found) >= 10, 'the documented bench commands went missing'
     unknown = {n: str(p.relative_to(ROOT)) for n, p in found.items() if n not in _modules()}
     assert not unknown, unknown
+
+
+def test_figures_become_plain_json():
+    import numpy as np
+    from bench import plain
+    got = plain({'a': np.float64(0.5), 2: (np.int64(3), np.array([1.5, np.inf])),
+                 'p': ROOT, 'n': float('nan')}, nan=None)
+    assert got == {'a': 0.5, '2': [3, [1.5, None]], 'p': str(ROOT), 'n': None}
+    assert json.loads(json.dumps(got, allow_nan=False)) == got
+    assert plain([np.float32(np.nan)])[0] != plain([np.float32(np.nan)])[0]   # YAML keeps NaN
