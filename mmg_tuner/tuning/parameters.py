@@ -102,17 +102,18 @@ class ParameterSpace:
 
 
 def moved_truth(ship: ShipConfig, seed: int = 5, spread: float = 0.6,
-                extra: Mapping[str, float] | None = None
+                extra: Mapping[str, float] | None = None, space: ParameterSpace | None = None
                 ) -> tuple[ShipConfig, ParameterSpace, np.ndarray]:
     """
     Return (truth, space, theta): the ship with its targets moved inside their box.
 
-    A synthetic truth for tuning benchmarks and tests: each target of ``ParameterSpace.around``
-    moved by a uniform draw of up to ``spread`` times the box's upper half-width (seeded), so
-    a tuner starting from the pre-determined values has something to find. ``extra`` sets
-    further parameters of the truth the model does not tune (e.g. a hidden ``rudder_lag_tau``).
+    A synthetic truth for tuning benchmarks and tests: each target of ``space`` (default
+    ``ParameterSpace.around(ship)``) moved by a uniform draw of up to ``spread`` times the
+    box's upper half-width (seeded), so a tuner starting from the pre-determined values has
+    something to find. ``extra`` sets further parameters of the truth the model does not tune
+    (e.g. a hidden ``rudder_lag_tau``).
     """
-    space = ParameterSpace.around(ship)
+    space = ParameterSpace.around(ship) if space is None else space
     rng = np.random.default_rng(seed)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-spread, spread, space.dim)
     values = dict(zip(space.names, theta))
