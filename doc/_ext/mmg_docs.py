@@ -136,8 +136,8 @@ def run_lines(doc: dict) -> list[str]:
     commit = (doc.get('commit') or 'unknown')[:10] + (' (with uncommitted changes)'
                                                       if doc.get('dirty') else '')
     meta = [{'': 'command', 'value': f"`{doc.get('command')}`"},
-            {'': 'quick', 'value': 'yes (a small budget: not the full figures)'
-             if doc.get('quick') else 'no'},
+            {'': 'quick', 'value': 'yes: a smaller budget where the benchmark has one (its '
+             'docstring says), so not its full figures' if doc.get('quick') else 'no'},
             {'': 'date (UTC)', 'value': doc.get('date')},
             {'': 'commit', 'value': commit},
             {'': 'machine', 'value': f"{m.get('cpu')}, {m.get('cores')} cores; Python "
