@@ -1,7 +1,7 @@
 """
 Speed of the MMG core, printed as figures (not a test).
 
-  python bench/bench_core.py [--shipmmg]
+  python -m bench run bench_core [--shipmmg]
 
 1. Right-hand-side evaluations per second, single trajectory: KVLCC2 35 deg turn, standard
    MMG method, classic RK4 with a fixed 0.05 s step over 300 s (model scale), 4 RHS per step.
@@ -21,12 +21,10 @@ import subprocess
 import sys
 import time
 
+from mmg_tuner.core.layout import PARAM_INDEX
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.simulate import simulate, simulate_batch
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402, I100
-from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.core.simulate import simulate, simulate_batch  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -75,10 +73,16 @@ def shipmmg_rate(dt=0.05, duration=300.0):
     return json.loads(res.stdout.strip().splitlines()[-1])['rhs_per_s']
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run bench_core`` (quick already: --quick does nothing)."""
+    return main(argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--shipmmg', action='store_true', help='also measure shipmmg')
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    figures = {}
     print(f'machine: {os.cpu_count()} cores, numba threads: '
           f'{__import__("numba").get_num_threads()}')
     r = rhs_rate()
@@ -87,10 +91,14 @@ def main() -> None:
     b = batch_rate()
     print(f'batched: {b:,.0f} candidate-steps/s ({1e9 / b:.0f} ns per step over all cores; '
           'SUZAKU 128 candidates x 4 trials x 800 Euler steps)')
+    figures.update(rhs_per_s=r, ns_per_rhs=1e9 / r, batched_candidate_steps_per_s=b,
+                   ns_per_candidate_step=1e9 / b)
     if args.shipmmg:
         s = shipmmg_rate()
         print(f'shipmmg 0.0.11: {s:,.0f} RHS evaluations/s on the same turn and step '
               f'-> mmg_tuner is {r / s:,.0f}x faster per RHS evaluation')
+        figures.update(shipmmg_rhs_per_s=s, ratio_per_rhs=r / s)
+    return figures
 
 
 if __name__ == '__main__':

@@ -42,9 +42,9 @@ alone mimics an rpm scale of ~1.4 %, half the smallest worth finding). Nothing e
 truth (the advised trial, as the issue defines the loop, is sailed in the missed and clean
 cases).
 
-    python bench/bench_diagnosis.py [--cases 5] [--seed0 0] [--budget standard]
-                                    [--effects ...] [--retune lsq|cmaes] [--no-advice]
-                                    [--quick] [--fresh] [--name NAME]
+    python -m bench run bench_diagnosis [--quick] [--cases 5] [--seed0 0] [--budget standard]
+                                        [--effects ...] [--retune lsq|cmaes] [--no-advice]
+                                        [--fresh] [--name NAME]
 
 --quick: one case per class of the classes given (default all), quick budget: a few minutes.
 Results are appended per case to bench/out/diagnosis_cases_<name>[_quick].jsonl (name:
@@ -65,7 +65,6 @@ import math
 from pathlib import Path
 import time
 
-import common  # noqa: F401  (puts the repository on sys.path)
 import mmg_tuner as mt
 from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship
@@ -447,7 +446,12 @@ def summarise(rows: list[dict]) -> str:
     return '\n'.join(lines)
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run bench_diagnosis`` (``--quick``: as the option)."""
+    return main((['--quick'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--cases', type=int, default=5, help='random cases per class')
     ap.add_argument('--seed0', type=int, default=0, help='first case seed')
@@ -465,7 +469,7 @@ def main() -> None:
                     help='output file tag (default: the --retune method)')
     ap.add_argument('--quick', action='store_true',
                     help='one case per class, quick budget (a development check)')
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.quick:
         args.cases, args.budget = 1, 'quick'
     OUT.mkdir(parents=True, exist_ok=True)
@@ -504,6 +508,14 @@ def main() -> None:
     (OUT / f'diagnosis_summary_{tag}.md').write_text(text + '\n')
     print()
     print(text)
+    return {'cases': len(sel), 'budget': args.budget,
+            'correct_plain': sum(r['correct'] for r in sel),
+            'correct_with_advised_trial': sum(_with_advice(r)['correct'] for r in sel),
+            'correct_with_trial_or_measurement': sum(_with_measurement(r)['correct']
+                                                     for r in sel),
+            'median_diagnosis_s': float(np.median([r['wall_s'] for r in sel])) if sel else None,
+            'max_diagnosis_s': max((r['wall_s'] for r in sel), default=None),
+            'summary': text}
 
 
 if __name__ == '__main__':

@@ -9,7 +9,9 @@ Each ship: SUZAKU with a hidden effect (a current, a rudder offset, or none), 6 
 candidate effects, one cause at most), as test/test_fleet.py runs them. A LocalCluster as
 `fleet` starts it: one task thread per worker process, NUMBA_NUM_THREADS = cores // workers.
 
-    python bench/bench_fleet.py [--ships 4] [--workers 1 2]
+    python -m bench run bench_fleet [--quick] [--ships 4] [--workers 1 2]
+
+--quick: 2 ships, 2 workers (about a minute; the scaling model needs 1 and 2 workers).
 
 The model: a ship is a load task, then tune and diagnose side by side, then evaluate; the
 client hashes, schedules and writes (serial). Per ship at 50 trials the tasks grow with the
@@ -31,7 +33,6 @@ import sys
 import tempfile
 import time
 
-import common  # noqa: F401  (puts the repository on sys.path)
 from mmg_tuner.cli.generate import command as generate
 from mmg_tuner.fleet import fleet, local_cluster
 from mmg_tuner.fleet.jobs import cpu_count
@@ -59,7 +60,7 @@ def make_fleet(root: Path, n: int) -> dict:
     return {'defaults': OPTIONS, 'ships': ships}
 
 
-def run(manifest: dict, out: Path, workers: int) -> dict:
+def run_fleet(manifest: dict, out: Path, workers: int) -> dict:
     from distributed import Client
     t0 = time.perf_counter()
     with local_cluster(workers, dashboard=False) as cluster, Client(cluster) as client:
@@ -108,18 +109,24 @@ def model_table(r1: dict, r2: dict, ships: int = 100, trials: int = 50,
     return lines
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run bench_fleet`` (``--quick``: 2 ships, 2 workers)."""
+    return main((['--ships', '2', '--workers', '2'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ships', type=int, default=4)
     ap.add_argument('--workers', type=int, nargs='+', default=[1, 2])
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    figures = {'ships': args.ships}
     root = Path(tempfile.mkdtemp(prefix='bench_fleet_'))
     try:
         manifest = make_fleet(root / 'trials', args.ships)
         print(f'{args.ships} synthetic ships, {cpu_count()} cores', flush=True)
         results = {}
         for w in args.workers:
-            r = run(manifest, root / f'out{w}', w)
+            r = run_fleet(manifest, root / f'out{w}', w)
             results[w] = r
             print(f"{w} worker(s): {r['ships']} ships in {r['wall_s']:.1f} s "
                   f"(+{r['start_s']:.1f} s cluster start) = {r['ships_per_hour']:.0f} "
@@ -128,8 +135,12 @@ def main() -> None:
             print(f'speed-up 1 -> 2 workers: '
                   f"{results[1]['wall_s'] / results[2]['wall_s']:.2f} x")
             print('\n'.join(model_table(results[1], results[2])))
+        figures['workers'] = [{k: v for k, v in r.items() if k != 'stage_s'}
+                              for r in results.values()]
+        figures['stage_s'] = {w: r['stage_s'] for w, r in results.items()}
     finally:
         shutil.rmtree(root, ignore_errors=True)  # our own temporary folder
+    return figures
 
 
 if __name__ == '__main__':

@@ -4,7 +4,8 @@ The paper's full tuning problem.
 12 parameters, four 800 s SUZAKU turning trials at dt = 1 s (+10, -20, +35, -40 deg; truth moved
 inside the box, sensor noise), CMA-ES with IPOP restarts from population 12 doubling to 128, until
 the restarts converge or 200 000 evaluations. Prints wall time, evaluations per second, final J,
-test J and peak memory. Target: <= 60 s, < 500 MB.    python bench/bench_tune.py [--seed N]
+test J and peak memory. Target: <= 60 s, < 500 MB.
+    python -m bench run bench_tune [--quick] [--seed N] [--max-evals N]
 """
 from __future__ import annotations
 
@@ -12,23 +13,32 @@ import argparse
 import resource
 import time
 
-from common import moved_truth, PAPER_TEST, PAPER_TUNE, paper_turning_trials
+import mmg_tuner as mt
+from mmg_tuner.data.generate import PAPER_TEST_DEG, PAPER_TUNE_DEG, paper_turning_trials
 from mmg_tuner.tuning import Tuner
 from mmg_tuner.tuning.factory import make_objective
+from mmg_tuner.tuning.parameters import moved_truth
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run bench_tune`` (``--quick``: 10 000 evaluations)."""
+    return main((['--max-evals', '10000'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser()
     ap.add_argument('--seed', type=int, default=5)
-    args = ap.parse_args()
-    ship, truth, space, theta = moved_truth(args.seed)
-    tune = paper_turning_trials(truth, PAPER_TUNE, seed=args.seed)
-    test = paper_turning_trials(truth, PAPER_TEST, seed=args.seed + 10)
+    ap.add_argument('--max-evals', type=int, default=200_000)
+    args = ap.parse_args(argv)
+    ship = mt.load_ship('suzaku')
+    truth, space, theta = moved_truth(ship, args.seed)
+    tune = paper_turning_trials(truth, PAPER_TUNE_DEG, seed=args.seed)
+    test = paper_turning_trials(truth, PAPER_TEST_DEG, seed=args.seed + 10)
     obj = make_objective(ship, tune)   # the paper's J: whole trials, its weights, Euler
     obj_test = make_objective(ship, test)
     obj(ship.params[None])  # compile outside the timing
     t0 = time.perf_counter()
-    res = Tuner(space, obj, seed=args.seed, max_evaluations=200_000).run()
+    res = Tuner(space, obj, seed=args.seed, max_evaluations=args.max_evals).run()
     wall = time.perf_counter() - t0
     tuned = space.full_params(ship.params, res.theta)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -42,6 +52,12 @@ def main() -> None:
           f'(truth {obj_test(space.full_params(ship.params, theta))[0]:.4g})')
     print(f'on a bound: {space.on_bound(res.theta)}')
     print(f'peak memory (RSS): {peak_mb:.0f} MB')
+    j_test = (obj_test(ship.params[None])[0], obj_test(tuned)[0])
+    return {'evaluations': res.evaluations, 'restarts': res.restarts, 'wall_s': wall,
+            'evaluations_per_s': res.evaluations / wall, 'J_tune_pre': obj(ship.params[None])[0],
+            'J_tune_tuned': res.J, 'J_test_pre': j_test[0], 'J_test_tuned': j_test[1],
+            'J_test_change_percent': 100 * (j_test[1] - j_test[0]) / j_test[0],
+            'on_bound': space.on_bound(res.theta), 'peak_memory_MB': peak_mb}
 
 
 if __name__ == '__main__':

@@ -14,7 +14,10 @@ trials, the time per stage, and the starboard/port tactical-diameter ratio of th
 model against MARIN's (1.087). The setting is declared (--setting tank,reference), as the
 MARIN reader's notes also say.
 
-    python bench/diagnose_kvlcc2_marin.py [--budget quick|standard] [--runs A B] [--dt 0.1]
+    python -m bench run diagnose_kvlcc2_marin [--quick] [--budget quick|standard] [--runs A B]
+        [--dt 0.1]
+
+--quick: run B only.
 """
 from __future__ import annotations
 
@@ -24,10 +27,9 @@ from pathlib import Path
 import sys
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.cli.diagnose import command as diagnose  # noqa: E402
-from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES  # noqa: E402
+from mmg_tuner.cli.diagnose import command as diagnose
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES
 
 OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin_diagnosis'
 OUT = OUT / time.strftime('%Y%m%d-%H%M%S')  # a new folder per run: --out refuses a used one
@@ -42,13 +44,18 @@ def td_ratio(ship) -> tuple[float, float]:
     return m, s
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run diagnose_kvlcc2_marin`` (``--quick``: run B only)."""
+    return main((['--runs', 'B'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--budget', default='quick')
     ap.add_argument('--runs', nargs='+', default=['A', 'B'], choices=['A', 'B'])
     ap.add_argument('--dt', default='0.1', help='resampling step [s] (full scale)')
     ap.add_argument('--retune', default='lsq', choices=['lsq', 'cmaes'])
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     d = marin_data_dir()
     tune = [str(d / MARIN_FILES[k]) for k in MARIN_FILES
             if k.startswith('turn') or '10' in k]
@@ -59,6 +66,7 @@ def main() -> None:
             'B_without_gamma_R': [t for t in all_targets if not t.startswith('gamma_R')]}
     m, s0 = td_ratio(ship)
     print(f'starboard/port tactical diameter: MARIN {m:.3f}; pre-determined model {s0:.3f}')
+    figures = {'starboard_over_port_TD_MARIN': m, 'starboard_over_port_TD_pre': s0, 'runs': []}
     for name, targets in runs.items():
         if name[0] not in args.runs:
             continue
@@ -87,9 +95,15 @@ def main() -> None:
               f'{td_ratio(tuned)[1]:.3f} (MARIN {m:.3f})')
         gam = {k: round(v, 3) for k, v in doc['baseline']['params'].items()
                if k.startswith('gamma_R')}
+        figures['runs'].append({
+            'run': name, 'named': ', '.join(c['summary'] for c in doc['causes']) or 'nothing',
+            'wall_s': time.perf_counter() - t0, 'J_test_base': doc['baseline']['J_test'],
+            'J_test_final': doc['final']['J_test'], 'TD_ratio_tuned_base': td_ratio(base)[1],
+            'TD_ratio_final': td_ratio(tuned)[1]})
         if gam:
             print(f'   tuned gamma_R: {gam} (pre-determined '
                   f"{ship['gamma_Rp']:.3f} / {ship['gamma_Rn']:.3f})")
+    return figures
 
 
 if __name__ == '__main__':

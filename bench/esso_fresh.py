@@ -1,8 +1,10 @@
 """
 Issue 25's registered test: the models trained on the Esso Osaka runs, scored on seven new ones.
 
-    python bench/esso_osaka.py --fold none         # the tuned physics on all runs, first
-    python bench/esso_fresh.py --seeds 0 1 2 [bench/esso_hybrid.py's options]
+    python -m bench run esso_osaka --fold none       # the tuned physics on all runs, first
+    python -m bench run esso_fresh --seeds 0 1 2 [bench/esso_hybrid.py's options]
+
+--quick trains 5 epochs per network (a check that it runs; its verdicts mean nothing).
 
 Registered in bench/esso_fresh_preregistration.md (committed before the seven runs were read).
 Training: bench/esso_osaka.py's runs, reads and cuts, nothing held out (the 33 files, the
@@ -25,26 +27,24 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 import subprocess
-import sys
 import time
 
+from bench import plain
+from bench.esso_hybrid import (
+    held_out_scores, parser as hybrid_parser, train_network, tuned_ship)
+from bench.esso_osaka import params_path
+import mmg_tuner as mt
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.esso import load_split, read_run as read
+from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.learn import ensemble
+from mmg_tuner.learn.model import Model
+from mmg_tuner.learn.residual import ResidualNet
+from mmg_tuner.learn.train import split_validation
+from mmg_tuner.tuning.choice import choose_model
+from mmg_tuner.tuning.interval import calibrate_interval, coverage
 import numpy as np
 import yaml
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_hybrid import (  # noqa: E402, I100
-    _plain, held_out_scores, parser as hybrid_parser, train_network, tuned_ship)
-from esso_osaka import load_split, params_path, read  # noqa: E402
-import mmg_tuner as mt  # noqa: E402
-from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.errors import MmgTunerError  # noqa: E402
-from mmg_tuner.learn import ensemble  # noqa: E402
-from mmg_tuner.learn.model import Model  # noqa: E402
-from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
-from mmg_tuner.learn.train import split_validation  # noqa: E402
-from mmg_tuner.tuning.choice import choose_model  # noqa: E402
-from mmg_tuner.tuning.interval import calibrate_interval, coverage  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FRESH = ROOT / 'data' / 'esso_osaka_frt_extra'
@@ -87,7 +87,12 @@ def kind_means(scores: dict, runs: list[str]) -> float:
     return float(np.mean(vals))
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_fresh`` (``--quick``: 5 epochs)."""
+    return main((['--epochs', '5'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     """Train, choose, calibrate and score as registered; print the table and the verdicts."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--tuned', type=Path, default=params_path(None))
@@ -98,7 +103,7 @@ def main() -> None:
     ap.add_argument('--test-dir', type=Path, default=FRESH,
                     help='the test runs (KIND/*.csv; default the seven fresh runs; another '
                     'folder only for a smoke test of this script)')
-    args, rest = ap.parse_known_args()
+    args, rest = ap.parse_known_args(argv)
     hargs = hybrid_parser().parse_args(rest)
     t_all = time.perf_counter()
     commit = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=ROOT, capture_output=True,
@@ -173,8 +178,10 @@ def main() -> None:
              for c in cols} for k in FRESH_KINDS}
     print('\n| kind (runs) | ' + ' | '.join(cols) + ' |')
     print('|---|' + '---|' * len(cols))
+    kind_rows = []
     for k in FRESH_KINDS:
         nk = sum(1 for t in test_g if test_kind[t.name] == k)
+        kind_rows.append({'kind': k, 'runs': nk, **A[k]})
         print(f'| {k} ({nk}) | ' + ' | '.join(f'{A[k][c]:.3f}' for c in cols) + ' |')
     print('| all | ' + ' | '.join(
         'failed' if any(a is None for a in scores[c]['all'])
@@ -201,8 +208,12 @@ def main() -> None:
                'interval': None if interval is None else interval.to_dict(),
                'coverage': cov, 'verdict': verdict,
                'test_kind': test_kind}
-    write_atomic(args.out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
+    write_atomic(args.out / 'summary.yaml', yaml.safe_dump(plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
+    return {'commit': commit, 'seeds': hargs.seeds, 'index_by_kind': kind_rows,
+            'auto_recommends': choice.chosen, 'interval_coverage': cov['all'],
+            'verdicts': {h: 'pass' if (all(v.values()) if isinstance(v, dict) else v) else 'fail'
+                         for h, v in verdict.items()}}
 
 
 if __name__ == '__main__':

@@ -1,11 +1,12 @@
 """
-The hybrid model on the real Esso Osaka pond data: Wakita et al.
+The hybrid model on the real Esso Osaka pond data: Wakita et al. (2022) Table 9, reproduced.
 
-(2022) Table 9, reproduced.
+    python -m bench run esso_hybrid [--quick] [--dt 0.5] [--seeds 0] [--epochs 200]
+                                    [--tuned FILE] [--balance window] [--select mean]
+                                    [--l2 0.01] [--horizon 20] [--shrink 1]
 
-    python bench/esso_hybrid.py [--dt 0.5] [--seeds 0] [--epochs 200] [--tuned FILE]
-                                [--balance window] [--select mean] [--l2 0.01]
-                                [--horizon 20] [--shrink 1]
+Needs the tuned physics of ``python -m bench run esso_osaka`` first. --quick trains 5 epochs
+per network (a check that it runs, minutes; its figures mean nothing).
 
 Data, cuts and split: bench/esso_osaka.py's (33 FRT-DS-ESSO runs, CC BY-NC-SA 4.0; per kind,
 sorted by file name, positions 1, 4, 7, ... held out). Four models are scored on every
@@ -16,7 +17,7 @@ restart from the measured state every 100 s), through ``mt.evaluate``:
 * published: the captive-test low-speed MMG (config/esso_osaka_3m.yaml);
 * tuned: the same tuned by bench/esso_osaka.py (22 targets, 100 s pieces, kinds balanced,
   prior), read from the params file it writes (``--tuned``, default
-  bench/out/esso_osaka/params.yaml; run ``python bench/esso_osaka.py`` first). The file's
+  bench/out/esso_osaka/params.yaml; run ``python -m bench run esso_osaka`` first). The file's
   provenance fingerprint must match today's ship config and run files and its split this
   one: parameters tuned on other inputs are refused, never silently reused;
 * network: the pure network (the paper's Type-1: a window of recent states, inputs and
@@ -50,22 +51,19 @@ import argparse
 import dataclasses
 import hashlib
 from pathlib import Path
-import sys
 import time
 
+from bench import plain
+from bench.esso_osaka import check_provenance, fail, params_path, RESTART_S
+import mmg_tuner as mt
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.esso import FOLDS, load_split, RUN_KINDS as KINDS
+from mmg_tuner.learn import ensemble, ResidualConfig, train_residual
+from mmg_tuner.learn.model import Model
+from mmg_tuner.learn.residual import ResidualNet
+from mmg_tuner.learn.train import BALANCE, SELECT
 import numpy as np
 import yaml
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_osaka import (  # noqa: E402, I100
-    check_provenance, fail, FOLDS, KINDS, load_split, params_path, RESTART_S)
-import mmg_tuner as mt  # noqa: E402
-from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.learn import ensemble, ResidualConfig, train_residual  # noqa: E402
-from mmg_tuner.learn.model import Model  # noqa: E402
-from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
-from mmg_tuner.learn.train import BALANCE, SELECT  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid'
 # the paper's Table 9 for comparison: MMG (captive tests) and Type-1 (mean, std)
@@ -86,7 +84,7 @@ def tuned_ship(ship, test, path: Path, default: bool, fold: int = 1):
         if prov.get('held_out_runs') != held:
             fail(f'{path} was tuned with another split (held out: '
                  f'{prov.get("held_out_runs")}; this bench holds out {held}); rebuild it '
-                 f'with: python bench/esso_osaka.py --fold {fold} --out {path}')
+                 f'with: python -m bench run esso_osaka --fold {fold} --out {path}')
         print(f'tuned low-speed MMG: {path} ({prov["evaluations"]} evaluations, inputs '
               f'{prov["inputs_sha256"][:12]}... match)')
     else:
@@ -212,8 +210,13 @@ def held_out_scores(ships: list, test_g: list) -> dict:
     return scores
 
 
-def main() -> None:
-    args = parser().parse_args()
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_hybrid`` (``--quick``: 5 epochs)."""
+    return main((['--epochs', '5'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    args = parser().parse_args(argv)
     if args.tuned is None:
         args.tuned = params_path(args.fold)
     out = out_dir(args.fold)
@@ -264,10 +267,13 @@ def main() -> None:
     print('| kind | run | ' + ' | '.join(cols) + ' | best |')
     print('|---|---|' + '---|' * len(cols) + '---|')
     best_by_kind = {k: [] for k in KINDS}
+    rows, kind_rows = [], []
     for tr in test_g:
         vals = {c: scores[c][tr.name] for c in cols}
         best = min(cols, key=lambda c: _mean(vals[c]))
         best_by_kind[kind_of[tr.name]].append(best)
+        rows.append({'kind': kind_of[tr.name], 'run': tr.name,
+                     **{c: _fmt(vals[c]) for c in cols}, 'best': best})
         print(f'| {kind_of[tr.name]} | {tr.name} | '
               + ' | '.join(_fmt(vals[c]) for c in cols) + f' | {best} |')
     print('| all | together | ' + ' | '.join(_fmt(scores[c]['all']) for c in cols) + ' | '
@@ -276,6 +282,7 @@ def main() -> None:
         b = best_by_kind[k]
         runs = [tr.name for tr in test_g if kind_of[tr.name] == k]
         mean = {c: float(np.mean([_mean(scores[c][n]) for n in runs])) for c in cols}
+        kind_rows.append({'kind': k, **mean, 'best': min(mean, key=mean.get)})
         print(f'{k}: best model per held-out run: {", ".join(b)}'
               + (' (hybrid best on every run)' if b and all(x == 'hybrid' for x in b)
                  else '') + '; mean index over the kind: '
@@ -298,8 +305,13 @@ def main() -> None:
         'tuned_sha256': hashlib.sha256(args.tuned.read_bytes()).hexdigest(),
         'tuned_provenance': (yaml.safe_load(args.tuned.read_text()) or {}).get('provenance')}
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / 'summary.yaml', yaml.safe_dump(_plain(summary), sort_keys=False))
+    write_atomic(out / 'summary.yaml', yaml.safe_dump(plain(summary), sort_keys=False))
     print(f'wall time: {time.perf_counter() - t_all:.0f} s')
+    rows.append({'kind': 'all', 'run': 'together', **{c: _fmt(scores[c]['all']) for c in cols},
+                 'best': min(cols, key=lambda c: _mean(scores[c]['all']))})
+    return {'fold': args.fold, 'seeds': args.seeds, 'held_out_index': rows,
+            'kind_means': kind_rows, 'training_s': seconds, 'residual_share': shares,
+            'wall_s': time.perf_counter() - t_all}
 
 
 def out_dir(fold: int) -> Path:
@@ -325,16 +337,6 @@ def _fmt(v: list) -> str:
     if len(v) == 1:
         return f'{v[0]:.4f}'
     return f'{np.mean(v):.4f} ± {np.std(v):.4f}'
-
-
-def _plain(o):
-    if isinstance(o, dict):
-        return {str(k): _plain(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_plain(v) for v in o]
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    return o
 
 
 if __name__ == '__main__':

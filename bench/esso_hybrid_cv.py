@@ -1,16 +1,17 @@
 """
-Three-fold cross-validation of the Esso Osaka hybrid: the verdict pre-registered in.
+Three-fold cross-validation of the Esso Osaka hybrid: the pre-registered verdict.
 
-bench/esso_hybrid_cv_preregistration.md (written before any run of the two new folds).
+Registered in bench/esso_hybrid_cv_preregistration.md (written before any run of the two new
+folds).
 
-    python bench/esso_hybrid_cv.py          # prints the commands still to run, then the verdict
+    python -m bench run esso_hybrid_cv    # prints the commands still to run, then the verdict
 
 Each fold f holds out the runs at positions i mod 3 == f of each kind (bench/esso_osaka.py's
 rule; fold 1 is the split of every other table). Per fold, two commands produce its results,
 with every option at today's defaults:
 
-    python bench/esso_osaka.py --fold f                  # the tuned physics of the fold
-    python bench/esso_hybrid.py --fold f --seeds 0 1 2   # networks, hybrid, ensemble, scores
+    python -m bench run esso_osaka --fold f                   # the tuned physics of the fold
+    python -m bench run esso_hybrid --fold f --seeds 0 1 2    # networks, hybrid, ensemble, scores
 
 This script only reads their summaries (bench/out/esso_hybrid[/foldF]/summary.yaml), refuses
 one written with other options or another split, and prints, per kind k, A_k(M): the mean over
@@ -21,17 +22,18 @@ when the folds were registered).
 """
 from __future__ import annotations
 
+import argparse
 import hashlib
 from pathlib import Path
 import sys
 
+from bench.esso_hybrid import out_dir, parser
+from bench.esso_osaka import params_path
+from bench.esso_osaka import parser as tuning_parser
+from mmg_tuner.data.esso import FOLDS, RUN_KINDS as KINDS, runs_by_kind
+from mmg_tuner.data.esso import split_runs as split
 import numpy as np
 import yaml
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_hybrid import out_dir, parser  # noqa: E402, I100
-from esso_osaka import FOLDS, KINDS, params_path, runs_by_kind, split  # noqa: E402
-from esso_osaka import parser as tuning_parser  # noqa: E402
 
 VERDICT_FOLDS = (0, 2)
 SEEDS = [0, 1, 2]
@@ -58,8 +60,8 @@ def load_fold(fold: int) -> dict | None:
     """
     path = out_dir(fold) / 'summary.yaml'
     if not path.is_file():
-        print(f'fold {fold}: {path} missing; run: python bench/esso_osaka.py --fold {fold} && '
-              f'python bench/esso_hybrid.py --fold {fold} --seeds 0 1 2')
+        print(f'fold {fold}: {path} missing; run: python -m bench run esso_osaka --fold {fold} && '
+              f'python -m bench run esso_hybrid --fold {fold} --seeds 0 1 2')
         return None
     doc = yaml.safe_load(path.read_text())
     defaults = vars(parser().parse_args([]))
@@ -68,7 +70,7 @@ def load_fold(fold: int) -> dict | None:
     if doc.get('seeds') != SEEDS or bad or opts.get('fold', 1) != fold:
         sys.exit(f'ERROR: {path}: not the registered run (seeds {doc.get("seeds")}, options '
                  f'differing from the defaults: {bad}, fold {opts.get("fold", 1)}); rerun: '
-                 f'python bench/esso_hybrid.py --fold {fold} --seeds 0 1 2')
+                 f'python -m bench run esso_hybrid --fold {fold} --seeds 0 1 2')
     check_tuned(path, doc, fold)
     want = held_out_names(fold)
     got = {n for n in doc['scores']['tuned'] if n != 'all'}
@@ -86,7 +88,8 @@ def check_tuned(path: Path, doc: dict, fold: int) -> None:
     Its file must be the fold's default (``params_path``), its bytes those recorded in the
     summary, and its provenance the fold with bench/esso_osaka.py's default options.
     """
-    rerun = (f'rerun: python bench/esso_osaka.py --fold {fold} && python bench/esso_hybrid.py '
+    rerun = (f'rerun: python -m bench run esso_osaka --fold {fold} && '
+             'python -m bench run esso_hybrid '
              f'--fold {fold} --seeds 0 1 2')
     tuned = params_path(fold)
     if doc['options'].get('tuned') != str(tuned):
@@ -135,7 +138,13 @@ def verdict(table: dict, model: str, rivals: tuple) -> tuple[bool, list[str]]:
     return not lost, lost
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_hybrid_cv`` (quick already: it only reads)."""
+    return main(argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    argparse.ArgumentParser(description=__doc__.strip().split('\n')[0]).parse_args(argv)
     folds = {f: load_fold(f) for f in FOLDS}
     missing = [f for f, d in folds.items() if d is None]
     for f, d in folds.items():
@@ -152,8 +161,10 @@ def main() -> None:
           f'{" and ".join(map(str, VERDICT_FOLDS))} (networks: mean over seeds {SEEDS})')
     print('| kind | runs | ' + ' | '.join(models) + ' |')
     print('|---|---|' + '---|' * len(models))
+    rows = []
     for k in KINDS:
         n = sum(1 for d in counted.values() for v in d['kinds'].values() if v == k)
+        rows.append({'kind': k, 'runs': n, **{m: table[m][k] for m in models}})
         best = min(models, key=lambda m: table[m][k])
         print(f'| {k} | {n} | ' + ' | '.join(
             f'**{table[m][k]:.4f}**' if m == best else f'{table[m][k]:.4f}' for m in models)
@@ -182,6 +193,8 @@ def main() -> None:
         every = {m: by_kind(folds, m) for m in models}
         print('  A_k over all three folds: ' + '; '.join(
             f'{k} ' + ', '.join(f'{m} {every[m][k]:.4f}' for m in models) for k in KINDS))
+    return {'A_k_folds_0_and_2': rows, 'H1_single_hybrid': 'holds' if h1 else 'fails',
+            'H2_ensemble': 'holds' if h2 else 'fails'}
 
 
 if __name__ == '__main__':

@@ -1,8 +1,10 @@
 r"""
 Choose the Esso Osaka hybrid's training settings on the validation split, then score them.
 
-    python bench/esso_hybrid_settings.py [--criterion window|index] [--only SETTING ...]
-                                         [--seeds 0 1 2] [--report]
+    python -m bench run esso_hybrid_settings [--quick] [--criterion window|index]
+                                             [--only SETTING ...] [--seeds 0 1 2] [--report]
+
+--quick is --report: train nothing, print the table from the results file.
 
 bench/esso_hybrid.py trains the residual with choices (how the windows weigh, which epoch is
 kept, the L2 weight, the window length, a scaling at inference). They used to be chosen by
@@ -70,32 +72,31 @@ time, e.g.::
              group_every_l2_0.05 group_every_l2_0.2 dur4_mean_l2_0.01_h20 \
              dur4_mean_l2_0.01_x0.5 dur4_mean_l2_0.01_h20_x0.5; do
         for seed in 0 1 2; do
-            flock /tmp/cpu.lock python bench/esso_hybrid_settings.py --only $s --seeds $seed
+            flock /tmp/cpu.lock python -m bench run esso_hybrid_settings --only $s --seeds $seed
         done
     done
-    python bench/esso_hybrid_settings.py --report --criterion index
+    python -m bench run esso_hybrid_settings --report --criterion index
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 from dataclasses import dataclass
 import hashlib
+import io
 import json
 import math
 from pathlib import Path
-import sys
 
-import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_hybrid import (  # noqa: E402, I100
+from bench.esso_hybrid import (
     bench_runs, held_out_scores, OUT as HYBRID_OUT, parser, shrunk, train_network, training_set)
-from esso_osaka import fail, KINDS, PARAMS_OUT  # noqa: E402
-from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.learn.model import Model  # noqa: E402
-from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
-from mmg_tuner.learn.train import split_validation  # noqa: E402
+from bench.esso_osaka import fail, PARAMS_OUT
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.esso import RUN_KINDS as KINDS
+from mmg_tuner.learn.model import Model
+from mmg_tuner.learn.residual import ResidualNet
+from mmg_tuner.learn.train import split_validation
+import numpy as np
 
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_hybrid_settings' / 'results.json'
 VALIDATION_FRACTION = 0.25   # ResidualConfig's default: what train_residual holds out
@@ -365,7 +366,12 @@ def _reproduces(new: dict, old: dict, rtol: float = 1e-9) -> bool:
         for a, b in ((new[k], old[k]) for k in new))
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_hybrid_settings`` (``--quick``: --report)."""
+    return main((['--report'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--only', nargs='+', choices=list(SETTINGS), default=list(SETTINGS),
                     help='run these settings (default: all)')
@@ -376,7 +382,7 @@ def main() -> None:
     ap.add_argument('--tuned', type=Path, default=PARAMS_OUT,
                     help='the tuned params.yaml (written by bench/esso_osaka.py)')
     ap.add_argument('--out', type=Path, default=OUT)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     base = parser().parse_args(['--tuned', str(args.tuned)])   # esso_hybrid.py's defaults
     ship, tuned, train_g, test_g, kind_of = bench_runs(base.dt, args.tuned)
     header = {'tuned_sha256': hashlib.sha256(args.tuned.read_bytes()).hexdigest(),
@@ -390,7 +396,12 @@ def main() -> None:
     for name in ([] if args.report else args.only):
         for seed in args.seeds:
             sweep.run(name, seed)
-    report(doc, args.seeds, kind_of, args.criterion)
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        report(doc, args.seeds, kind_of, args.criterion)
+    print(text.getvalue(), end='')
+    return {'criterion': args.criterion, 'seeds': args.seeds,
+            'trained': [] if args.report else args.only, 'report': text.getvalue()}
 
 
 def report(doc: dict, seeds: list[int], kind_of: dict, criterion: str) -> None:

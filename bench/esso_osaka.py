@@ -1,7 +1,7 @@
 """
 Tune the low-speed model on the real Esso Osaka pond data and score it on held-out runs.
 
-  python bench/esso_osaka.py [--max-evals 4000] [--segment 100] [--balance group]
+  python -m bench run esso_osaka [--max-evals 4000] [--segment 100] [--balance group]
                              [--prior 0.05] [--targets yaml|lowspeed] [--seed 0] [--fold 1]
                              [--out bench/out/esso_osaka/params.yaml]
 
@@ -50,53 +50,26 @@ from pathlib import Path
 import sys
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-import mmg_tuner as mt  # noqa: E402
-from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
-from mmg_tuner.data.esso import cut_from_event, esso_data_dir, read_esso_csv  # noqa: E402
-from mmg_tuner.tuning.evaluate import pooled_sigma  # noqa: E402
-from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec  # noqa: E402
-from mmg_tuner.tuning.lsq import local_least_squares  # noqa: E402
-from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
-from mmg_tuner.tuning.report import params_yaml_text  # noqa: E402
-from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
-import numpy as np  # noqa: E402
-import yaml  # noqa: E402
+import mmg_tuner as mt
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.data.esso import FOLDS, load_split, runs_by_kind  # noqa: F401 (esso_hybrid_cv)
+from mmg_tuner.data.esso import read_run as read, RUN_KINDS as KINDS  # noqa: F401
+from mmg_tuner.data.esso import split_runs as split  # noqa: F401
+from mmg_tuner.tuning.evaluate import pooled_sigma
+from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.lsq import local_least_squares
+from mmg_tuner.tuning.parameters import ParameterSpace
+from mmg_tuner.tuning.report import params_yaml_text
+from mmg_tuner.tuning.tuner import Tuner
+import numpy as np
+import yaml
 
-KINDS = ('turning', 'zigzag', 'random', 'berthing')
 RESTART_S = 100.0
 LOWSPEED_EXTRA = ('X_vr', 'Y_r', 'N_v', 'C_rY', 'C_rN', 'C_6', 'C_7', 'XX1', 'YY1', 'NN2')
 PARAMS_OUT = Path(__file__).resolve().parent / 'out' / 'esso_osaka' / 'params.yaml'
-PARAMS_COMMAND = 'python bench/esso_osaka.py'
-
-
-def runs_by_kind() -> dict[str, list[Path]]:
-    out = {}
-    for kind in KINDS:
-        files = sorted((esso_data_dir() / kind).glob('*.csv'))
-        names = {f.name for f in files}
-        out[kind] = [f for f in files
-                     if not (f.name.startswith('turn_cut_')
-                             and f.name.replace('turn_cut_', 'turn_') in names)]
-    return out
-
-
-FOLDS = (0, 1, 2)
-"""Held-out offsets of the split rule; fold 1 is the split every table uses unless a fold is
-named (bench/esso_hybrid_cv.py scores all three: each run is held out exactly once)."""
-
-
-def split(files: list[Path], fold: int | None = 1) -> tuple[list[Path], list[Path]]:
-    """
-    Return (tuning files, held-out files): positions i with i mod 3 == fold are held out.
-
-    ``fold`` None holds out nothing (every run tunes).
-    """
-    if fold is None:   # --fold none: every run tunes (bench/esso_fresh.py's training)
-        return list(files), []
-    held = [f for i, f in enumerate(files) if i % 3 == fold]
-    return [f for f in files if f not in held], held
+PARAMS_COMMAND = 'python -m bench run esso_osaka'
+LEGACY_COMMAND = 'python bench/esso_osaka.py'   # params files written before bench/ was a package
 
 
 def params_path(fold: int | None) -> Path:
@@ -154,25 +127,6 @@ def check_provenance(path: Path, ship_source: str | Path, fold: int | None = 1) 
     return prov
 
 
-def read(path: Path, kind: str):
-    tr = read_esso_csv(path, keep_astern=True)[0]
-    if kind in ('turning', 'zigzag'):
-        tr = cut_from_event(tr, 'rudder_first_over', before_s=5.0)
-    return tr
-
-
-def load_split(fold: int | None = 1):
-    """(training runs, held-out runs, kind of each run by name): both Esso benches split so."""
-    train, test, kind_of = [], [], {}
-    for kind, files in runs_by_kind().items():
-        a, b = split(files, fold)
-        for f in a + b:
-            tr = read(f, kind)
-            kind_of[tr.name] = kind
-            (train if f in a else test).append(tr)
-    return train, test, kind_of
-
-
 def _fold(text: str) -> int | None:
     """Parse --fold: 0, 1, 2 or none."""
     if text == 'none':
@@ -211,13 +165,26 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main() -> None:
-    args = parser().parse_args()
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """
+    Entry point of ``python -m bench run esso_osaka``.
+
+    ``--quick``: 200 evaluations, written to params_quick.yaml (never over the params file
+    that bench/esso_hybrid.py reads).
+    """
+    quick_args = ['--max-evals', '200', '--out', str(PARAMS_OUT.with_name('params_quick.yaml'))]
+    return main((quick_args if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    args = parser().parse_args(argv)
     if args.out is None:
         args.out = params_path(args.fold)
     if args.out.is_dir():
         fail(f'--out {args.out} is a folder; give a file name (e.g. params.yaml)')
-    if args.out.exists() and f'command: {PARAMS_COMMAND}' not in args.out.read_text():
+    written_here = any(f'command: {c}' in args.out.read_text()
+                       for c in (PARAMS_COMMAND, LEGACY_COMMAND)) if args.out.exists() else True
+    if not written_here:
         fail(f'--out {args.out} exists and was not written by {PARAMS_COMMAND}: '
              'not overwriting it; give another file')
     t_all = time.perf_counter()
@@ -291,7 +258,8 @@ def main() -> None:
     if not test:   # --fold none: nothing held out to score
         print(f'tuned parameters: {args.out}')
         print(f'wall time: {time.perf_counter() - t_all:.0f} s')
-        return
+        return {'fold': args.fold, 'evaluations': int(evals), 'tuning_s': tune_s,
+                'on_bound': space.on_bound(theta), 'wall_s': time.perf_counter() - t_all}
     pub = mt.evaluate(ship, test, restart_every_s=RESTART_S, integrator='rk4')
     tun = mt.evaluate(tuned, test, restart_every_s=RESTART_S, integrator='rk4')
     print(f'\nheld-out runs (index: Wakita et al. 2022 eq. 26, sigma pooled over the {len(test)} '
@@ -299,6 +267,7 @@ def main() -> None:
     print('| kind | run | duration [s] | published | tuned | change |')
     print('|---|---|---|---|---|---|')
     better = {k: [] for k in KINDS}
+    rows = []
     for tr in test:
         a, b = pub.trials[tr.name].index, tun.trials[tr.name].index
         kind = kind_of[tr.name]
@@ -307,13 +276,23 @@ def main() -> None:
         fa = 'failed' if a is None else f'{a:.4f}'
         fb = 'failed' if b is None else f'{b:.4f}'
         print(f'| {kind} | {tr.name} | {tr.duration_s:.0f} | {fa} | {fb} | {ch} |')
+        rows.append({'kind': kind, 'run': tr.name, 'duration_s': tr.duration_s,
+                     'published': a, 'tuned': b, 'change': ch})
     ch = 100 * (tun.index_all - pub.index_all) / pub.index_all
     print(f'| all | together | {sum(t.duration_s for t in test):.0f} | {pub.index_all:.4f} | '
           f'{tun.index_all:.4f} | {ch:+.0f} % |')
     for kind in KINDS:
         print(f'{kind}: tuned better on {sum(better[kind])} of {len(better[kind])} held-out runs')
     print(f'tuned parameters: {args.out}')
-    print(f'wall time: {time.perf_counter() - t_all:.0f} s')
+    wall = time.perf_counter() - t_all
+    print(f'wall time: {wall:.0f} s')
+    rows.append({'kind': 'all', 'run': 'together',
+                 'duration_s': sum(t.duration_s for t in test), 'published': pub.index_all,
+                 'tuned': tun.index_all, 'change': f'{ch:+.0f} %'})
+    return {'fold': args.fold, 'evaluations': int(evals), 'tuning_s': tune_s,
+            'on_bound': space.on_bound(theta), 'wall_s': wall,
+            'held_out_index': rows,
+            'tuned_better': {k: f'{sum(v)} of {len(v)}' for k, v in better.items()}}
 
 
 if __name__ == '__main__':

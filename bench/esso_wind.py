@@ -1,7 +1,10 @@
 """
 What the pond wind does to the low-speed model on the real Esso Osaka runs.
 
-  python bench/esso_wind.py [--budget quick] [--segment 50] [--dt 0.5] [--no-diagnose]
+  python -m bench run esso_wind [--quick] [--budget quick] [--segment 50] [--dt 0.5]
+                                [--no-diagnose]
+
+--quick: parts 1 and 2 only (--no-diagnose).
 
 Data: the 32 FRT-DS-ESSO runs of bench/esso_osaka.py (same cuts, same split), 10 Hz, with
 their measured true wind. Index: Wakita et al. (2022) eq. 26, sigma pooled over all 32 runs,
@@ -26,21 +29,18 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 import math
-from pathlib import Path
-import sys
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import esso_osaka as eb  # noqa: E402
-import mmg_tuner as mt  # noqa: E402
-from mmg_tuner.core.layout import STATE_NAMES  # noqa: E402
-from mmg_tuner.tuning.evaluate import evaluate, pooled_sigma  # noqa: E402
-from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec  # noqa: E402
-from mmg_tuner.tuning.parameters import ParameterSpace  # noqa: E402
-from mmg_tuner.tuning.segments import split_trials  # noqa: E402
-from mmg_tuner.tuning.tuner import Tuner  # noqa: E402
-import numpy as np  # noqa: E402
+from bench import esso_osaka as eb
+import mmg_tuner as mt
+from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.data.esso import load_split
+from mmg_tuner.tuning.evaluate import evaluate, pooled_sigma
+from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.parameters import ParameterSpace
+from mmg_tuner.tuning.segments import split_trials
+from mmg_tuner.tuning.tuner import Tuner
+import numpy as np
 
 RESTART_S = 100.0
 MAX_STEADY_MS = 4.0   # box of the fitted steady wind [m/s]; gusts in the pond reach ~8 m/s
@@ -82,23 +82,23 @@ def fit_steady(ship, tr, weights, seed=0):
     return float(res.theta[0]), float(res.theta[1])
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_wind`` (``--quick``: --no-diagnose)."""
+    return main((['--no-diagnose'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--budget', default='quick', choices=('quick', 'standard', 'full'))
     ap.add_argument('--segment', type=float, default=50.0,
                     help='diagnosis: cut runs into pieces of this length [s]')
     ap.add_argument('--dt', type=float, default=0.5, help='diagnosis: resample to this step [s]')
     ap.add_argument('--no-diagnose', action='store_true', help='only parts 1 and 2')
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     t_all = time.perf_counter()
     ship = mt.load_ship('esso_osaka_3m')
-    train, test, kind_of = [], [], {}
-    for kind, files in eb.runs_by_kind().items():
-        a, b = eb.split(files)
-        for f in a + b:
-            tr = eb.read(f, kind)
-            kind_of[tr.name] = kind
-            (train if f in a else test).append(tr)
+    train, test, kind_of = load_split()
+    figures = {'wind': [], 'index': []}
     runs = train + test
     print(f'{len(runs)} runs ({sum(t.duration_s for t in runs):.0f} s), all with measured '
           'true wind')
@@ -115,6 +115,10 @@ def main() -> None:
             return float(np.median([x[k] for x in s]))
         print(f"| {kind} | {len(s)} | {med('mean'):.2f} | {med('ti'):.2f} | {med('gust'):.2f} | "
               f"{med('steady'):.2f} | {med('spread_deg'):.0f} |")
+        figures['wind'].append({'kind': kind, 'runs': len(s), 'mean_speed_ms': med('mean'),
+                                'std_over_mean': med('ti'), 'gust_3s_over_mean': med('gust'),
+                                'steadiness': med('steady'),
+                                'direction_spread_deg': med('spread_deg')})
 
     print('\n2. The published model with and without the wind (index, sigma pooled over all '
           f'runs, restart every {RESTART_S:g} s)')
@@ -151,6 +155,10 @@ def main() -> None:
             i = idx(v, names)
             row += [f'{i:.3f}', f'{100 * (1 - i / i0):.0f} %']
         print(f'| {kind} | ' + ' | '.join(row) + ' |')
+        figures['index'].append(dict(zip(
+            ('kind', 'no wind', 'measured wind', 'measured explains', 'run-mean wind, steady',
+             'run-mean explains', 'best steady per run (fitted)', 'fitted explains'),
+            [kind] + row)))
     rms = {v: {k: np.sqrt(np.mean([variants[v].trials[t.name].rms[k] ** 2 for t in runs]))
                for k in ('u', 'v', 'r', 'psi')} for v in ('none', 'measured')}
     print('RMS error over all runs (no wind -> measured wind): '
@@ -203,7 +211,9 @@ def main() -> None:
                               f'{c.accepted}'
                               + (f', on bound {c.on_bound}' if c.on_bound else '')
                               + (f', impossible: {c.impossible}' if c.impossible else ''))
-    print(f'\nwall time: {time.perf_counter() - t_all:.0f} s')
+    figures['wall_s'] = time.perf_counter() - t_all
+    print(f"\nwall time: {figures['wall_s']:.0f} s")
+    return figures
 
 
 if __name__ == '__main__':

@@ -1,7 +1,10 @@
 """
 MBPE-LOGO on the synthetic Qiuxin No.5 twin: LO, GO, LO -> GO; 22 vs 6 coefficients.
 
-  python bench/tug_logo.py [--noise rtk|none] [--seed 0] [--cmaes-evals 3000] [--out DIR]
+  python -m bench run tug_logo [--quick] [--noise rtk|none] [--seed 0] [--cmaes-evals 3000]
+                               [--out DIR]
+
+--quick skips the CMA-ES comparison (--cmaes-evals 0).
 
 Truth: ``config/qiuxin_tug.yaml`` (the paper's Table 3 coefficients, Pedersen's Coriolis form)
 with its labelled stand-ins (thrust 0.4 n|n| N per thruster, azimuth k1 = 4 1/s^2, k2 = 3.6
@@ -32,19 +35,16 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-import sys
 import time
 
+import mmg_tuner as mt
+from mmg_tuner.core.integrate import actuator_outputs
+from mmg_tuner.core.simulate import simulate
+from mmg_tuner.core.trial import Trial
+from mmg_tuner.tuning import lo_go
+from mmg_tuner.tuning.nstep import nstep_figure, PAPER_HORIZONS
+from mmg_tuner.tuning.plots import png_bytes
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-import mmg_tuner as mt  # noqa: E402, I100
-from mmg_tuner.core.integrate import actuator_outputs  # noqa: E402
-from mmg_tuner.core.simulate import simulate  # noqa: E402
-from mmg_tuner.core.trial import Trial  # noqa: E402
-from mmg_tuner.tuning import lo_go  # noqa: E402
-from mmg_tuner.tuning.nstep import nstep_figure, PAPER_HORIZONS  # noqa: E402
-from mmg_tuner.tuning.plots import png_bytes  # noqa: E402
 
 DT = 0.2
 SUB = 4
@@ -169,7 +169,12 @@ def pct(rel) -> str:
     return ' / '.join('fail' if rel[k] is None else f'{100 * rel[k]:.3g}' for k in 'uvr')
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run tug_logo`` (``--quick``: no CMA-ES)."""
+    return main((['--cmaes-evals', '0'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--noise', choices=('rtk', 'none'), default='rtk')
     ap.add_argument('--seed', type=int, default=0)
@@ -179,7 +184,7 @@ def main() -> None:
                     help="'generate': the repository's twin (generate --ship qiuxin_tug); "
                     "'builtin': this file's smaller catalogue")
     ap.add_argument('--data', default='bench/out/tug_logo', help='where generate writes')
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     truth = mt.load_ship('qiuxin_tug')
     names = lo_go.coefficient_names(truth)
     theta_true = np.array([truth[n] for n in names])
@@ -290,6 +295,9 @@ def main() -> None:
         (out / 'tug_logo_nstep.png').write_bytes(png_bytes(nstep_figure(
             keep, f'Qiuxin twin, held-out runs, noise {a.noise}: n-step RMSE')))
         print(f'wrote {out / "tug_logo_nstep.png"}')
+    return {'noise': a.noise, 'twin': a.twin, 'held_out_relative_error': [
+        {'method': label, 'coefficients': k, 'wall_s': wall, 'u / v / r %': rel,
+         'median coefficient error %': coef} for label, k, wall, rel, coef, _ in rows]}
 
 
 if __name__ == '__main__':

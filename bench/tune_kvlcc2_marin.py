@@ -2,8 +2,8 @@
 Tune KVLCC2 on MARIN's two 35 deg turns and test it on the four MARIN zigzags.
 
 KVLCC2 (standard MMG, model scale) tuned on MARIN's two 35 deg turns, tested on the four MARIN
-zigzags: J and manoeuvring indices before and after. Runs the `tune` command. python
-bench/tune_kvlcc2_marin.py [--evals N]
+zigzags: J and manoeuvring indices before and after. Runs the `tune` command.
+    python -m bench run tune_kvlcc2_marin [--quick] [--evals N]
 """
 from __future__ import annotations
 
@@ -13,19 +13,23 @@ from pathlib import Path
 import sys
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from mmg_tuner.cli.tune import command as tune  # noqa: E402
-from mmg_tuner.core.ship import load_ship  # noqa: E402
-from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES  # noqa: E402
+from mmg_tuner.cli.tune import command as tune
+from mmg_tuner.core.ship import load_ship
+from mmg_tuner.data.marin import compare_with_marin, marin_data_dir, MARIN_FILES
 
 OUT = Path(__file__).resolve().parent / 'out' / 'kvlcc2_marin'
 OUT = OUT / time.strftime('%Y%m%d-%H%M%S')  # a new folder per run: --out refuses a used one
 
 
-def main() -> None:
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run tune_kvlcc2_marin`` (``--quick``: 2000 evaluations)."""
+    return main((['--evals', '2000'] if quick else []) + argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser()
     ap.add_argument('--evals', type=int, default=20_000)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     d = marin_data_dir()
     turns = [str(d / MARIN_FILES[k]) for k in ('turn_port_35', 'turn_starboard_35')]
     zigzags = [str(d / f) for k, f in MARIN_FILES.items() if k.startswith('zigzag')]
@@ -50,11 +54,20 @@ def main() -> None:
     print('| manoeuvre | index | MARIN | pre, recorded rpm | pre, speed-holding rpm | tuned, '
           'recorded rpm |')
     print('|---|---|---|---|---|---|')
+    table = []
     for key, r in rows_pre.items():
         for idx, meas in r['measured'].items():
+            table.append({'manoeuvre': key, 'index': idx, 'MARIN': meas,
+                          'pre, recorded rpm': r['simulated'][idx],
+                          'pre, speed-holding rpm': rows_hold[key]['simulated'][idx],
+                          'tuned, recorded rpm': rows_tuned[key]['simulated'][idx]})
             print(f"| {key} | {idx} | {meas:.2f} | {r['simulated'][idx]:.2f} | "
                   f"{rows_hold[key]['simulated'][idx]:.2f} | "
                   f"{rows_tuned[key]['simulated'][idx]:.2f} |")
+    return {'evaluations': rep['evaluations'], 'tuning_s': rep['wall_s'],
+            'J_tune_lower_percent': 100 * (1 - J['tuned']['tune'] / J['pre']['tune']),
+            'J_test_lower_percent': 100 * (1 - J['tuned']['test'] / J['pre']['test']),
+            'on_bound': rep['bounds_hit'], 'indices': table}
 
 
 if __name__ == '__main__':

@@ -309,3 +309,22 @@ def test_folders_are_searched_recursively(tmp_path, zigzag_trial):
     (tmp_path / 'empty' / 'sub').mkdir(parents=True)
     with pytest.raises(TrialDataError, match='subfolders'):
         load_trials(tmp_path / 'empty')
+
+
+def test_paper_turning_trials_are_the_papers_turns_with_seeded_noise(suzaku):
+    from mmg_tuner.data.generate import (paper_turning_trials, PAPER_TEST_DEG, PAPER_TUNE_DEG,
+                                         SensorNoise)
+    assert sorted(PAPER_TUNE_DEG) == sorted(-a for a in PAPER_TEST_DEG)   # mirrored sets
+    tune = paper_turning_trials(suzaku, PAPER_TUNE_DEG[:2], duration_s=60.0, seed=3)
+    assert [t.name for t in tune] == ['turn+10', 'turn-20']
+    for tr, a in zip(tune, PAPER_TUNE_DEG):
+        assert tr.dt == 1.0 and len(tr) == 61
+        assert np.median(tr.controls[-20:, 0]) == pytest.approx(106.0, abs=1.0)
+        assert np.degrees(np.median(tr.controls[-20:, 1])) == pytest.approx(a, abs=0.5)
+        assert np.sign(np.median(tr.states[-20:, 5])) == np.sign(a)   # r follows the rudder
+        assert tr.states[0, 3] == pytest.approx(6 * mv.KNOT, abs=0.1)
+    again = paper_turning_trials(suzaku, PAPER_TUNE_DEG[:2], duration_s=60.0, seed=3)
+    assert all(np.array_equal(a.states, b.states) for a, b in zip(tune, again))
+    clean = paper_turning_trials(suzaku, PAPER_TUNE_DEG[:1], duration_s=60.0,
+                                 noise=SensorNoise.none())[0]
+    assert not np.array_equal(clean.states, tune[0].states)

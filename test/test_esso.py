@@ -279,3 +279,40 @@ def test_cut_from_event_in_the_api_and_inspect(capsys):
     out = capsys.readouterr().out
     assert 'cut from 5 s before rudder_first_over' in out
     assert f'{cut.duration_s:.1f} s at dt 0.1 s' in out
+
+
+def test_split_holds_out_every_run_exactly_once_and_fold_1_is_the_tables_split():
+    """The benchmarks' split rule (data.esso): fold 1 holds out 4/2/3/2 runs, each run once."""
+    by_kind = esso.runs_by_kind()
+    assert {k: len(v) for k, v in by_kind.items()} == {
+        'turning': 12, 'zigzag': 7, 'random': 8, 'berthing': 5}   # 32: a turn_cut_ copy dropped
+    held1 = {k: esso.split_runs(v)[1] for k, v in by_kind.items()}
+    assert {k: len(v) for k, v in held1.items()} == {
+        'turning': 4, 'zigzag': 2, 'random': 3, 'berthing': 2}
+    for kind, files in by_kind.items():
+        held = [esso.split_runs(files, f)[1] for f in esso.FOLDS]
+        assert sorted(f for h in held for f in h) == sorted(files), kind   # each exactly once
+        assert held[1] == files[1::3], kind
+        for h in held:
+            assert esso.split_runs(files, esso.FOLDS[held.index(h)])[0] == [
+                x for x in files if x not in h]
+        assert esso.split_runs(files, None) == (files, [])
+
+
+def test_runs_by_kind_drops_a_cut_copy_only_beside_its_whole_run(tmp_path):
+    for name in ('turning/turn_a.csv', 'turning/turn_cut_a.csv', 'turning/turn_cut_b.csv',
+                 'zigzag/z.csv'):
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text('')
+    got = {k: [f.name for f in v] for k, v in esso.runs_by_kind(tmp_path).items()}
+    assert got == {'turning': ['turn_a.csv', 'turn_cut_b.csv'], 'zigzag': ['z.csv'],
+                   'random': [], 'berthing': []}
+
+
+def test_load_split_cuts_manoeuvres_and_keeps_the_others_whole():
+    train, test, kind_of = esso.load_split(1)
+    assert (len(train), len(test)) == (21, 11)
+    assert set(kind_of) == {t.name for t in train + test}
+    for tr in train + test:
+        cut = any('cut from' in n for n in tr.notes)
+        assert cut == (kind_of[tr.name] in ('turning', 'zigzag')), tr.name

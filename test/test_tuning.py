@@ -9,6 +9,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
 from mmg_tuner.tuning.identifiability import standard_errors
+from mmg_tuner.tuning.parameters import moved_truth
 import numpy as np
 import pytest
 import yaml
@@ -20,12 +21,6 @@ TUNE_SPECS = [mv.ManeuverSpec('turning', rudder_deg=35, duration_s=300),
                               random_rpm_frac=0.15)]
 TEST_SPECS = [mv.ManeuverSpec('turning', rudder_deg=-35, duration_s=300),
               mv.ManeuverSpec('random', rudder_deg=30, duration_s=300, seed=9)]
-
-
-def truth_ship(ship, space, seed):
-    rng = np.random.default_rng(seed)
-    theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.6, 0.6, space.dim)
-    return ship.with_params(dict(zip(space.names, theta))), theta
 
 
 def trials(ship, specs, noise, seed0):
@@ -72,8 +67,7 @@ def test_noise_free_data_recovers_every_identifiable_parameter(suzaku):
     - held-out manoeuvres of the truth (other rudder angles, other random orders) reproduced
       to 1e-12 of J: the recovered model is the same ship, not a fit of these four trials.
     """
-    space = ParameterSpace.around(suzaku)
-    truth, theta = truth_ship(suzaku, space, 5)
+    truth, space, theta = moved_truth(suzaku, 5)
     obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS, SensorNoise.none(),
                                                           0), x0_window_s=0))
     res = Tuner(space, obj, seed=1, max_evaluations=15_000).run()
@@ -98,8 +92,7 @@ def test_noisy_data_test_set_gain(suzaku):
     12 targets moved inside the box, sensor noise: test J >= 90 % lower than with the
     pre-determined parameters, and close to what the truth itself achieves.
     """
-    space = ParameterSpace.around(suzaku)
-    truth, theta = truth_ship(suzaku, space, 5)
+    truth, space, theta = moved_truth(suzaku, 5)
     tune = trials(truth, TUNE_SPECS, SensorNoise(), 0)
     test = trials(truth, TEST_SPECS, SensorNoise(), 50)
     obj, obj_test = (Objective(suzaku, TrialBatch.from_trials(t)) for t in (tune, test))
@@ -138,7 +131,7 @@ def test_candidates_stay_in_the_box_and_divergence_is_penalised(suzaku):
 
 def test_interrupt_and_resume_match_an_uninterrupted_run(suzaku, tmp_path):
     space = ParameterSpace.around(suzaku, ['R_0', 't_P', 'gamma_Rn'])
-    truth, _ = truth_ship(suzaku, space, 3)
+    truth, _, _ = moved_truth(suzaku, 3, space=space)
     obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS[:2],
                                                           SensorNoise(), 0)))
     full = Tuner(space, obj, seed=4, max_evaluations=2000, max_popsize=48).run()
@@ -230,3 +223,14 @@ def test_measured_wind_in_the_trials_is_used_by_the_objective(suzaku):
     J_param = Objective(truth, TrialBatch.from_trials(bare))(truth.params[None])[0]
     assert J_meas < 0.1 * J_none
     assert J_meas < 2 * J_param  # what is left: the anemometer noise (0.5 m/s)
+
+
+def test_moved_truth_moves_every_target_inside_its_box_reproducibly(suzaku):
+    truth, space, theta = moved_truth(suzaku, 5, spread=0.6, extra={'rudder_lag_tau': 6.0})
+    half = space.upper - space.pre
+    assert np.all(np.abs(theta - space.pre) <= 0.6 * np.abs(half) + 1e-12)
+    assert np.all(theta != space.pre) and space.on_bound(theta) == []
+    assert [truth[n] for n in space.names] == pytest.approx(list(theta), rel=1e-12)
+    assert truth['rudder_lag_tau'] == 6.0
+    again = moved_truth(suzaku, 5, spread=0.6)[2]
+    assert np.array_equal(again, theta) and not np.array_equal(moved_truth(suzaku, 6)[2], theta)

@@ -418,3 +418,70 @@ def cut_from_event(trial: Trial, event: str = 'rudder_first_over', before_s: flo
     part.start_s = trial.start_s + float(part.t[0])
     part.t = part.t - part.t[0]
     return part
+
+
+# --- the benchmarks' split ----------------------------------------------------------------
+
+RUN_KINDS = ('turning', 'zigzag', 'random', 'berthing')
+"""The run kinds of FRT-DS-ESSO, one folder each."""
+FOLDS = (0, 1, 2)
+"""Held-out offsets of the split rule; fold 1 is the split every table uses unless a fold is
+named (bench/esso_hybrid_cv.py scores all three: each run is held out exactly once)."""
+
+
+def runs_by_kind(folder: str | Path | None = None) -> dict[str, list[Path]]:
+    """
+    Return the run files of each kind, sorted by file name.
+
+    A ``turn_cut_X`` file is a trimmed copy of ``turn_X``: it is dropped when ``turn_X`` is
+    present (it would put the same data on both sides of a split). ``folder`` defaults to
+    :func:`esso_data_dir`.
+    """
+    root = esso_data_dir() if folder is None else Path(folder)
+    out = {}
+    for kind in RUN_KINDS:
+        files = sorted((root / kind).glob('*.csv'))
+        names = {f.name for f in files}
+        out[kind] = [f for f in files
+                     if not (f.name.startswith('turn_cut_')
+                             and f.name.replace('turn_cut_', 'turn_') in names)]
+    return out
+
+
+def split_runs(files: list[Path], fold: int | None = 1) -> tuple[list[Path], list[Path]]:
+    """
+    Return (tuning files, held-out files): positions i with i mod 3 == fold are held out.
+
+    The rule fixed before any tuning (33 runs: 21 tune, 11 held out for fold 1), applied to
+    one kind's files in :func:`runs_by_kind` order. ``fold`` None holds out nothing.
+    """
+    if fold is None:
+        return list(files), []
+    held = [f for i, f in enumerate(files) if i % 3 == fold]
+    return [f for f in files if f not in held], held
+
+
+def read_run(path: str | Path, kind: str) -> Trial:
+    """
+    Return one run as the benchmarks use it: read whole, astern kept, manoeuvres cut.
+
+    Turning and zigzag runs start 5 s before the rudder is first put over (every run starts
+    with a manually steered approach); random and berthing runs are kept whole.
+    """
+    tr = read_esso_csv(path, keep_astern=True)[0]
+    if kind in ('turning', 'zigzag'):
+        tr = cut_from_event(tr, 'rudder_first_over', before_s=5.0)
+    return tr
+
+
+def load_split(fold: int | None = 1, folder: str | Path | None = None
+               ) -> tuple[list[Trial], list[Trial], dict[str, str]]:
+    """Return (training runs, held-out runs, kind of each run by name) of a fold's split."""
+    train, test, kind_of = [], [], {}
+    for kind, files in runs_by_kind(folder).items():
+        a, b = split_runs(files, fold)
+        for f in a + b:
+            tr = read_run(f, kind)
+            kind_of[tr.name] = kind
+            (train if f in a else test).append(tr)
+    return train, test, kind_of

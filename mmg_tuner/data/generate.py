@@ -434,3 +434,29 @@ def bollard_pull_table(ship: ShipConfig, noise: TwinNoise, seed: int,
     f = np.array([thrust(ship.params, float(x)) for x in n])
     rng = np.random.default_rng(seed + 7)
     return np.column_stack([n, f + rng.normal(0, noise.bollard_n, n.size)])
+
+
+PAPER_TUNE_DEG = (10, -20, 35, -40)
+"""Rudder angles of the tuning turns of Suyama et al. 2023 (section 4) [deg]."""
+PAPER_TEST_DEG = (-10, 20, -35, 40)
+"""Rudder angles of its test turns [deg]."""
+
+
+def paper_turning_trials(truth: ShipConfig, angles_deg, duration_s: float = 800.0,
+                         seed: int = 0, noise: SensorNoise | None = None) -> list[Trial]:
+    """
+    Return turning tests at 6 kn and 106 rpm sampled at 1 s, as the paper's data.
+
+    One trial per rudder angle (``PAPER_TUNE_DEG``, ``PAPER_TEST_DEG``), named ``turn+10`` etc.,
+    sailed by ``truth`` with RK4 (10 substeps) and the steering gear's rate limit after a 10 s
+    approach, with sensor noise (default :class:`SensorNoise`; seeded ``seed + i`` per trial).
+    """
+    noise = SensorNoise() if noise is None else noise
+    out = []
+    for i, a in enumerate(angles_deg):
+        tr = mv.run(truth, mv.ManeuverSpec('turning', rudder_deg=a, rpm=106.0,
+                                           speed_ms=6 * mv.KNOT, duration_s=duration_s, dt=1.0,
+                                           approach_s=10.0, integrator='rk4', substeps=10))
+        out.append(noise.apply(Trial(tr.t, tr.states, tr.controls, name=f'turn{a:+d}'),
+                               np.random.default_rng(seed + i)))
+    return out

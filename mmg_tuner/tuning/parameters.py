@@ -99,3 +99,23 @@ class ParameterSpace:
         """Names whose value lies within tol (fraction of the box width) of a bound."""
         z = self.to_unit(theta)
         return [n for n, zi in zip(self.names, z) if zi < tol or zi > 1 - tol]
+
+
+def moved_truth(ship: ShipConfig, seed: int = 5, spread: float = 0.6,
+                extra: Mapping[str, float] | None = None, space: ParameterSpace | None = None
+                ) -> tuple[ShipConfig, ParameterSpace, np.ndarray]:
+    """
+    Return (truth, space, theta): the ship with its targets moved inside their box.
+
+    A synthetic truth for tuning benchmarks and tests: each target of ``space`` (default
+    ``ParameterSpace.around(ship)``) moved by a uniform draw of up to ``spread`` times the
+    box's upper half-width (seeded), so a tuner starting from the pre-determined values has
+    something to find. ``extra`` sets further parameters of the truth the model does not tune
+    (e.g. a hidden ``rudder_lag_tau``).
+    """
+    space = ParameterSpace.around(ship) if space is None else space
+    rng = np.random.default_rng(seed)
+    theta = space.pre + (space.upper - space.pre) * rng.uniform(-spread, spread, space.dim)
+    values = dict(zip(space.names, theta))
+    values.update(extra or {})
+    return ship.with_params(values), space, theta
