@@ -1,7 +1,7 @@
 """
 Which Esso Osaka model to take at which prediction horizon: n-step RMSE on the seven fresh runs.
 
-    python bench/esso_control.py [--quick] [--out DIR]
+    python -m bench run esso_control [--quick] [--out DIR]
 
 Registered in bench/esso_control_preregistration.md (committed before any model here was run
 on the fresh runs). Issue 24's real-data part: the control-oriented model
@@ -28,14 +28,13 @@ import time
 import numpy as np
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from esso_fresh import fresh_runs  # noqa: E402, I100
-from esso_osaka import load_split, params_path  # noqa: E402
-import mmg_tuner as mt  # noqa: E402
-from mmg_tuner._atomic import write_atomic  # noqa: E402
-from mmg_tuner.learn.residual import ResidualNet  # noqa: E402
-from mmg_tuner.tuning.nstep import nstep_errors, NSTEP_STATES  # noqa: E402
+from bench.esso_fresh import fresh_runs
+from bench.esso_osaka import params_path
+import mmg_tuner as mt
+from mmg_tuner._atomic import write_atomic
+from mmg_tuner.data.esso import load_split
+from mmg_tuner.learn.residual import ResidualNet
+from mmg_tuner.tuning.nstep import nstep_errors, NSTEP_STATES
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_control'
@@ -82,7 +81,7 @@ def takeable(score, i: int) -> bool:
     return n > 0 and score.failed[i] <= MAX_FAILED * n
 
 
-def run(quick: bool = False, argv: list[str] | None = None) -> dict:
+def benchmark(quick: bool, argv: list[str]) -> dict:
     """Identify, load, score as registered; print the tables and verdicts; return the summary."""
     args = parser().parse_args(argv or [])
     quick = quick or args.quick
@@ -191,4 +190,4 @@ def run(quick: bool = False, argv: list[str] | None = None) -> dict:
 
 
 if __name__ == '__main__':
-    run(False, sys.argv[1:])
+    benchmark(False, sys.argv[1:])
