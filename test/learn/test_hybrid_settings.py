@@ -16,7 +16,7 @@ from mmg_tuner.learn.residual import mlp_forward, N_FEATURES, ResidualNet
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / 'bench' / 'esso_hybrid_settings.py'
+BENCH = Path(__file__).resolve().parents[2] / 'bench' / 'esso_hybrid_settings.py'
 
 
 @pytest.fixture(scope='module')

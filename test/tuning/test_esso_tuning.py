@@ -138,7 +138,7 @@ def test_bench_params_file_is_refused_when_its_inputs_changed(tmp_path, monkeypa
     """bench/esso_osaka.py's params file: esso_hybrid.py must not reuse it on other inputs."""
     import importlib.util
     from pathlib import Path
-    src = Path(__file__).resolve().parents[1] / 'bench' / 'esso_osaka.py'
+    src = Path(__file__).resolve().parents[2] / 'bench' / 'esso_osaka.py'
     spec = importlib.util.spec_from_file_location('esso_osaka_bench', src)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
@@ -172,7 +172,7 @@ def test_bench_folds_hold_out_every_run_exactly_once():
     """The cross-validation folds of bench/esso_osaka.py: fold 1 is the tables' split."""
     import importlib.util
     from pathlib import Path
-    src = Path(__file__).resolve().parents[1] / 'bench' / 'esso_osaka.py'
+    src = Path(__file__).resolve().parents[2] / 'bench' / 'esso_osaka.py'
     spec = importlib.util.spec_from_file_location('esso_osaka_bench_folds', src)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
