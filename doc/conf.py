@@ -1,7 +1,7 @@
 """
 Sphinx configuration of the mmg_tuner documentation (Sphinx + MyST Markdown, the rosdoc2 layout).
 
-Build: ``sphinx-build -W -b html doc build/doc`` from the repository root (test/test_docs.py does
+Build: ``sphinx-build -W -b html doc build/doc`` from the repository root (test/lint/test_docs.py does
 it, warnings as errors). The package is imported from the checkout, as the tests do.
 """
 from pathlib import Path
