@@ -51,14 +51,17 @@ def kernels() -> dict[str, Callable[[], None]]:
 
     The stepper too is compiled per family (the family's tag is part of its type), so one
     warm-up per family: with a single one, sim_node compiled at its first start for every
-    other family (about a minute each).
+    other family (about a minute each). Families sim_node cannot drive (no screw and rudder
+    first, see core.stepper) have none.
     """
+    from mmg_tuner.core.ship import load_ship
     ships = ships_by_family()
     jobs: dict[str, Callable[[], None]] = {
         f'simulate, {family} family (simulate, replay_node)': partial(_whole_run, f)
         for family, f in ships.items()}
     for family, f in ships.items():
-        jobs[f'stepper, {family} family (sim_node)'] = partial(_stepper, f)
+        if load_ship(f).family.inputs[:2] == ('rpm', 'rudder'):   # what sim_node drives
+            jobs[f'stepper, {family} family (sim_node)'] = partial(_stepper, f)
     return jobs
 
 
