@@ -6,7 +6,7 @@ measured task sizes to 100 ships x 50 trials on N machines.
 
 Each ship: SUZAKU with a hidden effect (a current, a rudder offset, or none), 6 trials of
 240 s at 1 Hz (3 tune, 3 held out), tune (1500 evaluations) and diagnose (quick budget, three
-candidate effects, one cause at most), as test/test_fleet.py runs them. A LocalCluster as
+candidate effects, one cause at most), as test/fleet/test_fleet.py runs them. A LocalCluster as
 `fleet` starts it: one task thread per worker process, NUMBA_NUM_THREADS = cores // workers.
 
     python -m bench run bench_fleet [--quick] [--ships 4] [--workers 1 2]

@@ -1,8 +1,9 @@
 """
 Sphinx configuration of the mmg_tuner documentation (Sphinx + MyST Markdown, the rosdoc2 layout).
 
-Build: ``sphinx-build -W -b html doc build/doc`` from the repository root (test/test_docs.py does
-it, warnings as errors). The package is imported from the checkout, as the tests do.
+Build: ``sphinx-build -W -b html doc build/doc`` from the repository root
+(test/lint/test_docs.py does it, warnings as errors). The package is imported from the
+checkout, as the tests do.
 """
 from pathlib import Path
 import re

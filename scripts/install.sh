@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Create .venv (Python 3.11), install the pinned requirements and build the package with colcon.
-# requirements.txt includes the documentation's Sphinx + myst-parser (test/test_docs.py builds doc/).
+# requirements.txt includes the documentation's Sphinx + myst-parser (test/lint/test_docs.py builds doc/).
 # Idempotent: a second run only rebuilds.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -6,5 +6,5 @@ mkdir -p log
 bash scripts/install.sh
 source scripts/env.sh
 colcon test --base-paths . --return-code-on-test-failure --event-handlers console_direct+ \
-  --pytest-args -q -p no:cacheprovider
+  --pytest-args -q -p no:cacheprovider --durations=25
 colcon test-result --verbose

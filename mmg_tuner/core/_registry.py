@@ -11,6 +11,7 @@ from __future__ import annotations
 import ast
 import importlib.util
 from pathlib import Path
+from typing import Any
 
 
 def module_name(package: str, name: str, plugins: dict[str, str]) -> str:
@@ -26,7 +27,7 @@ def source_path(module: str) -> Path:
     return Path(spec.origin)
 
 
-def declared(module: str, key: str, default=None):
+def declared(module: str, key: str, default: Any = None) -> Any:
     """Return the literal ``key = ...`` at the top level of ``module``'s source."""
     path = source_path(module)
     for node in ast.parse(path.read_text()).body:

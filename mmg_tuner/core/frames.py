@@ -20,6 +20,7 @@ import math
 from mmg_tuner.core._jit import FASTMATH
 from numba import njit
 import numpy as np
+import numpy.typing as npt
 
 TWO_PI = 2.0 * math.pi
 
@@ -42,7 +43,7 @@ def wrap_angle(a):
     return (np.asarray(a, dtype=float) + math.pi) % TWO_PI - math.pi
 
 
-def unwrap(psi):
+def unwrap(psi: npt.ArrayLike) -> np.ndarray:
     """Return a continuous heading history [rad] from a wrapped one (jumps over pi removed)."""
     return np.unwrap(np.asarray(psi, dtype=float))
 

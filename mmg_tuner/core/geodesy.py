@@ -19,6 +19,7 @@ import math
 
 from mmg_tuner.errors import ConfigError, TrialDataError
 import numpy as np
+import numpy.typing as npt
 import pymap3d
 
 WGS84 = pymap3d.Ellipsoid.from_name('wgs84')
@@ -47,7 +48,8 @@ class Datum:
                 raise ConfigError(f'datum {name} = {v!r} is outside [{-lim:g}, {lim:g}]')
 
 
-def datum_from_fixes(lat_deg, lon_deg, alt_m, source: str = 'fixes') -> Datum:
+def datum_from_fixes(lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, alt_m: npt.ArrayLike,
+                     source: str = 'fixes') -> Datum:
     """
     Return the first fix whose three values are finite, as a datum (a recording's default origin).
 
@@ -71,7 +73,8 @@ def _check_latlon(lat: np.ndarray, lon: np.ndarray) -> None:
                              f'(sample {i}) is outside [-90, 90] / [-360, 360]')
 
 
-def geodetic_to_enu(lat_deg, lon_deg, alt_m, datum: Datum
+def geodetic_to_enu(lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, alt_m: npt.ArrayLike,
+                    datum: Datum
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     East, north, up [m] of WGS84 points about ``datum``.
@@ -87,7 +90,7 @@ def geodetic_to_enu(lat_deg, lon_deg, alt_m, datum: Datum
     return np.asarray(e, dtype=float), np.asarray(n, dtype=float), np.asarray(u, dtype=float)
 
 
-def enu_to_geodetic(e_m, n_m, u_m, datum: Datum
+def enu_to_geodetic(e_m: npt.ArrayLike, n_m: npt.ArrayLike, u_m: npt.ArrayLike, datum: Datum
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     WGS84 latitude, longitude [deg] and ellipsoidal height [m] of ENU points about ``datum``.

@@ -47,7 +47,7 @@ def _crossing(values: np.ndarray, level: float) -> float | None:
     if k == 0:
         return 0.0
     v0, v1 = values[k - 1], values[k]
-    return k - 1 + (level - v0) / (v1 - v0)
+    return float(k - 1 + (level - v0) / (v1 - v0))
 
 
 def _interp(a: np.ndarray, fidx: float) -> float:

@@ -45,7 +45,7 @@ N_ENV = 2  # the measured wind north/east: the last two columns of every input a
 
 # Inlining advance (which inlines the family's overload-inlined forces) trips a pedantic
 # check of numba's IR inliner about renamed variables; the compiled code is checked
-# against the non-inlined kernels by test/test_core_dispatch.py.
+# against the non-inlined kernels by test/core/test_core_dispatch.py.
 warnings.filterwarnings('ignore', 'variable .* is not in scope', NumbaIRAssumptionWarning)
 
 _Vc = PARAM_INDEX['current_speed']

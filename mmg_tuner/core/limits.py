@@ -202,7 +202,7 @@ def input_limits(ship: ShipConfig) -> InputLimits:
     return lim
 
 
-_CACHE: dict[tuple, InputLimits] = {}
+_CACHE: dict[tuple[object, ...], InputLimits] = {}
 
 
 def _compute(ship: ShipConfig) -> InputLimits:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Callable
 
 from mmg_tuner.core.integrate import run_maneuver
 from mmg_tuner.core.layout import OK, STATUS_TEXT
@@ -26,6 +27,7 @@ from mmg_tuner.core.simulate import integrator_code, simulate
 from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.errors import SimulationError
 import numpy as np
+import numpy.typing as npt
 
 KNOT = 1852.0 / 3600.0  # m/s
 
@@ -88,7 +90,7 @@ def check_lowspeed(ship: ShipConfig, maneuver: str) -> None:
             f'{", ".join(missing)} (use a lowspeed ship, e.g. esso_osaka_3m)')
 
 
-def run(ship: ShipConfig, spec: ManeuverSpec, x0=None) -> Trial:
+def run(ship: ShipConfig, spec: ManeuverSpec, x0: npt.ArrayLike | None = None) -> Trial:
     """Run one manoeuvre from a straight run at spec.speed_ms (or from x0)."""
     if spec.maneuver not in ALL_MANEUVERS:
         raise SimulationError(f'unknown manoeuvre {spec.maneuver!r}; one of {ALL_MANEUVERS}')
@@ -226,7 +228,8 @@ class _Programme:
         return simulate(self.ship, self.x0, self.ctrl, self.spec.dt, self.spec.integrator,
                         self.spec.substeps)
 
-    def until(self, k0: int, max_s: float, done) -> int:
+    def until(self, k0: int, max_s: float,
+              done: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> int:
         """Return the first sample after k0 (at most max_s later) where done holds."""
         run = self.simulate()
         k1 = min(self.t.size - 1, k0 + max(1, int(round(max_s / self.spec.dt))))

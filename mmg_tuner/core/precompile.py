@@ -33,7 +33,7 @@ def _whole_run(ship_yaml: Path) -> None:
     from mmg_tuner.core.simulate import simulate
     ship = load_ship(ship_yaml)
     inputs = ship.family.inputs
-    ctrl: object = np.tile([60.0, 0.1], (3, 1))
+    ctrl: np.ndarray | dict[str, np.ndarray] = np.tile([60.0, 0.1], (3, 1))
     if 'rpm' not in inputs:   # another actuator (twin thrusters): its required channels
         ctrl = {c: np.full(3, 0.1) for c in inputs if TABLE[c].default is None}
     simulate(ship, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0], ctrl, 1.0, 'rk4')
@@ -46,12 +46,22 @@ def _stepper(ship_yaml: Path) -> None:
 
 
 def kernels() -> dict[str, Callable[[], None]]:
-    """Return what to run, by name: each family's whole-run kernel, then the stepper."""
+    """
+    Return what to run, by name: each family's whole-run kernel, then each family's stepper.
+
+    The stepper too is compiled per family (the family's tag is part of its type), so one
+    warm-up per family: with a single one, sim_node compiled at its first start for every
+    other family (about a minute each). Families sim_node cannot drive (no screw and rudder
+    first, see core.stepper) have none.
+    """
+    from mmg_tuner.core.ship import load_ship
     ships = ships_by_family()
     jobs: dict[str, Callable[[], None]] = {
         f'simulate, {family} family (simulate, replay_node)': partial(_whole_run, f)
         for family, f in ships.items()}
-    jobs['stepper, every family (sim_node)'] = partial(_stepper, next(iter(ships.values())))
+    for family, f in ships.items():
+        if load_ship(f).family.inputs[:2] == ('rpm', 'rudder'):   # what sim_node drives
+            jobs[f'stepper, {family} family (sim_node)'] = partial(_stepper, f)
     return jobs
 
 

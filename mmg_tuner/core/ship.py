@@ -12,7 +12,7 @@ import difflib
 import math
 from pathlib import Path
 import re
-from typing import Any, Mapping
+from typing import Any, Collection, Mapping
 
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX, PARAM_NAMES
 from mmg_tuner.core.models import Family, family
@@ -168,8 +168,8 @@ def _number(v: Any, key: str, source: str) -> float:
     return x
 
 
-def _check_physical(p: np.ndarray, source: str, keys=None, required=_POSITIVE_IF_REQUIRED
-                    ) -> None:
+def _check_physical(p: np.ndarray, source: str, keys: Collection[str] | None = None,
+                    required: Collection[str] = _POSITIVE_IF_REQUIRED) -> None:
     """
     Refuse physically impossible values (keys: only report these, e.g. an overlay's).
 

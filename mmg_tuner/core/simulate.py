@@ -16,9 +16,11 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.errors import SimulationError, TrialDataError
 import numpy as np
+import numpy.typing as npt
 
 
-def kernel_inputs(fam: Family, controls, what: str = 'simulation') -> np.ndarray:
+def kernel_inputs(fam: Family, controls: npt.ArrayLike | Mapping[str, npt.ArrayLike],
+                  what: str = 'simulation') -> np.ndarray:
     """
     Return the kernels' input array for family ``fam``: its channels, wind last.
 
@@ -113,7 +115,9 @@ def _optional(channel: str) -> bool:
     return default is not None and default != default
 
 
-def simulate(ship: ShipConfig, x0, controls, dt: float, integrator: str = 'euler',
+def simulate(ship: ShipConfig, x0: npt.ArrayLike,
+             controls: npt.ArrayLike | Mapping[str, npt.ArrayLike], dt: float,
+             integrator: str = 'euler',
              substeps: int = 1, t0: float = 0.0, params: np.ndarray | None = None,
              check: bool = True) -> Trial:
     """
@@ -232,7 +236,7 @@ def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
 
     def du(rpm: float) -> float:   # screw_rudder's outputs first: (n_P, delta, ...)
         act = (rpm / 60.0, 0.0) + (0.0,) * (n_act - 2)
-        return accelerations(tag, ship.params, speed_ms, 0.0, 0.0, act)[0]
+        return float(accelerations(tag, ship.params, speed_ms, 0.0, 0.0, act)[0])
 
     if du(lo) > 0 or du(hi) < 0:
         raise SimulationError(f'{ship.name}: no rpm in [{lo}, {hi}] holds {speed_ms} m/s')

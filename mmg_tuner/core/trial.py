@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 from mmg_tuner.core.channels import CONTROL_NAMES, ENVIRONMENT, TABLE
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.errors import TrialDataError
 import numpy as np
+import numpy.typing as npt
 
 _UNSET: Any = object()
 _PAIRS = {'controls': CONTROL_NAMES, 'wind': ENVIRONMENT,
@@ -51,9 +52,10 @@ class Trial:
     status: str = 'ok'
     fail_time_s: float | None = None
 
-    def __init__(self, t, states, controls=_UNSET, name: str = 'trial', source: str = '',
-                 notes: list[str] | None = None, start_s: float = 0.0, wind=_UNSET,
-                 thrusters=_UNSET, status: str = 'ok', fail_time_s: float | None = None,
+    def __init__(self, t: npt.ArrayLike, states: npt.ArrayLike, controls: Any = _UNSET,
+                 name: str = 'trial', source: str = '',
+                 notes: list[str] | None = None, start_s: float = 0.0, wind: Any = _UNSET,
+                 thrusters: Any = _UNSET, status: str = 'ok', fail_time_s: float | None = None,
                  inputs: Mapping[str, Any] | None = None) -> None:
         self.t = np.asarray(t, dtype=float)
         self.states = np.asarray(states, dtype=float)
@@ -95,7 +97,8 @@ class Trial:
             del self.inputs['wind_n'], self.inputs['wind_e']   # "not measured" is no channel
 
     @classmethod
-    def from_array(cls, t, states, array, channels, **kw) -> 'Trial':
+    def from_array(cls, t: npt.ArrayLike, states: npt.ArrayLike, array: npt.ArrayLike,
+                   channels: Sequence[str], **kw: Any) -> 'Trial':
         """Return a trial from an input array whose columns are the named channels."""
         array = np.asarray(array, dtype=float)
         return cls(t, states, inputs={n: array[:, j] for j, n in enumerate(channels)}, **kw)
@@ -122,7 +125,7 @@ class Trial:
         """(T, 2) bow, stern thrusters [rev/s], or None if not recorded."""
         return self._pair('thrusters')
 
-    def input_array(self, channels) -> np.ndarray:
+    def input_array(self, channels: Sequence[str]) -> np.ndarray:
         """
         Return the named channels as one (T, n) array, in the order given.
 
@@ -155,7 +158,7 @@ class Trial:
             return self.inputs[name]
         raise KeyError(name)
 
-    def _map_inputs(self, fn) -> dict[str, np.ndarray]:
+    def _map_inputs(self, fn: Callable[[np.ndarray], np.ndarray]) -> dict[str, np.ndarray]:
         return {n: fn(v) for n, v in self.inputs.items()}
 
     def slice(self, start_s: float, end_s: float | None = None,  # noqa: A003  public API name
@@ -195,7 +198,7 @@ class Trial:
                        notes=self.notes + [f'resampled on dt = {dt:g} s (linear)'])
 
 
-def input_array(channels, values: Mapping[str, Any], T: int, where: str = 'inputs'
+def input_array(channels: Sequence[str], values: Mapping[str, Any], T: int, where: str = 'inputs'
                 ) -> np.ndarray:
     """
     Stack the named channels of ``values`` (name -> (T,) array) into one (T, n) array.
@@ -232,8 +235,8 @@ def fitted_first_state(trial: Trial, window_s: float) -> np.ndarray:
     """
     k = int(np.searchsorted(trial.t, trial.t[0] + window_s, side='right'))
     if window_s <= 0 or k < 4:
-        return trial.states[0].copy()
+        return np.array(trial.states[0], dtype=float)
     t = trial.t[:k] - trial.t[0]
     A = np.column_stack([np.ones(k), t, t * t])
     coef, *_ = np.linalg.lstsq(A, trial.states[:k], rcond=None)
-    return coef[0]
+    return np.asarray(coef[0], dtype=float)

@@ -11,7 +11,7 @@ Layout (one CSV per run, 10 Hz, header line): ``t [s]``, ``x_position_mid [m]``,
 clockwise from x0) and ``wind_velo_relative_mid [m/s]``, ``wind_dir_relative_mid [rad]``
 (apparent wind at midship, FROM, clockwise from the bow).
 
-Conventions, checked on all 33 files (test/test_esso.py keeps the checks):
+Conventions, checked on all 33 files (test/data/test_esso.py keeps the checks):
 - the pond frame O0-x0y0 is the MMG earth frame: x_E = x0 ("north"), y_E = y0 ("east"),
   psi clockwise from x0. dx/dt = u cos psi - v sin psi fits to 0.03-0.19 m/s rms, the
   counter-clockwise reading is worse in every file;

@@ -91,7 +91,7 @@ def declared_params(name: str) -> tuple[str, ...]:
     return tuple(declared(module_of(name), 'PARAMS'))
 
 
-def declared_channels(name: str) -> dict[str, tuple]:
+def declared_channels(name: str) -> dict[str, tuple[str, str, Any]]:
     """Return an actuator's new ``CHANNELS``, read from its source without importing it."""
     return dict(declared(module_of(name), 'CHANNELS', {}))
 

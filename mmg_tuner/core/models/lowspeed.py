@@ -29,7 +29,7 @@ non-dimensional on 1/2 rho L d (forces), 1/2 rho L^2 d (moments, masses), 1/2 rh
 Two ways in: the family interface the generic kernels call (:func:`forces` on the actuator
 tuple, :func:`wind` on the apparent wind vector; the shared equations of motion in
 ``core/dynamics.py``), and the reference's standalone form (:func:`force_terms`,
-:func:`accelerations` with the apparent wind as speed and angle), which test/test_lowspeed_model.py
+:func:`accelerations` with the apparent wind as speed and angle), which test/core/test_lowspeed_model.py
 checks against the reference's sanity numbers. Both use the same component functions.
 The model is discontinuous at u = 0, n = 0 and at a few branch points (§9): use fixed steps.
 """

@@ -205,7 +205,7 @@ def test_inspect_prints_the_warning_on_stderr_when_run_as_a_program(jumped):
     import subprocess
     import sys
     from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     run = subprocess.run([sys.executable, '-m', 'mmg_tuner.cli.inspect', str(jumped)], cwd=root,
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr

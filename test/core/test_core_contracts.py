@@ -196,7 +196,7 @@ def test_numba_cache_is_keyed_by_the_core_sources(tmp_path):
     the kernels) must not run the stale cached kernel: numba alone would, since integrate.py
     did not change.
     """
-    pkg = Path(__file__).resolve().parents[1] / 'mmg_tuner'
+    pkg = Path(__file__).resolve().parents[2] / 'mmg_tuner'
     shutil.copytree(pkg, tmp_path / 'mmg_tuner',
                     ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
     env = {**os.environ, 'NUMBA_CACHE_DIR': str(tmp_path / 'cache'),

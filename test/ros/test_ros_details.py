@@ -40,7 +40,7 @@ def test_the_topic_map_names_the_replay_topics():
     assert tm.replay_model_odom_topic == 'model/odom'
     assert tm.replay_recorded_odom_topic == 'recorded/odom'
     from pathlib import Path
-    shipped = load_topic_map(Path(__file__).resolve().parents[1] / 'config' / 'topics.yaml')
+    shipped = load_topic_map(Path(__file__).resolve().parents[2] / 'config' / 'topics.yaml')
     assert shipped.replay_model_odom_topic.strip('/') != shipped.odom_topic.strip('/')
 
 

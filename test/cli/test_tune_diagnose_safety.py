@@ -4,6 +4,7 @@ Tune and diagnose under bad input and interruption (issue 10 sections 4 and 5).
 Output folders checked and locked before the work, no half-written result sets, a diagnosis that
 resumes to the same answer, --resume from anywhere, and every bad option a one-line error.
 """
+from dataclasses import replace
 import json
 import math
 import os
@@ -225,11 +226,50 @@ def test_one_acceptance_rule_checks_se_and_worse_trials():
     assert not v.significant and 'diverges' in v.reason
 
 
-def test_backward_step_uses_the_acceptance_rule(monkeypatch):
-    import inspect
+def test_backward_step_drops_what_the_acceptance_rule_rejects(suzaku, monkeypatch):
+    """
+    The backward step's decision is the acceptance rule's verdict, whatever the numbers.
 
+    Two real effects (a rudder offset and a current) are named; the rule is then made to reject
+    every removal check: the backward step must drop the effect whose removal costs least and
+    keep the other, and the rule must have been asked about the model without each named effect
+    (ref) against the full model (new). A backward step with a rule of its own keeps both.
+    """
+    from mmg_tuner.core.effects import EFFECTS
     from mmg_tuner.diagnosis import select
-    assert 'acceptance(' in inspect.getsource(select._backward_pass)
+    truth = suzaku.with_params({'rudder_offset': math.radians(3.0), 'current_speed': 0.3,
+                                'current_dir': 2.0})
+    specs = [('turning', 35), ('zigzag', 20), ('turning', -25), ('zigzag', -15),
+             ('turning', -35), ('zigzag', 10)]
+    made = [generate_trial(truth, m, a, None, 106.0, 3.086, 200.0, 1.0, SensorNoise(), 20 + i,
+                           f'{m}{a:+d}')[1] for i, (m, a) in enumerate(specs)]
+    real, named, asked, log = select.acceptance, [], [], []
+
+    def rule(J_ref, J_new, n_params, J_base_test, s, J_floor=None):
+        v = real(J_ref, J_new, n_params, J_base_test, s, J_floor)
+        if len(named) < 2:                        # the forward step: the real rule
+            return v
+        asked.append((np.array(J_ref), np.array(J_new), n_params, v.gain))
+        return replace(v, significant=False, reason='rejected by the test')
+
+    def record(msg):
+        log.append(msg)
+        if '-> named' in msg:
+            named.extend(msg.split(':', 1)[1].split('(but')[0].replace('+', ' ').split())
+
+    monkeypatch.setattr(select, 'acceptance', rule)
+    out = select.diagnose(suzaku, made[::2], made[1::2],
+                          DiagnosisSettings(effects=('current', 'rudder_offset'), max_effects=2,
+                                            base_evals=1500, screen_evals=100,
+                                            effect_evals=600, advice=False), log=record)
+    assert sorted(named) == ['current', 'rudder_offset'], log
+    # one question per named effect, each against the same full model
+    assert sorted(n for *_, n, _ in asked) == [1, 2], asked
+    assert all(np.array_equal(a[1], asked[0][1]) for a in asked)
+    by_size = {len(EFFECTS[e].params): e for e in named}     # 2 current, 1 rudder_offset
+    dropped = by_size[min(asked, key=lambda a: a[3])[2]]
+    assert [c.effect for c in out.causes] == [e for e in named if e != dropped]
+    assert any('redundant: dropped (rejected by the test)' in m for m in log), log
 
 
 # ------------------------------------------------------------------ validation at the edge

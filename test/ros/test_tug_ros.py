@@ -2,7 +2,7 @@
 The twin-azimuth tug everywhere else: the stepper, bags of its thruster topics and the nodes.
 
 The stepper and bag tests need no ROS; the node tests run sim_node and replay_node as
-processes on a private graph (test/ros_harness.py) and are skipped without rclpy.
+processes on a private graph (test/ros/ros_harness.py) and are skipped without rclpy.
 """
 import math
 

@@ -1,8 +1,8 @@
-"""precompile fills the cache the nodes read: every family's whole-run kernel and the stepper."""
+"""precompile fills the cache the nodes read: every family's whole-run kernel and stepper."""
 from mmg_tuner.cli.precompile import command
 from mmg_tuner.core._numba_cache import cache_dir
 from mmg_tuner.core.models import REGISTRY
-from mmg_tuner.core.precompile import ships_by_family
+from mmg_tuner.core.precompile import kernels, ships_by_family
 from mmg_tuner.core.ship import load_ship
 
 
@@ -10,6 +10,16 @@ def test_every_family_has_an_embedded_ship_to_precompile_with():
     ships = ships_by_family()
     assert set(ships) == set(REGISTRY)
     assert all(load_ship(f).model == family for family, f in ships.items())
+
+
+def test_the_stepper_is_warmed_for_every_family():
+    """The stepper is compiled per family (its tag is in its type): sim_node on any family."""
+    jobs = set(kernels())
+    driven = [fam for fam, f in ships_by_family().items()
+              if load_ship(f).family.inputs[:2] == ('rpm', 'rudder')]   # what sim_node drives
+    assert len(driven) >= 3, driven
+    assert {f'stepper, {family} family (sim_node)' for family in driven} <= jobs, jobs
+    assert {f'simulate, {family} family (simulate, replay_node)' for family in REGISTRY} <= jobs
 
 
 def test_precompile_leaves_the_kernels_in_the_installations_cache(capsys):

@@ -145,7 +145,7 @@ def test_a_toy_family_and_actuator_from_test_code_simulate_and_tune(tmp_path):
     (pkg / '__init__.py').write_text('')
     (pkg / 'toy_jet.py').write_text(textwrap.dedent(TOY_ACTUATOR))
     (pkg / 'toy_family.py').write_text(textwrap.dedent(TOY_FAMILY))
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     env = {'PATH': '/usr/bin:/bin', 'HOME': str(tmp_path),
            'PYTHONPATH': f'{tmp_path}:{repo}', 'NUMBA_CACHE_DIR': str(tmp_path / 'cache'),
            'MMG_TUNER_FAMILIES': 'toyplug.toy_family',

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-PKG = Path(__file__).resolve().parents[1] / 'mmg_tuner'
+PKG = Path(__file__).resolve().parents[2] / 'mmg_tuner'
 ORDER = ['core', 'data', 'learn', 'tuning', 'diagnosis', 'api', 'fleet', 'cli']
 
 

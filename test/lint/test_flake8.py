@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LINT_ENFORCED = True
 """Flipped to True once the tree has been brought to the ament style (the lead's step)."""
 

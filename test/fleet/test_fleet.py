@@ -28,7 +28,7 @@ from mmg_tuner.fleet.resume import check_fleet_dir, input_digest
 import pytest
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 DASK = Path(sys.executable).parent / 'dask'
 
 

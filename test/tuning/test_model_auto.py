@@ -15,7 +15,7 @@ from mmg_tuner.tuning.interval import (calibrate_interval, coverage, Interval,
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 KINDS = {'turning_p35': 'turning', 'turning_m25': 'turning', 'zigzag_p20': 'zigzag',
          'zigzag_m15': 'zigzag'}
 

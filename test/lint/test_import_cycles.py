@@ -2,7 +2,7 @@
 import ast
 from pathlib import Path
 
-PKG = Path(__file__).resolve().parents[1] / 'mmg_tuner'
+PKG = Path(__file__).resolve().parents[2] / 'mmg_tuner'
 
 
 def _module(path: Path) -> str:

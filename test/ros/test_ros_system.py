@@ -206,7 +206,7 @@ def test_two_ships_in_two_namespaces_follow_their_own_commands(ros, tmp_path):
     namespace:=ship2 silently ran on defaults).
     """
     env, node, ex = ros
-    cfg = Path(__file__).resolve().parents[1] / 'config' / 'sim_node.yaml'
+    cfg = Path(__file__).resolve().parents[2] / 'config' / 'sim_node.yaml'
     ship2_cfg = tmp_path / 'sim_node.yaml'
     ship2_cfg.write_text(cfg.read_text().replace('frame_id: map ', 'frame_id: world '))
     common = ('wait_for_commands:=true', 'real_time_factor:=40.0', 'initial_speed:=3.0',

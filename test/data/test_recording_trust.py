@@ -246,6 +246,6 @@ def test_no_unit_warning_on_clean_trials_or_the_repositorys_recordings(
     for tr in unit_trials:
         write_trial_csv(tr, tmp_path / f'{tr.name}.csv')
         assert _unit_warnings(caplog, tmp_path / f'{tr.name}.csv') == []
-    data = Path(__file__).resolve().parents[1] / 'data'
+    data = Path(__file__).resolve().parents[2] / 'data'
     for folder in sorted(p for p in data.iterdir() if p.is_dir()):
         assert _unit_warnings(caplog, folder) == [], folder

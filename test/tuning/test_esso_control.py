@@ -15,7 +15,7 @@ from mmg_tuner.tuning.lo_go import equation_error, interval_data, lo_fit
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ZIGZAG = ROOT / 'data' / 'esso_osaka_frt' / 'zigzag' / 'zigzag_31-Jul-2020_13_04_24.csv'
 ACTUATOR_COEFFICIENTS = ('T_nn', 'T_absn_u', 'X_uudd', 'Y_uud', 'Y_nnd', 'N_uud', 'N_nnd')
 

@@ -17,7 +17,7 @@ import sys
 import mmg_tuner as mt
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / 'doc'
 README = ROOT / 'README.md'
 LINK = re.compile(r'\[[^\]]*\]\(([^)\s]+)\)')
