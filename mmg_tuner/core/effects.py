@@ -6,7 +6,7 @@ parameters, the neutral value at which it vanishes, the search box, whether the 
 direction (periodic over 2 pi), the smallest magnitude worth finding, the unit, and a
 description of the physics. Everything else derives from this table: the parameter layout
 (``layout.EFFECT_NEUTRAL`` and the effect slots of the flat vector), the defaults a ship file
-may omit, the diagnosis' search boxes, and the contract test (test/test_effects_contract.py)
+may omit, the diagnosis' search boxes, and the contract test (test/core/test_core_contracts.py)
 that checks every entry (neutral values make the simulation equal the plain model, neutral and
 smallest magnitudes lie inside the box, the description formats).
 
