@@ -45,9 +45,10 @@ from mmg_tuner.diagnosis.context import Setting
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
-from mmg_tuner.diagnosis.select import (BUDGETS, Candidate, Cause, check_trial_sets,
-                                        DiagnosisSettings, MapFn, RETUNE_METHODS)
+from mmg_tuner.diagnosis.results import Candidate, Cause
+from mmg_tuner.diagnosis.select import check_trial_sets
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
+from mmg_tuner.diagnosis.settings import BUDGETS, DiagnosisSettings, MapFn, RETUNE_METHODS
 from mmg_tuner.errors import (ConfigError, DiagnosisError, MissingDependencyError, MmgTunerError,
                               TuningError)
 from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual

@@ -24,7 +24,7 @@ from mmg_tuner.cli.common import run_command
 from mmg_tuner.cli.tune import (DT, parse_or_resume, Parser, SEED, show_log, sigterm_as_interrupt,
                                 store_args, UsageError)
 from mmg_tuner.core.effects import EFFECTS
-from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
+from mmg_tuner.diagnosis.settings import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 
 CHECKPOINT = 'checkpoint.json'   # the effect search's; the base tuning's beside it

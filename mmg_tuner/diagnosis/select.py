@@ -68,353 +68,35 @@ Selection rule (stepwise, like forward-backward regression):
 """  # noqa: A005
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
-import hashlib
+from dataclasses import dataclass, replace
 from itertools import combinations
-import json
 import logging
 import math
 from pathlib import Path
 import time
-from typing import Callable, Sequence, TypeVar
+from typing import Callable, Sequence
 
-from mmg_tuner._atomic import write_atomic
-from mmg_tuner.core.effects import describe_values, Effect, EFFECTS
+from mmg_tuner.core.effects import Effect, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.diagnosis.context import impossible_effects, resolve, Setting
+from mmg_tuner.diagnosis.checkpoint import fingerprint, SearchCheckpoint
+from mmg_tuner.diagnosis.context import impossible_effects, resolve
 from mmg_tuner.diagnosis.noise import noise_floor, sensor_noise
 from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
-from mmg_tuner.errors import DiagnosisError, OutputError
+from mmg_tuner.diagnosis.results import Candidate, Cause, Diagnosis
+from mmg_tuner.diagnosis.settings import DiagnosisSettings, MapFn, MEASURED, RETUNE_METHODS
+from mmg_tuner.diagnosis.stats import acceptance, pinned_on_bound
+from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
-from mmg_tuner.tuning.tuner import refuse_pickle, Tuner
+from mmg_tuner.tuning.tuner import Tuner
 import numpy as np
 
 logger = logging.getLogger(__name__)
-
-T = TypeVar('T')
-R = TypeVar('R')
-MapFn = Callable[[Callable[[T], R], Sequence[T]], list[R]]
-
-# evaluations: base tuning, screening per candidate, re-tune per candidate
-BUDGETS = {
-    'quick': (6_000, 300, 3_000),
-    'standard': (20_000, 400, 6_000),
-    'full': (60_000, 800, 15_000),
-}
-RETUNE_METHODS = ('lsq', 'cmaes')
-# measured signals that can drive the model, as candidates: {name: (effect it measures, text)}
-MEASURED = {'measured_wind': ('wind', "the measured wind drives the model (the family's wind "
-                                      'loads from the recorded true wind, sample by sample)')}
-
-
-@dataclass
-class DiagnosisSettings:
-    targets: Sequence[str] | None = None     # base targets (default: the ship's)
-    a_r: float | None = None
-    effects: Sequence[str] = tuple(EFFECTS)
-    integrator: str = 'rk4'
-    base_evals: int = 20_000
-    screen_evals: int = 400
-    effect_evals: int = 6_000
-    screen: int = 4
-    max_effects: int = 3
-    min_gain: float = 0.10
-    param_penalty: float = 0.02
-    # and the reduction must be this fraction of the base model's held-out error: below it
-    # lies what no effect explains (discretisation, the noise's own drift)
-    min_abs_gain: float = 0.05
-    # a real effect helps where it shows and hurts nowhere: no test trial may get worse by more
-    # than the factor 1 + worse_tol ...
-    worse_tol: float = 0.5
-    # ... with an increase of its J above this fraction of the reference's total held-out J.
-    # A ratio alone is brittle on real data: a piece the model happens to fit almost exactly
-    # (tiny J) can get 10x worse by a negligible amount. An absolute share rather than the
-    # jackknife SE: the SE grows with the spread a wrong effect causes, so it would excuse the
-    # very worsening the veto is for; the share equals min_abs_gain, the smallest reduction
-    # counted as evidence for an effect, so a smaller increase is no evidence against one.
-    worse_abs: float = 0.05
-    # the gain must also exceed this many jackknife standard errors (the spread over trials)
-    min_gain_z: float = 1.0
-    # an effect parameter this close to a bound (fraction of the box width) is suspect
-    bound_tol: float = 0.01
-    seed: int = 0
-    # the base tune (CMA-ES, the paper's method) stops on stagnation rather than spending the
-    # tune command's full IPOP budget: one run from population base_popsize (IPOP doubling up
-    # to base_max_popsize), over when the generation's best improved by less than base_rtol
-    # for the Tuner's patience, then a local least-squares polish of at most base_polish
-    # simulations. On the benchmark's cases this reaches the full budget's J (within 0.1 %)
-    # in a quarter of the time; every candidate is re-tuned from it anyway.
-    base_popsize: int = 12
-    base_max_popsize: int = 12
-    base_rtol: float = 1e-3
-    base_polish: int = 600
-    # re-tunes: 'lsq' (local bounded least squares, warm-started) or 'cmaes' (as the base)
-    retune: str = 'lsq'
-    # where the trials were recorded (None: the ship YAML's setting:, else the trial files')
-    setting: Setting | None = None
-    # a measured wind is a candidate (True) or always drives the model (False)
-    measured_signals: bool = True
-    # advise the trial that would separate each barely identifiable effect and rival pair
-    advice: bool = True
-    # a reduction of the held-out J above this many noise floors (diagnosis/noise.py: the mean
-    # held-out J noise alone leaves) is evidence whatever its share of the base error, and
-    # never noise-fitting: held-out, an effect fitted to noise gains nothing (on clean data
-    # every candidate's held-out gain is negative)
-    noise_margin: float = 0.5
-    # a held-out trial this much worse (J ratio - 1), by more than its noise floor, vetoes a
-    # cause (a wrong effect helps some trials and hurts others: +18 %, -24 %, +27 % ...)
-    clearly_worse: float = 0.2
-    # when effects compete (significant, none acceptable alone): fit the pairs of the top
-    # `pairs` screened candidates jointly (0 or 1: never)
-    pairs: int = 3
-
-
-@dataclass
-class Candidate:
-    effect: str
-    J_test: float
-    per_trial_gain: list[float]
-    gain: float
-    gain_se: float
-    accepted: bool
-    values: dict[str, float]
-    screen_drop: float = 0.0
-    on_bound: list[str] = field(default_factory=list)
-    J_ref: float = math.nan          # held-out J of the model it is compared with
-    impossible: str = ''             # why it cannot exist in this setting ('' if it can)
-    diverged: str = ''               # 'diverged on trial X at t = ...' ('' if it did not)
-    significant: bool = False        # passed the acceptance rule (named only if also possible,
-    #                                  not on a bound and not too small)
-    implausible: str = ''            # why the fit is implausible for the ship (plausible.py)
-    inconsistent: str = ''           # why it is not one value for all trials, or makes a
-    #                                  held-out trial clearly worse ('' if neither)
-    per_trial_estimates: list[dict] = field(default_factory=list)   # fitted on each held-out
-
-
-@dataclass
-class Cause:
-    """
-    A named cause.
-
-    The effect, its estimated parameters (SI, radians) with Gauss-Newton standard errors, and the
-    held-out gain (1 - J_test(with it) / J_test(without)) with its jackknife standard error over
-    test trials. A measured signal used as a cause (e.g. ``measured_wind``) has no parameters.
-    """
-
-    effect: str
-    parameters: dict[str, float]
-    uncertainty: dict[str, float]
-    heldout_gain: float
-    heldout_gain_se: float
-    indistinguishable_from: list[str] = field(default_factory=list)
-    description: str = ''
-
-    @property
-    def summary(self) -> str:
-        """
-        Human wording, e.g.
-
-        'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'.
-        """
-        if self.effect in MEASURED:
-            return self.effect.replace('_', ' ') + ' used'
-        return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
-
-    def to_dict(self) -> dict:
-        return {**asdict(self), 'summary': self.summary}
-
-
-@dataclass
-class Diagnosis:
-    causes: list[Cause]
-    baseline: dict
-    final: dict
-    rounds: list[list[Candidate]] = field(default_factory=list)
-    params: dict[str, float] = field(default_factory=dict)
-    base_params: dict[str, float] = field(default_factory=dict)
-    wall_s: float = 0.0
-    aliased: dict[str, dict] = field(default_factory=dict)
-    setting: Setting = field(default_factory=Setting)
-    impossible: dict[str, str] = field(default_factory=dict)   # effect -> why, this setting
-    impossible_fits: list[dict] = field(default_factory=list)  # significant but impossible
-    measured: list[dict] = field(default_factory=list)         # measured signals: with/without
-    timings_s: dict[str, float] = field(default_factory=dict)  # wall time per stage
-    measured_wind_used: bool = False     # the final model is driven by the measured wind
-    advice: list[dict] = field(default_factory=list)           # see diagnosis/advice.py
-    # the sensor noise estimated from the held-out recordings and the held-out J it alone
-    # leaves with the base model (diagnosis/noise.py): {'sigma': {state: sd}, 'J', 'J_se', ...}
-    noise: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """What :func:`acceptance` decided, and on which numbers."""
-
-    significant: bool
-    gain: float          # pooled held-out gain 1 - sum(J_new) / sum(J_ref)
-    gain_se: float       # its jackknife standard error
-    per_trial_gain: np.ndarray
-    absolute: float      # the reduction as a fraction of the base model's held-out error
-    worst: float         # the largest J_new / J_ref over test trials
-    reason: str          # why not significant ('' when significant)
-
-
-def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
-               s: DiagnosisSettings, J_floor: float | None = None) -> Verdict:
-    """
-    Return the one acceptance rule, used by the forward and the backward step.
-
-    The one acceptance rule, used by the forward step (ref: the current model re-tuned, new: with
-    the candidate effect) and by the backward step (ref: the model without a named effect, new: the
-    model with it; not significant -> the effect is dropped).
-
-    Significant when the gain exceeds min_gain + param_penalty x n_params and min_gain_z
-    jackknife standard errors, the reduction is at least min_abs_gain of the base model's
-    held-out error (or, given the noise floor J_floor of the held-out trials, the reduction
-    exceeds noise_margin x J_floor), and no test trial gets worse both by a factor above
-    1 + worse_tol and by more than worse_abs of the total held-out J without it (sum(J_ref)).
-    A run that diverges (infinite J) on either side is never significant.
-    """
-    J_ref = np.asarray(J_ref, float)
-    J_new = np.asarray(J_new, float)
-    if not np.all(np.isfinite(J_new)) or not np.all(np.isfinite(J_ref)):
-        side = 'with' if not np.all(np.isfinite(J_new)) else 'without'
-        return Verdict(False, -math.inf, math.inf, np.full(J_new.shape, np.nan), -math.inf,
-                       math.inf, f'the model {side} it diverges on a test trial')
-    ratio = J_new / np.maximum(J_ref, 1e-300)
-    gain = float(1 - J_new.sum() / max(J_ref.sum(), 1e-300))
-    se = jackknife_se(J_ref, J_new)
-    need = s.min_gain + s.param_penalty * n_params
-    absolute = float((J_ref.sum() - J_new.sum()) / max(J_base_test, 1e-300))
-    # worse by the factor and by an amount that matters against the total
-    increase = (J_new - J_ref) / max(J_ref.sum(), 1e-300)
-    bad = (ratio >= 1 + s.worse_tol) & (increase > s.worse_abs)
-    worst = float(np.max(ratio))
-    reasons = []
-    if not gain > need:
-        reasons.append(f'gain {100 * gain:.1f} % <= {100 * need:.1f} %')
-    if not gain > s.min_gain_z * se:
-        reasons.append(f'gain within {s.min_gain_z:g} standard error(s) ({100 * se:.1f} %)')
-    above_noise = bool(J_floor and J_floor > 0
-                       and J_ref.sum() - J_new.sum() > s.noise_margin * J_floor)
-    if not (absolute > s.min_abs_gain or above_noise):
-        reasons.append(f'{100 * absolute:.1f} % of the base error <= '
-                       f'{100 * s.min_abs_gain:.0f} %'
-                       + (f' and the reduction within {s.noise_margin:g} noise floor(s)'
-                          if J_floor else ''))
-    if bad.any():
-        k = int(np.flatnonzero(bad)[np.argmax(ratio[bad])])
-        reasons.append(f'a test trial gets worse ({ratio[k]:.2f} x, +{100 * increase[k]:.1f} % '
-                       'of the held-out error)')
-    return Verdict(not reasons, gain, se, 1 - ratio, absolute, worst, '; '.join(reasons))
-
-
-class SearchCheckpoint:
-    """
-    Completed tunings of one diagnosis, written atomically (JSON, data only) after each.
-
-    A resumed search replays the same (deterministic) steps and takes every finished tuning from
-    here.
-    """
-
-    VERSION = 2       # version 1 was a pickle: refused unread (unpickling runs code)
-    FORMAT = 'mmg_tuner diagnosis checkpoint'
-
-    def __init__(self, path: str | Path | None, fingerprint: str, resume: bool = False):
-        self.path = Path(path) if path else None
-        self.fingerprint = fingerprint
-        self.done: dict[str, np.ndarray] = {}
-        self.hits = 0
-        if resume and self.path is not None and self.path.is_file():
-            self.done = self._read()
-        if self.path is not None and not self.done:
-            self._write()   # exists from the start: an interrupt at once still leaves one
-
-    def _read(self) -> dict[str, np.ndarray]:
-        """Return the stored tunings, checked: every failure a DiagnosisError naming the file."""
-        try:
-            blob = self.path.read_bytes()
-        except OSError as exc:
-            raise DiagnosisError(f'{self.path}: unreadable checkpoint '
-                                 f'({exc.strerror or exc})') from None
-        refuse_pickle(self.path, blob[:4], DiagnosisError)
-        try:
-            doc = json.loads(blob)
-        except ValueError as exc:   # JSON and UTF-8 errors alike
-            raise DiagnosisError(f'{self.path}: unreadable checkpoint, damaged or not JSON '
-                                 f'({exc}); re-run without --resume') from None
-        if not isinstance(doc, dict) or doc.get('format') != self.FORMAT:
-            raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of mmg_tuner; re-run '
-                                 'without --resume')
-        if doc.get('version') != self.VERSION:
-            raise DiagnosisError(f"{self.path}: checkpoint version {doc.get('version')}, this "
-                                 f'mmg_tuner reads version {self.VERSION}; re-run without '
-                                 '--resume')
-        if doc.get('fingerprint') != self.fingerprint:
-            raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
-                                 '(ship, trials or settings differ)')
-        done = doc.get('done')
-        if not isinstance(done, dict):
-            raise DiagnosisError(f"{self.path}: damaged checkpoint ('done' is not a mapping)")
-        out = {}
-        for key, theta in done.items():
-            ok = (isinstance(theta, list) and len(theta) > 0
-                  and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                          for x in theta))
-            if not ok:
-                raise DiagnosisError(f'{self.path}: damaged checkpoint (entry {key[:12]}... is '
-                                     'not a list of numbers); re-run without --resume')
-            out[key] = np.array(theta, dtype=float)
-        return out
-
-    @property
-    def base_tune_path(self) -> Path | None:
-        """Where the base tuning (the longest single run) checkpoints every generation."""
-        return None if self.path is None else self.path.with_name(self.path.stem + '.base.npz')
-
-    @staticmethod
-    def key(*parts) -> str:
-        h = hashlib.sha256()
-        for p in parts:
-            h.update(p.tobytes() if isinstance(p, np.ndarray) else repr(p).encode())
-            h.update(b'|')
-        return h.hexdigest()
-
-    def get(self, key: str) -> np.ndarray | None:
-        theta = self.done.get(key)
-        if theta is not None:
-            self.hits += 1
-            return theta.copy()
-        return None
-
-    def put(self, key: str, theta: np.ndarray) -> None:
-        self.done[key] = np.array(theta, dtype=float)
-        if self.path is not None:
-            self._write()
-
-    def _write(self) -> None:
-        # json writes a float as its shortest repr: read back to the same bits
-        doc = {'format': self.FORMAT, 'version': self.VERSION, 'fingerprint': self.fingerprint,
-               'done': {k: v.tolist() for k, v in self.done.items()}}
-        try:
-            write_atomic(self.path, json.dumps(doc) + '\n')
-        except OSError as exc:
-            raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
-                              f'({exc.strerror or exc})') from None
-
-
-def fingerprint(ship: ShipConfig, obj: Objective, obj_test: Objective,
-                s: DiagnosisSettings) -> str:
-    """Return what a checkpoint must match: ship parameters, trials, weights and settings."""
-    return SearchCheckpoint.key(ship.model, ship.params, obj.batch.meas, obj.batch.ctrls,
-                                obj_test.batch.meas, obj_test.batch.ctrls,
-                                repr(sorted(asdict(s).items())))
 
 
 class _Model:
@@ -555,43 +237,6 @@ def _pct_change(ref: float, new: float) -> str:
     if not (math.isfinite(ref) and math.isfinite(new)) or ref <= 0:
         return 'undefined (a run diverges)'
     return f'{100 * (new / ref - 1):+.1f} %'
-
-
-_PERIODIC = {'current_dir', 'wind_dir'}
-
-
-def pinned_on_bound(space: ParameterSpace, theta: np.ndarray, names: Sequence[str],
-                    tol: float) -> list[str]:
-    """
-    Return the effect parameters whose estimate sits on a bound of its box.
-
-    Effect parameters whose estimate sits on a bound of its box (periodic angles and bounds equal
-    to the neutral value excepted: there the effect merely vanishes).
-    """
-    out = []
-    for i, n in enumerate(space.names):
-        if n not in names or n in _PERIODIC:
-            continue
-        lo, hi, v = space.lower[i], space.upper[i], theta[i]
-        w = tol * (hi - lo)
-        if (v - lo < w and lo != EFFECT_NEUTRAL[n]) or (hi - v < w and hi != EFFECT_NEUTRAL[n]):
-            out.append(n)
-    return out
-
-
-def jackknife_se(J_ref: np.ndarray, J_new: np.ndarray) -> float:
-    """
-    Return the jackknife standard error of the pooled gain.
-
-    Standard error of the pooled gain 1 - sum(J_new)/sum(J_ref), leaving out one test trial at a
-    time (trials weigh as much as their error). Infinite with fewer than two trials.
-    """
-    n = len(J_ref)
-    if n < 2 or not (np.all(np.isfinite(J_ref)) and np.all(np.isfinite(J_new))):
-        return float('inf')
-    loo = np.array([1 - (J_new.sum() - J_new[i]) / max(J_ref.sum() - J_ref[i], 1e-300)
-                    for i in range(n)])
-    return float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
 
 
 def _per_trial_J(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta) -> np.ndarray:
