@@ -35,6 +35,8 @@ Selection rule (stepwise, like forward-backward regression):
   acceptable alone), the last named effect is re-fitted jointly with each such candidate from the
   model before it was named (it may have bent to take the other's share) and a pair is
   judged against the current model by the rule of one effect, per member;
+* measured coefficients (diagnosis/measured.py) are priors of every tuning with their
+  standard errors, never fixed values;
 * backward step: with two or more named, one whose removal loses no significant gain is
   dropped (a yaw moment bias named first is made redundant by the rudder offset named next);
   "significant" is the same :func:`acceptance` rule as the forward step, with the model
@@ -84,6 +86,7 @@ from mmg_tuner.core.effects import describe_values, Effect, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis import measured as measured_mod
 from mmg_tuner.diagnosis.checkpoint import fingerprint, SearchCheckpoint
 from mmg_tuner.diagnosis.context import impossible_effects, resolve
 from mmg_tuner.diagnosis.noise import noise_floor, sensor_noise
@@ -342,6 +345,14 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         raise DiagnosisError(f'retune = {s.retune!r}: must be one of {list(RETUNE_METHODS)}')
     clock = _Clock()
     clock('setup')
+    # measured coefficients: their values are the pre-determined ones, and every tuning is
+    # pulled toward them by their standard errors (diagnosis/measured.py), never fixed
+    meas = measured_mod.check(s.measurements, 'the diagnosis settings (measurements)')
+    if meas:
+        ship = ship.with_params({n: m.value for n, m in meas.items()})
+        log('   measured (priors, value +- standard error): ' + ', '.join(
+            f'{n} = {m.value:.4g} +- {m.se:.2g}' + (f' ({m.source})' if m.source else '')
+            for n, m in meas.items()))
     effects = list(s.effects)
     if 'wind' in effects and not ship.has_windage:
         effects.remove('wind')
@@ -375,12 +386,16 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     else:
         objs = _Objectives(wind_pair or (mk(tune_trials), mk(test_trials)), None)
         measured = []
+    base = ParameterSpace.around(ship, s.targets, s.a_r)
+    plain_objs = objs
+    if meas:   # the base tune's prior weighs with the untuned model's J per residual
+        objs = _with_measurements(plain_objs, meas,
+                                  measured_mod.s2_of(objs.plain[0], ship, base, base.pre))
     obj, obj_test = objs.plain
     # one objective per held-out trial (per-trial fits of a cause), as each model sees them
     plain_test = _without_wind(test_trials) if objs.wind is not None else list(test_trials)
     singles = {False: [mk([t]) for t in plain_test],
                True: [mk([t]) for t in test_trials] if objs.wind is not None else []}
-    base = ParameterSpace.around(ship, s.targets, s.a_r)
     fp_obj = objs.wind or objs.plain
     store = SearchCheckpoint(checkpoint, fingerprint(ship, fp_obj[0], fp_obj[1], s), resume)
     if store.done:
@@ -396,6 +411,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     # that optimum's basin)
     wind_theta = _base_tune(base, objs.wind[0], s, store, 'base with the measured wind', None,
                             False, log) if measured else None
+    if meas:   # from here on, with the tuned base model's J per residual (its s^2)
+        objs = _with_measurements(plain_objs, meas,
+                                  measured_mod.s2_of(obj, ship, model.space, theta))
+        obj = objs.plain[0]
     J_test = _per_trial_J(obj_test, ship, model.space, theta)
     baseline = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
                 'J_test': float(J_test.sum()),
@@ -664,6 +683,14 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                      time.perf_counter() - t_start, aliased, setting,
                      {e: w for e, w in impossible.items() if e in effects or e in measured},
                      impossible_fits, measured_doc, timings, model.measured_wind, advice, noise)
+
+
+def _with_measurements(objs: _Objectives, meas: dict, s2: float) -> _Objectives:
+    """Return the objectives with the measurements' prior on the tuning sides (s2: J/residual)."""
+    pr = measured_mod.prior(meas, s2)
+    return _Objectives((measured_mod.with_prior(objs.plain[0], pr), objs.plain[1]),
+                       None if objs.wind is None
+                       else (measured_mod.with_prior(objs.wind[0], pr), objs.wind[1]))
 
 
 def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives, screened,

@@ -5,8 +5,8 @@ Moved from ``select.py`` unchanged; the search is :func:`mmg_tuner.diagnosis.sel
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Sequence, TypeVar
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence, TypeVar
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.context import Setting
@@ -88,3 +88,6 @@ class DiagnosisSettings:
     # when effects compete (significant, none acceptable alone): fit the pairs of the top
     # `pairs` screened candidates jointly (0 or 1: never)
     pairs: int = 3
+    # measured coefficients {name: diagnosis.measured.Measurement(value, se)}: priors of every
+    # tuning with their standard errors (never fixed values; diagnosis/measured.py)
+    measurements: Mapping[str, object] = field(default_factory=dict)

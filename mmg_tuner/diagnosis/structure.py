@@ -322,6 +322,9 @@ def markdown_lines(doc: Mapping) -> list[str]:
     lr = st.get('learnable')
     if lr and lr.get('line'):
         lines += ['', lr['line']]
+    rs = st.get('residual')
+    if rs and rs.get('why'):
+        lines += ['', f"Residual network (--residual {rs['mode']}): {rs['why']}."]
     return lines
 
 
