@@ -24,7 +24,7 @@ from mmg_tuner.cli.common import run_command
 from mmg_tuner.cli.tune import (DT, parse_or_resume, Parser, SEED, show_log, sigterm_as_interrupt,
                                 store_args, UsageError)
 from mmg_tuner.core.effects import EFFECTS
-from mmg_tuner.diagnosis.select import BUDGETS  # noqa: F401  (re-exported for scripts)
+from mmg_tuner.diagnosis.settings import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 
 CHECKPOINT = 'checkpoint.json'   # the effect search's; the base tuning's beside it
@@ -53,10 +53,20 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
-    ap.add_argument('--residual', action='store_true',
-                    help='after the search, train a residual network on the final model and '
-                    'report how much of the remaining held-out error is learnable structure '
-                    '(needs jax, equinox, optax; tens of seconds)')
+    # a flag, not '--residual MODE': an optional value would swallow the first trial path
+    ap.add_argument('--residual', action='store_const', const='on', default='auto',
+                    help='after the search, always train a residual network on the final model '
+                    'and report how much of the remaining held-out error is learnable '
+                    'structure and where it lives (needs jax, equinox, optax; tens of '
+                    'seconds). Default (auto): only when what remains is above what sensor '
+                    'noise alone reaches and JAX is importable')
+    ap.add_argument('--no-residual', dest='residual', action='store_const', const='off',
+                    help='never train the residual network')
+    ap.add_argument('--measured', metavar='FILE.yaml',
+                    help='coefficients measured outside the trials (resistance test, wake '
+                    'fraction, rudder-angle feedback), each with its standard error: '
+                    "'measured: {R_0: {value: V, se: S}}'; priors of every tuning, not fixed "
+                    'values')
     ap.add_argument('--setting', metavar='VENUE[,POSITION]',
                     help='where the trials were recorded: sea, pond, basin or tank, optionally '
                     'with antenna or reference (positions at a GNSS antenna or of the reference '
@@ -69,13 +79,18 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+# --residual's values as DiagnoseConfig.residual (True / False: a run stored before 'auto')
+_RESIDUAL = {'auto': 'auto', 'on': True, 'off': False, True: True, False: False}
+
+
 def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
     return api.DiagnoseConfig(effects=tuple(args.effects), targets=args.targets, a_r=args.ar,
                               budget=args.budget, max_effects=args.max_effects,
                               integrator=args.integrator, seed=args.seed,
                               setting=getattr(args, 'setting', None),   # (older resumed runs
                               retune=getattr(args, 'retune', 'lsq'),     # stored neither)
-                              residual=getattr(args, 'residual', False))
+                              residual=_RESIDUAL[getattr(args, 'residual', False)],
+                              measured=getattr(args, 'measured', None))
 
 
 def command(argv: list[str] | None = None) -> int:

@@ -205,6 +205,8 @@ def explicit_options(parser: argparse.ArgumentParser, argv: list[str] | None) ->
         kw = {'dest': a.dest, 'default': argparse.SUPPRESS}
         if isinstance(a, argparse._StoreTrueAction):
             quiet.add_argument(*a.option_strings, action='store_true', **kw)
+        elif isinstance(a, argparse._StoreConstAction):   # diagnose --residual/--no-residual
+            quiet.add_argument(*a.option_strings, action='store_const', const=a.const, **kw)
         elif isinstance(a, argparse._AppendAction):
             quiet.add_argument(*a.option_strings, action='append', type=a.type, **kw)
         elif a.option_strings:

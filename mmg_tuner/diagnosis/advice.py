@@ -574,7 +574,9 @@ def _pinned(info: _Information, it: _Item, out: dict) -> str:
     held = ', '.join(pins)
     text = (f'; then re-run the diagnosis with {held} held at the measured values: --params '
             f'<params.yaml with {held} under params:> --targets '
-            + (' '.join(rest) if rest else '<none left: every target was pinned>'))
+            + (' '.join(rest) if rest else '<none left: every target was pinned>')
+            + f' (or, better, with each measurement and its standard error: --measured '
+            f'<file with {held} under measured:>, priors that leave the trials room)')
     if rec >= MIN_SEPARATION:
         return text + (f' (with them held exactly these trials resolve it: {rec:.2g}, 1 '
                        'needed; an error in the measured values lowers it)')

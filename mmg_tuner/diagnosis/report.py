@@ -12,7 +12,7 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.advice import joint_text
 from mmg_tuner.diagnosis.residuals import residual_series, simulate_trials, summarize
-from mmg_tuner.diagnosis.select import Diagnosis
+from mmg_tuner.diagnosis.results import Diagnosis
 from mmg_tuner.diagnosis.structure import markdown_lines as structure_lines
 from mmg_tuner.tuning.plots import INPUT_AXES, png_bytes
 from mmg_tuner.tuning.report import display_name, fmt_gain, fmt_J, unique_names

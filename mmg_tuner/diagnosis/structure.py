@@ -322,6 +322,9 @@ def markdown_lines(doc: Mapping) -> list[str]:
     lr = st.get('learnable')
     if lr and lr.get('line'):
         lines += ['', lr['line']]
+    rs = st.get('residual')
+    if rs and rs.get('why'):
+        lines += ['', f"Residual network (--residual {rs['mode']}): {rs['why']}."]
     return lines
 
 
@@ -360,7 +363,7 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
     (per-state gains; the regime bins where the error falls most; where the network acts).
     Raises MissingDependencyError (saying how to install JAX) when it is missing.
     """
-    from mmg_tuner.diagnosis.select import jackknife_se
+    from mmg_tuner.diagnosis.stats import jackknife_se
     from mmg_tuner.learn import ResidualConfig, train_residual
     from mmg_tuner.learn.model import Model
     from mmg_tuner.learn.residual import simulate_segments

@@ -14,7 +14,7 @@ import mmg_tuner as mt
 from mmg_tuner.cli import diagnose as cli_diagnose
 from mmg_tuner.cli import tune as cli_tune
 from mmg_tuner.data.generate import generate_trial, SensorNoise
-from mmg_tuner.diagnosis.select import SearchCheckpoint
+from mmg_tuner.diagnosis.checkpoint import SearchCheckpoint
 from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
 from mmg_tuner.tuning import tuner as tuner_mod
 import numpy as np

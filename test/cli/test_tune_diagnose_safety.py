@@ -16,7 +16,7 @@ from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli import diagnose as cli_diagnose
 from mmg_tuner.cli import tune as cli_tune
 from mmg_tuner.data.generate import generate_trial, SensorNoise
-from mmg_tuner.diagnosis.select import acceptance, DiagnosisSettings
+from mmg_tuner.diagnosis import acceptance, DiagnosisSettings
 from mmg_tuner.tuning import tuner as tuner_mod
 import numpy as np
 import pytest

@@ -174,7 +174,7 @@ def test_rpm_scale_is_named_when_the_propulsion_coefficients_are_known(suzaku):
 
 
 def test_an_estimate_pinned_on_its_bound_is_not_accepted():
-    from mmg_tuner.diagnosis.select import pinned_on_bound
+    from mmg_tuner.diagnosis.stats import pinned_on_bound
     space = ParameterSpace(('R_0', 'antenna_x', 'antenna_y', 'current_dir', 'rudder_lag_tau'),
                            np.zeros(5), np.array([0, -40, -6.75, -math.pi, 0.0]),
                            np.array([1, 40, 6.75, math.pi, 20.0]))

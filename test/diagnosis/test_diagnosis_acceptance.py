@@ -1,5 +1,5 @@
 """The one acceptance rule: a test trial getting worse vetoes only when it matters."""
-from mmg_tuner.diagnosis.select import acceptance, DiagnosisSettings
+from mmg_tuner.diagnosis import acceptance, DiagnosisSettings
 import numpy as np
 
 

@@ -6,6 +6,7 @@ Effects hidden with the project's generator (``generate_trial``, its ``hull_scal
 would sail them (turning +-10/20/35/40 deg, zigzags 10/10 and 20/20; five tuned, five held
 out), the diagnose API with the quick budget.
 """
+import importlib.util
 import math
 
 import mmg_tuner as mt
@@ -25,19 +26,24 @@ SPECS = [('turning', 35, None), ('turning', -20, None), ('zigzag', 10, 10.0),
          ('turning', 40, None)]
 
 
-def _trials(ship, effect: dict, seed: int = 3, **change):
-    """Return (tune, test): SUZAKU's 12 targets moved inside the box, an effect hidden."""
+def _truth(ship, seed: int = 3):
+    """Return SUZAKU with its 12 targets moved inside the box: the hidden truth."""
     space = ParameterSpace.around(ship)
     rng = np.random.default_rng(seed)
     theta = space.pre + (space.upper - space.pre) * rng.uniform(-0.3, 0.3, space.dim)
-    truth = ship.with_params({**dict(zip(space.names, theta)), **effect})
+    return ship.with_params(dict(zip(space.names, theta)))
+
+
+def _trials(ship, effect: dict, seed: int = 3, **change):
+    """Return (tune, test): SUZAKU's 12 targets moved inside the box, an effect hidden."""
+    truth = _truth(ship, seed).with_params(effect)
     trials = [generate_trial(truth, m, a, c, 106.0, 3.086, 200.0, 1.0, SensorNoise(), 10 + i,
                              f'{m}{a:+d}', **change)[1] for i, (m, a, c) in enumerate(SPECS)]
     return trials[::2], trials[1::2]
 
 
-def _diagnose(ship, tune, test):
-    return mt.diagnose(ship, tune, test, budget='quick', max_effects=2)
+def _diagnose(ship, tune, test, **options):
+    return mt.diagnose(ship, tune, test, budget='quick', max_effects=2, **options)
 
 
 # ------------------------------------------------------------------------ quick, no search
@@ -132,12 +138,24 @@ def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
     said the model structure was the likely cause.
     """
     tune, test = _trials(suzaku, {}, hull_scale=1.45)
-    dx = _diagnose(suzaku, tune, test)
+    # residual 'auto' (the default): what remains is far above the noise, so with JAX the
+    # network is trained and says where the error lives (a small one: this is no benchmark)
+    dx = _diagnose(suzaku, tune, test, residual_options={'hidden': (16, 16), 'epochs': 40})
     assert dx.causes == [], [c.summary for c in dx.causes]
     assert dx.structure['verdict'] in ('structure', 'unexplained'), dx.structure['summary']
     assert dx.structure['remaining_is_noise'] is False   # after the named causes: none
     doc = dx.to_dict()
     assert doc['causes'] == [] and 'no sign of a structural gap' not in dx.structure['summary']
+    res = dx.structure['residual']
+    if importlib.util.find_spec('jax') is None:
+        assert res['trained'] is False and 'jax' in res['why'].lower()
+        pytest.skip('JAX is not installed: the residual network was (rightly) not trained')
+    assert res['mode'] == 'auto' and res['trained'] is True, res
+    assert res['why'].startswith('trained: what remains is not noise'), res['why']
+    learn = dx.structure['learnable']
+    assert {'u', 'v', 'r'} <= set(learn['per_state_gain'])
+    assert set(learn['regimes']) == {'speed', 'drift angle', 'rudder', 'propeller load'}
+    assert learn['line'].startswith('unexplained but learnable structure')
 
 
 def test_wind_and_a_rudder_offset_name_the_wind_and_say_what_remains(suzaku):
@@ -207,3 +225,48 @@ def test_a_current_and_a_steering_gear_lag_name_no_false_cause(suzaku):
     if named == ['current']:
         assert 'rudder_lag' in dx.barely_identifiable
     assert 'noise' in dx.structure['summary']
+
+
+# ------------------------------------------------------------- measurements as priors (i26)
+def test_a_measurements_file_is_checked_and_names_what_is_wrong(tmp_path):
+    from mmg_tuner.diagnosis.measured import load, Measurement
+    good = tmp_path / 'm.yaml'
+    good.write_text('measured:\n  R_0: {value: 0.0224, se: 0.0005, source: resistance test}\n')
+    assert load(good) == {'R_0': Measurement(0.0224, 0.0005, 'resistance test')}
+    assert mt.DiagnoseConfig(measured=str(good)).settings().measurements['R_0'].se == 0.0005
+    for text, what in (('measured:\n  R_x: {value: 1, se: 1}\n', "no parameter 'R_x'"),
+                       ('measured:\n  R_0: {value: 0.02, se: 0}\n', 'se > 0'),
+                       ('measured:\n  R_0: 0.02\n', 'measured.R_0: must be'),
+                       ('R_0: 0.02\n', "no 'measured:' mapping")):
+        bad = tmp_path / 'bad.yaml'
+        bad.write_text(text)
+        with pytest.raises(ConfigError, match=what) as e:
+            load(bad)
+        assert str(bad) in str(e.value)
+
+
+def test_a_loose_measurement_leaves_room_for_the_antenna_and_a_tight_one_holds(suzaku):
+    """
+    R_0, t_P and w_P0 measured 8 % off the truth, an antenna 20 m forward, 3 m to starboard.
+
+    Held fixed at such values (the advice's re-run before issue 26), the other coefficients
+    absorb the measurements' error; as priors with a loose standard error the trials move
+    them and the antenna is found. With a tight one the coefficient stays at its measurement.
+    """
+    from mmg_tuner.diagnosis.measured import Measurement
+    truth = _truth(suzaku)
+    tune, test = _trials(suzaku, {'antenna_x': 20.0, 'antenna_y': 3.0})
+    off = {n: 1.08 * truth[n] for n in ('R_0', 't_P', 'w_P0')}
+    kw = {'budget': 'quick', 'max_effects': 1, 'residual': False,
+          'effects': ['antenna_offset', 'prop_side_force']}
+    loose = mt.diagnose(suzaku, tune, test, measured={
+        n: Measurement(v, 0.2 * abs(v)) for n, v in off.items()}, **kw)
+    assert [c.effect for c in loose.causes] == ['antenna_offset'], \
+        [c.summary for c in loose.causes]
+    # forward within its smallest worth finding (5 m); athwartships is the weaker direction
+    # (0.8 m for 3 m here): not asserted
+    assert loose.causes[0].parameters['antenna_x'] == pytest.approx(20.0, abs=5.0)
+    tight = mt.diagnose(suzaku, tune, test, measured={
+        n: Measurement(v, 1e-4 * abs(v)) for n, v in off.items()}, **kw)
+    for n, v in off.items():
+        assert tight.params[n] == pytest.approx(v, rel=2e-3), n   # (8 % off the truth)

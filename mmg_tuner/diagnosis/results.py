@@ -1,0 +1,90 @@
+"""
+What a diagnosis returns: the candidates of each round, the named causes, the whole result.
+
+Moved from ``select.py`` unchanged.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+import math
+
+from mmg_tuner.core.effects import describe_values, EFFECTS
+from mmg_tuner.diagnosis.context import Setting
+from mmg_tuner.diagnosis.settings import MEASURED
+
+
+@dataclass
+class Candidate:
+    effect: str
+    J_test: float
+    per_trial_gain: list[float]
+    gain: float
+    gain_se: float
+    accepted: bool
+    values: dict[str, float]
+    screen_drop: float = 0.0
+    on_bound: list[str] = field(default_factory=list)
+    J_ref: float = math.nan          # held-out J of the model it is compared with
+    impossible: str = ''             # why it cannot exist in this setting ('' if it can)
+    diverged: str = ''               # 'diverged on trial X at t = ...' ('' if it did not)
+    significant: bool = False        # passed the acceptance rule (named only if also possible,
+    #                                  not on a bound and not too small)
+    implausible: str = ''            # why the fit is implausible for the ship (plausible.py)
+    inconsistent: str = ''           # why it is not one value for all trials, or makes a
+    #                                  held-out trial clearly worse ('' if neither)
+    per_trial_estimates: list[dict] = field(default_factory=list)   # fitted on each held-out
+
+
+@dataclass
+class Cause:
+    """
+    A named cause.
+
+    The effect, its estimated parameters (SI, radians) with Gauss-Newton standard errors, and the
+    held-out gain (1 - J_test(with it) / J_test(without)) with its jackknife standard error over
+    test trials. A measured signal used as a cause (e.g. ``measured_wind``) has no parameters.
+    """
+
+    effect: str
+    parameters: dict[str, float]
+    uncertainty: dict[str, float]
+    heldout_gain: float
+    heldout_gain_se: float
+    indistinguishable_from: list[str] = field(default_factory=list)
+    description: str = ''
+
+    @property
+    def summary(self) -> str:
+        """
+        Human wording, e.g.
+
+        'current 0.30 ± 0.0013 m/s toward 115 ± 0.54 deg'.
+        """
+        if self.effect in MEASURED:
+            return self.effect.replace('_', ' ') + ' used'
+        return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), 'summary': self.summary}
+
+
+@dataclass
+class Diagnosis:
+    causes: list[Cause]
+    baseline: dict
+    final: dict
+    rounds: list[list[Candidate]] = field(default_factory=list)
+    params: dict[str, float] = field(default_factory=dict)
+    base_params: dict[str, float] = field(default_factory=dict)
+    wall_s: float = 0.0
+    aliased: dict[str, dict] = field(default_factory=dict)
+    setting: Setting = field(default_factory=Setting)
+    impossible: dict[str, str] = field(default_factory=dict)   # effect -> why, this setting
+    impossible_fits: list[dict] = field(default_factory=list)  # significant but impossible
+    measured: list[dict] = field(default_factory=list)         # measured signals: with/without
+    timings_s: dict[str, float] = field(default_factory=dict)  # wall time per stage
+    measured_wind_used: bool = False     # the final model is driven by the measured wind
+    advice: list[dict] = field(default_factory=list)           # see diagnosis/advice.py
+    # the sensor noise estimated from the held-out recordings and the held-out J it alone
+    # leaves with the base model (diagnosis/noise.py): {'sigma': {state: sd}, 'J', 'J_se', ...}
+    noise: dict = field(default_factory=dict)
