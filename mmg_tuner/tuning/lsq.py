@@ -18,6 +18,7 @@ import numpy as np
 
 logger = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class LocalFit:
     """theta: the values (never worse than the start by J); simulations: what it cost."""
