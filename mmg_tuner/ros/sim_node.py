@@ -6,8 +6,8 @@ Subscribes rudder, propeller and (for a model with them) bow and stern thruster 
 ``odom`` frame (REP-105: header ``odom``, child ``base_link``; for an ensemble model its
 covariance from the members' spread, zeros otherwise: ``ros/uncertainty.py``) and TF
 ``odom -> base_link`` whenever the state has advanced (checked at ``rate_hz``, so at most
-once per step ``dt``: never a repeated stamp), the static ``map -> odom`` unless ``publish_map_to_odom`` is false (another
-localisation source owns it), optional
+once per step ``dt``: never a repeated stamp), the static ``map -> odom`` unless
+``publish_map_to_odom`` is false (another localisation source owns it), optional
 simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) on simulated time, and its
 health on ``/diagnostics`` at 1 Hz; ``~/reset`` (std_srvs/Trigger) returns to the initial
 state. Topic names are relative and the ship's frames carry ``frame_prefix`` (default: the
