@@ -247,8 +247,11 @@ def main(argv: list[str] | None = None) -> dict:
             'held_out_runs': [t.name for t in test], 'fold': args.fold,
             'inputs_sha256': inputs_fingerprint(ship.source)}
     write_atomic(args.out, text + yaml.safe_dump({'provenance': prov}, sort_keys=False))
-    print(f'tuning: {evals} evaluations ({how}), {tune_s:.0f} s; training objective per '
-          f'sample {J0 / n_samples:.4f} -> {J_end / n_samples:.4f}')
+    # simulations x one simulation's cost is the figure to compare across machines and loads
+    per_sim_ms = tune_s / max(evals, 1) * 1e3
+    print(f'tuning: {evals} evaluations ({how}), {tune_s:.0f} s wall ({per_sim_ms:.0f} '
+          f'ms per simulation; one objective evaluation {t_eval * 1e3:.0f} ms); training '
+          f'objective per sample {J0 / n_samples:.4f} -> {J_end / n_samples:.4f}')
     print('| parameter | published | tuned | box |')
     print('|---|---|---|---|')
     for n, v, lo, hi in zip(space.names, theta, space.lower, space.upper):

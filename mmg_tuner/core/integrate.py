@@ -3,8 +3,9 @@ Fixed-step integration of the family-blind dynamics, compiled with numba.
 
 ``advance`` (one sample interval; the one implementation used by offline simulation, the tuning
 objective and the simulator node), whole trajectories (``simulate_one``/``simulate_many``),
-manoeuvres with a steering gear in the loop (``run_maneuver``) and the tuning cost
-(``trajectory_cost``/ ``cost_many``). The hybrid's runs (``learn/residual.py``) call the same
+manoeuvres with a steering gear in the loop (``run_maneuver``), the tuning cost
+(``trajectory_cost``/ ``cost_many``) and its residual vector for least squares
+(``residuals_many``: no trajectories kept). The hybrid's runs (``learn/residual.py``) call the same
 ``advance`` with the network's accelerations.
 
 Every kernel takes the family's tag ``kind`` first and passes it down to
@@ -433,6 +434,68 @@ def _cost_many(kind, params, meas, ctrls, lengths, dt, substeps, method, weights
 
 
 @njit(cache=True, fastmath=FASTMATH)
+def _trajectory_residuals(kind, p_in, meas, ctrl, T, dt, substeps, method, sw, chans, out):
+    """
+    Write the weighted errors whose squares _trajectory_cost sums, one per (sample, channel).
+
+    Samples 1..T-1 in order, for each the channels ``chans`` (those of nonzero weight):
+    out[(k - 1) * len(chans) + c] = sw[chans[c]] * (observed - measured) (heading wrapped),
+    sw the square roots of the weights. The run starts from meas[0] and is never restarted.
+    After a failure (diverged or left the model's range) the remaining entries are 1e6, a
+    finite stand-in so a least-squares solver sees a large, not an undefined, error.
+    Returns k_fail (T when the run completed).
+    """
+    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
+    s = np.empty(6)
+    o = np.empty((1, 6))
+    a = np.zeros(N_ACT_STATES)
+    nc = chans.shape[0]
+    shift = p[_toff] / dt
+    actuate_start(kind, p, ctrl, shift, T, a)
+    measured_wind = has_measured_wind(ctrl)  # decided once per run
+    start_state(p, meas[0], s)
+    k_fail = T
+    for k in range(T - 1):
+        if measured_wind:
+            use_measured_wind(p, ctrl, k)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
+                         True)
+        if status != OK:
+            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
+            break
+        observe_row(p, s, o, 0)
+        m = k + 1
+        for c in range(nc):
+            i = chans[c]
+            e = o[0, i] - meas[m, i]
+            if i == 2:
+                e = wrap_pi(e)
+            out[k * nc + c] = sw[i] * e
+    if k_fail < T:
+        for j in range(max(k_fail - 1, 0) * nc, (T - 1) * nc):
+            out[j] = 1e6
+    return k_fail
+
+
+@njit(cache=True, parallel=True)
+def _residuals_many(kind, params, meas, ctrls, lengths, dt, substeps, method, sw, chans,
+                    offsets, out, k_fail):
+    """
+    _trajectory_residuals for every (candidate, trial) pair, in parallel.
+
+    sw (M, 6): each trial's square-root weights; trial j fills out[i, offsets[j]:offsets[j + 1]].
+    """
+    N = params.shape[0]
+    M = meas.shape[0]
+    for job in prange(N * M):
+        i = job // M
+        j = job % M
+        k_fail[i, j] = _trajectory_residuals(kind, params[i], meas[j], ctrls[j], lengths[j], dt,
+                                             substeps, method, sw[j], chans,
+                                             out[i, offsets[j]:offsets[j + 1]])
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def _actuator_outputs(kind, p, ctrl, T, dt, out):
     """
     Fill out (T, n) with the actuator tuple acting over each sample interval.
@@ -486,5 +549,6 @@ simulate_many = _for_family(_simulate_many)
 run_maneuver = _for_family(_run_maneuver)
 trajectory_cost = _for_family(_trajectory_cost)
 cost_many = _for_family(_cost_many)
+residuals_many = _for_family(_residuals_many)
 actuator_outputs = _for_family(_actuator_outputs)
 accelerations_many = _for_family(_accelerations_many)

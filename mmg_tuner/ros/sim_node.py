@@ -6,10 +6,11 @@ Subscribes rudder, propeller and (for a model with them) bow and stern thruster 
 thruster (the twin-azimuth tug, the Otter), each thruster's shaft speed and azimuth angle on
 VRX-style topics ``thrusters/<name>/thrust`` and ``thrusters/<name>/pos``, publishing the
 azimuth angles as sensor_msgs/JointState -- publishes nav_msgs/Odometry in the
-``odom`` frame (REP-105: header ``odom``, child ``base_link``) and TF ``odom -> base_link``
-whenever the state has advanced (checked at ``rate_hz``, so at most once per step ``dt``: never
-a repeated stamp), the static ``map -> odom`` unless ``publish_map_to_odom`` is false (another
-localisation source owns it), optional
+``odom`` frame (REP-105: header ``odom``, child ``base_link``; for an ensemble model its
+covariance from the members' spread, zeros otherwise: ``ros/uncertainty.py``) and TF
+``odom -> base_link`` whenever the state has advanced (checked at ``rate_hz``, so at most
+once per step ``dt``: never a repeated stamp), the static ``map -> odom`` unless
+``publish_map_to_odom`` is false (another localisation source owns it), optional
 simulated GNSS (sensor_msgs/NavSatFix) and IMU (sensor_msgs/Imu) on simulated time, and its
 health on ``/diagnostics`` at 1 Hz; ``~/reset`` (std_srvs/Trigger) returns to the initial
 state. Topic names are relative and the ship's frames carry ``frame_prefix`` (default: the
@@ -36,6 +37,7 @@ from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, 
 from mmg_tuner.ros.health import CommandHealth, Health
 from mmg_tuner.ros.run import declare_parameters, Param, spin_node
 from mmg_tuner.ros.sensors import datum_from_params, SimulatedSensors
+from mmg_tuner.ros.uncertainty import EnsembleSpread, fill_covariance
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -172,6 +174,7 @@ class SimNode(Node):
         self._check_frames(self.p)
         datum_from_params(self.p)  # a bad datum is refused at start (ConfigError)
         self.sim = self._build(self.p)
+        self._spread = EnsembleSpread.of(self.sim, self.p['integrator'])
         self._pending: ShipSimulator | None = None  # built by _validate, taken by _apply
         self.frames = self._frames(self.p)
         world, odom, body = self.frames
@@ -410,6 +413,7 @@ class SimNode(Node):
         t = self.stamp0 + self.sim.t
         state = self.sim.observed()
         msg = odometry_from_state(state, t, msg=self._odom)
+        fill_covariance(msg, self._spread, self.sim, self._runs, state)
         self.odom_pub.publish(msg)
         if self._tf is not None:
             transform_from_state(state, t, msg=self._tf.transforms[0])
@@ -557,6 +561,7 @@ class SimNode(Node):
         self.p.update({p.name: p.value for p in params})
         if names & RESTART_PARAMS:
             self.sim = self._pending or self._build(self.p)
+            self._spread = EnsembleSpread.of(self.sim, self.p['integrator'])
             self._pending = None
             self.health.hardware_id = self.sim.ship.name
             for w in THRUSTERS if not self.channel_topics else ():

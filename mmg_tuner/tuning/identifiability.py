@@ -12,7 +12,7 @@ not as confidence intervals.
 """
 from __future__ import annotations
 
-from mmg_tuner.core.simulate import simulate_batch
+from mmg_tuner.core.integrate import residuals_many
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
@@ -29,19 +29,20 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     without restarts: ``shoot_every`` is not modelled here).
     """
     b = objective.batch
-    x0s = np.ascontiguousarray(b.meas[:, 0, :])
-    integ = {0: 'euler', 1: 'rk4'}[objective.method]
-    out, _, _ = simulate_batch(objective.ship.kind, params, x0s, objective.ctrls, b.dt,
-                               b.lengths, integ, objective.substeps)
-    err = out - b.meas[None]
-    err[..., 2] = (err[..., 2] + np.pi) % (2 * np.pi) - np.pi
-    mask = np.arange(b.meas.shape[1])[None, :] < b.lengths[:, None]
-    mask[:, 0] = False
-    err = err * np.sqrt(objective.weights)
-    if objective.trial_weights is not None:   # the balance of trials, pieces or groups
-        err = err * np.sqrt(objective.trial_weights)[None, :, None, None]
-    err = np.where(np.isfinite(err), err, 1e6)
-    r = err[:, mask][..., np.sqrt(objective.weights) > 0].reshape(params.shape[0], -1)
+    params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
+    sw = np.sqrt(objective.weights)
+    chans = np.flatnonzero(sw > 0).astype(np.int64)
+    tw = (np.ones(len(b.lengths)) if objective.trial_weights is None
+          else objective.trial_weights)   # the balance of trials, pieces or groups
+    sw_trial = np.ascontiguousarray(sw[None, :] * np.sqrt(tw)[:, None])
+    offsets = np.concatenate([[0], np.cumsum((b.lengths - 1) * len(chans))]).astype(np.int64)
+    r = np.empty((params.shape[0], int(offsets[-1])))
+    k_fail = np.empty((params.shape[0], len(b.lengths)), dtype=np.int64)
+    # compiled: the errors go straight into r, no trajectories are kept (the old route through
+    # simulate_batch spent a third of a least-squares fit building and masking them)
+    residuals_many(objective.ship.kind, params, b.meas, objective.ctrls, b.lengths, b.dt,
+                   objective.substeps, objective.method, sw_trial, chans, offsets, r, k_fail)
+    r[~np.isfinite(r)] = 1e6
     pr = objective.prior
     if pr is None:
         return r

@@ -372,3 +372,69 @@ def test_ship_without_thrusters_refuses_them_with_one_warning(ros):
         out = stop(proc)
     assert len(sent) > 20 and out.count('has no thrusters') == 1, out
     assert 'Traceback' not in out
+
+
+def _ensemble_params(d) -> str:
+    """Write a suzaku ensemble of two networks that disagree on the yaw acceleration."""
+    import yaml
+    from mmg_tuner.learn.model import Model
+    from mmg_tuner.learn.residual import ResidualNet, zero_net
+    from mmg_tuner.learn.train import ensemble, members
+    from mmg_tuner.tuning.interval import Interval, with_interval
+
+    def kick(dr, seed):
+        net = zero_net(2, 1.0)
+        b = list(net.biases)
+        b[-1] = np.array([0.0, 0.0, dr])
+        return ResidualNet(net.window, net.dt_s, net.weights, tuple(b), net.x_mean, net.x_std,
+                           net.y_scale, True, seed=seed)
+
+    ship = load_ship('suzaku')
+    ens = ensemble([kick(2e-4, 1), kick(-2e-4, 2)])
+    iv = Interval(Model(ship, ens), tuple(Model(ship, n) for n in members(ens)), (1.5,) * 6,
+                  0.9)
+    d.mkdir(parents=True, exist_ok=True)
+    with_interval(iv).residual.save(d / 'params.residual.npz')
+    (d / 'params.yaml').write_text(yaml.safe_dump({'ship': 'suzaku', 'params': {'t_P': 0.08},
+                                                   'residual': 'params.residual.npz'}))
+    return str(d / 'params.yaml')
+
+
+def test_odometry_covariance_grows_with_an_ensemble_and_is_zero_without(ros, tmp_path):
+    env, node, ex = ros
+    got = {'ens': [], 'plain': []}
+    procs = {'ens': start('sim_node', env, f'params_file:={_ensemble_params(tmp_path / "e")}',
+                          'real_time_factor:=20.0', 'odom_topic:=/ens/odom',
+                          'publish_tf:=false', ros_args=('-r', '__node:=sim_ens')),
+             'plain': start('sim_node', env, 'real_time_factor:=20.0',
+                            'odom_topic:=/plain/odom', 'publish_tf:=false',
+                            ros_args=('-r', '__node:=sim_plain'))}
+    subs = [node.create_subscription(Odometry, f'/{k}/odom', lambda m, k=k: got[k].append(m),
+                                     50) for k in got]
+    try:
+        # stamps are wall-clock based (no publish_clock): count from each node's first
+        assert spin_until(ex, lambda: all(got[k] and seconds_from_stamp(
+            got[k][-1].header.stamp) - seconds_from_stamp(got[k][0].header.stamp) >= 60.0
+            for k in got), 240), \
+            '\n'.join(stop(p) for p in procs.values())
+    finally:
+        for sub in subs:
+            node.destroy_subscription(sub)
+        for p in procs.values():
+            stop(p)
+    for m in got['plain']:   # a plain model: no estimate of its error, all zeros as before
+        assert not np.any(m.pose.covariance) and not np.any(m.twist.covariance)
+    t0 = seconds_from_stamp(got['ens'][0].header.stamp)
+    late = [m for m in got['ens'] if seconds_from_stamp(m.header.stamp) - t0 >= 5.0]
+    for m in late:   # the members drift apart in heading, position and yaw rate
+        for k in (0, 7, 35):
+            assert m.pose.covariance[k] > 0.0
+        assert m.twist.covariance[35] > 0.0
+        assert m.pose.covariance[14] == 0.0   # z: not modelled
+    yaw_var = [m.pose.covariance[35] for m in late]
+    pos_var = [m.pose.covariance[0] + m.pose.covariance[7] for m in late]
+    # free run: the spread grows (a constant yaw-acceleration gap integrates twice)
+    seen = [(round(seconds_from_stamp(m.header.stamp) - t0, 1), m.pose.covariance[35])
+            for m in late]
+    assert yaw_var[-1] > 10 * yaw_var[0] and pos_var[-1] > 10 * pos_var[0], seen[:5] + seen[-5:]
+    assert np.all(np.diff(yaw_var) >= 0)

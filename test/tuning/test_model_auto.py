@@ -74,6 +74,45 @@ def test_interval_calibrated_on_trials_covers_its_level_and_travels_with_the_mod
     assert 'Prediction interval (nominal 90 %)' in res.markdown()
 
 
+def test_simulator_members_spread_grows_in_free_run_and_plain_models_have_none():
+    # the sim_node's covariance (ros/uncertainty.py, no ROS needed): the members are stepped
+    # with the simulator's commands; their calibrated spread grows in free run
+    from types import SimpleNamespace
+    from mmg_tuner.core.stepper import ShipSimulator
+    from mmg_tuner.ros.uncertainty import EnsembleSpread, fill_covariance
+    ship = mt.load_ship('suzaku')
+    model = mt.Model(ship, ensemble([_kick(2e-4), _kick(-2e-4)]))
+    iv = Interval(model, tuple(mt.Model(ship, n) for n in members(model.residual)),
+                  (2.0,) * 6, 0.9)
+    ens = with_interval(iv)
+    sim = ShipSimulator(ship, 0.1, [0, 0, 0, 3.0, 0, 0], 100.0, residual=ens.residual)
+    plain = ShipSimulator(ship, 0.1, [0, 0, 0, 3.0, 0, 0], 100.0)
+    assert EnsembleSpread.of(plain, 'rk4') is None
+    spread = EnsembleSpread.of(sim, 'rk4')
+    msg = SimpleNamespace(pose=SimpleNamespace(covariance=[9.0] * 36),
+                          twist=SimpleNamespace(covariance=[9.0] * 36))
+    fill_covariance(msg, None, plain, 0, plain.observed())
+    assert msg.pose.covariance == [0.0] * 36 and msg.twist.covariance == [0.0] * 36
+    yaw = []
+    for _ in range(6):
+        sim.set_rudder(0.2)
+        sim.step(100)
+        fill_covariance(msg, spread, sim, 1, sim.observed())
+        yaw.append(msg.pose.covariance[35])
+        assert msg.pose.covariance[0] >= 0 and msg.twist.covariance[35] > 0
+    assert np.all(np.diff(yaw) > 0) and yaw[0] > 0
+    # c x the members' standard deviation: two members at +-d about the centre give c*d*sqrt(2)
+    alone = [ShipSimulator(ship, 0.1, [0, 0, 0, 3.0, 0, 0], 100.0, 0.2, residual=m.residual)
+             for m in iv.members]
+    for a in alone:
+        assert a.step(600)
+    dev = np.array([a.observed()[2] for a in alone]) - sim.observed()[2]
+    assert msg.pose.covariance[35] == pytest.approx(4.0 * np.sum(dev ** 2), rel=1e-6)
+    sim.reset()   # a new run: the members start again with the simulator
+    fill_covariance(msg, spread, sim, 2, sim.observed())
+    assert msg.pose.covariance[35] == 0.0 and all(m.steps == 0 for m in spread.members)
+
+
 def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials, tmp_path):
     pytest.importorskip('jax')
     groups = {t.name: KINDS[t.name] for t in trials}
@@ -113,6 +152,39 @@ def test_polish_alone_tunes_from_the_pre_determined_values(trials):
     assert res.params['N_r'] == pytest.approx(ship['N_r'], rel=0.05)
     with pytest.raises(mt.MmgTunerError, match='max_evals'):
         mt.TuneConfig(max_evals=0)
+
+
+def test_residuals_square_to_the_balanced_objective_with_its_prior(trials):
+    # the compiled residual kernel: its sum of squares is exactly what the objective minimises
+    from mmg_tuner.tuning.identifiability import residuals
+    from mmg_tuner.tuning.objective import Objective, Prior, TrialBatch
+    from mmg_tuner.tuning.parameters import ParameterSpace
+    ship = mt.load_ship('suzaku')
+    space = ParameterSpace.around(ship, ['N_r', 'Y_v'])
+    prior = Prior(space.indices, space.pre, space.upper - space.lower, 3.0)
+    obj = Objective(ship, TrialBatch.from_trials(trials), np.array([1, 1, 50, 4, 4, 900.0]),
+                    integrator='rk4', trial_weights=np.array([0.5, 2.0, 1.0, 0.0]),
+                    prior=prior)
+    P = space.full_params(ship.params, np.array([space.pre, 1.3 * space.pre]))
+    r = residuals(obj, P)
+    assert r.shape == (2, 6 * sum(len(t) - 1 for t in trials) + 2)
+    np.testing.assert_allclose(np.sum(r * r, axis=1), obj(P), rtol=1e-9)
+    assert np.sum(r[1] ** 2) > 10 * np.sum(r[0] ** 2)
+
+
+def test_polish_of_many_parameters_converges_in_few_simulations(trials):
+    # six targets: the Jacobian after the first is a Broyden update while steps go well, so
+    # the fit costs far fewer than d + 1 = 7 simulations per step, and it ends at an optimum
+    # (the generated trials carry effects the ship lacks: their truth is not the optimum)
+    ship = mt.load_ship('suzaku')
+    names = ['N_r', 'Y_v', 'N_v', 'Y_r', 'R_0', 't_P']
+    start = ship.with_params({n: 1.15 * ship[n] for n in names})
+    res = mt.tune(start, trials, targets=names, max_evals=0, polish=300)
+    assert res.J.tune < 0.1 * res.J_pre.tune
+    assert res.evaluations < 100
+    again = mt.tune(start.with_params(res.params), trials, targets=names, max_evals=0,
+                    polish=300)
+    assert again.J.tune > 0.99 * res.J.tune
 
 
 def test_ship_recipe_fills_only_the_options_not_given():
