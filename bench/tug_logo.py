@@ -2,6 +2,7 @@
 MBPE-LOGO on the synthetic Qiuxin No.5 twin: LO, GO, LO -> GO; 22 vs 6 coefficients.
 
   python bench/tug_logo.py [--noise rtk|none] [--seed 0] [--cmaes-evals 3000] [--out DIR]
+                           [--starts 20] [--convergence-only]
 
 Truth: ``config/qiuxin_tug.yaml`` (the paper's Table 3 coefficients, Pedersen's Coriolis form)
 with its labelled stand-ins (thrust 0.4 n|n| N per thruster, azimuth k1 = 4 1/s^2, k2 = 3.6
@@ -25,7 +26,9 @@ config's values moved by up to +-20 %), LO -> GO; the 6-coefficient model
 same 20 s pieces, a prior toward LO) against the Levenberg-Marquardt GO. Scored on the held-out
 runs: free-run relative errors ||y_model - y|| / ||y|| of u, v, r (pooled) beside the paper's
 Table 5, n-step RMSE (n = 1 ... 50), coefficient errors, wall time (figures taken on a shared
-machine under load: compare them with each other, not with another computer).
+machine under load: compare them with each other, not with another computer). Convergence:
+LO -> GO and GO alone from 20 starts with every coefficient moved by a factor log-uniform in
+[0.5, 1.5] (seeds fixed), the spread of the held-out errors and of the coefficient errors.
 """
 from __future__ import annotations
 
@@ -169,6 +172,79 @@ def pct(rel) -> str:
     return ' / '.join('fail' if rel[k] is None else f'{100 * rel[k]:.3g}' for k in 'uvr')
 
 
+def perturbed(truth, names, rng, spread: float = 0.5) -> dict[str, float]:
+    """
+    The coefficients each times a factor log-uniform in [1 - spread, 1 + spread].
+
+    Signs are kept; m23, whose published value (1.1 kg m) is small beside its box, is drawn
+    like the rest.
+    """
+    lo, hi = math.log(1 - spread), math.log(1 + spread)
+    return {n: truth[n] * math.exp(rng.uniform(lo, hi)) for n in names}
+
+
+def convergence(truth, train, test, bollard, starts: int = 20, seed: int = 0) -> dict:
+    """
+    LO -> GO and GO alone from ``starts`` perturbed starts (seeds fixed): the spread.
+
+    Each start moves every coefficient by a factor log-uniform in [0.5, 1.5]
+    (:func:`perturbed`, generator seeded with ``seed + 1000 + k`` for start k). Returns, per
+    method, the held-out free-run relative errors of u, v, r [%] and the median and largest
+    coefficient error [%] of every start (None where the run failed or its model diverged on
+    a held-out run), with their summary (median, min, max over the starts).
+    """
+    names = lo_go.coefficient_names(truth)
+    true = np.array([truth[n] for n in names])
+    out: dict = {'starts': starts, 'seed': seed, 'methods': {}}
+    for label, cfg in (('LO -> GO', mt.IdentifyConfig(bollard_pull=bollard)),
+                       ('GO alone', mt.IdentifyConfig(method='go', bollard_pull=bollard,
+                                                      ridge=0.0))):
+        runs = []
+        for k in range(starts):
+            start = truth.with_params(perturbed(truth, names, np.random.default_rng(
+                seed + 1000 + k)))
+            t = time.perf_counter()
+            try:
+                res = mt.identify(start, train, config=cfg)
+            except mt.errors.MmgTunerError as exc:
+                runs.append({'start': k, 'failed': str(exc)})
+                continue
+            sc = score(res.identified_ship, test)
+            th = np.array([res.params[n] for n in names])
+            err = np.abs(th / true - 1) * 100
+            rel = sc['rel']
+            runs.append({'start': k, 'wall_s': time.perf_counter() - t,
+                         'rel_pct': {q: None if rel[q] is None else 100 * rel[q]
+                                     for q in 'uvr'},
+                         'coef_median_pct': float(np.median(err)),
+                         'coef_max_pct': float(np.max(err))})
+        summary = {}
+        for key in ('u', 'v', 'r', 'coef_median_pct', 'coef_max_pct'):
+            vals = [r['rel_pct'][key] if key in 'uvr' else r[key] for r in runs
+                    if 'failed' not in r and (key not in 'uvr' or r['rel_pct'][key] is not None)]
+            summary[key] = ({'median': float(np.median(vals)), 'min': float(np.min(vals)),
+                             'max': float(np.max(vals))} if vals else None)
+        summary['failed'] = sum('failed' in r or None in r['rel_pct'].values() for r in runs)
+        out['methods'][label] = {'runs': runs, 'summary': summary}
+    return out
+
+
+def print_convergence(conv: dict) -> None:
+    """Print :func:`convergence`'s spread: median [min, max] over the starts."""
+    print(f"\nconvergence from {conv['starts']} starts, every coefficient x log-uniform "
+          f"[0.5, 1.5] (seeds {conv['seed'] + 1000} ...): median [min, max] over the starts")
+    print(f'{"method":<12} {"u %":>22} {"v %":>22} {"r %":>22} {"median coef err %":>24} '
+          f'{"largest coef err %":>24} {"failed":>6}')
+
+    def cell(s):
+        return '-' if s is None else f"{s['median']:.3g} [{s['min']:.3g}, {s['max']:.3g}]"
+    for label, m in conv['methods'].items():
+        s = m['summary']
+        print(f'{label:<12} ' + ' '.join(f'{cell(s[k]):>22}' for k in 'uvr')
+              + f' {cell(s["coef_median_pct"]):>24} {cell(s["coef_max_pct"]):>24} '
+              f'{s["failed"]:>6}')
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--noise', choices=('rtk', 'none'), default='rtk')
@@ -179,6 +255,11 @@ def main() -> None:
                     help="'generate': the repository's twin (generate --ship qiuxin_tug); "
                     "'builtin': this file's smaller catalogue")
     ap.add_argument('--data', default='bench/out/tug_logo', help='where generate writes')
+    ap.add_argument('--starts', type=int, default=20,
+                    help='convergence: LO -> GO and GO alone from this many perturbed starts '
+                    '(0: skip)')
+    ap.add_argument('--convergence-only', action='store_true',
+                    help='run only the convergence from perturbed starts')
     a = ap.parse_args()
     truth = mt.load_ship('qiuxin_tug')
     names = lo_go.coefficient_names(truth)
@@ -195,6 +276,11 @@ def main() -> None:
     print(f'twin ({a.twin}): {len(train)} identification manoeuvres ({sum(len(t) for t in train)} '
           f'samples), {len(test)} held out; noise {a.noise}; ready in '
           f'{time.perf_counter() - t0:.1f} s')
+    if a.convergence_only:
+        mt.identify(truth, train[:1], method='lo-go', max_iter=1)   # compile first
+        score(truth, test[:1])
+        print_convergence(convergence(truth, train, test, bollard, a.starts, a.seed))
+        return
     rows, scores = [], {}
     s6 = mt.load_ship('qiuxin_tug_simplified6')
     for ship in (truth, s6):   # compile every kernel first: wall times without compilation
@@ -281,6 +367,8 @@ def main() -> None:
         print(f'\nCMA-ES from LO (same 20 s pieces, prior 1e-6, {fit.evaluations} evaluations):'
               f' held-out u / v / r {pct(sc["rel"])} %, {wall:.1f} s '
               f'(Levenberg-Marquardt GO: {rows[3][3]} %, {rows[3][2]:.1f} s)')
+    if a.starts:
+        print_convergence(convergence(truth, train, test, bollard, a.starts, a.seed))
     if a.out:
         out = Path(a.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -694,6 +694,15 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     clock = _Clock()
     clock('setup')
     effects = list(s.effects)
+    # an actuator's effects (core/effects.py Effect.actuator) act only where the family has it
+    foreign = [e for e in effects if EFFECTS[e].actuator not in ('', *ship.family.actuators)]
+    if foreign:
+        effects = [e for e in effects if e not in foreign]
+        log(f'   left out: {", ".join(foreign)} (effects of actuators {ship.name} has not: '
+            f'it has {", ".join(ship.family.actuators)})')
+        if not effects:
+            raise DiagnosisError(f'none of the effects {list(s.effects)} acts on {ship.name} '
+                                 f'(its actuators: {", ".join(ship.family.actuators)})')
     if 'wind' in effects and not ship.has_windage:
         effects.remove('wind')
         log(f'   wind left out: {ship.source or ship.name} has no windage section (A_F, A_L, '
