@@ -359,9 +359,8 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
     by = defaultdict(list)
     for r in rows:
         by[r['class']].append(r)
-    cols = [c for c in CLASSES if c not in OUT_OF_LIBRARY and c not in ('tug_clean',
-                                                                         'tug_current')]
-    cols += ['other']
+    tug_rows = ('tug_clean', 'tug_current')   # their named sets are columns already
+    cols = [c for c in CLASSES if c not in OUT_OF_LIBRARY and c not in tug_rows] + ['other']
     lines = [title, '',
              '| hidden \\ named | ' + ' | '.join(c.replace('_', ' ') for c in cols)
              + ' | correct | 2nd effect named | flagged barely identifiable |',

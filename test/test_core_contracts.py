@@ -71,7 +71,7 @@ def test_effect_entry_contract(name, suzaku, kvlcc2):
 
 
 def _twin_effect_hook_exists(e):
-    """A twin_azimuth effect vanishes at neutral and acts off it, on the tug."""
+    """Check that a twin_azimuth effect vanishes at neutral and acts off it, on the tug."""
     ship = load_ship('qiuxin_tug')
     T = 300
     ctrl = {'n_port': np.full(T, 8.0), 'n_stbd': np.full(T, 6.0),

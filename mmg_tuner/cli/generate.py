@@ -33,6 +33,7 @@ generate --ship qiuxin_tug --out tug_fouled --effect thrust_scale_stbd=0.85 \
 --effect hides any effect of the library (core/effects.py) in the truth, the tug's own among
 them (azimuth_offset_port/_stbd [rad], thrust_scale_port/_stbd); --scale moves one coefficient
 (e.g. N_r=1.45) outside the library.
+
 """
 from __future__ import annotations
 
