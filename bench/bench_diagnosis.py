@@ -76,7 +76,15 @@ import numpy as np
 OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
            'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force',
-           'current+rudder_lag', 'rudder_offset+wind', 'hull_scale', 'derivative_scale')
+           'current+rudder_lag', 'rudder_offset+wind', 'hull_scale', 'derivative_scale',
+           'tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd')
+# the twin-azimuth tug's classes (issue 24): qiuxin_tug's twin, not SUZAKU (see tug_case)
+TUG_CLASSES = ('tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd')
+# its trials: from generate's catalogue (data/generate.py twin_catalogue), 5 tuned, 5 held out
+TUG_TUNE = ('zigzag_p20deg_5rps', 'turning_p20deg_7rps', 'differential_1', 'random_1',
+            'zigzag_p20deg_10rps')
+TUG_TEST = ('zigzag_m20deg_7rps', 'turning_m20deg_7rps', 'differential_2', 'random_2',
+            'random_3')
 # classes hidden outside the effects library: nothing may be named
 OUT_OF_LIBRARY = ('hull_scale', 'derivative_scale')
 # the stages of a diagnosis, in the order they run (timings_s keys; others are appended)
@@ -91,9 +99,9 @@ def _sign(rng) -> float:
 
 def expected(cls: str) -> list[str]:
     """Return what a correct diagnosis names for a class, sorted."""
-    if cls == 'clean' or cls in OUT_OF_LIBRARY:
+    if cls in ('clean', 'tug_clean') or cls in OUT_OF_LIBRARY:
         return []
-    return sorted(cls.split('+'))
+    return sorted(cls.removeprefix('tug_').split('+'))
 
 
 def out_of_library_change(cls: str, rng: np.random.Generator) -> dict:
@@ -113,8 +121,15 @@ def random_effect(name: str, rng: np.random.Generator, small: bool = False
     A pair ('a+b') draws both; small: each member near the small end of its range (the
     pair classes alternate by seed).
     """
-    if name == 'clean' or name in OUT_OF_LIBRARY:
+    if name in ('clean', 'tug_clean') or name in OUT_OF_LIBRARY:
         return {}
+    if name == 'tug_current':   # the 1:20 tug in a pond: 0.1-0.3 m/s (0.45-1.3 m/s full scale)
+        return {'current_speed': rng.uniform(0.1, 0.3),
+                'current_dir': rng.uniform(-math.pi, math.pi)}
+    if name == 'azimuth_offset_port':
+        return {'azimuth_offset_port': _sign(rng) * math.radians(rng.uniform(2.0, 4.0))}
+    if name == 'thrust_scale_stbd':   # a fouled propeller: 10-25 % less thrust
+        return {'thrust_scale_stbd': 1.0 - rng.uniform(0.1, 0.25)}
     if '+' in name:
         out = {}
         for e in name.split('+'):
@@ -174,11 +189,32 @@ def _param_error(name: str, truth: dict, est: dict) -> dict[str, float]:
         if p.endswith('_dir'):
             e = (e + math.pi) % (2 * math.pi) - math.pi
             err[p + '_deg'] = abs(math.degrees(e))
-        elif p in ('rudder_offset',):
+        elif p in ('rudder_offset', 'azimuth_offset_port'):
             err[p + '_deg'] = abs(math.degrees(e))
         else:
             err[p] = abs(e)
     return err
+
+
+def tug_case(cls: str, seed: int):
+    """
+    (truth ship, hidden effect, tune trials, test trials) of a tug class.
+
+    qiuxin_tug at its published coefficients (the twin's truth; not moved: its diagnosis
+    starts from them, as a user's starts from the published values or a LO -> GO
+    identification passed as --params) with the effect hidden, sailing generate's catalogue
+    (TUG_TUNE, TUG_TEST) at 5 Hz with its RTK-class noise.
+    """
+    from mmg_tuner.data.generate import generate_twin_trial, twin_catalogue, TwinNoise
+    rng = np.random.default_rng(10_000 + seed)
+    effect = random_effect(cls, rng)
+    truth = load_ship('qiuxin_tug').with_params(effect)
+    cat = {m.name: m for m in twin_catalogue(truth)}
+
+    def sail(names, k0):
+        return [generate_twin_trial(truth, cat[n], 5.0, TwinNoise(),
+                                    seed * 100 + k0 + i)[1] for i, n in enumerate(names)]
+    return truth, effect, sail(TUG_TUNE, 0), sail(TUG_TEST, 50)
 
 
 def make_case(ship, cls: str, seed: int, n_trials: int, duration_s: float):
@@ -259,8 +295,12 @@ def best_advice(advice: list[dict]) -> dict | None:
 def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: float,
              retune: str = 'lsq', advice: bool = True,
              measurement_error: float = MEASUREMENT_ERROR) -> dict:
-    truth, effect, trials = make_case(ship, cls, seed, n_trials, duration_s)
-    tune, test = trials[::2], trials[1::2]
+    if cls in TUG_CLASSES:   # the tug's own twin; no advice loop (its specs are MMG ones)
+        ship, advice = load_ship('qiuxin_tug'), False
+        truth, effect, tune, test = tug_case(cls, seed)
+    else:
+        truth, effect, trials = make_case(ship, cls, seed, n_trials, duration_s)
+        tune, test = trials[::2], trials[1::2]
     d, wall = _diagnose(ship, tune, test, budget, seed, retune)
     row = {'class': cls, 'seed': seed, 'truth': effect, **_outcome(cls, effect, d, wall),
            'retune': retune, 'budget': budget}
@@ -321,7 +361,8 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
     by = defaultdict(list)
     for r in rows:
         by[r['class']].append(r)
-    cols = [c for c in CLASSES if c not in OUT_OF_LIBRARY] + ['other']
+    tug_rows = ('tug_clean', 'tug_current')   # their named sets are columns already
+    cols = [c for c in CLASSES if c not in OUT_OF_LIBRARY and c not in tug_rows] + ['other']
     lines = [title, '',
              '| hidden \\ named | ' + ' | '.join(c.replace('_', ' ') for c in cols)
              + ' | correct | 2nd effect named | flagged barely identifiable |',
@@ -341,7 +382,7 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
         lines.append(f'| {cls} | ' + ' | '.join(str(cnt.get(c, '')) if c != 'other'
                                                 else str(other or '') for c in cols)
                      + f' | {ok}/{len(rs)} | {second} | '
-                     + (f'{flagged}/{len(rs)}' if cls != 'clean' else '') + ' |')
+                     + (f'{flagged}/{len(rs)}' if expected(cls) else '') + ' |')
     lines += ['', f'Correct: {correct}/{total} = {100 * correct / max(total, 1):.0f} %', '']
     return lines, correct, total
 

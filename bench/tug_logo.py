@@ -2,9 +2,9 @@
 MBPE-LOGO on the synthetic Qiuxin No.5 twin: LO, GO, LO -> GO; 22 vs 6 coefficients.
 
   python -m bench run tug_logo [--quick] [--noise rtk|none] [--seed 0] [--cmaes-evals 3000]
-                               [--out DIR]
+                               [--out DIR] [--starts 20] [--convergence-only]
 
---quick skips the CMA-ES comparison (--cmaes-evals 0).
+--quick skips the CMA-ES comparison and the perturbed starts (--cmaes-evals 0 --starts 0).
 
 Truth: ``config/qiuxin_tug.yaml`` (the paper's Table 3 coefficients, Pedersen's Coriolis form)
 with its labelled stand-ins (thrust 0.4 n|n| N per thruster, azimuth k1 = 4 1/s^2, k2 = 3.6
@@ -169,9 +169,85 @@ def pct(rel) -> str:
     return ' / '.join('fail' if rel[k] is None else f'{100 * rel[k]:.3g}' for k in 'uvr')
 
 
+def perturbed(truth, names, rng, spread: float = 0.5) -> dict[str, float]:
+    """
+    Return the coefficients, each times a factor log-uniform in [1 - spread, 1 + spread].
+
+    Signs are kept; m23, whose published value (1.1 kg m) is small beside its box, is drawn
+    like the rest.
+    """
+    lo, hi = math.log(1 - spread), math.log(1 + spread)
+    return {n: truth[n] * math.exp(rng.uniform(lo, hi)) for n in names}
+
+
+def convergence(truth, train, test, bollard, starts: int = 20, seed: int = 0) -> dict:
+    """
+    LO -> GO and GO alone from ``starts`` perturbed starts (seeds fixed): the spread.
+
+    Each start moves every coefficient by a factor log-uniform in [0.5, 1.5]
+    (:func:`perturbed`, generator seeded with ``seed + 1000 + k`` for start k). Returns, per
+    method, the held-out free-run relative errors of u, v, r [%] and the median and largest
+    coefficient error [%] of every start (None where the run failed or its model diverged on
+    a held-out run), with their summary (median, min, max over the starts).
+    """
+    names = lo_go.coefficient_names(truth)
+    true = np.array([truth[n] for n in names])
+    out: dict = {'starts': starts, 'seed': seed, 'methods': {}}
+    for label, cfg in (('LO -> GO', mt.IdentifyConfig(bollard_pull=bollard)),
+                       ('GO alone', mt.IdentifyConfig(method='go', bollard_pull=bollard,
+                                                      ridge=0.0))):
+        runs = []
+        for k in range(starts):
+            start = truth.with_params(perturbed(truth, names, np.random.default_rng(
+                seed + 1000 + k)))
+            t = time.perf_counter()
+            try:
+                res = mt.identify(start, train, config=cfg)
+            except mt.errors.MmgTunerError as exc:
+                runs.append({'start': k, 'failed': str(exc)})
+                continue
+            sc = score(res.identified_ship, test, (1,))   # the free runs are what counts
+            th = np.array([res.params[n] for n in names])
+            err = np.abs(th / true - 1) * 100
+            rel = sc['rel']
+            runs.append({'start': k, 'wall_s': time.perf_counter() - t,
+                         'rel_pct': {q: None if rel[q] is None else 100 * rel[q]
+                                     for q in 'uvr'},
+                         'coef_median_pct': float(np.median(err)),
+                         'coef_max_pct': float(np.max(err))})
+            r = runs[-1]
+            print(f"  {label} start {k}: u / v / r {pct(sc['rel'])} %, median coef err "
+                  f"{r['coef_median_pct']:.3g} %, {r['wall_s']:.1f} s", flush=True)
+        summary = {}
+        for key in ('u', 'v', 'r', 'coef_median_pct', 'coef_max_pct'):
+            vals = [r['rel_pct'][key] if key in 'uvr' else r[key] for r in runs
+                    if 'failed' not in r and (key not in 'uvr' or r['rel_pct'][key] is not None)]
+            summary[key] = ({'median': float(np.median(vals)), 'min': float(np.min(vals)),
+                             'max': float(np.max(vals))} if vals else None)
+        summary['failed'] = sum('failed' in r or None in r['rel_pct'].values() for r in runs)
+        out['methods'][label] = {'runs': runs, 'summary': summary}
+    return out
+
+
+def print_convergence(conv: dict) -> None:
+    """Print :func:`convergence`'s spread: median [min, max] over the starts."""
+    print(f"\nconvergence from {conv['starts']} starts, every coefficient x log-uniform "
+          f"[0.5, 1.5] (seeds {conv['seed'] + 1000} ...): median [min, max] over the starts")
+    print(f'{"method":<12} {"u %":>22} {"v %":>22} {"r %":>22} {"median coef err %":>24} '
+          f'{"largest coef err %":>24} {"failed":>6}')
+
+    def cell(s):
+        return '-' if s is None else f"{s['median']:.3g} [{s['min']:.3g}, {s['max']:.3g}]"
+    for label, m in conv['methods'].items():
+        s = m['summary']
+        print(f'{label:<12} ' + ' '.join(f'{cell(s[k]):>22}' for k in 'uvr')
+              + f' {cell(s["coef_median_pct"]):>24} {cell(s["coef_max_pct"]):>24} '
+              f'{s["failed"]:>6}')
+
+
 def benchmark(quick: bool, argv: list[str]) -> dict:
-    """Entry point of ``python -m bench run tug_logo`` (``--quick``: no CMA-ES)."""
-    return main((['--cmaes-evals', '0'] if quick else []) + argv)
+    """Entry point of ``python -m bench run tug_logo`` (``--quick``: no CMA-ES, no starts)."""
+    return main((['--cmaes-evals', '0', '--starts', '0'] if quick else []) + argv)
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -184,6 +260,11 @@ def main(argv: list[str] | None = None) -> dict:
                     help="'generate': the repository's twin (generate --ship qiuxin_tug); "
                     "'builtin': this file's smaller catalogue")
     ap.add_argument('--data', default='bench/out/tug_logo', help='where generate writes')
+    ap.add_argument('--starts', type=int, default=20,
+                    help='convergence: LO -> GO and GO alone from this many perturbed starts '
+                    '(0: skip)')
+    ap.add_argument('--convergence-only', action='store_true',
+                    help='run only the convergence from perturbed starts')
     a = ap.parse_args(argv)
     truth = mt.load_ship('qiuxin_tug')
     names = lo_go.coefficient_names(truth)
@@ -200,6 +281,12 @@ def main(argv: list[str] | None = None) -> dict:
     print(f'twin ({a.twin}): {len(train)} identification manoeuvres ({sum(len(t) for t in train)} '
           f'samples), {len(test)} held out; noise {a.noise}; ready in '
           f'{time.perf_counter() - t0:.1f} s')
+    if a.convergence_only:
+        mt.identify(truth, train[:1], method='lo-go', max_iter=1)   # compile first
+        score(truth, test[:1])
+        conv = convergence(truth, train, test, bollard, a.starts, a.seed)
+        print_convergence(conv)
+        return {'noise': a.noise, 'twin': a.twin, 'convergence': conv}
     rows, scores = [], {}
     s6 = mt.load_ship('qiuxin_tug_simplified6')
     for ship in (truth, s6):   # compile every kernel first: wall times without compilation
@@ -286,6 +373,10 @@ def main(argv: list[str] | None = None) -> dict:
         print(f'\nCMA-ES from LO (same 20 s pieces, prior 1e-6, {fit.evaluations} evaluations):'
               f' held-out u / v / r {pct(sc["rel"])} %, {wall:.1f} s '
               f'(Levenberg-Marquardt GO: {rows[3][3]} %, {rows[3][2]:.1f} s)')
+    conv = None
+    if a.starts:
+        conv = convergence(truth, train, test, bollard, a.starts, a.seed)
+        print_convergence(conv)
     if a.out:
         out = Path(a.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -297,7 +388,8 @@ def main(argv: list[str] | None = None) -> dict:
         print(f'wrote {out / "tug_logo_nstep.png"}')
     return {'noise': a.noise, 'twin': a.twin, 'held_out_relative_error': [
         {'method': label, 'coefficients': k, 'wall_s': wall, 'u / v / r %': rel,
-         'median coefficient error %': coef} for label, k, wall, rel, coef, _ in rows]}
+         'median coefficient error %': coef} for label, k, wall, rel, coef, _ in rows],
+        **({'convergence': conv} if conv else {})}
 
 
 if __name__ == '__main__':

@@ -993,6 +993,8 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         trials, test = split_alternate(trials)
         logger.info('held out (every second trial): %s', ', '.join(unique_names(test)))
     check_trial_sets(trials, test)
+    for t in trials + test:   # before any work: every channel the family needs, all named
+        t.input_array(ship.family.channels)
     d = _diagnose(ship, trials, test, cfg.settings(), checkpoint=checkpoint, resume=resume,
                   map_fn=map_fn)
     logger.info('3/3 reporting')

@@ -27,6 +27,12 @@ generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20
 generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
     --duration 300
 generate --ship qiuxin_tug --out tug
+generate --ship qiuxin_tug --out tug_fouled --effect thrust_scale_stbd=0.85 \
+    --effect azimuth_offset_port=0.0524 --effect current_speed=0.2 --effect current_dir=1.05
+
+--effect hides any effect of the library (core/effects.py) in the truth, the tug's own among
+them (azimuth_offset_port/_stbd [rad], thrust_scale_port/_stbd); --scale moves one coefficient
+(e.g. N_r=1.45) outside the library.
 
 """
 from __future__ import annotations
@@ -189,15 +195,15 @@ def command(argv: list[str] | None = None) -> int:
             ship = ship.with_params(dict(args.effect))
         except ConfigError as exc:
             raise UsageError(f'--effect: {exc}') from None
-    if is_twin(ship):   # two thrusters: its own catalogue, channel CSVs, a bollard table
-        return _twin(args, ship, maneuvers_given)
-    if args.only:
-        raise UsageError(f'--only: {ship.name} is not a twin-thruster craft; use --maneuvers')
     if args.hull_scale != 1.0 or args.scale:
         try:
             ship = out_of_library(ship, args.hull_scale, dict(args.scale))
         except ConfigError as exc:
             raise UsageError(f'--hull-scale/--scale: {exc}') from None
+    if is_twin(ship):   # two thrusters: its own catalogue, channel CSVs, a bollard table
+        return _twin(args, ship, maneuvers_given)
+    if args.only:
+        raise UsageError(f'--only: {ship.name} is not a twin-thruster craft; use --maneuvers')
     args.duration = 800.0 if args.duration is None else args.duration
     args.rate_hz = 10.0 if args.rate_hz is None else args.rate_hz
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)

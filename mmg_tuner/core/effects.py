@@ -66,6 +66,9 @@ class Effect:
         self-propulsion test gives t_P and w_P0): held at the measured values and dropped from
         the tuning targets, they can no longer absorb the effect. Empty when the measurement
         settles the effect itself (a tachometer, a common clock) rather than a coefficient.
+    actuator: the actuator model (``core/actuators``) the effect acts in, whose kernel reads
+        its slots (rudder_offset: ``screw_rudder``); a family without that actuator cannot show
+        it, so the diagnosis leaves it out there. Empty: every family (a current, an antenna).
 
     """
 
@@ -80,6 +83,7 @@ class Effect:
     words: Callable[[dict, dict], str]
     settle_by: str = ''
     pinned_by: tuple[str, ...] = ()
+    actuator: str = ''
 
     def __post_init__(self) -> None:
         n = len(self.params)
@@ -155,13 +159,14 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            words=lambda v, e: f"rudder offset {_pm(v, e, 'rudder_offset', math.degrees(1), '.2f')}"
                               ' deg',
            settle_by='check the rudder indicator against the blade (amidships and hard over '
-                     'each side) in port'),
+                     'each side) in port', actuator='screw_rudder'),
     Effect('rudder_lag', ('rudder_lag_tau',), ('s',),
            'first-order steering-gear lag between the recorded rudder and the actual angle',
            smallest=(2.0,), neutral=(0.0,), boxes=((0.0, 20.0),), periodic=(False,),
            words=lambda v, e: f"steering-gear lag {_pm(v, e, 'rudder_lag_tau', fmt='.1f')} s",
            settle_by='log the rudder-angle feedback (the actual blade angle) beside the '
-                     'order, or time a hard-over test of the steering gear'),
+                     'order, or time a hard-over test of the steering gear',
+           actuator='screw_rudder'),
     Effect('rpm_scale', ('rpm_scale',), ('-',),
            'shaft-speed measurement scale error (actual = scale x recorded)',
            smallest=(0.03,), neutral=(1.0,), boxes=((0.85, 1.15),), periodic=(False,),
@@ -176,7 +181,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            # the mis-scaled thrust K_T(kJ) / (k^2 K_T(J)) is a near-constant factor, as is the
            # resistance's u^2, so a tuned R_0 absorbs it (resolution 0.14 -> 4.6 on two trials
            # when R_0 is held too); epsilon stays tuned: it maps only the rudder inflow
-           pinned_by=('R_0', 't_P', 'w_P0')),
+           pinned_by=('R_0', 't_P', 'w_P0'), actuator='screw_rudder'),
     Effect('yaw_moment_bias', ('yaw_moment_bias',), ('-',),
            "constant yaw moment N'_0 (x 1/2 rho L^2 d U^2): asymmetry not in the model, e.g. "
            'propeller side force',
@@ -212,7 +217,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                                '(+: stern pushed to starboard)'),
            settle_by='measure the mean rudder angle that holds a straight course at several '
                      'rpm from the same speed (a side force grows with n^2, a yaw bias with '
-                     'U^2), or the side force in a bollard-pull or open-water test'),
+                     'U^2), or the side force in a bollard-pull or open-water test',
+           actuator='screw_rudder'),
     Effect('wind', ('wind_speed', 'wind_dir'), ('m/s', 'rad'),
            'steady true wind on the above-water ship; loads from the windage areas with '
            "the family's wind model",
@@ -221,6 +227,36 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            periodic=(False, True),
            words=lambda v, e: (f"wind {_pm(v, e, 'wind_speed', fmt='.1f')} m/s from "
                                + _direction(v, e, 'wind_dir'))),
+) + tuple(
+    # an azimuth thruster whose angle indicator is off: the angle that acts is the recorded
+    # (or commanded) one plus the offset; one effect per thruster, as a fault is on one
+    Effect(f'azimuth_offset_{side}', (f'azimuth_offset_{side}',), ('rad',),
+           f'constant error between the recorded and the actual angle of the {side} azimuth '
+           'thruster (actual = recorded + offset)',
+           smallest=(math.radians(1.0),), neutral=(0.0,),
+           boxes=((-math.radians(5), math.radians(5)),), periodic=(False,),
+           words=lambda v, e, side=side: (
+               f'{side} azimuth offset '
+               f"{_pm(v, e, f'azimuth_offset_{side}', math.degrees(1), '.2f')} deg"),
+           settle_by=f'point the {side} thruster ahead (its indicator at 0) and check the '
+                     'thrust direction, or log the bollard pull at 0 and +-90 deg',
+           actuator='twin_azimuth')
+    for side in ('port', 'stbd')
+) + tuple(
+    # a fouled (or damaged) propeller: less thrust than its bollard-pull curve at the same
+    # shaft speed. Above 1 only as far as the bollard table's own error: a clean propeller
+    # gives no more than it did on the test (a fit pinned at 1.1 absorbs something else)
+    Effect(f'thrust_scale_{side}', (f'thrust_scale_{side}',), ('-',),
+           f'the {side} thruster gives this fraction of its bollard-pull thrust at the same '
+           'shaft speed (below 1: a fouled or damaged propeller)',
+           smallest=(0.05,), neutral=(1.0,), boxes=((0.5, 1.1),), periodic=(False,),
+           words=lambda v, e, side=side: (
+               f"{side} thrust scale {_pm(v, e, f'thrust_scale_{side}', fmt='.3f')} "
+               '(of the bollard-pull curve)'),
+           settle_by=f'repeat the bollard-pull test of the {side} thruster (or inspect its '
+                     'propeller for fouling)',
+           actuator='twin_azimuth')
+    for side in ('port', 'stbd')
 )}
 
 PARAM_NEUTRAL: dict[str, float] = {p: n for e in EFFECTS.values()

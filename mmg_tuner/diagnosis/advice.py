@@ -633,6 +633,10 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     suspect is real. Per-pair entries follow, then per-effect ones ordered by ``rank`` (low
     first; default: as given).
     """
+    if not {'rpm', 'rudder'} <= set(ship.family.channels):
+        # the repertoire is screw-and-rudder manoeuvres (rpm, rudder): none can be sailed by
+        # this family (a twin-azimuth tug), so there is no trial to advise
+        return []
     rpm0, u0, dur, dt = operating_point(trials)
     specs = repertoire(ship, rpm0, u0, dur)
     if rivals and sigma is None:

@@ -207,6 +207,10 @@ def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
     images = {}
     fig = Figure(figsize=(10, 10.5), layout='constrained')
     axes = fig.subplots(5, 1, sharex=True)
+    # the steering input beside the residuals: the rudder, or a tug's port azimuth angle
+    steer = next((c for c in ('rudder', 'azimuth_port') if c in trials[0].inputs), None)
+    steer_label = (INPUT_AXES['rudder'] if steer == 'rudder'
+                   else 'port azimuth [deg,\n+ thrust to starboard]')
     for tr, label, sb in zip(trials, unique_names(trials), sims_base):
         e = residual_series(tr, sb)
         t = tr.t - tr.t[0]
@@ -214,12 +218,13 @@ def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
         axes[1].plot(t, np.degrees(e[:, 2]), lw=1)
         axes[2].plot(t, e[:, 4], lw=1)
         axes[3].plot(t, np.degrees(e[:, 5]), lw=1)
-        axes[4].plot(t, np.degrees(tr['rudder']), lw=1, color=line.get_color())
+        if steer in tr.inputs:
+            axes[4].plot(t, np.degrees(tr[steer]), lw=1, color=line.get_color())
     for a, lab in zip(axes, ('position error [m,\ndistance sim. to rec.]',
                              'heading error [deg,\n+ sim. more clockwise]',
                              'v error [m/s,\n+ sim. more to starboard]',
                              'r error [deg/s,\n+ sim. turns more to stbd]',
-                             'recorded ' + INPUT_AXES['rudder'])):
+                             'recorded ' + steer_label)):
         a.set_ylabel(lab, fontsize=8)
         a.grid(alpha=0.3)
     axes[0].legend(fontsize=7, title='held-out trial', title_fontsize=7)

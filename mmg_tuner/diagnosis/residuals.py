@@ -30,9 +30,11 @@ def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
 
 def regressors(trial: Trial) -> dict[str, np.ndarray]:
     psi = trial['psi']
-    return {'cos_heading': np.cos(psi), 'sin_heading': np.sin(psi), 'speed': trial['u'],
-            'rudder': trial['rudder'], 'rudder_rate': np.gradient(trial['rudder'], trial.t),
-            'time': trial.t - trial.t[0]}
+    out = {'cos_heading': np.cos(psi), 'sin_heading': np.sin(psi), 'speed': trial['u']}
+    if 'rudder' in trial.inputs:   # a rudder where the actuator has one (not a tug's)
+        out.update(rudder=trial['rudder'], rudder_rate=np.gradient(trial['rudder'], trial.t))
+    out['time'] = trial.t - trial.t[0]
+    return out
 
 
 def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:

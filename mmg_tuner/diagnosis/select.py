@@ -354,6 +354,15 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             f'{n} = {m.value:.4g} +- {m.se:.2g}' + (f' ({m.source})' if m.source else '')
             for n, m in meas.items()))
     effects = list(s.effects)
+    # an actuator's effects (core/effects.py Effect.actuator) act only where the family has it
+    foreign = [e for e in effects if EFFECTS[e].actuator not in ('', *ship.family.actuators)]
+    if foreign:
+        effects = [e for e in effects if e not in foreign]
+        log(f'   left out: {", ".join(foreign)} (effects of actuators {ship.name} has not: '
+            f'it has {", ".join(ship.family.actuators)})')
+        if not effects:
+            raise DiagnosisError(f'none of the effects {list(s.effects)} acts on {ship.name} '
+                                 f'(its actuators: {", ".join(ship.family.actuators)})')
     if 'wind' in effects and not ship.has_windage:
         effects.remove('wind')
         log(f'   wind left out: {ship.source or ship.name} has no windage section (A_F, A_L, '
@@ -876,7 +885,9 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
     # information a trial adds (a trial the base targets mimic once tuned on settles nothing),
     # linearised where the flag was raised: every single-parameter effect at its smallest
     tuned = base.full_params(ship.params, base_theta)[0]
-    sigma = residual_scale(ship, tuned, trials) if rival_pairs else None
+    # (no trial advice, so no scale, for a family without rpm and rudder: advice.advise_all)
+    sigma = (residual_scale(ship, tuned, trials)
+             if rival_pairs and {'rpm', 'rudder'} <= set(ship.family.channels) else None)
     suspects = [e for e in aliased if e not in impossible]
     out = advise_all(ship, base, base_theta, obj, effects, trials, suspects, rival_pairs, sigma,
                      rank)

@@ -60,8 +60,10 @@ def side_of(trial: Trial) -> int:
     Return the side of a trial's manoeuvre: +1 starboard, -1 port, 0 none.
 
     The sign of the first rudder beyond half the largest; 0 when the rudder never exceeds
-    5 deg.
+    5 deg, or the trial has no rudder.
     """
+    if 'rudder' not in trial.inputs:   # no rudder (a twin-azimuth tug): no side is known
+        return 0
     d = np.asarray(trial['rudder'], float)
     big = float(np.nanmax(np.abs(d))) if d.size else 0.0
     if not big >= MIN_RUDDER_RAD:

@@ -170,9 +170,16 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
     """
     n, F = table.n, table.thrust
     top = min(MAX_THRUST_DEGREE, len(n) - 3)
-    if degree is not None and not 1 <= degree <= min(MAX_THRUST_DEGREE, len(n) - 1):
-        raise TuningError(f'{table.source}: thrust degree {degree} needs 1 <= degree <= '
-                          f'{min(MAX_THRUST_DEGREE, len(n) - 1)} with {len(n)} rows')
+    # degree + 2 points at least: with degree + 1 the curve passes through every point and
+    # leaves no residual to judge it (or the table) by
+    if degree is not None and not 1 <= degree <= MAX_THRUST_DEGREE:
+        raise TuningError(f'{table.source}: thrust degree {degree}: must be 1 ... '
+                          f'{MAX_THRUST_DEGREE}')
+    if degree is not None and len(n) < degree + 2:
+        raise TuningError(f'{table.source}: too short for degree {degree}: {len(n)} rows; a '
+                          f'polynomial of degree {degree} needs at least {degree + 2} shaft '
+                          'speeds (one more than its coefficients, so that it is checked '
+                          'against the table, not merely passed through it)')
     grid = np.linspace(n[0], n[-1], 200)
     best = None
     for d in ([degree] if degree is not None else range(1, max(1, top) + 1)):

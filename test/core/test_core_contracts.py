@@ -12,10 +12,12 @@ import subprocess
 import sys
 
 from mmg_tuner.core import frames
+from mmg_tuner.core.actuators import REGISTRY as ACTUATOR_REGISTRY
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.effects import describe_values, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, PARAM_INDEX, SHARED_PARAMS
 from mmg_tuner.core.models import declared_params, families, REGISTRY
+from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.simulate import simulate
 import numpy as np
 import pytest
@@ -43,11 +45,16 @@ def test_effect_entry_contract(name, suzaku, kvlcc2):
     for (lo, hi), (klo, khi), u in zip(e.bounds(suzaku), e.bounds(kvlcc2), e.units):
         if u in ('m/s', 's'):
             assert khi == pytest.approx(hi / math.sqrt(kvlcc2.scale_ratio))
+    assert not e.actuator or e.actuator in ACTUATOR_REGISTRY
+    if e.actuator == 'twin_azimuth':   # only a family with that actuator shows it
+        _twin_effect_hook_exists(e)
     # neutral values make the effect vanish: the same trajectory as the plain model
     for ship, u0, rpm in ((suzaku, 3.0, 106.0), (kvlcc2, 1.18, 711.0)):
         plain = _run(ship, u0, rpm)
         assert np.array_equal(_run(ship.with_params(e.neutral_values), u0, rpm).states,
                               plain.states)
+        if e.actuator and e.actuator not in ship.family.actuators:
+            continue
         # and a value off neutral changes it (the kernel hook exists)
         (lo, hi), = e.bounds(ship)[:1]
         off = {e.params[0]: e.neutral[0] + 0.5 * (hi - e.neutral[0])}
@@ -61,6 +68,24 @@ def test_effect_entry_contract(name, suzaku, kvlcc2):
     text = describe_values(e, dict(zip(e.params, e.neutral)),
                            dict(zip(e.params, [0.1] * len(e.params))))
     assert isinstance(text, str) and text and '±' in text
+
+
+def _twin_effect_hook_exists(e):
+    """Check that a twin_azimuth effect vanishes at neutral and acts off it, on the tug."""
+    ship = load_ship('qiuxin_tug')
+    T = 300
+    ctrl = {'n_port': np.full(T, 8.0), 'n_stbd': np.full(T, 6.0),
+            'azimuth_port': np.radians(20 * np.sin(np.arange(T) / 15)),
+            'azimuth_stbd': np.radians(20 * np.sin(np.arange(T) / 15))}
+
+    def run(s):
+        return simulate(s, [0, 0, 0, 1.0, 0, 0], ctrl, 0.2, 'rk4').states
+
+    plain = run(ship)
+    assert np.array_equal(run(ship.with_params(e.neutral_values)), plain)
+    (lo, hi), = e.bounds(ship)[:1]
+    off = {e.params[0]: e.neutral[0] + 0.5 * (lo - e.neutral[0])}
+    assert not np.allclose(run(ship.with_params(off)), plain), e.name
 
 
 def test_effect_boxes_scale_with_the_ship(suzaku, kvlcc2):

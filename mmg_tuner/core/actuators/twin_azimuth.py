@@ -33,9 +33,9 @@ from __future__ import annotations
 
 PARAMS = ('thrust_p0', 'thrust_p1', 'thrust_p2', 'thrust_p3', 'thrust_p4', 'thrust_p5',
           'thrust_astern_ratio', 'azimuth_k1', 'azimuth_k2', 'azimuth_rate_max',
-          'thruster_x_port', 'thruster_y_port', 'thruster_x_stbd', 'thruster_y_stbd',
-          'thrust_scale_port', 'thrust_scale_stbd', 'azimuth_offset_port',
-          'azimuth_offset_stbd')
+          'thruster_x_port', 'thruster_y_port', 'thruster_x_stbd', 'thruster_y_stbd')
+# its effects (core/effects.py, actuator 'twin_azimuth'): thrust_scale_<side>,
+# azimuth_offset_<side>
 INPUTS = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd', 'azimuth_cmd_port',
           'azimuth_cmd_stbd')
 CHANNELS = {
@@ -59,11 +59,10 @@ DESCRIPTION = ('two azimuth thrusters: polynomial thrust in rev/s, second-order 
                'dynamics, tau = T(alpha) f (MBPE-LOGO eqs. 8, 9, 20)')
 
 # Neutral values of the slots a ship file may omit (a family using this actuator merges them
-# into its DEFAULTS): a clean propeller, no offset, no rate limit, the same thrust astern.
+# into its DEFAULTS): no rate limit, the same thrust astern. Its effects' neutral values (a
+# clean propeller, no offset) come from the effect registry.
 DEFAULTS = {'thrust_p0': 0.0, 'thrust_p1': 0.0, 'thrust_p3': 0.0, 'thrust_p4': 0.0,
-            'thrust_p5': 0.0, 'thrust_astern_ratio': 1.0, 'azimuth_rate_max': 0.0,
-            'thrust_scale_port': 1.0, 'thrust_scale_stbd': 1.0, 'azimuth_offset_port': 0.0,
-            'azimuth_offset_stbd': 0.0}
+            'thrust_p5': 0.0, 'thrust_astern_ratio': 1.0, 'azimuth_rate_max': 0.0}
 
 import math  # noqa: E402  (below the declarations the layout reads)
 
