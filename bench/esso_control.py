@@ -25,9 +25,6 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-import yaml
-
 from bench.esso_fresh import fresh_runs
 from bench.esso_osaka import params_path
 import mmg_tuner as mt
@@ -35,6 +32,8 @@ from mmg_tuner._atomic import write_atomic
 from mmg_tuner.data.esso import load_split
 from mmg_tuner.learn.residual import ResidualNet
 from mmg_tuner.tuning.nstep import nstep_errors, NSTEP_STATES
+import numpy as np
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = Path(__file__).resolve().parent / 'out' / 'esso_control'
