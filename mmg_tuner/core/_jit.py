@@ -7,6 +7,8 @@ if TYPE_CHECKING:
 
     FloatArray = npt.NDArray[np.float64]
     """A float64 array: the parameter vector p, states, inputs (kernel annotations only)."""
+    IntArray = npt.NDArray[np.int64]
+    """An int64 array: trial lengths, statuses, failure samples, channel indices."""
 
 # Fast-math without 'nnan'/'ninf': divergence checks rely on isfinite.
 FASTMATH = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}

@@ -63,7 +63,7 @@ def family_tag(kind: int) -> tuple[int, ...]:
 def _tag_code(kind: types.Type) -> int:
     """Return the family code a tag's numba type fixes (at compile time)."""
     if isinstance(kind, types.UniTuple):
-        return kind.count - 1
+        return int(kind.count) - 1  # plain Python at compile time; numba's stubs: count Any
     raise TypeError(f'kind must be a FAMILY_TAGS entry (dynamics.family_tag(code)), got {kind}')
 
 
