@@ -73,7 +73,7 @@ def _family_flag(flags: tuple[bool, ...]) -> Callable[..., Any]:
         raise NotImplementedError('compiled only (numba overload)')
 
     @overload(flag, inline='always')
-    def _flag(kind: types.Type) -> Callable[..., Any]:
+    def _flag(kind):  # type: ignore[no-untyped-def]  # numba matches it to the impl's
         value = flags[_tag_code(kind)]
         return lambda kind: value
     return flag
@@ -91,8 +91,8 @@ def _forces_of(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: floa
 
 
 @overload(_forces_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _forces_of_impl(kind: types.Type, p: types.Type, u: types.Type, v: types.Type, r: types.Type,
-                    act: types.Type) -> Callable[..., Any]:
+def _forces_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, act):
     forces = _FORCES[_tag_code(kind)]
     return lambda kind, p, u, v, r, act: forces(p, u, v, r, act)
 
@@ -193,8 +193,8 @@ def _motion_of(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: floa
 
 
 @overload(_motion_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _motion_of_impl(kind: types.Type, p: types.Type, u: types.Type, v: types.Type, r: types.Type,
-                    X: types.Type, Y: types.Type, N: types.Type) -> Callable[..., Any]:
+def _motion_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, X, Y, N):
     motion = _MOTION[_tag_code(kind)]
     return lambda kind, p, u, v, r, X, Y, N: motion(p, u, v, r, X, Y, N)
 
@@ -205,8 +205,8 @@ def _solve_of(kind: tuple[int, ...], p: FloatArray, X: float, Y: float,
 
 
 @overload(_solve_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _solve_of_impl(kind: types.Type, p: types.Type, X: types.Type, Y: types.Type,
-                   N: types.Type) -> Callable[..., Any]:
+def _solve_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, X, Y, N):
     solve = _MASS_SOLVE[_tag_code(kind)]
     return lambda kind, p, X, Y, N: solve(p, X, Y, N)
 
@@ -243,28 +243,28 @@ def actuate_start(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift:
 
 
 @overload(actuate_start, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_start_impl(kind: types.Type, p: types.Type, ctrl: types.Type, shift: types.Type,
-                        T: types.Type, a: types.Type) -> Callable[..., Any]:
+def _actuate_start_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ctrl, shift, T, a):
     plant = _plant(_tag_code(kind))
     s0, r0, j0, i0 = plant[0][0].start, commands(len(plant[0][0].inputs)), plant[0][1], plant[0][2]
     if len(plant) == 1:
-        def start1(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift: float, T: int,
-                   a: FloatArray) -> None:
+        def start1(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, shift, T, a):
             k0, k1, w = where(0, shift, T)
             s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
         return start1
     s1, r1, j1, i1 = plant[1][0].start, commands(len(plant[1][0].inputs)), plant[1][1], plant[1][2]
     if len(plant) == 2:
-        def start2(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift: float, T: int,
-                   a: FloatArray) -> None:
+        def start2(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, shift, T, a):
             k0, k1, w = where(0, shift, T)
             s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
             s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
         return start2
     s2, r2, j2, i2 = plant[2][0].start, commands(len(plant[2][0].inputs)), plant[2][1], plant[2][2]
 
-    def start3(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift: float, T: int,
-               a: FloatArray) -> None:
+    def start3(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, ctrl, shift, T, a):
         k0, k1, w = where(0, shift, T)
         s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
         s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
@@ -279,23 +279,23 @@ def actuate_hold(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, k: int,
 
 
 @overload(actuate_hold, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_hold_impl(kind: types.Type, p: types.Type, ctrl: types.Type, k: types.Type,
-                       shift: types.Type, T: types.Type, h: types.Type) -> Callable[..., Any]:
+def _actuate_hold_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ctrl, k, shift, T, h):
     code = _tag_code(kind)
     astern = ASTERN_RPM[code]
     plant = _plant(code)
     h0, r0, j0 = plant[0][0].hold, commands(len(plant[0][0].inputs)), plant[0][1]
     if len(plant) == 1:
-        def hold1(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, k: int, shift: float,
-                  T: int, h: float) -> tuple[int, tuple[tuple[float, ...], ...]]:
+        def hold1(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, k, shift, T, h):
             k0, k1, w = where(k, shift, T)
             st, held = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
             return st, (held,)
         return hold1
     h1, r1, j1 = plant[1][0].hold, commands(len(plant[1][0].inputs)), plant[1][1]
     if len(plant) == 2:
-        def hold2(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, k: int, shift: float,
-                  T: int, h: float) -> tuple[int, tuple[tuple[float, ...], ...]]:
+        def hold2(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, k, shift, T, h):
             k0, k1, w = where(k, shift, T)
             st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
             st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
@@ -303,8 +303,8 @@ def _actuate_hold_impl(kind: types.Type, p: types.Type, ctrl: types.Type, k: typ
         return hold2
     h2, r2, j2 = plant[2][0].hold, commands(len(plant[2][0].inputs)), plant[2][1]
 
-    def hold3(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, k: int, shift: float, T: int,
-              h: float) -> tuple[int, tuple[tuple[float, ...], ...]]:
+    def hold3(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, ctrl, k, shift, T, h):
         k0, k1, w = where(k, shift, T)
         st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
         st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
@@ -321,8 +321,8 @@ def actuate_output(kind: tuple[int, ...], p: FloatArray, held: tuple[tuple[float
 
 
 @overload(actuate_output, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_output_impl(kind: types.Type, p: types.Type, held: types.Type,
-                         a: types.Type) -> Callable[..., Any]:
+def _actuate_output_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, held, a):
     plant = _plant(_tag_code(kind))
     o0, i0 = plant[0][0].output, plant[0][2]
     if len(plant) == 1:
@@ -349,7 +349,7 @@ _ROW_TUPLES = {1: lambda kind, A, b: (A[b, 0],),
 
 
 @overload(act_tuple, inline='always')
-def _act_tuple_impl(kind: types.Type, A: types.Type, b: types.Type) -> Callable[..., Any]:
+def _act_tuple_impl(kind, A, b):  # type: ignore[no-untyped-def]  # numba matches it to the impl's
     n = len(_FAMILIES[_tag_code(kind)].outputs)
     if n not in _ROW_TUPLES:
         raise TypeError(f'act_tuple: {n} actuator outputs; add a row form for it')
@@ -369,8 +369,8 @@ def actuator_forces(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r:
 
 
 @overload(actuator_forces, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuator_forces_impl(kind: types.Type, p: types.Type, u: types.Type, v: types.Type,
-                          r: types.Type, act: types.Type) -> Callable[..., Any]:
+def _actuator_forces_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, act):
     plant = [(A.forces, k) for A, _, _, k in _plant(_tag_code(kind)) if A.forces is not None]
     if not plant:
         return lambda kind, p, u, v, r, act: (0.0, 0.0, 0.0)
@@ -380,8 +380,8 @@ def _actuator_forces_impl(kind: types.Type, p: types.Type, u: types.Type, v: typ
     f1, k1 = plant[1]
     f2, k2 = plant[2] if len(plant) > 2 else (_no_forces, 0)
 
-    def forces(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float,
-               act: tuple[float, ...]) -> tuple[float, float, float]:
+    def forces(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, u, v, r, act):
         X, Y, N = f0(p, u, v, r, act, k0)
         X1, Y1, N1 = f1(p, u, v, r, act, k1)
         X2, Y2, N2 = f2(p, u, v, r, act, k2)
@@ -476,8 +476,8 @@ def _wind_of(kind: tuple[int, ...], p: FloatArray, ua: float,
 
 
 @overload(_wind_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _wind_of_impl(kind: types.Type, p: types.Type, ua: types.Type,
-                  va: types.Type) -> Callable[..., Any]:
+def _wind_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ua, va):
     wind = _WINDS[_tag_code(kind)]
     return lambda kind, p, ua, va: wind(p, ua, va)
 
