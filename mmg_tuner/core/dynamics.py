@@ -21,6 +21,7 @@ tuple (:func:`actuate_start`, :func:`actuate_hold`, :func:`actuate_output`) and 
 from __future__ import annotations
 
 import math
+from typing import Any, Callable, TYPE_CHECKING
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH, U_MIN
@@ -31,6 +32,10 @@ from mmg_tuner.core.models import families
 from numba import njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.extending import overload
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+    from mmg_tuner.core.actuators import Actuator
 
 # Tuples of dispatchers are reported as numba's experimental first-class functions; every call
 # here is a static, inlined call on a compile-time constant.
@@ -47,7 +52,7 @@ FAMILY_TAGS = tuple((0,) * (f.code + 1) for f in _FAMILIES)
 """The compile-time form of each family code (see the module docstring)."""
 
 
-def family_tag(kind: int) -> tuple:
+def family_tag(kind: int) -> tuple[int, ...]:
     """Return the tag of family code ``kind`` (ValueError if no family has that code)."""
     if not 0 <= kind < len(FAMILY_TAGS):
         raise ValueError(f'no model family with code {kind!r}; codes are 0..'
@@ -55,20 +60,20 @@ def family_tag(kind: int) -> tuple:
     return FAMILY_TAGS[kind]
 
 
-def _tag_code(kind):
+def _tag_code(kind: types.Type) -> int:
     """Return the family code a tag's numba type fixes (at compile time)."""
     if isinstance(kind, types.UniTuple):
-        return kind.count - 1
+        return int(kind.count) - 1  # plain Python at compile time; numba's stubs: count Any
     raise TypeError(f'kind must be a FAMILY_TAGS entry (dynamics.family_tag(code)), got {kind}')
 
 
-def _family_flag(flags):
+def _family_flag(flags: tuple[bool, ...]) -> Callable[..., Any]:
     """Make an njit-callable ``flag(kind)``: ``flags[code]``, a constant when kind is a tag."""
-    def flag(kind):
+    def flag(kind: tuple[int, ...]) -> bool:
         raise NotImplementedError('compiled only (numba overload)')
 
     @overload(flag, inline='always')
-    def _flag(kind):
+    def _flag(kind):  # type: ignore[no-untyped-def]  # numba matches it to the impl's
         value = flags[_tag_code(kind)]
         return lambda kind: value
     return flag
@@ -80,12 +85,14 @@ air_drag = _family_flag(AIR_DRAG)
 
 
 # The family hooks, dispatched on the tag: a direct, inlined call of that family's function.
-def _forces_of(kind, p, u, v, r, act):
+def _forces_of(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float,
+               act: tuple[float, ...]) -> tuple[float, float, float]:
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(_forces_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _forces_of_impl(kind, p, u, v, r, act):
+def _forces_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, act):
     forces = _FORCES[_tag_code(kind)]
     return lambda kind, p, u, v, r, act: forces(p, u, v, r, act)
 
@@ -116,13 +123,15 @@ _wdel = PARAM_INDEX['wind_delta']
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def family_forces(kind, p, u, v, r, act):
+def family_forces(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float,
+                  act: tuple[float, ...]) -> tuple[float, float, float]:
     """Return the forces of family ``kind`` (code or tag): (X [N], Y [N], N [N m])."""
     return _forces_of(kind, p, u, v, r, act)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def effect_forces(p, u, v, X, Y, N):
+def effect_forces(p: FloatArray, u: float, v: float, X: float, Y: float,
+                  N: float) -> tuple[float, float, float]:
     """Effect hooks on the hull that act as forces, added to the family's (0 at neutral)."""
     if p[_Nbias] != 0.0:
         # yaw_moment_bias: N'_0 x 1/2 rho L^2 d U^2
@@ -134,7 +143,8 @@ def effect_forces(p, u, v, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def mmg_motion(p, u, v, r, X, Y, N):
+def mmg_motion(p: FloatArray, u: float, v: float, r: float, X: float, Y: float,
+               N: float) -> tuple[float, float, float]:
     """
     Solve the MMG equations of motion (paper eq. 7) for (du/dt, dv_m/dt, dr/dt).
 
@@ -160,7 +170,7 @@ def mmg_motion(p, u, v, r, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def mmg_mass_solve(p, X, Y, N):
+def mmg_mass_solve(p: FloatArray, X: float, Y: float, N: float) -> tuple[float, float, float]:
     """Accelerations from external forces through the MMG mass matrix (eq. 7)."""
     m = p[_m]
     xG = p[_xG]
@@ -177,28 +187,32 @@ _MASS_SOLVE = tuple(mmg_mass_solve if f.mass_solve is None else f.mass_solve
                     for f in _FAMILIES)
 
 
-def _motion_of(kind, p, u, v, r, X, Y, N):
+def _motion_of(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float, X: float,
+               Y: float, N: float) -> tuple[float, float, float]:
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(_motion_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _motion_of_impl(kind, p, u, v, r, X, Y, N):
+def _motion_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, X, Y, N):
     motion = _MOTION[_tag_code(kind)]
     return lambda kind, p, u, v, r, X, Y, N: motion(p, u, v, r, X, Y, N)
 
 
-def _solve_of(kind, p, X, Y, N):
+def _solve_of(kind: tuple[int, ...], p: FloatArray, X: float, Y: float,
+              N: float) -> tuple[float, float, float]:
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(_solve_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _solve_of_impl(kind, p, X, Y, N):
+def _solve_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, X, Y, N):
     solve = _MASS_SOLVE[_tag_code(kind)]
     return lambda kind, p, X, Y, N: solve(p, X, Y, N)
 
 
 # ----------------------------------------------------------------------------- actuators
-def _plant(code: int):
+def _plant(code: int) -> list[tuple[Actuator, int, int, int]]:
     """Return family ``code``'s actuators: [(actuator, first input, state, output)]."""
     out = []
     j = i = k = 0
@@ -222,30 +236,35 @@ for _f in _FAMILIES:
                           f'actuator models, got {_f.actuators}')
 
 
-def actuate_start(kind, p, ctrl, shift, T, a):
+def actuate_start(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift: float, T: int,
+                  a: FloatArray) -> None:
     """Set the actuator states ``a`` from sample 0 of ``ctrl`` (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuate_start, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_start_impl(kind, p, ctrl, shift, T, a):
+def _actuate_start_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ctrl, shift, T, a):
     plant = _plant(_tag_code(kind))
     s0, r0, j0, i0 = plant[0][0].start, commands(len(plant[0][0].inputs)), plant[0][1], plant[0][2]
     if len(plant) == 1:
-        def start1(kind, p, ctrl, shift, T, a):
+        def start1(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, shift, T, a):
             k0, k1, w = where(0, shift, T)
             s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
         return start1
     s1, r1, j1, i1 = plant[1][0].start, commands(len(plant[1][0].inputs)), plant[1][1], plant[1][2]
     if len(plant) == 2:
-        def start2(kind, p, ctrl, shift, T, a):
+        def start2(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, shift, T, a):
             k0, k1, w = where(0, shift, T)
             s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
             s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
         return start2
     s2, r2, j2, i2 = plant[2][0].start, commands(len(plant[2][0].inputs)), plant[2][1], plant[2][2]
 
-    def start3(kind, p, ctrl, shift, T, a):
+    def start3(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, ctrl, shift, T, a):
         k0, k1, w = where(0, shift, T)
         s0(p, r0(ctrl, k0, k1, w, j0), a, i0)
         s1(p, r1(ctrl, k0, k1, w, j1), a, i1)
@@ -253,26 +272,30 @@ def _actuate_start_impl(kind, p, ctrl, shift, T, a):
     return start3
 
 
-def actuate_hold(kind, p, ctrl, k, shift, T, h):
+def actuate_hold(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, k: int, shift: float,
+                 T: int, h: float) -> tuple[int, tuple[tuple[float, ...], ...]]:
     """(status, held) for the inputs of sample k, held over its interval (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuate_hold, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_hold_impl(kind, p, ctrl, k, shift, T, h):
+def _actuate_hold_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ctrl, k, shift, T, h):
     code = _tag_code(kind)
     astern = ASTERN_RPM[code]
     plant = _plant(code)
     h0, r0, j0 = plant[0][0].hold, commands(len(plant[0][0].inputs)), plant[0][1]
     if len(plant) == 1:
-        def hold1(kind, p, ctrl, k, shift, T, h):
+        def hold1(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, k, shift, T, h):
             k0, k1, w = where(k, shift, T)
             st, held = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
             return st, (held,)
         return hold1
     h1, r1, j1 = plant[1][0].hold, commands(len(plant[1][0].inputs)), plant[1][1]
     if len(plant) == 2:
-        def hold2(kind, p, ctrl, k, shift, T, h):
+        def hold2(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+                kind, p, ctrl, k, shift, T, h):
             k0, k1, w = where(k, shift, T)
             st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
             st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
@@ -280,7 +303,8 @@ def _actuate_hold_impl(kind, p, ctrl, k, shift, T, h):
         return hold2
     h2, r2, j2 = plant[2][0].hold, commands(len(plant[2][0].inputs)), plant[2][1]
 
-    def hold3(kind, p, ctrl, k, shift, T, h):
+    def hold3(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, ctrl, k, shift, T, h):
         k0, k1, w = where(k, shift, T)
         st0, held0 = h0(p, r0(ctrl, k0, k1, w, j0), h, astern)
         st1, held1 = h1(p, r1(ctrl, k0, k1, w, j1), h, astern)
@@ -290,13 +314,15 @@ def _actuate_hold_impl(kind, p, ctrl, k, shift, T, h):
     return hold3
 
 
-def actuate_output(kind, p, held, a):
+def actuate_output(kind: tuple[int, ...], p: FloatArray, held: tuple[tuple[float, ...], ...],
+                   a: FloatArray) -> tuple[float, ...]:
     """Advance the actuator states over one step; return the actuator tuple (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuate_output, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuate_output_impl(kind, p, held, a):
+def _actuate_output_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, held, a):
     plant = _plant(_tag_code(kind))
     o0, i0 = plant[0][0].output, plant[0][2]
     if len(plant) == 1:
@@ -309,7 +335,7 @@ def _actuate_output_impl(kind, p, held, a):
                                      + o2(p, held[2], a, i2))
 
 
-def act_tuple(kind, A, b):
+def act_tuple(kind: tuple[int, ...], A: FloatArray, b: int) -> tuple[float, ...]:
     """Row b of an actuator array A (B, n) as the family's actuator tuple (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
@@ -323,7 +349,7 @@ _ROW_TUPLES = {1: lambda kind, A, b: (A[b, 0],),
 
 
 @overload(act_tuple, inline='always')
-def _act_tuple_impl(kind, A, b):
+def _act_tuple_impl(kind, A, b):  # type: ignore[no-untyped-def]  # numba matches it to the impl's
     n = len(_FAMILIES[_tag_code(kind)].outputs)
     if n not in _ROW_TUPLES:
         raise TypeError(f'act_tuple: {n} actuator outputs; add a row form for it')
@@ -331,17 +357,20 @@ def _act_tuple_impl(kind, A, b):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def _no_forces(p, u, v, r, act, k):
+def _no_forces(p: FloatArray, u: float, v: float, r: float, act: tuple[float, ...],
+               k: int) -> tuple[float, float, float]:
     return 0.0, 0.0, 0.0
 
 
-def actuator_forces(kind, p, u, v, r, act):
+def actuator_forces(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float,
+                    act: tuple[float, ...]) -> tuple[float, float, float]:
     """Sum of the actuators' own forces (X, Y, N) (compiled only)."""
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(actuator_forces, inline='always', jit_options={'fastmath': FASTMATH})
-def _actuator_forces_impl(kind, p, u, v, r, act):
+def _actuator_forces_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, u, v, r, act):
     plant = [(A.forces, k) for A, _, _, k in _plant(_tag_code(kind)) if A.forces is not None]
     if not plant:
         return lambda kind, p, u, v, r, act: (0.0, 0.0, 0.0)
@@ -351,7 +380,8 @@ def _actuator_forces_impl(kind, p, u, v, r, act):
     f1, k1 = plant[1]
     f2, k2 = plant[2] if len(plant) > 2 else (_no_forces, 0)
 
-    def forces(kind, p, u, v, r, act):
+    def forces(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+            kind, p, u, v, r, act):
         X, Y, N = f0(p, u, v, r, act, k0)
         X1, Y1, N1 = f1(p, u, v, r, act, k1)
         X2, Y2, N2 = f2(p, u, v, r, act, k2)
@@ -360,7 +390,8 @@ def _actuator_forces_impl(kind, p, u, v, r, act):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def accelerations(kind, p, u, v, r, act):
+def accelerations(kind: tuple[int, ...], p: FloatArray, u: float, v: float, r: float,
+                  act: tuple[float, ...]) -> tuple[float, float, float]:
     """(du/dt, dv_m/dt, dr/dt) for velocities through the water and the actuator tuple act."""
     X, Y, N = family_forces(kind, p, u, v, r, act)
     X, Y, N = effect_forces(p, u, v, X, Y, N)
@@ -373,7 +404,7 @@ def accelerations(kind, p, u, v, r, act):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def apparent_wind(p, psi, u, v):
+def apparent_wind(p: FloatArray, psi: float, u: float, v: float) -> tuple[float, float]:
     """
     Return the apparent wind: air velocity relative to the ship, body axes [m/s].
 
@@ -392,7 +423,7 @@ def apparent_wind(p, psi, u, v):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def wind_loads(p, psi, u_g, v_g):
+def wind_loads(p: FloatArray, psi: float, u_g: float, v_g: float) -> tuple[float, float, float]:
     """
     Wind force and moment (X [N], Y [N], N [N m]) on the above-water ship, Blendermann (1994).
 
@@ -404,7 +435,7 @@ def wind_loads(p, psi, u_g, v_g):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def blendermann(p, ua, va):
+def blendermann(p: FloatArray, ua: float, va: float) -> tuple[float, float, float]:
     """
     Blendermann (1994) wind loads (X [N], Y [N], N [N m]) from the apparent wind (ua, va).
 
@@ -439,18 +470,21 @@ def blendermann(p, ua, va):
 _WINDS = tuple(blendermann if f.wind is None else f.wind for f in _FAMILIES)
 
 
-def _wind_of(kind, p, ua, va):
+def _wind_of(kind: tuple[int, ...], p: FloatArray, ua: float,
+             va: float) -> tuple[float, float, float]:
     raise NotImplementedError('compiled only (numba overload)')
 
 
 @overload(_wind_of, inline='always', jit_options={'fastmath': FASTMATH})
-def _wind_of_impl(kind, p, ua, va):
+def _wind_of_impl(  # type: ignore[no-untyped-def]  # numba matches it to the impl's
+        kind, p, ua, va):
     wind = _WINDS[_tag_code(kind)]
     return lambda kind, p, ua, va: wind(p, ua, va)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def family_wind(kind, p, ua, va):
+def family_wind(kind: tuple[int, ...], p: FloatArray, ua: float,
+                va: float) -> tuple[float, float, float]:
     """
     Compute the wind loads of family ``kind``'s wind model from the apparent wind.
 
@@ -462,13 +496,16 @@ def family_wind(kind, p, ua, va):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def external_accelerations(kind, p, X, Y, N):
+def external_accelerations(kind: tuple[int, ...], p: FloatArray, X: float, Y: float,
+                           N: float) -> tuple[float, float, float]:
     """Accelerations from external forces (wind) through the family's mass matrix."""
     return _solve_of(kind, p, X, Y, N)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rhs(kind, p, s, act, r0=0.0, r1=0.0, r2=0.0, physics=True):
+def rhs(kind: tuple[int, ...], p: FloatArray, s: FloatArray | tuple[float, ...],
+        act: tuple[float, ...], r0: float = 0.0, r1: float = 0.0, r2: float = 0.0,
+        physics: bool = True) -> tuple[float, float, float, float, float, float]:
     """
     Return ds/dt for s = (x, y, psi, u, v, r) as a tuple; u, v through the water.
 
@@ -513,7 +550,8 @@ def rhs(kind, p, s, act, r0=0.0, r1=0.0, r2=0.0, physics=True):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def derivative(kind, p, s, act, out):
+def derivative(kind: tuple[int, ...], p: FloatArray, s: FloatArray, act: tuple[float, ...],
+               out: FloatArray) -> None:
     """ds/dt for s = (x, y, psi, u, v, r) with u, v through the water (current added here)."""
     d = rhs(kind, p, s, act)
     out[0] = d[0]

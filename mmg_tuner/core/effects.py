@@ -37,7 +37,7 @@ _FROUDE_EXPONENT = {'m': 1.0, 's': 0.5, 'm/s': 0.5}  # value_model = value_full 
 
 def froude_factor(unit: str, ratio: float) -> float:
     """Factor taking a full-scale value in this unit to a model of scale 1:ratio."""
-    return ratio ** -_FROUDE_EXPONENT.get(unit, 0.0)
+    return float(ratio ** -_FROUDE_EXPONENT.get(unit, 0.0))  # typeshed: float ** float is Any
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ class Effect:
     neutral: tuple[float, ...]
     boxes: tuple[Box, ...]
     periodic: tuple[bool, ...]
-    words: Callable[[dict, dict], str]
+    words: Callable[[dict[str, float], dict[str, float]], str]
     settle_by: str = ''
     pinned_by: tuple[str, ...] = ()
     actuator: str = ''
@@ -129,13 +129,14 @@ class Effect:
         return dict(zip(self.params, self.neutral))
 
 
-def _pm(values: dict, errors: dict, name: str, scale: float = 1.0, fmt: str = '.3g') -> str:
+def _pm(values: dict[str, float], errors: dict[str, float], name: str, scale: float = 1.0,
+        fmt: str = '.3g') -> str:
     v = values[name] * scale
     e = errors.get(name)
     return f'{v:{fmt}}' + (f' ± {abs(e * scale):.2g}' if e is not None else '')
 
 
-def _direction(values: dict, errors: dict, name: str) -> str:
+def _direction(values: dict[str, float], errors: dict[str, float], name: str) -> str:
     e = errors.get(name)
     return (f'{math.degrees(values[name]) % 360.0:.0f}'
             + (f' ± {math.degrees(abs(e)):.2g}' if e is not None else '') + ' deg')
@@ -235,7 +236,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            'thruster (actual = recorded + offset)',
            smallest=(math.radians(1.0),), neutral=(0.0,),
            boxes=((-math.radians(5), math.radians(5)),), periodic=(False,),
-           words=lambda v, e, side=side: (
+           words=lambda v, e, side=side: (  # type: ignore[misc]  # side= defeats inference
                f'{side} azimuth offset '
                f"{_pm(v, e, f'azimuth_offset_{side}', math.degrees(1), '.2f')} deg"),
            settle_by=f'point the {side} thruster ahead (its indicator at 0) and check the '
@@ -250,7 +251,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            f'the {side} thruster gives this fraction of its bollard-pull thrust at the same '
            'shaft speed (below 1: a fouled or damaged propeller)',
            smallest=(0.05,), neutral=(1.0,), boxes=((0.5, 1.1),), periodic=(False,),
-           words=lambda v, e, side=side: (
+           words=lambda v, e, side=side: (  # type: ignore[misc]  # side= defeats inference
                f"{side} thrust scale {_pm(v, e, f'thrust_scale_{side}', fmt='.3f')} "
                '(of the bollard-pull curve)'),
            settle_by=f'repeat the bollard-pull test of the {side} thruster (or inspect its '

@@ -8,12 +8,17 @@ inlined layer would otherwise cost an atomic reference count per array on the ho
 """
 from __future__ import annotations
 
+from typing import Any, Callable, TYPE_CHECKING
+
 from mmg_tuner.core._jit import FASTMATH
 from numba import njit
 
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def value(ctrl, k, j, frac_shift, T):
+def value(ctrl: FloatArray, k: int, j: int, frac_shift: float, T: int) -> float:
     """Channel j at sample k delayed by frac_shift samples (linear interpolation)."""
     if frac_shift == 0.0:
         return ctrl[k, j]
@@ -28,7 +33,7 @@ def value(ctrl, k, j, frac_shift, T):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def where(k, frac_shift, T):
+def where(k: int, frac_shift: float, T: int) -> tuple[int, int, float]:
     """
     Rows and weight (i0, i1, w) of sample k delayed by frac_shift samples.
 
@@ -45,11 +50,11 @@ def where(k, frac_shift, T):
     return i, i + 1, t - i
 
 
-def _reader(n: int):
+def _reader(n: int) -> Callable[..., Any]:
     """Compiled reader of n consecutive channels from column j as a tuple (numba, inlined)."""
     cols = ', '.join(f'(1.0 - w) * ctrl[i0, j + {c}] + w * ctrl[i1, j + {c}]' for c in range(n))
     src = f'def read(ctrl, i0, i1, w, j):\n    return ({cols},)\n'
-    ns: dict = {}
+    ns: dict[str, Any] = {}
     exec(src, ns)  # noqa: S102 - a fixed template: numba needs a literal tuple per width
     return njit(cache=False, fastmath=FASTMATH, inline='always')(ns['read'])
 
@@ -57,7 +62,7 @@ def _reader(n: int):
 _READERS = {n: _reader(n) for n in range(1, 9)}
 
 
-def commands(n: int):
+def commands(n: int) -> Callable[..., Any]:
     """Return the compiled reader of an actuator's n input channels (n <= 8)."""
     if n not in _READERS:
         raise TypeError(f'an actuator reads at most {max(_READERS)} channels, not {n}')

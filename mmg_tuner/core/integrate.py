@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any, Callable, TYPE_CHECKING
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH
@@ -41,6 +42,9 @@ from mmg_tuner.core.layout import (DIVERGED, EULER, OK, PARAM_INDEX, RPM_NOT_POS
 from numba import njit, prange
 from numba.core.errors import NumbaIRAssumptionWarning
 import numpy as np
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray, IntArray
 
 N_ENV = 2  # the measured wind north/east: the last two columns of every input array
 
@@ -59,7 +63,8 @@ _dirw = PARAM_INDEX['wind_dir']
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def step(kind, p, s, act, h, method, r0, r1, r2, physics):
+def step(kind: tuple[int, ...], p: FloatArray, s: FloatArray, act: tuple[float, ...], h: float,
+         method: int, r0: float, r1: float, r2: float, physics: bool) -> None:
     """
     Advance s in place by one step h (Euler or classic RK4), inputs held over the step.
 
@@ -87,14 +92,14 @@ def step(kind, p, s, act, h, method, r0, r1, r2, physics):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def input_row(ctrl, k, frac_shift, T, inp):
+def input_row(ctrl: FloatArray, k: int, frac_shift: float, T: int, inp: FloatArray) -> None:
     """Fill inp with the command channels at sample k (all but the wind), shifted in time."""
     for j in range(inp.shape[0]):
         inp[j] = value(ctrl, k, j, frac_shift, T)
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def has_measured_wind(ctrl):
+def has_measured_wind(ctrl: FloatArray) -> bool:
     """Whether the wind columns (the last two) hold any measured value (decided per run)."""
     T, n = ctrl.shape
     for k in range(T):
@@ -104,7 +109,7 @@ def has_measured_wind(ctrl):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def to_water(p, s):
+def to_water(p: FloatArray, s: FloatArray) -> None:
     """Convert a state with over-ground u, v to u, v through the water (in place)."""
     Vc = p[_Vc]
     if Vc != 0.0:
@@ -114,7 +119,7 @@ def to_water(p, s):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def observe_row(p, s, out, k):
+def observe_row(p: FloatArray, s: FloatArray, out: FloatArray, k: int) -> None:
     """
     Measured quantities from the model state, written to row k of out (n, 6).
 
@@ -137,7 +142,7 @@ def observe_row(p, s, out, k):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def observe(p, s, out):
+def observe(p: FloatArray, s: FloatArray, out: FloatArray) -> None:
     """Measured quantities from the model state into out (6,) (as :func:`observe_row`)."""
     for i in range(6):
         out[i] = s[i]
@@ -154,7 +159,7 @@ def observe(p, s, out):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def state_status(kind, s):
+def state_status(kind: tuple[int, ...], s: FloatArray) -> int:
     """
     OK, DIVERGED (non-finite) or SURGE_NOT_POSITIVE (u <= 0 in a family without astern).
 
@@ -170,8 +175,10 @@ def state_status(kind, s):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, r0=0.0, r1=0.0, r2=0.0,
-            physics=True):
+def advance(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a: FloatArray,
+            ctrl: FloatArray, k: int, shift: float, T: int, dt: float, substeps: int,
+            method: int, r0: float = 0.0, r1: float = 0.0, r2: float = 0.0,
+            physics: bool = True) -> int:
     """
     Advance the model state s (in place) over one sample interval dt: the one step function.
 
@@ -197,13 +204,14 @@ def advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, r0=0.0, r1=0
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def start_actuators(kind, p, ctrl, shift, T, a):
+def start_actuators(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, shift: float, T: int,
+                    a: FloatArray) -> None:
     """Set the actuator states a from sample 0 of ctrl (Python callers: the node, commands)."""
     actuate_start(kind, p, ctrl, shift, T, a)
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def start_state(p, x0, s):
+def start_state(p: FloatArray, x0: FloatArray, s: FloatArray) -> None:
     """
     Model state from a first observed state.
 
@@ -220,7 +228,7 @@ def start_state(p, x0, s):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def use_measured_wind(p, ctrl, k):
+def use_measured_wind(p: FloatArray, ctrl: FloatArray, k: int) -> None:
     """
     Set the wind parameters of p from the measured wind channels at sample k.
 
@@ -236,7 +244,9 @@ def use_measured_wind(p, ctrl, k):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
+def _simulate_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray, ctrl: FloatArray,
+                  T: int, dt: float, substeps: int, method: int,
+                  out: FloatArray) -> tuple[int, int]:
     """
     Simulate one trajectory over T samples spaced dt, writing observed states to out[:T].
 
@@ -272,8 +282,9 @@ def _simulate_one(kind, p_in, x0, ctrl, T, dt, substeps, method, out):
 
 
 @njit(cache=True, parallel=True)
-def _simulate_many(kind, params, x0s, ctrls, lengths, dt, substeps, method, out, status,
-                   k_fail):
+def _simulate_many(kind: tuple[int, ...], params: FloatArray, x0s: FloatArray,
+                   ctrls: FloatArray, lengths: IntArray, dt: float, substeps: int, method: int,
+                   out: FloatArray, status: IntArray, k_fail: IntArray) -> None:
     """
     All (candidate, trial) pairs.
 
@@ -292,8 +303,10 @@ def _simulate_many(kind, params, x0s, ctrls, lengths, dt, substeps, method, out,
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate, T, dt,
-                  substeps, method, out, rudder_out):
+def _run_maneuver(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl: FloatArray,
+                  rudder_col: int, zigzag_amp: float, zigzag_check: float, rate: float, T: int,
+                  dt: float, substeps: int, method: int, out: FloatArray,
+                  rudder_out: FloatArray) -> tuple[int, int]:
     """
     Simulate a manoeuvre with a steering gear in the loop (for generating trials).
 
@@ -376,7 +389,9 @@ def _run_maneuver(kind, p, x0, ctrl, rudder_col, zigzag_amp, zigzag_check, rate,
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, shoot_every):
+def _trajectory_cost(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: FloatArray,
+                     T: int, dt: float, substeps: int, method: int, weights: FloatArray,
+                     shoot_every: int) -> tuple[float, int]:
     """
     Weighted squared error of a simulation against a measured trial (Suyama et al. eq. 43).
 
@@ -419,8 +434,9 @@ def _trajectory_cost(kind, p_in, meas, ctrl, T, dt, substeps, method, weights, s
 
 
 @njit(cache=True, parallel=True)
-def _cost_many(kind, params, meas, ctrls, lengths, dt, substeps, method, weights, shoot_every,
-               J, k_fail):
+def _cost_many(kind: tuple[int, ...], params: FloatArray, meas: FloatArray, ctrls: FloatArray,
+               lengths: IntArray, dt: float, substeps: int, method: int, weights: FloatArray,
+               shoot_every: int, J: FloatArray, k_fail: IntArray) -> None:
     """trajectory_cost for every (candidate, trial) pair, in parallel: J and k_fail (N, M)."""
     N = params.shape[0]
     M = meas.shape[0]
@@ -434,7 +450,9 @@ def _cost_many(kind, params, meas, ctrls, lengths, dt, substeps, method, weights
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _trajectory_residuals(kind, p_in, meas, ctrl, T, dt, substeps, method, sw, chans, out):
+def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray,
+                          ctrl: FloatArray, T: int, dt: float, substeps: int, method: int,
+                          sw: FloatArray, chans: IntArray, out: FloatArray) -> int:
     """
     Write the weighted errors whose squares _trajectory_cost sums, one per (sample, channel).
 
@@ -478,8 +496,10 @@ def _trajectory_residuals(kind, p_in, meas, ctrl, T, dt, substeps, method, sw, c
 
 
 @njit(cache=True, parallel=True)
-def _residuals_many(kind, params, meas, ctrls, lengths, dt, substeps, method, sw, chans,
-                    offsets, out, k_fail):
+def _residuals_many(kind: tuple[int, ...], params: FloatArray, meas: FloatArray,
+                    ctrls: FloatArray, lengths: IntArray, dt: float, substeps: int, method: int,
+                    sw: FloatArray, chans: IntArray, offsets: IntArray, out: FloatArray,
+                    k_fail: IntArray) -> None:
     """
     _trajectory_residuals for every (candidate, trial) pair, in parallel.
 
@@ -496,7 +516,8 @@ def _residuals_many(kind, params, meas, ctrls, lengths, dt, substeps, method, sw
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _actuator_outputs(kind, p, ctrl, T, dt, out):
+def _actuator_outputs(kind: tuple[int, ...], p: FloatArray, ctrl: FloatArray, T: int, dt: float,
+                      out: FloatArray) -> None:
     """
     Fill out (T, n) with the actuator tuple acting over each sample interval.
 
@@ -514,7 +535,8 @@ def _actuator_outputs(kind, p, ctrl, T, dt, out):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _accelerations_many(kind, p, nu, act, out):
+def _accelerations_many(kind: tuple[int, ...], p: FloatArray, nu: FloatArray, act: FloatArray,
+                        out: FloatArray) -> None:
     """
     Fill out (B, 3) with (du/dt, dv_m/dt, dr/dt) of the family (``dynamics.accelerations``).
 
@@ -530,7 +552,7 @@ def _accelerations_many(kind, p, nu, act, out):
         out[b, 2] = dr
 
 
-def _for_family(kernel):
+def _for_family(kernel: Callable[..., Any]) -> Callable[..., Any]:
     """
     Make the Python entry point of a whole-run kernel.
 
@@ -539,7 +561,7 @@ def _for_family(kernel):
     benchmark (bench/bench_core.py).
     """
     @functools.wraps(kernel)
-    def entry(kind, *args):
+    def entry(kind: int, *args: Any) -> Any:
         return kernel(family_tag(kind), *args)
     return entry
 

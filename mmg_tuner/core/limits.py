@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Any, Iterable
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.ship import ShipConfig
@@ -275,7 +276,7 @@ class CommandLimit:
     plausible: float
     basis: str
 
-    def check(self, value) -> tuple[float | None, str]:
+    def check(self, value: Any) -> tuple[float | None, str]:
         """Return (the value to apply or None: refused, the problem or '')."""
         name = f'{self.channel} command'
         try:
@@ -297,7 +298,7 @@ class CommandLimit:
         return value, ''
 
 
-def command_limits(ship: ShipConfig, channels) -> dict[str, CommandLimit]:
+def command_limits(ship: ShipConfig, channels: Iterable[str]) -> dict[str, CommandLimit]:
     """
     Return the clamp and cap of each command channel, by its unit (module docstring).
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Mapping
+from typing import Any, Mapping, TYPE_CHECKING
 
 from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
@@ -24,6 +24,10 @@ from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
 from numba import njit
 import numpy as np
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+    import numpy.typing as npt
 
 IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed or yaw rate
 ARITHMETIC = -2   # the compiled model raised ZeroDivisionError
@@ -65,7 +69,7 @@ class StepFailure:
     commands: tuple[tuple[str, float], ...] = ()
 
     def __str__(self) -> str:
-        def fmt(state):
+        def fmt(state: tuple[float, ...]) -> str:
             return ', '.join(f'{n} {v:.4g}' for n, v in zip(STATE_NAMES, state))
         if self.commands:
             held = ', '.join(f'{n} {v:.6g}' for n, v in self.commands)
@@ -80,8 +84,10 @@ class StepFailure:
 
 
 @njit(cache=True)
-def _advance_checked(kind, p, s, a, row, dt, substeps, method, n, speed_max, yaw_rate_max, last,
-                     r0, r1, r2, physics):
+def _advance_checked(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a: FloatArray,
+                     row: FloatArray, dt: float, substeps: int, method: int, n: int,
+                     speed_max: float, yaw_rate_max: float, last: FloatArray, r0: float,
+                     r1: float, r2: float, physics: bool) -> tuple[int, int]:
     """
     N calls of advance, each followed by a per-element finiteness and plausibility check.
 
@@ -108,7 +114,7 @@ def _advance_checked(kind, p, s, a, row, dt, substeps, method, n, speed_max, yaw
     return OK, n
 
 
-def apparent_wind_body(ship: ShipConfig, state, wind_n: float = math.nan,
+def apparent_wind_body(ship: ShipConfig, state: npt.ArrayLike, wind_n: float = math.nan,
                        wind_e: float = math.nan) -> tuple[float, float]:
     """
     Return the apparent wind in body axes [m/s] for a model state (for the node).
@@ -158,9 +164,10 @@ class ShipSimulator:
 
     """
 
-    def __init__(self, ship: ShipConfig, dt: float = 0.1, x0=None, rpm: float = 100.0,
-                 rudder_rad: float = 0.0, integrator: str = 'rk4', substeps: int = 1,
-                 residual=None, commands: Mapping[str, float] | None = None):
+    def __init__(self, ship: ShipConfig, dt: float = 0.1, x0: npt.ArrayLike | None = None,
+                 rpm: float = 100.0, rudder_rad: float = 0.0, integrator: str = 'rk4',
+                 substeps: int = 1, residual: Any = None,
+                 commands: Mapping[str, float] | None = None) -> None:
         self.ship = ship
         # a learned residual network (``learn.ResidualNet``, or anything with dt_s, physics and
         # stepper() -> .accelerations(state, commands, wind_body), .reset()) or None
@@ -233,7 +240,7 @@ class ShipSimulator:
         if self.failures:  # the very first step failed: refuse the settings
             raise SimulationError(f'{ship.name}: the first step fails ({self.failure})')
 
-    def _check_x0(self, x0) -> np.ndarray:
+    def _check_x0(self, x0: npt.ArrayLike | None) -> np.ndarray:
         lim = self.limits
         try:
             x = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0] if x0 is None else x0, dtype=float)

@@ -12,16 +12,20 @@ from __future__ import annotations
 
 PARAMS = ()   # its parameters are effects (core/effects.py): rpm_scale, rudder_offset, ...
 INPUTS = ('rpm', 'rudder')
-CHANNELS: dict = {}   # both are base channels (core/channels.py)
+CHANNELS: dict[str, tuple[str, str, str | None]] = {}   # both are base channels (core/channels.py)
 OUTPUTS = ('n_P', 'delta')
 STATES = ('delta_actual',)
 DESCRIPTION = 'propeller [rev/min] and rudder [rad] behind a first-order steering gear'
 
 import math  # noqa: E402  (below the declarations the layout reads)
+from typing import TYPE_CHECKING  # noqa: E402
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100
 from mmg_tuner.core.layout import OK, PARAM_INDEX, RPM_NOT_POSITIVE  # noqa: E402
 from numba import njit  # noqa: E402
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
 
 _doff = PARAM_INDEX['rudder_offset']
 _tau = PARAM_INDEX['rudder_lag_tau']
@@ -34,7 +38,7 @@ _L = PARAM_INDEX['L_pp']
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rpm_status(n_rps, astern):
+def rpm_status(n_rps: float, astern: bool) -> int:
     """OK or RPM_NOT_POSITIVE: n_P <= 0 (or NaN) is refused unless the family covers astern."""
     if n_rps > 0.0 or (astern and n_rps == n_rps):
         return OK
@@ -42,13 +46,14 @@ def rpm_status(n_rps, astern):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, cmd, a, i):
+def start(p: FloatArray, cmd: tuple[float, ...], a: FloatArray, i: int) -> None:
     """Start the gear where the first logged angle (plus the offset) puts it."""
     a[i] = cmd[1] + p[_doff]
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, cmd, h, astern):
+def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
+         astern: bool) -> tuple[int, tuple[float, float, float]]:
     """(status, (n_P [rev/s], rudder order [rad], gear decay over h)) for the held inputs."""
     n_rps = cmd[0] * p[_nscale] / 60.0
     tau = p[_tau]
@@ -57,7 +62,8 @@ def hold(p, cmd, h, astern):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def output(p, held, a, i):
+def output(p: FloatArray, held: tuple[float, float, float], a: FloatArray,
+           i: int) -> tuple[float, float]:
     """Steering gear: exact first-order response to the held order over one step."""
     delta_cmd = held[1]
     delta_act = delta_cmd + (a[i] - delta_cmd) * held[2]
@@ -66,7 +72,8 @@ def output(p, held, a, i):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act, k):
+def forces(p: FloatArray, u: float, v: float, r: float, act: tuple[float, ...],
+           k: int) -> tuple[float, float, float]:
     """Propeller side force at the stern, scaling with n^2 like the thrust (0 by default)."""
     if p[_CYP] == 0.0:
         return 0.0, 0.0, 0.0

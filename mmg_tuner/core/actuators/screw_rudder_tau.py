@@ -27,9 +27,11 @@ pushed to starboard pushes the stern to port: the bow turns to starboard), X_uud
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 PARAMS = ('T_nn', 'T_absn_u', 'X_uudd', 'Y_uud', 'Y_nnd', 'N_uud', 'N_nnd')
 INPUTS = ('rpm', 'rudder')
-CHANNELS: dict = {}   # both are base channels (core/channels.py)
+CHANNELS: dict[str, tuple[str, str, str | None]] = {}   # both are base channels (core/channels.py)
 OUTPUTS = ('n_P', 'delta')
 STATES = ()
 DESCRIPTION = ('one propeller and one rudder, tau linear in 7 coefficients: thrust in n|n| '
@@ -39,29 +41,34 @@ from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declara
 from mmg_tuner.core.layout import OK, PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+
 (_Tnn, _Tnu, _Xdd, _Yud, _Ynd, _Nud, _Nnd) = (PARAM_INDEX[k] for k in PARAMS)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, cmd, a, i):
+def start(p: FloatArray, cmd: tuple[float, ...], a: FloatArray, i: int) -> None:
     """No internal state."""
     return
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, cmd, h, astern):
+def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
+         astern: bool) -> tuple[int, tuple[float, float]]:
     """(OK, (n [rev/s], delta [rad])): the logged revolutions and angle act as they are."""
     return OK, (cmd[0] / 60.0, cmd[1])
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def output(p, held, a, i):
+def output(p: FloatArray, held: tuple[float, float], a: FloatArray, i: int) -> tuple[float, float]:
     """Return the held (n, delta): they act for the whole step."""
     return held
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act, k):
+def forces(p: FloatArray, u: float, v: float, r: float, act: tuple[float, ...],
+           k: int) -> tuple[float, float, float]:
     """Return tau (X [N], Y [N], N [N m]) of the propeller and the rudder (module docstring)."""
     n = act[k]
     delta = act[k + 1]

@@ -65,10 +65,14 @@ DEFAULTS = {'thrust_p0': 0.0, 'thrust_p1': 0.0, 'thrust_p3': 0.0, 'thrust_p4': 0
             'thrust_p5': 0.0, 'thrust_astern_ratio': 1.0, 'azimuth_rate_max': 0.0}
 
 import math  # noqa: E402  (below the declarations the layout reads)
+from typing import TYPE_CHECKING  # noqa: E402
 
 from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100
 from mmg_tuner.core.layout import OK, PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
 
 _P0 = PARAM_INDEX['thrust_p0']   # p0..p5 are consecutive slots (one literal PARAMS tuple)
 _ASTERN = PARAM_INDEX['thrust_astern_ratio']
@@ -89,7 +93,7 @@ if any(PARAM_INDEX[f'thrust_p{_k}'] != _P0 + _k for _k in range(6)):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def thrust(p, n):
+def thrust(p: FloatArray, n: float) -> float:
     """Thrust [N] of one clean thruster at shaft speed n [rev/s] (eq. 20, sign-aware)."""
     a = abs(n)
     f = p[_P0] + a * (p[_P0 + 1] + a * (p[_P0 + 2] + a * (p[_P0 + 3] + a * (
@@ -102,7 +106,7 @@ def thrust(p, n):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def transition(k1, k2, h):
+def transition(k1: float, k2: float, h: float) -> tuple[float, float, float, float]:
     """
     exp(A h) for A = [[0, 1], [-k1, -k2]]: (phi11, phi12, phi21, phi22).
 
@@ -128,7 +132,7 @@ def transition(k1, k2, h):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def start(p, cmd, a, i):
+def start(p: FloatArray, cmd: tuple[float, ...], a: FloatArray, i: int) -> None:
     """Start each thruster at its first measured angle, at rest."""
     a[i] = cmd[2]
     a[i + 1] = 0.0
@@ -137,7 +141,8 @@ def start(p, cmd, a, i):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hold(p, cmd, h, astern):
+def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
+         astern: bool) -> tuple[int, tuple[float, ...]]:
     """(OK, (F_port, F_stbd [N], meas. and cmd. angles [rad], exp(A h), max move [rad]))."""
     f_port = thrust(p, cmd[0]) * p[_SP]
     f_stbd = thrust(p, cmd[1]) * p[_SS]
@@ -152,7 +157,7 @@ def hold(p, cmd, h, astern):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def _follow(a, i, measured, cmd, held):
+def _follow(a: FloatArray, i: int, measured: float, cmd: float, held: tuple[float, ...]) -> float:
     """Advance one thruster's (angle, rate) at a[i], a[i + 1] over the step; return the angle."""
     if cmd != cmd:   # no command recorded: the measured angle acts
         a[i] = measured
@@ -179,7 +184,8 @@ def _follow(a, i, measured, cmd, held):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def output(p, held, a, i):
+def output(p: FloatArray, held: tuple[float, ...], a: FloatArray,
+           i: int) -> tuple[float, float, float, float]:
     """Advance both angles over one step; return (F_port, F_stbd, alpha_port, alpha_stbd)."""
     ap = _follow(a, i, held[2], held[4], held)
     ast = _follow(a, i + 2, held[3], held[5], held)
@@ -187,7 +193,8 @@ def output(p, held, a, i):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act, k):
+def forces(p: FloatArray, u: float, v: float, r: float, act: tuple[float, ...],
+           k: int) -> tuple[float, float, float]:
     """Return tau = T(alpha) f (eq. 8): (X [N], Y [N], N [N m]) about the reference point."""
     fp = act[k]
     fs = act[k + 1]

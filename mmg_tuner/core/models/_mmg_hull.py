@@ -8,10 +8,14 @@ forces from its normal force.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from mmg_tuner.core._jit import FASTMATH, U_MIN
 from mmg_tuner.core.layout import PARAM_INDEX
 from numba import njit
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
 
 _rho = PARAM_INDEX['rho']
 _L = PARAM_INDEX['L_pp']
@@ -42,7 +46,8 @@ _Nrrr = PARAM_INDEX['N_rrr']
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def hull(p, u, v, r):
+def hull(p: FloatArray, u: float, v: float,
+         r: float) -> tuple[float, float, float, float, float, float, float]:
     """
     Hull force and moment [N, N, N m] and the kinematics the other parts reuse.
 
@@ -68,7 +73,7 @@ def hull(p, u, v, r):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def sin_attack(delta, uR, vR):
+def sin_attack(delta: float, uR: float, vR: float) -> float:
     """sin(alpha_R), alpha_R = delta - atan2(v_R, u_R), without the atan2 (hot path)."""
     UR = math.sqrt(uR * uR + vR * vR)
     if UR == 0.0:
@@ -77,7 +82,7 @@ def sin_attack(delta, uR, vR):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def slipstream(KT, JP):
+def slipstream(KT: float, JP: float) -> float:
     """Return sqrt(1 + 8 K_T / (pi J_P^2)) - 1, the propeller race's speed-up (root >= 0)."""
     root = 1.0 + 8.0 * KT / (math.pi * JP * JP)
     if root < 0.0:
@@ -86,7 +91,8 @@ def slipstream(KT, JP):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def rudder_forces(p, delta, uR, vR, coef):
+def rudder_forces(p: FloatArray, delta: float, uR: float, vR: float,
+                  coef: float) -> tuple[float, float, float]:
     """
     Return the rudder force and moment [N, N, N m] (paper eqs. 25-28; standard eqs. 17-20).
 

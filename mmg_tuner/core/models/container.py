@@ -8,6 +8,7 @@ u_R = max(u_R*, u_R**) (eqs. 25-36). Ahead revolutions and ahead speed only.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from numba import njit
 
@@ -31,6 +32,9 @@ from mmg_tuner.core._jit import FASTMATH  # noqa: E402, I100  (below the declara
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from mmg_tuner.core.models._mmg_hull import hull, rudder_forces  # noqa: E402
 from mmg_tuner.core.models._mmg_hull import sin_attack, slipstream  # noqa: E402
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
 
 ACT_N, ACT_DELTA = 0, 1   # the actuator tuple: screw_rudder's (n_P [rev/s], delta [rad])
 _rho = PARAM_INDEX['rho']
@@ -67,7 +71,8 @@ _flap = PARAM_INDEX['flap_ratio']
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act):
+def forces(p: FloatArray, u: float, v: float, r: float,
+           act: tuple[float, ...]) -> tuple[float, float, float]:
     """Hull + propeller + rudder force [N] and moment [N m]; act[ACT_N] = n_P > 0 [rev/s]."""
     n_rps = act[ACT_N]
     delta = act[ACT_DELTA]

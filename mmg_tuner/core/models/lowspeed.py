@@ -29,8 +29,9 @@ non-dimensional on 1/2 rho L d (forces), 1/2 rho L^2 d (moments, masses), 1/2 rh
 Two ways in: the family interface the generic kernels call (:func:`forces` on the actuator
 tuple, :func:`wind` on the apparent wind vector; the shared equations of motion in
 ``core/dynamics.py``), and the reference's standalone form (:func:`force_terms`,
-:func:`accelerations` with the apparent wind as speed and angle), which test/core/test_lowspeed_model.py
-checks against the reference's sanity numbers. Both use the same component functions.
+:func:`accelerations` with the apparent wind as speed and angle), which
+test/core/test_lowspeed_model.py checks against the reference's sanity numbers. Both use the
+same component functions.
 The model is discontinuous at u = 0, n = 0 and at a few branch points (§9): use fixed steps.
 """
 from __future__ import annotations
@@ -56,10 +57,14 @@ DESCRIPTION = ('low-speed four-quadrant MMG with thrusters and Fujiwara wind, Os
                'NAOE 5th lab (Yoshimura 2009 hull; Esso Osaka 3 m)')
 
 import math  # noqa: E402  (below the declarations the layout reads)
+from typing import TYPE_CHECKING  # noqa: E402
 
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 import numpy as np  # noqa: E402
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
 
 # the actuator tuple: screw_rudder's (n_P, delta), then tunnel_thrusters' (bow, stern)
 ACT_N, ACT_DELTA, ACT_BOW, ACT_STERN = 0, 1, 2, 3
@@ -97,12 +102,12 @@ U_MIN = 1e-5                  # below this total speed the lab sets U, v', r' to
 # --- components -------------------------------------------------------------------------
 
 @njit(cache=True)
-def _sgn(x):
+def _sgn(x: float) -> float:
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
 @njit(cache=True)
-def cross_flow_integrals(a, b):
+def cross_flow_integrals(a: float, b: float) -> tuple[float, float]:
     """
     Return the cross-flow integrals (I_Y, I_N) in closed form.
 
@@ -125,7 +130,7 @@ def cross_flow_integrals(a, b):
 
 
 @njit(cache=True)
-def _speed(u, v, r, L):
+def _speed(u: float, v: float, r: float, L: float) -> tuple[float, float, float]:
     """(U, v', r') with the lab's U -> 0 guard (§9)."""
     U = math.sqrt(u * u + v * v)
     if U < U_MIN:
@@ -134,7 +139,7 @@ def _speed(u, v, r, L):
 
 
 @njit(cache=True)
-def hull_forces(p, u, v, r):
+def hull_forces(p: FloatArray, u: float, v: float, r: float) -> tuple[float, float, float]:
     """Yoshimura low-speed hull forces (X_H, Y_H, N_H) [N, N m] (§4)."""
     L, d, rho = p[I_L], p[I_D], p[I_RHO]
     U, _, _ = _speed(u, v, r, L)
@@ -150,7 +155,8 @@ def hull_forces(p, u, v, r):
 
 
 @njit(cache=True)
-def propeller_forces(p, u, v, r, n):
+def propeller_forces(p: FloatArray, u: float, v: float, r: float,
+                     n: float) -> tuple[float, float, float, float]:
     """
     Four-quadrant propeller (X_P, Y_P, N_P, 1 - w_P) [N, N m, -] (§5).
 
@@ -198,7 +204,8 @@ def propeller_forces(p, u, v, r, n):
 
 
 @njit(cache=True)
-def rudder_inflow(p, u, v, r, n, x_p, omw):
+def rudder_inflow(p: FloatArray, u: float, v: float, r: float, n: float, x_p: float,
+                  omw: float) -> tuple[float, float]:
     """(u_R, v_R) [m/s] (§6) from the propeller thrust x_p [N] and its clipped 1 - w_P."""
     rho, D, eps = p[I_RHO], p[I_DP], p[I_EPS]
     eta = D / p[I_HR]   # H_R = sqrt(A_R Lambda) in the lab's code (the YAML gives it so)
@@ -226,7 +233,7 @@ def rudder_inflow(p, u, v, r, n, x_p, omw):
 
 
 @njit(cache=True)
-def rudder_forces(p, ur, vr, delta):
+def rudder_forces(p: FloatArray, ur: float, vr: float, delta: float) -> tuple[float, float, float]:
     """(X_R, Y_R, N_R) [N, N m] from the inflow (u_R, v_R) (§6; Fujii's normal force)."""
     lam = p[I_LAM]
     f_alpha = 6.13 * lam / (lam + 2.25)
@@ -239,7 +246,8 @@ def rudder_forces(p, ur, vr, delta):
 
 
 @njit(cache=True)
-def thruster_forces(p, u, n_bt, n_st):
+def thruster_forces(p: FloatArray, u: float, n_bt: float,
+                    n_st: float) -> tuple[float, float, float, float]:
     """
     (Y_BT, N_BT, Y_ST, N_ST) [N, N m] (§7).
 
@@ -258,7 +266,8 @@ def thruster_forces(p, u, n_bt, n_st):
 
 
 @njit(cache=True)
-def wind_forces(p, wind_speed_rel, wind_angle_rel):
+def wind_forces(p: FloatArray, wind_speed_rel: float,
+                wind_angle_rel: float) -> tuple[float, float, float]:
     """
     Return Fujiwara's wind loads (X_A, Y_A, N_A) from the apparent wind.
 
@@ -277,7 +286,8 @@ def wind_forces(p, wind_speed_rel, wind_angle_rel):
 
 
 @njit(cache=True)
-def apparent_wind(true_speed, true_from, psi, u, v):
+def apparent_wind(true_speed: float, true_from: float, psi: float, u: float,
+                  v: float) -> tuple[float, float]:
     """
     Return the apparent wind from the true wind and the ship's heading and velocity.
 
@@ -294,7 +304,8 @@ def apparent_wind(true_speed, true_from, psi, u, v):
 
 
 @njit(cache=True)
-def apparent_wind_ne(wind_n, wind_e, psi, u, v):
+def apparent_wind_ne(wind_n: float, wind_e: float, psi: float, u: float,
+                     v: float) -> tuple[float, float]:
     """
     Return the apparent wind from the true wind given as north/east air velocity.
 
@@ -306,7 +317,7 @@ def apparent_wind_ne(wind_n, wind_e, psi, u, v):
 
 
 @njit(cache=True)
-def actuator_rate(cmd, actual, time_const_s, max_rate):
+def actuator_rate(cmd: float, actual: float, time_const_s: float, max_rate: float) -> float:
     """Lab actuator lag (§7): d(actual)/dt = clip((cmd - actual) / T, -K, K)."""
     rate = (cmd - actual) / time_const_s
     return min(max(rate, -max_rate), max_rate)
@@ -315,7 +326,9 @@ def actuator_rate(cmd, actual, time_const_s, max_rate):
 # --- totals -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def force_terms(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
+def force_terms(p: FloatArray, u: float, v: float, r: float, n_rps: float, delta: float,
+                n_bt: float, n_st: float, wind_speed_rel: float,
+                wind_angle_rel: float) -> FloatArray:
     """
     Every contribution as a (6, 3) array.
 
@@ -335,7 +348,9 @@ def force_terms(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle
 
 
 @njit(cache=True)
-def total_forces(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
+def total_forces(p: FloatArray, u: float, v: float, r: float, n_rps: float, delta: float,
+                 n_bt: float, n_st: float, wind_speed_rel: float,
+                 wind_angle_rel: float) -> tuple[float, float, float]:
     """(X, Y, N) summed over every term (no allocation)."""
     xh, yh, nh = hull_forces(p, u, v, r)
     xp, yp, np_, omw = propeller_forces(p, u, v, r, n_rps)
@@ -347,7 +362,7 @@ def total_forces(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angl
 
 
 @njit(cache=True)
-def mass_terms(p):
+def mass_terms(p: FloatArray) -> tuple[float, float, float, float, float]:
     """(m [kg], m_x, m_y [kg], I_zG + J_z [kg m^2], x_G [m]); added masses from the primes (§3)."""
     L, d, rho = p[I_L], p[I_D], p[I_RHO]
     q = 0.5 * rho * L * L * d
@@ -355,7 +370,9 @@ def mass_terms(p):
 
 
 @njit(cache=True)
-def accelerations(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_angle_rel):
+def accelerations(p: FloatArray, u: float, v: float, r: float, n_rps: float, delta: float,
+                  n_bt: float, n_st: float, wind_speed_rel: float,
+                  wind_angle_rel: float) -> tuple[float, float, float]:
     """
     (du/dt, dv/dt [m/s^2], dr/dt [rad/s^2]) of the midship velocities through the water, body axes.
 
@@ -383,7 +400,8 @@ def accelerations(p, u, v, r, n_rps, delta, n_bt, n_st, wind_speed_rel, wind_ang
 # --- the family interface (core/models/__init__.py) ----------------------------------------
 
 @njit(cache=True)
-def forces(p, u, v, r, act):
+def forces(p: FloatArray, u: float, v: float, r: float,
+           act: tuple[float, ...]) -> tuple[float, float, float]:
     """
     Hull + propeller + rudder + thrusters (X [N], Y [N], N [N m]) about midship.
 
@@ -400,7 +418,7 @@ def forces(p, u, v, r, act):
 
 
 @njit(cache=True)
-def wind(p, wx, wy):
+def wind(p: FloatArray, wx: float, wy: float) -> tuple[float, float, float]:
     """
     Return Fujiwara's wind loads from the air's velocity relative to the ship.
 

@@ -15,6 +15,8 @@ keeps the thrusters' sway force, 0 drops it. The paper's Table 4 values are in
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 PARAMS = ('m11', 'm22', 'm33', 'd11', 'd22', 'd33', 'tau_v')
 COEFFICIENTS = PARAMS[:6]
 """The 6 model coefficients, in the reference's Table 4 order (``tau_v`` is a switch)."""
@@ -32,19 +34,24 @@ from mmg_tuner.core.actuators.twin_azimuth import DEFAULTS as _ACTUATOR_DEFAULTS
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+
 DEFAULTS: dict[str, float] = {'x_G': 0.0, 'tau_v': 1.0, **_ACTUATOR_DEFAULTS}
 
 _m11, _m22, _m33, _d11, _d22, _d33, _tauv = (PARAM_INDEX[k] for k in PARAMS)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act):
+def forces(p: FloatArray, u: float, v: float, r: float,
+           act: tuple[float, ...]) -> tuple[float, float, float]:
     """Return the linear damping -(d11 u, d22 v, d33 r) [N, N, N m]."""
     return -p[_d11] * u, -p[_d22] * v, -p[_d33] * r
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def motion(p, u, v, r, X, Y, N):
+def motion(p: FloatArray, u: float, v: float, r: float, X: float, Y: float,
+           N: float) -> tuple[float, float, float]:
     """(du, dv, dr) for the forces X, Y, N: damping, thrust and effects (no inertia)."""
     m11 = p[_m11]
     m22 = p[_m22]
@@ -57,6 +64,6 @@ def motion(p, u, v, r, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def mass_solve(p, X, Y, N):
+def mass_solve(p: FloatArray, X: float, Y: float, N: float) -> tuple[float, float, float]:
     """diag(m11, m22, m33)^-1 (X, Y, N) for external forces (wind)."""
     return X / p[_m11], Y / p[_m22], N / p[_m33]

@@ -25,6 +25,8 @@ the ship file gives the windage) act through M^-1; a current through the kinemat
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 PARAMS = ('m11', 'm22', 'm23', 'm32', 'm33',
           'X_u', 'X_absu_u', 'X_uuu',
           'Y_v', 'Y_absv_v', 'Y_absr_v', 'Y_vvv', 'Y_r', 'Y_absv_r', 'Y_absr_r',
@@ -46,6 +48,9 @@ from mmg_tuner.core.actuators.twin_azimuth import DEFAULTS as _ACTUATOR_DEFAULTS
 from mmg_tuner.core.layout import PARAM_INDEX  # noqa: E402
 from numba import njit  # noqa: E402
 
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+
 DEFAULTS: dict[str, float] = {'x_G': 0.0, 'coriolis_form': 0.0, **_ACTUATOR_DEFAULTS}
 CORIOLIS_FORMS = {'pedersen': 0.0, 'fossen': 1.0}
 """The values of ``coriolis_form``: raw m23 (Pedersen, Bitar) or (m23 + m32) / 2 (Fossen)."""
@@ -55,7 +60,8 @@ CORIOLIS_FORMS = {'pedersen': 0.0, 'fossen': 1.0}
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act):
+def forces(p: FloatArray, u: float, v: float, r: float,
+           act: tuple[float, ...]) -> tuple[float, float, float]:
     """-D(nu) nu [N, N, N m] (the thrust is the actuator's; inertia and C(nu) in motion)."""
     au = abs(u)
     av = abs(v)
@@ -69,7 +75,8 @@ def forces(p, u, v, r, act):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def motion(p, u, v, r, X, Y, N):
+def motion(p: FloatArray, u: float, v: float, r: float, X: float, Y: float,
+           N: float) -> tuple[float, float, float]:
     """(du, dv, dr) = M^-1 (X, Y, N - C(nu) nu) for the forces X, Y, N (all but inertia)."""
     m11 = p[_m11]
     m22 = p[_m22]
@@ -86,7 +93,7 @@ def motion(p, u, v, r, X, Y, N):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def mass_solve(p, X, Y, N):
+def mass_solve(p: FloatArray, X: float, Y: float, N: float) -> tuple[float, float, float]:
     """M^-1 (X, Y, N) for external forces (wind)."""
     m22 = p[_m22]
     m23 = p[_m23]

@@ -14,6 +14,8 @@ tuning targets (its mass matrix is kept at the published values).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 PARAMS = ('m11', 'm22', 'm23', 'm32', 'm33',
           'X_u', 'X_absu_u', 'X_uuu',
           'Y_v', 'Y_absv_v', 'Y_absr_v', 'Y_vvv', 'Y_r', 'Y_absv_r', 'Y_absr_r',
@@ -32,6 +34,9 @@ from mmg_tuner.core.models import surge_decoupled as _sd  # noqa: E402
 from mmg_tuner.core.models.lowspeed import thruster_forces  # noqa: E402
 from numba import njit  # noqa: E402
 
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray
+
 # a ship without tunnel thrusters: no thrust at any speed (lowspeed's slots, 0: no force)
 DEFAULTS: dict[str, float] = {
     'x_G': 0.0, 'coriolis_form': 0.0, 'X_uudd': 0.0, 'Y_nnd': 0.0, 'N_nnd': 0.0,
@@ -45,7 +50,8 @@ mass_solve = _sd.mass_solve
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def forces(p, u, v, r, act):
+def forces(p: FloatArray, u: float, v: float, r: float,
+           act: tuple[float, ...]) -> tuple[float, float, float]:
     """-D(nu) nu plus the tunnel thrusters' side force and moment [N, N, N m]."""
     X, Y, N = _sd.forces(p, u, v, r, act)
     yb, nb, ys, ns = thruster_forces(p, u, act[_BOW], act[_BOW + 1])
