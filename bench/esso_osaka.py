@@ -229,7 +229,7 @@ def main(argv: list[str] | None = None) -> dict:
               f'{time.perf_counter() - t_tune:.0f} s; J per sample {res.J / n_samples:.4f}')
     if args.polish > 0:   # local least squares on the same objective's residual vector
         t_pol = time.perf_counter()
-        loc = local_least_squares(space, obj, theta, args.polish)
+        loc = local_least_squares(space, obj, theta, args.polish, method='lm')
         theta = loc.theta
         evals += loc.simulations
         print(f'least-squares polish: {loc.simulations} simulations, '

@@ -335,6 +335,11 @@ def _residual_wanted(dx: 'DiagnosisResult', tune_final: list[Trial],
     if st.get('remaining_is_noise') is not False:
         return False, ('not trained: ' + (st.get('noise') or 'no noise floor to judge what '
                                           'remains against'))
+    fam = dx.ship.family
+    if tuple(fam.inputs[:2]) != ('rpm', 'rudder'):   # the network's features (learn/residual.py)
+        return False, (f"not trained although {st.get('noise')}: the residual network learns "
+                       f'screw-and-rudder ships only; the {fam.name!r} family reads '
+                       + ', '.join(fam.inputs))
     try:
         require_jax()
     except MissingDependencyError as exc:

@@ -362,7 +362,7 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
             if spec.shoot_every_s:   # the residual vector has no restarts: not the same J
                 logger.warning('polish skipped: it does not model shoot_every_s restarts')
             else:
-                loc = local_least_squares(space, minimised, theta, cfg.polish)
+                loc = local_least_squares(space, minimised, theta, cfg.polish, method='lm')
                 theta, evaluations = loc.theta, evaluations + loc.simulations
                 logger.info('least-squares polish: %d simulations, J %.6g -> %.6g',
                             loc.simulations, res.J, loc.J)

@@ -89,7 +89,10 @@ def test_hand_copied_results_name_their_source_and_a_benchmark():
     for f in files:
         doc = json.loads(f.read_text())
         assert doc['name'] == f.stem and f.stem in _modules(), f
-        assert doc['source'].startswith('hand-copied from the README history, commit'), f
+        # copied by hand: from the README's history, or from a registered run's printout
+        assert doc['source'].startswith(('hand-copied from the README history, commit',
+                                         'copied from the registered run')), f
+        assert doc['commit'] and doc['commit'] in doc['source'], f
         assert doc['notes'].strip(), f
 
 
