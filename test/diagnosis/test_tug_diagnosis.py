@@ -3,7 +3,8 @@ The diagnosis on the twin-azimuth tug (issue 24): a current and the actuator's o
 
 Each test hides one effect in the qiuxin_tug twin (generate's catalogue, its RTK-class noise)
 and asserts that the diagnosis names it, with the estimate within its standard error band of
-the truth, and that clean data names nothing. The base model starts from the published
+the truth (3 standard errors: the larger of Gauss-Newton's and the jackknife's over the tuning
+trials), and that clean data names nothing. The base model starts from the published
 coefficients (the twin's truth): what ``diagnose --ship qiuxin_tug`` does without --params.
 Cost: three tuning and three held-out manoeuvres of 100 s at 2.5 Hz, the quick budget.
 """
@@ -56,9 +57,6 @@ def test_clean_tug_data_names_nothing():
 
 CURRENT = {'current_speed': 0.2, 'current_dir': math.radians(60)}
 FOULED = {'thrust_scale_stbd': 0.85}
-BAND_MISSED = ('named right, but the estimate lies outside 3 standard errors of the truth '
-               '(current 0.149 +- 0.005 m/s for 0.2; stbd thrust scale 0.8555 +- 0.0014 for '
-               '0.85): the standard errors with the base coefficients free are too small')
 
 
 def test_finds_a_current_on_the_tug():
@@ -67,8 +65,13 @@ def test_finds_a_current_on_the_tug():
     assert 0.1 < d.causes[0].parameters['current_speed'] < 0.3
 
 
-@pytest.mark.xfail(reason=BAND_MISSED, strict=False)
 def test_the_current_lies_within_its_standard_error_band():
+    """
+    Measured: 0.2001 +- 0.0004 m/s toward 60.14 +- 0.31 deg (Gauss-Newton alone: +- 0.0001).
+
+    Before the screen from the pre-determined values it came out 0.149 +- 0.005 m/s: the
+    re-tune started where the base tune had bent the coefficients to absorb the current.
+    """
     c = diagnose(CURRENT).causes[0]
     within_band(c, 'current_speed', 0.2)
     dd = (c.parameters['current_dir'] - math.radians(60) + math.pi) % (2 * math.pi) - math.pi
@@ -78,28 +81,32 @@ def test_the_current_lies_within_its_standard_error_band():
 AZ_OFFSET = {'azimuth_offset_port': math.radians(3.0)}
 
 
-def test_an_azimuth_offset_is_among_the_explanations_it_reports():
+def test_an_azimuth_offset_is_told_from_a_yaw_moment_bias():
     """
-    On these trials a 3 deg port offset is explained as well by a yaw moment bias.
+    The held-out trials tell a 3 deg port offset from its rivals by far.
 
-    Both put a yaw moment that grows with U^2 (the thrust grows with n^2, and n with U) on
-    the tug: the diagnosis names one of them and lists the others as explaining the trials
-    about as well; the offset must be among the named and its rivals, at the truth.
+    The offset's side force acts at the port thruster and scales with that thruster's thrust
+    (the differential-thrust run loads it 0.5-1.7 x at one speed), a yaw moment bias with U^2.
+    Measured: the offset's held-out J 62 (noise alone: 36), the yaw moment bias 5349, the
+    starboard offset 5066, the port thrust scale 3540. (Once named as a yaw moment bias:
+    every re-tune started where the base tune had bent the coefficients, 700 x the truth's
+    held-out J, and the four tied.)
     """
     d = diagnose(AZ_OFFSET)
-    assert len(d.causes) == 1
-    c = d.causes[0]
-    told = {c.effect, *c.indistinguishable_from}
-    assert 'azimuth_offset_port' in told, told
-    assert c.heldout_gain > 0.5
+    assert [c.effect for c in d.causes] == ['azimuth_offset_port']
+    first = {c.effect: c.J_test for c in d.candidates[0]}
+    for rival in ('yaw_moment_bias', 'azimuth_offset_stbd', 'thrust_scale_port'):
+        if rival in first:   # re-tuned (among the screen's top)
+            assert first[rival] > 10 * first['azimuth_offset_port'], (rival, first)
+    assert 'yaw_moment_bias' in first
 
 
-@pytest.mark.xfail(reason='a 3 deg azimuth offset is named as a yaw moment bias on these '
-                   'trials (the offset an equal rival): see the test above', strict=False)
 def test_finds_an_azimuth_offset_on_the_port_thruster():
+    """Measured: 2.996 +- 0.085 deg for 3 deg (Gauss-Newton alone: +- 0.022 deg)."""
     d = diagnose(AZ_OFFSET)
     assert [c.effect for c in d.causes] == ['azimuth_offset_port']
     within_band(d.causes[0], 'azimuth_offset_port', math.radians(3.0))
+    assert d.causes[0].heldout_gain > 0.5
 
 
 def test_finds_a_fouled_starboard_propeller():
@@ -108,8 +115,8 @@ def test_finds_a_fouled_starboard_propeller():
     assert d.causes[0].parameters['thrust_scale_stbd'] == pytest.approx(0.85, abs=0.02)
 
 
-@pytest.mark.xfail(reason=BAND_MISSED, strict=False)
 def test_the_fouled_propeller_lies_within_its_standard_error_band():
+    """Measured: 0.8548 +- 0.0026 for 0.85 (Gauss-Newton alone: +- 0.0014, 3.5 of them off)."""
     within_band(diagnose(FOULED).causes[0], 'thrust_scale_stbd', 0.85)
 
 
