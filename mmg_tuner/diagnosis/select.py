@@ -44,6 +44,13 @@ Selection rule (stepwise, like forward-backward regression):
 * cheap ranking first: each candidate is fitted with the base targets held at their tuned
   values and the named effects free (a few hundred evaluations); only the top `screen`
   candidates are re-tuned fully;
+* two starts: the screen also fits each candidate with the base targets held at their
+  pre-determined values (where the base tune started; PRE_SCREEN_SHARE of the evaluations),
+  and the re-tune starts from whichever start has the lower tuning J; so does the null
+  candidate. The base tune bends the coefficients to absorb what the model lacks, and a local
+  re-tune stays in that basin (a tug's azimuth offset tied there with a yaw moment bias);
+* a named effect's standard error is the larger of Gauss-Newton's and the trial-robust
+  (sandwich, one cluster per tuning trial) one: residuals along a trajectory are correlated;
 * single-parameter effects whose standard error at the base optimum (base targets free)
   exceeds half the smallest magnitude worth finding are reported as barely identifiable
   from these trials (e.g. rpm_scale against w_P0 and t_P), so that a miss is explained.
@@ -94,9 +101,10 @@ from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.diagnosis.results import Candidate, Cause, Diagnosis
 from mmg_tuner.diagnosis.settings import DiagnosisSettings, MapFn, MEASURED, RETUNE_METHODS
-from mmg_tuner.diagnosis.stats import acceptance, jackknife_spread, pinned_on_bound
+from mmg_tuner.diagnosis.stats import acceptance, pinned_on_bound
 from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
+from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
 from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
@@ -104,7 +112,10 @@ from mmg_tuner.tuning.tuner import Tuner
 import numpy as np
 
 logger = logging.getLogger(__name__)
-_PERIODIC_PARAMS = {p for e in EFFECTS.values() for p, per in zip(e.params, e.periodic) if per}
+# the screen from the pre-determined base values gets this share of screen_evals: it need only
+# show a far better start (a tug azimuth offset: tuning J 24 there, 226 000 from the tuned
+# base); the re-tune polishes it. A full second screen cost the tug tests 16 % more simulation
+PRE_SCREEN_SHARE = 0.25
 
 
 class _Model:
@@ -471,8 +482,9 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # the lower tuning J; the null candidate gets the same choice (equal effort)
         fits, order = [], []
         now_pre = np.concatenate([base.pre, theta[base.dim:]])
+        pre_evals = max(1, int(s.screen_evals * PRE_SCREEN_SHARE))
         null_pre = _Fit(ship, model.space, model.space.dim - base.dim, o_now, now_pre,
-                        s.screen_evals, s.seed, True, 'cmaes')
+                        pre_evals, s.seed, True, 'cmaes')
         for name in remaining:
             if name in MEASURED:
                 continue
@@ -481,10 +493,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             # screen ranks by a loss: 'rudder offset screens at 0 %' beside a named wind.
             # Holding them was tried: beside a wind it then ranked a propeller side force
             # first and named it for a rudder offset, a false cause; see doc/guides/diagnosis)
-            for start in (theta, now_pre):
+            for start, evals in ((theta, s.screen_evals), (now_pre, pre_evals)):
                 fits.append(_Fit(ship, m.space, m.space.dim - base.dim, objs.of(m)[0],
                                  np.concatenate([start, m.space.pre[len(theta):]]),
-                                 s.screen_evals, s.seed, True, 'cmaes'))
+                                 evals, s.seed, True, 'cmaes'))
             order.append(name)
         *got, null_th = _tune_many(fits + [null_pre], store, map_fn)
         screened, from_pre = [], []
@@ -690,14 +702,14 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     o_fin, ot_fin = objs.of(model)
     if causes:  # report the final model's values (later rounds re-tuned them)
         final_vals = dict(zip(model.space.names, theta))
-        se_all = dict(zip(model.space.names, standard_errors(o_fin, model.space, theta)))
-        # the Gauss-Newton errors take the residuals as white; along a trajectory they are
-        # not, and those errors were 2-7 x too small on the tug: the jackknife over the tuning
-        # trials is the honest error, the larger of the two is reported
-        clock('jackknife')
+        # Gauss-Newton's errors take the residuals as independent; along a trajectory they
+        # are not, and on the tug they were 3-6 x too small (a thrust scale 0.8545 +- 0.0014
+        # for 0.85): the larger of them and the trial-robust (sandwich) ones is reported
+        gn, robust = trial_robust_standard_errors(o_fin, model.space, theta)
+        se_all = dict(zip(model.space.names, np.fmax(gn, robust)))
         named = [p for c in causes for p in c.parameters]
-        se_all.update(_jackknife_errors(ship, model, theta, named, tune_trials, objs, mk, s,
-                                        store, map_fn, se_all, log))
+        log('   standard errors of the named, trial-robust (Gauss-Newton): ' + ', '.join(
+            f'{p} {se_all[p]:.3g} ({gn[model.space.names.index(p)]:.3g})' for p in named))
         for c in causes:
             c.parameters = {p: float(final_vals[p]) for p in c.parameters}
             c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
@@ -722,45 +734,6 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                      time.perf_counter() - t_start, aliased, setting,
                      {e: w for e, w in impossible.items() if e in effects or e in measured},
                      impossible_fits, measured_doc, timings, model.measured_wind, advice, noise)
-
-
-def _jackknife_errors(ship, model: _Model, theta: np.ndarray, params: Sequence[str],
-                      tune_trials: Sequence[Trial], objs: _Objectives,
-                      mk: Callable[[Sequence[Trial]], Objective], s: DiagnosisSettings,
-                      store: SearchCheckpoint | None, map_fn: MapFn | None,
-                      se: dict[str, float], log) -> dict[str, float]:
-    """
-    Return the named effects' standard errors: the larger of Gauss-Newton's and the jackknife's.
-
-    The final model is re-tuned (same method and budget as every re-tune, from its optimum) once
-    without each tuning trial; the spread of the leave-one-out estimates is the jackknife
-    standard error (:func:`~mmg_tuner.diagnosis.stats.jackknife_spread`). It needs two tuning
-    trials or more (``se`` is returned unchanged otherwise). The Gauss-Newton error (``se``)
-    takes the residuals as independent; along a trajectory they are correlated (the sensor's
-    drift, the start-state error), and on the tug it was 2-7 x too small: a current named at
-    0.149 +- 0.005 m/s for 0.2 m/s, a thrust scale at 0.8555 +- 0.0014 for 0.85.
-    """
-    n = len(tune_trials)
-    if n < 2 or not params:
-        return dict(se)
-    prior = objs.of(model)[0].prior
-    fits = []
-    for k in range(n):
-        sub = [t for i, t in enumerate(tune_trials) if i != k]
-        if objs.wind is not None and not model.measured_wind:
-            sub = _without_wind(sub)   # as the plain objectives were built
-        o = measured_mod.with_prior(mk(sub), prior)
-        fits.append(_Fit(ship, model.space, 0, o, theta, s.effect_evals, s.seed, False,
-                         s.retune))
-    loo = np.array(_tune_many(fits, store, map_fn))
-    out = dict(se)
-    for p in params:
-        i = model.space.names.index(p)
-        jk = jackknife_spread(loo[:, i], p in _PERIODIC_PARAMS)
-        out[p] = max(float(se.get(p, 0.0)), jk)
-    log('   standard errors of the named (jackknife over the tuning trials vs Gauss-Newton): '
-        + ', '.join(f'{p} {out[p]:.3g} ({float(se.get(p, math.nan)):.3g})' for p in params))
-    return out
 
 
 def _with_measurements(objs: _Objectives, meas: dict, s2: float) -> _Objectives:

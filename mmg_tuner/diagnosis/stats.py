@@ -113,24 +113,3 @@ def jackknife_se(J_ref: np.ndarray, J_new: np.ndarray) -> float:
     loo = np.array([1 - (J_new.sum() - J_new[i]) / max(J_ref.sum() - J_ref[i], 1e-300)
                     for i in range(n)])
     return float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
-
-
-def jackknife_spread(loo: np.ndarray, periodic: bool = False) -> float:
-    """
-    Return the jackknife standard error of an estimate from its leave-one-out estimates.
-
-    sqrt((n - 1) / n x sum (x_i - mean)^2) over the n estimates x_i, each made without one
-    trial; a periodic parameter (a direction, rad) is measured around its circular mean.
-    NaN with fewer than two finite estimates.
-    """
-    x = np.asarray(loo, float)
-    x = x[np.isfinite(x)]
-    n = len(x)
-    if n < 2:
-        return math.nan
-    if periodic:
-        mean = math.atan2(float(np.sin(x).sum()), float(np.cos(x).sum()))
-        d = (x - mean + math.pi) % (2 * math.pi) - math.pi
-    else:
-        d = x - x.mean()
-    return float(np.sqrt((n - 1) / n * np.sum(d ** 2)))

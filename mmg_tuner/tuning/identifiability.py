@@ -75,6 +75,38 @@ def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarr
     return np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
 
 
+def trial_robust_standard_errors(objective: Objective, space: ParameterSpace,
+                                 theta: np.ndarray, h: float = 1e-3
+                                 ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return (Gauss-Newton, trial-robust) standard errors at theta, from one Jacobian.
+
+    Gauss-Newton's (:func:`standard_errors`) take the residuals as independent; along a
+    simulated trajectory they are not (the start-state error, a sensor's drift), and within a
+    trial they share one error. The trial-robust ones are the sandwich (cluster-robust, one
+    cluster per trial; the infinitesimal jackknife over trials) covariance
+    H^-1 (n / (n - 1) sum_i g_i g_i') H^-1, with H = J'J and g_i trial i's gradient J_i' r_i
+    at theta (a prior's rows count in H only). The g_i are not centred: a fit stopped short of
+    its optimum (a least-squares fit stopped by its tolerance, a coefficient held on a bound)
+    has sum_i g_i != 0, and the step it leaves counts as error too. Needs two trials or more
+    (NaN otherwise). Both in the parameters' own units.
+    """
+    Jac, s2 = jacobian(objective, space, theta, h)
+    Hi = np.linalg.pinv(Jac.T @ Jac)
+    width = space.upper - space.lower
+    gn = np.sqrt(np.clip(s2 * np.diag(Hi), 0, None)) * width
+    b = objective.batch
+    n = len(b.lengths)
+    if n < 2:
+        return gn, np.full(space.dim, np.nan)
+    r = residuals(objective, space.full_params(objective.ship.params, np.atleast_2d(theta)))[0]
+    per = (b.lengths - 1) * int(np.count_nonzero(objective.weights > 0))  # residuals' layout
+    off = np.concatenate([[0], np.cumsum(per)])
+    G = np.array([Jac[off[i]:off[i + 1]].T @ r[off[i]:off[i + 1]] for i in range(n)])
+    V = Hi @ (n / (n - 1) * (G.T @ G)) @ Hi
+    return gn, np.sqrt(np.clip(np.diag(V), 0, None)) * width
+
+
 def identified(space: ParameterSpace, se: np.ndarray, frac: float = 0.05) -> list[str]:
     """Names whose standard error is below frac of their box width."""
     return [n for n, s, w in zip(space.names, se, space.upper - space.lower) if s < frac * w]

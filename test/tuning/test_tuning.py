@@ -234,3 +234,39 @@ def test_moved_truth_moves_every_target_inside_its_box_reproducibly(suzaku):
     assert truth['rudder_lag_tau'] == 6.0
     again = moved_truth(suzaku, 5, spread=0.6)[2]
     assert np.array_equal(again, theta) and not np.array_equal(moved_truth(suzaku, 6)[2], theta)
+
+
+def test_trial_robust_errors_are_the_sandwich_over_trials(suzaku):
+    """
+    The trial-robust errors equal the sandwich built from each trial's own objective.
+
+    Each trial's gradient and J'J come here from an objective of that trial alone, an
+    independent route to the residuals' layout; a trial-robust error needs two trials (NaN
+    with one), and the Gauss-Newton errors are :func:`standard_errors`'.
+    """
+    from mmg_tuner.tuning.identifiability import jacobian, residuals
+    from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
+
+    specs = [mv.ManeuverSpec('turning', rudder_deg=20, duration_s=60),
+             mv.ManeuverSpec('zigzag', rudder_deg=-20, duration_s=80),
+             mv.ManeuverSpec('turning', rudder_deg=-35, duration_s=50)]
+    noisy = trials(suzaku, specs, SensorNoise(), 7)
+    space = ParameterSpace.around(suzaku, ['R_0', 'N_r', 'Y_v'])
+    theta = space.pre * np.array([1.05, 0.97, 1.02])   # off the optimum: gradients differ
+    obj = Objective(suzaku, TrialBatch.from_trials(noisy))
+    gn, robust = trial_robust_standard_errors(obj, space, theta)
+    np.testing.assert_allclose(gn, standard_errors(obj, space, theta), rtol=1e-9)
+    H, G = 0.0, []
+    for t in noisy:
+        o = Objective(suzaku, TrialBatch.from_trials([t]))
+        Ji, _ = jacobian(o, space, theta, 1e-3)
+        ri = residuals(o, space.full_params(suzaku.params, theta[None]))[0]
+        H = H + Ji.T @ Ji
+        G.append(Ji.T @ ri)
+    G = np.array(G)
+    Hi = np.linalg.inv(H)
+    want = np.sqrt(np.diag(Hi @ (1.5 * G.T @ G) @ Hi)) * (space.upper - space.lower)
+    np.testing.assert_allclose(robust, want, rtol=1e-6)
+    assert np.all(robust > 0)
+    one = Objective(suzaku, TrialBatch.from_trials(noisy[:1]))
+    assert np.all(np.isnan(trial_robust_standard_errors(one, space, theta)[1]))
