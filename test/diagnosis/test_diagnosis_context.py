@@ -183,7 +183,9 @@ def test_map_fn_runs_the_independent_tunings_in_order_without_the_store(suzaku, 
                       log=lambda m: None, checkpoint=ck, map_fn=map_fn)
     assert [c.effect for c in mapped.causes] == [c.effect for c in plain.causes]
     assert mapped.final['J_test'] == pytest.approx(plain.final['J_test'], rel=1e-9)
-    assert batches[0] == 3                      # the screen of every candidate at once
+    # the screen of every candidate from both starts (tuned and pre-determined base values)
+    # and the null's from the pre-determined ones, at once
+    assert batches[0] == 2 * 3 + 1
     assert batches[1] == 1 + 3                  # the null re-tune with the top candidates
     assert ck.is_file()
 
