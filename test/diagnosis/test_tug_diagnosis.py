@@ -67,8 +67,9 @@ def test_finds_a_current_on_the_tug():
 
 def test_the_current_lies_within_its_standard_error_band():
     """
-    Measured: 0.2001 +- 0.0003 m/s toward 60.14 +- 0.08 deg (Gauss-Newton alone: +- 0.0001
-    m/s, +- 0.02 deg).
+    Measured: 0.2001 +- 0.0003 m/s toward 60.14 +- 0.08 deg.
+
+    Gauss-Newton's errors alone: +- 0.0001 m/s, +- 0.02 deg.
 
     Before the screen from the pre-determined values it came out 0.149 +- 0.005 m/s: the
     re-tune started where the base tune had bent the coefficients to absorb the current.
