@@ -73,7 +73,7 @@ def _by(logo_m, logo_t, lo_t=(0.05, 0.05, 0.05), go20_t=(0.002, 0.002, 0.002)):
 def test_goals_name_the_noise_floor_and_judge_against_the_truth():
     g = goals(_by((0.0125, 0.043, 0.0246), (0.0013, 0.0053, 0.006)), None, 1.6)
     half = g["held-out relative errors <= half the paper's Table 5"]
-    assert half['target %'] == '1.165 / 2.225 / 2.925'
+    assert half['target'] == '1.165 / 2.225 / 2.925 % (u / v / r)'
     assert 'measurements met in r only' in half['verdict']
     assert 'above the target in u, v' in half['verdict']
     assert 'truth met in u, v and r' in half['verdict']
