@@ -6,6 +6,9 @@ produce passes those checks and poisons everything downstream. Here the channels
 against each other, at the recording's own sample times (before any resampling smears a fault),
 in the model frame (x north, y east, psi clockwise from north, u, v, r body axes):
 
+- ``velocity spike``: a sample or a few of u, v or r off their neighbours by more than the
+  whole recording's largest sustained value (a ship cannot gain or lose its full speed in a
+  sample and come back: a corrupted message, a byte flipped in a bag).
 - ``clock reset``: the time goes backwards. The recording is split there (each part keeps its
   own order); sorting would splice two stretches of the run into a jump (issue 28: 580 m in 1 s).
 - ``heading vs yaw rate``: the heading departs from the integrated yaw rate and comes back
@@ -49,6 +52,9 @@ HEADING_FLOOR_RAD = math.radians(15.0)  # less off the integrated yaw rate: comp
 OUTLIER_FLOOR_S = 5.0   # [s] of sailing at the recording's top speed: see check_motion
 JUMP_FLOOR_S = 1.0      # [s] likewise
 LONG_FRACTION = 0.2     # a fault covering more of the recording leaves it unusable
+SPIKE_HALF = 5          # samples each side of the running median a velocity spike stands off
+SPIKE_MAX_SAMPLES = 3   # longer than this, a departure is motion or another check's fault
+SPIKE_R_FLOOR = math.radians(3.0)   # [rad/s] r spikes below this: a gyro's noise at sea
 ASTERN_LENGTHS = 1.0    # sailing astern this many ship lengths with the propeller ahead
 ASTERN_MIN_S = 30.0     # ... or, the ship's length unknown, this long
 
@@ -227,9 +233,6 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
     dt = float(np.median(np.diff(t)))
     span = float(t[-1] - t[0])
     half = _half(t)
-    speed = np.hypot(m.u, m.v)
-    u_ref = float(np.median(speed))     # the recording's typical speed [m/s]
-    u_top = float(np.quantile(speed, 0.9))   # its sailing speed, stops left out [m/s]
     found: list[Finding] = []
 
     def add(check, a, b, size, unit, detail, between=False):
@@ -241,6 +244,36 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
             c0 = float(t[a - 1] - t0) if a > 0 else -math.inf
             c1 = float(t[b + 1] - t0) if b + 1 < n else math.inf
         found.append(Finding(name, check, ta, tb, float(size), unit, detail, long, c0, c1))
+
+    # 0. velocity spikes, taken out (replaced by their neighbours' median) before the other
+    #    checks integrate the velocities: off the running median by more than the data's
+    #    noise allows and by more than the largest value the channel holds for a window
+    #    (a speed or yaw rate a ship sustains, it cannot gain and lose within a sample)
+    sustained = {ch: _rolling_median(np.asarray(getattr(m, ch), dtype=float), SPIKE_HALF)
+                 for ch in ('u', 'v', 'r')}
+    top = float(np.max(np.hypot(sustained['u'], sustained['v'])))
+    floors = {'u': top, 'v': top,
+              'r': max(float(np.max(np.abs(sustained['r']))), SPIKE_R_FLOOR)}
+    vel = {}
+    for ch, unit in (('u', 'm/s'), ('v', 'm/s'), ('r', 'rad/s')):
+        a = np.asarray(getattr(m, ch), dtype=float)
+        dev = a - sustained[ch]
+        thr = max(K_SIGMA * _robust_sigma(dev), floors[ch])
+        spike = np.zeros(n, dtype=bool)
+        for a0, b0 in _runs(np.abs(dev) > thr):
+            if b0 - a0 + 1 > SPIKE_MAX_SAMPLES:
+                continue
+            spike[a0:b0 + 1] = True
+            k = a0 + int(np.argmax(np.abs(dev[a0:b0 + 1])))
+            add('velocity spike', a0, b0, abs(dev[k]), unit,
+                f'{b0 - a0 + 1} sample(s) of {ch} = {a[k]:.3g} {unit} against '
+                f'{sustained[ch][k]:.3g} {unit} around them; threshold {thr:.2g} {unit}, the '
+                'most the recording sustains')
+        vel[ch] = np.where(spike, sustained[ch], a)
+    m = Motion(t, m.x, m.y, m.psi, vel['u'], vel['v'], vel['r'], m.rpm)
+    speed = np.hypot(m.u, m.v)
+    u_ref = float(np.median(speed))     # the recording's typical speed [m/s]
+    u_top = float(np.quantile(speed, 0.9))   # its sailing speed, stops left out [m/s]
 
     # 1. heading against the yaw rate: psi - integral(r) is constant up to noise and a slow
     #    drift (the gyro's bias); its running circular median is the reference

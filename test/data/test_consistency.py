@@ -2,7 +2,8 @@
 Cross-channel consistency of recordings (issue 28): faults named once, clean data silent.
 
 Each synthetic fault (a 180 deg heading flip for five samples, a 5 m jump, a single sample
-5 km off, a clock reset, a run astern with the propeller ahead) gives exactly one WARNING line
+5 km off, one surge speed sample 64 m/s off, a clock reset, a run astern with the propeller
+ahead) gives exactly one WARNING line
 naming trial, check, time and size, and is cut out or leaves the recording unused; the real
 Esso Osaka runs in the repository and clean generated trials give none.
 """
@@ -23,7 +24,8 @@ import numpy as np
 import pytest
 
 FAULT_AT = 2000          # sample index of the fault (t = 200 s at 10 Hz)
-CHECKS = ('clock reset', 'heading vs yaw rate', 'position outlier', 'position jump',
+CHECKS = ('velocity spike', 'clock reset', 'heading vs yaw rate', 'position outlier',
+          'position jump',
           'track vs velocities', 'astern with propeller ahead')
 
 
@@ -103,6 +105,12 @@ def _outlier(t, st, c):
     return t, st, c
 
 
+def _spike(t, st, c):   # a byte flipped in one message of a bag: u 64 m/s off for a sample
+    st = st.copy()
+    st[FAULT_AT, 3] += 64.0
+    return t, st, c
+
+
 def _reset(t, st, c):   # the clock restarts 580 s back: sorting would splice the two stretches
     t = t.copy()
     t[FAULT_AT:] -= 580.0
@@ -112,6 +120,7 @@ def _reset(t, st, c):   # the clock restarts 580 s back: sorting would splice th
 FAULTS = [(_flip, 'heading vs yaw rate', 180.0, 'deg'),
           (_jump, 'position jump', 5.0, 'm'),
           (_outlier, 'position outlier', 5000.0, 'm'),
+          (_spike, 'velocity spike', 64.0, 'm/s'),
           (_reset, 'clock reset', 580.0, 's')]
 
 
@@ -134,6 +143,7 @@ def test_each_short_fault_gives_one_warning_and_is_cut_out(fault, check, size, u
         assert any(check in n for n in tr.notes)
         assert np.hypot(np.diff(tr['x']), np.diff(tr['y'])).max() < 50.0   # no 5 km, no splice
         assert np.abs(np.diff(tr['psi'])).max() < 1.0                        # no flip
+        assert np.abs(tr['u']).max() < 10.0                                   # no spike
     if fault is _jump:   # cut between the two samples, each side kept whole
         first, second = sorted(trials, key=lambda tr: tr.start_s)
         assert first.start_s + first.duration_s == pytest.approx(199.9, abs=1e-6)

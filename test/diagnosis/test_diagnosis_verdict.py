@@ -158,32 +158,32 @@ def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
     assert learn['line'].startswith('unexplained but learnable structure')
 
 
-def test_wind_and_a_rudder_offset_name_the_wind_and_say_what_remains(suzaku):
+def test_wind_and_a_rudder_offset_are_both_named(suzaku):
     """
-    Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: two causes at once.
+    Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: two causes at once, both named.
 
     Before issue 26 the offset, second, was rejected for explaining only 3 % of the base
-    error (a base error the wind made 29 x the clean case's), and "no sign of a structural
-    gap" was said of whatever remained. Now the wind is named (8.9 m/s from 65 deg here) and
-    the offset fits at +0.67 deg, below the smallest worth finding (1 deg: the tuned rudder
-    coefficients take up the rest); it is not named (never alone below that size: a 0.04 m/s
-    current once fitted a rudder stall so), but the report no longer calls what remains noise.
-    Either outcome of the offset passes; a false cause or "no sign of a structural gap" with
-    the offset unnamed does not.
+    error (a base error the wind made 29 x the clean case's). Then the joint fit of the wind
+    with the offset gained 33.7 % +- 8.5 % over the wind alone on the held-out trials, but the
+    offset came out at +0.68 deg on the five tuning trials (turning +-10 and 35 deg, zigzags
+    10/10): every size from 0.7 to 1.5 deg fits them within 2 % once the rudder coefficients
+    are re-tuned, and the re-tune stops at the first. The held-out trials (20 to 40 deg)
+    settle it, so a significant pair is sized on all ten trials: measured wind 9.3 m/s from
+    44 deg, offset +1.79 deg (truth 9 m/s, 45 deg, 1.5 deg); what remains is noise (1.5 x the
+    floor).
     """
     tune, test = _trials(suzaku, {'wind_speed': 9.0, 'wind_dir': math.radians(45.0),
                                   'rudder_offset': math.radians(1.5)})
     dx = _diagnose(suzaku, tune, test)
     named = sorted(c.effect for c in dx.causes)
-    assert named in (['wind'], ['rudder_offset', 'wind']), [c.summary for c in dx.causes]
+    assert named == ['rudder_offset', 'wind'], [c.summary for c in dx.causes]
     p = {k: v for c in dx.causes for k, v in c.parameters.items()}
-    assert p['wind_speed'] == pytest.approx(9.0, abs=2.0)
-    assert abs((math.degrees(p['wind_dir']) - 45.0 + 180) % 360 - 180) < 40
-    if named == ['wind']:
-        assert dx.structure['remaining_is_noise'] is False, dx.structure['summary']
-        assert 'no sign of a structural gap' not in dx.structure['summary']
-    else:
-        assert 0.25 < math.degrees(p['rudder_offset']) < 2.5
+    assert p['wind_speed'] == pytest.approx(9.0, abs=1.5)
+    assert abs((math.degrees(p['wind_dir']) - 45.0 + 180) % 360 - 180) < 20
+    # above the 1 deg worth finding (else not named), below 2.5 deg: twice the error of the
+    # tuning trials' own +0.68 deg, on the other side
+    assert 1.0 < math.degrees(p['rudder_offset']) < 2.5
+    assert dx.structure['remaining_is_noise'] is True, dx.structure['summary']
 
 
 def test_clean_trials_stay_clean_and_what_remains_is_noise(suzaku):
@@ -210,9 +210,12 @@ def test_a_current_and_a_steering_gear_lag_name_no_false_cause(suzaku):
     Current 0.25 m/s toward 200 deg and a 5 s steering-gear lag.
 
     The current is named (measured: 0.21 m/s toward 204 deg). The lag, after it, lowers the
-    held-out error by 16 % +- 3 % of what remains, a reduction within half the noise floor
-    (as a 1.4 s time offset's would be, 22 %): not named, and flagged barely identifiable
-    with the trial that would settle it advised. A false cause is worse than a missed one.
+    held-out error by 16 % +- 3 % of what remains, a reduction within half the noise floor:
+    not named, and flagged barely identifiable. Not the threshold's fault: a time offset
+    lowers it by more (22 % +- 5 %), so a looser rule would name a false cause; on these
+    trials a 2.3 deg/s rudder ramp through a 5 s lag is a delay (the lag's standard error
+    5.8 s; fitted jointly with the current, from the base optimum or by CMA-ES, 1.2-1.6 s).
+    A false cause is worse than a missed one.
     """
     tune, test = _trials(suzaku, {'current_speed': 0.25, 'current_dir': math.radians(200.0),
                                   'rudder_lag_tau': 5.0})
