@@ -106,9 +106,16 @@ def read_record(ship_dir: Path) -> ShipRecord | None:
     p = Path(ship_dir) / RECORD
     try:
         doc = json.loads(p.read_text())
-        return ShipRecord(**doc)
+        rec = ShipRecord(**doc)
     except (OSError, ValueError, TypeError):
         return None
+    # the files a rerun deletes when it does not rewrite them: only plain relative paths inside
+    # the ship's folder (a record edited to name '../x' or '/x' is no record of ours)
+    if not isinstance(rec.files, list) or not all(
+            isinstance(f, str) and f and not Path(f).is_absolute() and '..' not in Path(f).parts
+            for f in rec.files):
+        return None
+    return rec
 
 
 def up_to_date(ship_dir: Path, digest: str) -> ShipRecord | None:

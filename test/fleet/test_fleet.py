@@ -24,7 +24,7 @@ import time
 
 from mmg_tuner.errors import ConfigError, OutputError
 from mmg_tuner.fleet.manifest import load_manifest, manifest_from_dict
-from mmg_tuner.fleet.resume import check_fleet_dir, input_digest
+from mmg_tuner.fleet.resume import check_fleet_dir, input_digest, read_record, RECORD
 import pytest
 import yaml
 
@@ -296,3 +296,15 @@ def test_fleet_on_a_real_dask_cluster(tmp_path, capsys):
         assert _results(out / 'cur') == first['cur']
     print(f'fleet of 3 ships on 2 dask workers: {first_s:.0f} s', file=sys.stderr)
     assert math.isfinite(first_s)
+
+
+@pytest.mark.parametrize('files', [['../outside.txt'], ['/etc/hosts'], ['tune/../../x'], [3]])
+def test_a_record_naming_files_outside_its_ship_folder_is_no_record(tmp_path, files):
+    """A rerun deletes the files the last record lists: one naming others' files is refused."""
+    ship_dir = tmp_path / 'out' / 'a'
+    ship_dir.mkdir(parents=True)
+    rec = {'name': 'a', 'digest': 'd', 'status': 'ok', 'files': ['tune/params.yaml']}
+    (ship_dir / RECORD).write_text(json.dumps(rec))
+    assert read_record(ship_dir).files == ['tune/params.yaml']
+    (ship_dir / RECORD).write_text(json.dumps({**rec, 'files': files}))
+    assert read_record(ship_dir) is None
