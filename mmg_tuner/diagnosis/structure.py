@@ -21,7 +21,9 @@ evidence and measures what the model cannot produce:
 Verdict ``structure``: implausible effects (impossible here, significant but pinned on a
 bound, or named with an estimate within 10 % of its box's edge) while a large error remains
 (the final model keeps >= 30 % of the base held-out error, or a systematic error is measured),
-or base coefficients on their bounds together with a measured systematic error. Verdict
+or base coefficients on their bounds together with a measured systematic error, or together
+with named causes that leave >= 30 % of the base error, above the noise (they explain too
+little to be believed: a hull 29 % stronger was named a wind that left 65 %). Verdict
 ``unexplained``: a systematic error no effect explains, without implausible effects. A final
 held-out error above NOISE_RATIO noise floors (diagnosis/noise.py: what sensor noise alone
 leaves) is a systematic error. Otherwise ``none``, "no sign of a structural gap" -- said only
@@ -244,7 +246,13 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
     # (an error merely above the noise after causes that explained 98 % of it is no reason
     # to call those causes mimics: it makes the verdict 'unexplained')
     large = (remaining is not None and remaining >= REMAINING_LARGE) or bool(measured)
-    if strong and large or weak and measured:
+    # named causes that leave most of a base error far above the noise while the base
+    # coefficients pile up on their bounds explain too little to be believed: every hull force
+    # 29 % larger (no effect describes it) was named a 5.4 m/s wind that left 65 % of the
+    # error, 3.9 x what noise leaves, with 8 of 12 coefficients on a bound
+    doubtful = bool(doc.get('causes')) and remaining is not None \
+        and remaining >= REMAINING_LARGE and is_noise is False
+    if strong and large or weak and (measured or doubtful):
         v = 'structure'
         summary = ('the model STRUCTURE (a force or moment it lacks), not the effects that fit, '
                    'is the likely cause of the remaining error: '
