@@ -33,8 +33,10 @@ coefficients (the advice's 'pinned_by': rpm_scale -> R_0, t_P, w_P0 from resista
 self-propulsion tests), EVERY case whose latest advice names one (chosen without the truth, so
 a measurement that would break a correct case is counted too) is diagnosed again as the
 advice says: the trials so far (with the advised pair if it was sailed), those coefficients set
-on the ship at their measured values and dropped from the targets (the advice's
-'targets_pinned'). The measurement is simulated from the hidden truth with a 2 % relative
+on the ship at their measured values and entered as priors with the measurement's error
+(``measured=``, issue 26: a prior, not a fixed value; until the fourth session they were
+dropped from the targets, the advice's 'targets_pinned', which lost an antenna offset and a
+propeller side force and named an rpm scale for N_r x 1.39). The measurement is simulated from the hidden truth with a 2 % relative
 normal error (1 sigma, independent per coefficient, seeded by the case's class and seed): the
 order of a towing tank's repeatability for resistance and thrust; the derived wake fraction and
 thrust deduction are less certain, so this is the optimistic end (a 2 % error of w_P0 = 0.42
@@ -70,6 +72,7 @@ from mmg_tuner.cli.diagnose import BUDGETS
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.generate import generate_trial, out_of_library, SensorNoise
 from mmg_tuner.diagnosis.advice import trial_from_spec, TrialSpec
+from mmg_tuner.diagnosis.measured import Measurement
 from mmg_tuner.tuning import ParameterSpace
 import numpy as np
 
@@ -232,12 +235,13 @@ def make_case(ship, cls: str, seed: int, n_trials: int, duration_s: float):
     return truth, effect, random_trials(truth, rng, n_trials, duration_s, seed)
 
 
-def _diagnose(ship, tune, test, budget: str, seed: int, retune: str, targets=None) -> tuple:
+def _diagnose(ship, tune, test, budget: str, seed: int, retune: str, targets=None,
+              measured=None) -> tuple:
     t0 = time.perf_counter()
     # the search's time and verdicts: no residual network (residual='auto' would train one
     # on the out-of-library cases, tens of seconds outside what this bench compares)
     d = mt.diagnose(ship, tune, test, budget=budget, seed=seed, retune=retune, targets=targets,
-                    residual=False)
+                    residual=False, measured=measured)
     return d, time.perf_counter() - t0
 
 
@@ -330,12 +334,16 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
     if advice and pin is not None:   # taken whenever advised: the truth chooses nothing here
         measured = measure(truth, pin['pinned_by'], 20_000 + 100 * CLASSES.index(cls) + seed,
                            measurement_error)
+        # as issue 26 asks: the measured values enter every tuning as priors with their
+        # stated error (the test's 2 %), not as fixed values; the ship starts from them
+        priors = {p: Measurement(v, measurement_error * abs(v), 'simulated test')
+                  for p, v in measured.items()}
         d3, wall3 = _diagnose(ship.with_params(measured), tune + extra, test + held, budget,
-                              seed, retune, pin['targets_pinned'])
+                              seed, retune, measured=priors)
         row['measured'] = {'about': pin['about'], 'pinned': measured,
                            'rel_error': measurement_error,
                            'truth_pinned': {p: float(truth[p]) for p in measured},
-                           'targets': list(pin['targets_pinned']),
+                           'prior_rel_se': measurement_error,
                            'with_trial': bool(extra),
                            'resolution_pinned': pin.get('resolution_pinned'),
                            'resolution_pinned_trial': pin.get('resolution_pinned_trial'),
@@ -401,9 +409,9 @@ def summarise(rows: list[dict]) -> str:
     rel = next((r['measured'].get('rel_error', MEASUREMENT_ERROR) for r in rows
                 if 'measured' in r), MEASUREMENT_ERROR)
     more, _, _ = confusion(meas, 'Confusion matrix with the advised trial or measurement (where '
-                           'the advice names a measurement that fixes base coefficients: '
-                           f'those set to the truth with a {100 * rel:.3g} % relative error '
-                           '(1 sigma) and dropped from the targets, in every case whose advice '
+                           'the advice names a measurement of base coefficients: the truth '
+                           f'measured with a {100 * rel:.3g} % relative error (1 sigma), '
+                           'entered as priors with that error, in every case whose advice '
                            'names it)')
     lines += more
     # the trial's gate (only where the case is still wrong) for comparison: it uses the truth
@@ -421,7 +429,7 @@ def summarise(rows: list[dict]) -> str:
                      f" -> {m['named'] or 'nothing'} with "
                      + ', '.join(f'{p} {v:.4g} (true {m["truth_pinned"][p]:.4g})'
                                  for p, v in m['pinned'].items())
-                     + f" held (for {m['about']}"
+                     + f" measured (for {m['about']}"
                      + ('' if res is None else f'; predicted resolution {res:.3g}')
                      + (', with the advised pair' if m['with_trial'] else '') + ')'
                      + (f"; estimate {m['estimates']}" if m['estimates'] else ''))
