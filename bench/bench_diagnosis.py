@@ -28,21 +28,21 @@ once to each side (its spec and its ``pair``), as ``generate --from-advice`` doe
 held-out ones (the rule names an effect on its held-out gain only), and the case is diagnosed
 again.
 
-The measurement loop: an effect no trial can settle is advised a measurement; when it fixes base
-coefficients (the advice's 'pinned_by': rpm_scale -> R_0, t_P, w_P0 from resistance and
+The measurement loop: an effect no trial can settle is advised a measurement; when it fixes
+base coefficients (the advice's 'pinned_by': rpm_scale -> R_0, t_P, w_P0 from resistance and
 self-propulsion tests), EVERY case whose latest advice names one (chosen without the truth, so
-a measurement that would break a correct case is counted too) is diagnosed again as the
-advice says: the trials so far (with the advised pair if it was sailed), those coefficients set
-on the ship at their measured values and entered as priors with the measurement's error
+a measurement that would break a correct case is counted too) is diagnosed again as the advice
+says: the trials so far (with the advised pair if it was sailed), those coefficients set on the
+ship at their measured values and entered as priors with the measurement's error
 (``measured=``, issue 26: a prior, not a fixed value; until the fourth session they were
 dropped from the targets, the advice's 'targets_pinned', which lost an antenna offset and a
-propeller side force and named an rpm scale for N_r x 1.39). The measurement is simulated from the hidden truth with a 2 % relative
-normal error (1 sigma, independent per coefficient, seeded by the case's class and seed): the
-order of a towing tank's repeatability for resistance and thrust; the derived wake fraction and
-thrust deduction are less certain, so this is the optimistic end (a 2 % error of w_P0 = 0.42
-alone mimics an rpm scale of ~1.4 %, half the smallest worth finding). Nothing else uses the
-truth (the advised trial, as the issue defines the loop, is sailed in the missed and clean
-cases).
+propeller side force and named an rpm scale for N_r x 1.39). The measurement is simulated from
+the hidden truth with a 2 % relative normal error (1 sigma, independent per coefficient, seeded
+by the case's class and seed): the order of a towing tank's repeatability for resistance and
+thrust; the derived wake fraction and thrust deduction are less certain, so this is the
+optimistic end (a 2 % error of w_P0 = 0.42 alone mimics an rpm scale of ~1.4 %, half the
+smallest worth finding). Nothing else uses the truth (the advised trial, as the issue defines
+the loop, is sailed in the missed and clean cases).
 
     python -m bench run bench_diagnosis [--quick] [--cases 5] [--seed0 0] [--budget standard]
                                         [--effects ...] [--retune lsq|cmaes] [--no-advice]

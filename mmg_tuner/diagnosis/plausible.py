@@ -3,8 +3,9 @@ Whether a fitted effect is plausible for the ship, and whether it is one value f
 
 Plausible ranges are data: ``config/effect_plausibility.yaml`` (full scale, sources cited
 there), Froude-scaled to the ship like the effects' boxes (``core/effects.py``), lengths as
-fractions of L_pp or B. A fit outside its range is "implausible": the effect bends to absorb
-something else, and it is never named.
+fractions of L_pp or B; ``max_floor`` (unscaled) keeps an upper limit from shrinking below what
+a model meets in the real water it sails in. A fit outside its range is "implausible": the
+effect bends to absorb something else, and it is never named.
 
 Consistency: a physical effect has one value for the whole recording. :func:`per_trial` fits
 the effect's parameters on each held-out trial alone (the rest of the model held at the
@@ -35,7 +36,7 @@ DISAGREE_Z = 3.0
 PER_TRIAL_SIMS = 60      # least-squares simulations per trial (1-2 parameters from the fit)
 ON_BOUND = 0.01          # a per-trial estimate this close to its box's edge (fraction of width)
 _PERIODIC = {p for e in EFFECTS.values() for p, per in zip(e.params, e.periodic) if per}
-_KEYS = {'min', 'max', 'max_abs', 'max_abs_deg', 'max_abs_L', 'max_abs_B', 'why'}
+_KEYS = {'min', 'max', 'max_abs', 'max_abs_deg', 'max_abs_L', 'max_abs_B', 'max_floor', 'why'}
 _cache: dict[str, dict] = {}
 
 
@@ -70,6 +71,8 @@ def plausible_range(ship: ShipConfig, param: str) -> tuple[float, float, str] | 
                        ('max_abs_L', ship.L_pp), ('max_abs_B', ship['B'])):
         if key in entry:
             lo, hi = max(lo, -float(entry[key]) * scale), min(hi, float(entry[key]) * scale)
+    if 'max_floor' in entry:   # unscaled: the real water a model sails in
+        hi = max(hi, float(entry['max_floor']))
     return lo, hi, str(entry.get('why', ''))
 
 

@@ -88,9 +88,12 @@ def test_plausible_ranges_are_data_and_scale_with_the_ship(suzaku, kvlcc2):
     assert not implausible(suzaku, 'antenna_offset', {'antenna_x': 30.0, 'antenna_y': 3.0})
     assert implausible(suzaku, 'wind', {'wind_speed': 16.0, 'wind_dir': 0.0})
     assert not implausible(suzaku, 'wind', {'wind_speed': 13.0, 'wind_dir': 0.0})
-    # a 1:45.7 model: speeds by 1/sqrt(45.7)
-    assert plausible_range(kvlcc2, 'current_speed')[1] == pytest.approx(
-        1.0 / math.sqrt(kvlcc2.scale_ratio))
+    # a 1:45.7 model: speeds by 1/sqrt(45.7), but a current not below the real water's 0.3 m/s
+    assert plausible_range(kvlcc2, 'wind_speed')[1] == pytest.approx(
+        13.8 / math.sqrt(kvlcc2.scale_ratio))
+    assert 1.0 / math.sqrt(kvlcc2.scale_ratio) < 0.3
+    assert plausible_range(kvlcc2, 'current_speed')[1] == pytest.approx(0.3)
+    assert plausible_range(suzaku, 'current_speed')[1] == pytest.approx(1.0)
 
 
 def test_a_trial_pointing_the_other_way_contradicts_a_cause(suzaku):
