@@ -343,7 +343,6 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
         row['measured'] = {'about': pin['about'], 'pinned': measured,
                            'rel_error': measurement_error,
                            'truth_pinned': {p: float(truth[p]) for p in measured},
-                           'prior_rel_se': measurement_error,
                            'with_trial': bool(extra),
                            'resolution_pinned': pin.get('resolution_pinned'),
                            'resolution_pinned_trial': pin.get('resolution_pinned_trial'),
