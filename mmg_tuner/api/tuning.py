@@ -16,7 +16,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MissingDependencyError, MmgTunerError, TuningError
 from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
 from mmg_tuner.learn.model import Model
-from mmg_tuner.learn.train import split_validation
+from mmg_tuner.learn.train import members, split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.evaluate import compare_index
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
@@ -56,7 +56,8 @@ class TuneConfig:
     the same total weight); prior: pull toward the pre-determined values, in J per sample per
     squared box width (0: none). model: 'physics' (the tuned physics, and the residual if
     ``residual`` is set) or 'auto' (``tune --model auto``: also train the pure network and
-    the hybrid when JAX is installed and the trials allow it, compare the candidates on the
+    the hybrid when JAX is installed and the trials allow it, and their blend (the two
+    ensembles averaged, ``learn.ensemble``), compare the candidates on the
     last quarter of each tuning trial per kind of run (``tuning/choice.py``) and keep the
     recommended one; with residual_seeds >= 2 the chosen network's ensemble carries a
     prediction interval calibrated there, ``tuning/interval.py``). polish: after CMA-ES, a
@@ -385,7 +386,10 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
     ``model='auto'``: train the networks the data allow, compare, keep the recommended one.
 
     Candidates: the tuned physics; the hybrid and the pure network (each ``residual_seeds``
-    seeds, one exact ensemble) when JAX is installed and their training succeeds. Compared on
+    seeds, one exact ensemble) when JAX is installed and their training succeeds; their blend
+    (every member of both averaged: half the physics plus the mean output, no further
+    training), which keeps the physics where the network strays and the network where the
+    physics' structure is wrong. Compared on
     the last quarter of each tuning trial (``learn.train.split_validation``: the part the
     networks only chose their epoch on) by ``tuning.choice.choose_model``, per kind of run
     (``groups``). The chosen network, an ensemble of >= 2, carries its calibrated interval.
@@ -410,6 +414,9 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
                 continue
             trained[kind] = r
             cands[kind] = Model(physics, r.net)
+        if 'hybrid' in trained and 'network' in trained:
+            trained['blend'] = _blend(result, trained['hybrid'], trained['network'])
+            cands['blend'] = Model(physics, trained['blend'].net)
     rc = _residual_config(cfg)
     val = split_validation(result.trials, rc.validation_fraction, rc.window)[1]
     choice = choose_model(cands, val, groups, integrator=rc.integrator)
@@ -424,6 +431,25 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
                          ' (calibrated on the validation part)')
         result.residual = r
     result.choice, result.choice_notes = choice, notes
+
+
+def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult
+           ) -> ResidualResult:
+    """Return the ensemble of every member of the hybrid and the pure network, scored."""
+    physics = result.ship.with_params(result.params)
+    nets = members(hybrid.net) + members(network.net)
+    net = ensemble(nets)
+    model = Model(physics, net)
+    rc = _residual_config(result.config)
+    index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
+             for which, trials in (('tune', result.trials), ('test', result.test)) if trials}
+    k = len(nets)
+    share = (hybrid.share * hybrid.seeds + network.seeds) / k   # a pure net's share is 1
+    return ResidualResult(net, 'blend', float(share), None, index,
+                          index.get('test', {}).get('gain'), hybrid.seconds + network.seconds,
+                          max(hybrid.epochs, network.epochs), hybrid.seed,
+                          {'blend_of': {'hybrid': hybrid.config, 'network': network.config}},
+                          k)
 
 
 # ---------------------------------------------------------------------------------- residual
@@ -509,7 +535,9 @@ class ResidualResult:
                  f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
                  + (f'Share of the total acceleration{mean}: {100 * self.share:.1f} %. '
                     if self.kind == 'hybrid' else 'The network alone gives the '
-                    'accelerations (no physics). ')
+                    'accelerations (no physics). ' if self.kind == 'pure network' else
+                    f'A blend: the mean of {self.seeds} hybrid and pure networks, '
+                    f'{100 * self.net.physics:.0f} % of the physics plus their mean output. ')
                  + ('' if self.val_gain is None else
                     f'Gain on its validation windows{mean}: {100 * self.val_gain:.1f} %.'), '',
                  '| trials | index, tuned physics | index, with the network | gain |',

@@ -162,7 +162,7 @@ def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
         phys.states[0].copy(),
         np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
-        net.x_mean, net.x_std, net.y_scale, bool(net.physics), out, res)
+        net.x_mean, net.x_std, net.y_scale, float(net.physics), out, res)
     kw = {} if status == OK else {'status': STATUS_TEXT[status],
                                   'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
     return Trial(phys.t.copy(), out, name=spec.maneuver, inputs=phys.inputs, **kw)
@@ -212,7 +212,7 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
                 cmd = cmd_zz
             row[0, 0], row[0, 1] = rpm[k], delta
             status = advance(tag, p, s, act_states, row, 0, 0.0, 1, h, 1, method, a0, a1, a2,
-                             bool(net.physics))
+                             float(net.physics))
             if status != OK:
                 break
             delta += min(max_move, max(-max_move, cmd - delta))

@@ -528,9 +528,11 @@ def _residual_line(r) -> str:
     held = ('' if r.heldout_gain is None else
             f'; held-out index (eq. 26) {r.index["test"]["physics"]:.4g} -> '
             f'{r.index["test"]["model"]:.4g} ({100 * r.heldout_gain:+.1f} % gain)')
-    share = f'share of the acceleration {100 * r.share:.1f} %' if r.kind == 'hybrid' \
-        else 'the network alone'
+    share = {'hybrid': f'share of the acceleration {100 * r.share:.1f} %',
+             'blend': f'{100 * r.net.physics:.0f} % of the physics plus the mean output of '
+                      'the hybrid and pure networks'}.get(r.kind, 'the network alone')
     seeds = (f'seed {r.seed}' if r.seeds == 1 else
+             f'mean of {r.seeds} networks' if r.kind == 'blend' else
              f'mean of {r.seeds} networks, seeds {r.seed}-{r.seed + r.seeds - 1}')
     return (f'{r.kind} network: {share}{held}; trained in {r.seconds:.1f} s ({r.epochs} '
             f'epochs, {seeds}); weights in {api.RESIDUAL_FILE}')

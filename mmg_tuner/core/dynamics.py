@@ -505,13 +505,16 @@ def external_accelerations(kind: tuple[int, ...], p: FloatArray, X: float, Y: fl
 @njit(cache=True, fastmath=FASTMATH, inline='always')
 def rhs(kind: tuple[int, ...], p: FloatArray, s: FloatArray | tuple[float, ...],
         act: tuple[float, ...], r0: float = 0.0, r1: float = 0.0, r2: float = 0.0,
-        physics: bool = True) -> tuple[float, float, float, float, float, float]:
+        physics: float = 1.0) -> tuple[float, float, float, float, float, float]:
     """
     Return ds/dt for s = (x, y, psi, u, v, r) as a tuple; u, v through the water.
 
     Plus the learned residual's accelerations (r0, r1, r2) [m/s^2, m/s^2, rad/s^2];
-    physics False: the residual replaces the family's accelerations (a pure network).
-    Without a network the callers pass zeros and True: adding 0.0 changes no bit. s may be an
+    physics: the weight of the family's accelerations, 1.0 for the physics and a hybrid, 0.0
+    when the residual replaces them (a pure network), between for an ensemble of hybrid and
+    pure networks (the members' mean: the hybrids' share times the physics, plus the mean
+    network output). Without a network the callers pass zeros and 1.0: adding 0.0 changes no
+    bit. s may be an
     array or a tuple (RK4's stages). A tuple, not an output array, and no wrapper layer: each
     array an inlined layer hands on costs an atomic reference count on the hot path.
 
@@ -544,9 +547,11 @@ def rhs(kind: tuple[int, ...], p: FloatArray, s: FloatArray | tuple[float, ...],
         du += au
         dv += av
         dr += ar
-    if physics:
+    if physics == 1.0:
         return dx, dy, r, du + r0, dv + r1, dr + r2
-    return dx, dy, r, r0, r1, r2
+    if physics == 0.0:   # not 0 * du: a pure network never sees the physics' inf or NaN
+        return dx, dy, r, r0, r1, r2
+    return dx, dy, r, physics * du + r0, physics * dv + r1, physics * dr + r2
 
 
 @njit(cache=True, fastmath=FASTMATH)

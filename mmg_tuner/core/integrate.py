@@ -64,7 +64,7 @@ _dirw = PARAM_INDEX['wind_dir']
 
 @njit(cache=True, fastmath=FASTMATH)
 def step(kind: tuple[int, ...], p: FloatArray, s: FloatArray, act: tuple[float, ...], h: float,
-         method: int, r0: float, r1: float, r2: float, physics: bool) -> None:
+         method: int, r0: float, r1: float, r2: float, physics: float) -> None:
     """
     Advance s in place by one step h (Euler or classic RK4), inputs held over the step.
 
@@ -178,7 +178,7 @@ def state_status(kind: tuple[int, ...], s: FloatArray) -> int:
 def advance(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a: FloatArray,
             ctrl: FloatArray, k: int, shift: float, T: int, dt: float, substeps: int,
             method: int, r0: float = 0.0, r1: float = 0.0, r2: float = 0.0,
-            physics: bool = True) -> int:
+            physics: float = 1.0) -> int:
     """
     Advance the model state s (in place) over one sample interval dt: the one step function.
 
@@ -269,7 +269,7 @@ def _simulate_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray, ctrl:
         if measured_wind:
             use_measured_wind(p, ctrl, k)
         status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         True)
+                         1.0)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -362,7 +362,7 @@ def _run_maneuver(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl: Fl
             # the step sees the logged angle at its start (as a zero-order-hold replay of the
             # recorded angle does); the gear then moves toward the order
             row[0, rudder_col] = delta
-            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0, True)
+            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0, 1.0)
             if status == RPM_NOT_POSITIVE:
                 break
             diff = cmd - delta
@@ -415,7 +415,7 @@ def _trajectory_cost(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, 
         if measured_wind:
             use_measured_wind(p, ctrl, k)
         status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         True)
+                         1.0)
         if status != OK:
             return J, (k if status == RPM_NOT_POSITIVE else k + 1)
         observe_row(p, s, o, 0)
@@ -477,7 +477,7 @@ def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatAr
         if measured_wind:
             use_measured_wind(p, ctrl, k)
         status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         True)
+                         1.0)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break

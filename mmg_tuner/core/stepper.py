@@ -87,14 +87,14 @@ class StepFailure:
 def _advance_checked(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a: FloatArray,
                      row: FloatArray, dt: float, substeps: int, method: int, n: int,
                      speed_max: float, yaw_rate_max: float, last: FloatArray, r0: float,
-                     r1: float, r2: float, physics: bool) -> tuple[int, int]:
+                     r1: float, r2: float, physics: float) -> tuple[int, int]:
     """
     N calls of advance, each followed by a per-element finiteness and plausibility check.
 
     Compiled without fastmath on purpose: under 'nsz' + 'reassoc' LLVM folds
     isfinite(a + b + ...) to True, so advance's own check cannot be relied on. The commands
     ``row`` (1, the family's channels) are held; ``a`` holds the actuator states; (r0, r1,
-    r2) a residual network's accelerations (zeros and physics True without one). Returns
+    r2) a residual network's accelerations (zeros and physics 1.0 without one). Returns
     (status, steps done); on failure ``last`` holds the state before the failed step and
     ``s`` the failed one.
     """
@@ -489,7 +489,7 @@ class ShipSimulator:
         if net is None:
             return _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
                                     self.method, n, lim.speed_max_ms,
-                                    lim.yaw_rate_max_rad_s, self._last, 0.0, 0.0, 0.0, True)
+                                    lim.yaw_rate_max_rad_s, self._last, 0.0, 0.0, 0.0, 1.0)
         if getattr(self, '_residual', None) is None:
             every = int(round(net.dt_s / self.dt))
             if every < 1 or abs(every * self.dt - net.dt_s) > 1e-9 * net.dt_s:
@@ -506,7 +506,7 @@ class ShipSimulator:
             status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
                                          self.method, chunk,
                                          lim.speed_max_ms, lim.yaw_rate_max_rad_s, self._last,
-                                         *self._acc, bool(net.physics))
+                                         *self._acc, float(net.physics))
             done += k
             if status != OK:
                 return status, done

@@ -23,9 +23,15 @@ class Model:
 
     @property
     def kind(self) -> str:
-        """'physics', 'hybrid' (physics + residual network) or 'pure network'."""
+        """
+        'physics', 'hybrid' (physics + residual network), 'pure network', or 'blend'.
+
+        A blend is an ensemble of hybrid and pure networks (``learn.train.ensemble``).
+        """
         net = self.residual
-        return 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
+        if net is None:
+            return 'physics'
+        return {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics, 'blend')
 
     @property
     def name(self) -> str:

@@ -53,6 +53,8 @@ FEATURES: tuple[str, ...] = ('u', 'v', 'r', 'rpm', 'rudder', 'bow_thruster', 'st
 wind, the air's velocity relative to the ship, body axes [m/s]."""
 N_FEATURES = len(FEATURES)
 FORMAT = 'mmg_tuner.residual/1'
+FORMAT_BLEND = 'mmg_tuner.residual/2'
+"""Format 2: as 1, with 'physics' a weight in (0, 1) (an ensemble of hybrid and pure nets)."""
 X0_WINDOW_S = 10.0
 """The start-state fit of ``mt.simulate`` (tuning.objective.initial_state's default)."""
 
@@ -69,9 +71,11 @@ class ResidualNet:
     interval the window is built on [s]; weights[l] (out, in) and biases[l] (out,) of the
     MLP layers (tanh between them, linear output); x_mean, x_std: (N_FEATURES,) input
     standardisation, applied to every row of the window; y_scale (3,): output scale, du
-    [m/s^2], dv [m/s^2], dr [rad/s^2]; physics: True = physics + residual (hybrid), False =
-    the network alone (Wakita et al. 2022 Type-1); seed: the training seed; meta: training
-    facts (trials, epochs, losses, share, seconds, versions).
+    [m/s^2], dv [m/s^2], dr [rad/s^2]; physics: the weight of the physics' accelerations
+    added to the network's output, 1.0 (True) = physics + residual (hybrid), 0.0 (False) =
+    the network alone (Wakita et al. 2022 Type-1), between for an ensemble of hybrid and pure
+    networks (:func:`~mmg_tuner.learn.train.ensemble`: the hybrids' share); seed: the
+    training seed; meta: training facts (trials, epochs, losses, share, seconds, versions).
     """
 
     window: int
@@ -81,13 +85,14 @@ class ResidualNet:
     x_mean: np.ndarray
     x_std: np.ndarray
     y_scale: np.ndarray
-    physics: bool = True
+    physics: float = 1.0
     seed: int = 0
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         """Check shapes once, so the compiled kernels never read out of bounds."""
         _check_net(self, '<ResidualNet>')
+        object.__setattr__(self, 'physics', float(self.physics))
 
     def stepper(self) -> 'ResidualStepper':
         """Return the network one sample at a time (what the interactive simulator calls)."""
@@ -107,8 +112,12 @@ class ResidualNet:
 
     def save(self, path) -> None:
         """Write a portable ``.npz`` (arrays and a JSON string; no pickle), atomically."""
-        arrays = {'format': np.array(FORMAT), 'window': np.array(self.window, np.int64),
-                  'dt_s': np.array(self.dt_s, float), 'physics': np.array(bool(self.physics)),
+        # a weight strictly between 0 and 1 (a blend) is written in format 2, which a reader
+        # of format 1 (a bool) refuses instead of reading it as a hybrid
+        blend = 0.0 < self.physics < 1.0
+        arrays = {'format': np.array(FORMAT_BLEND if blend else FORMAT),
+                  'window': np.array(self.window, np.int64), 'dt_s': np.array(self.dt_s, float),
+                  'physics': np.array(self.physics if blend else bool(self.physics)),
                   'seed': np.array(self.seed, np.int64), 'n_layers': np.array(len(self.weights)),
                   'x_mean': self.x_mean, 'x_std': self.x_std, 'y_scale': self.y_scale,
                   'features': np.array(FEATURES),
@@ -139,8 +148,9 @@ class ResidualNet:
             return data[key]
 
         fmt = str(get('format'))
-        if fmt != FORMAT:
-            raise ConfigError(f"{path}: key 'format' = {fmt!r}, expected {FORMAT!r}")
+        if fmt not in (FORMAT, FORMAT_BLEND):
+            raise ConfigError(f"{path}: key 'format' = {fmt!r}, expected {FORMAT!r} or "
+                              f'{FORMAT_BLEND!r}')
         feats = tuple(str(f) for f in get('features'))
         if feats != FEATURES:
             raise ConfigError(f"{path}: key 'features' = {feats}, this version reads "
@@ -154,7 +164,7 @@ class ResidualNet:
                       x_mean=np.asarray(get('x_mean'), float),
                       x_std=np.asarray(get('x_std'), float),
                       y_scale=np.asarray(get('y_scale'), float),
-                      physics=bool(get('physics')), seed=int(get('seed')), meta=meta)
+                      physics=float(get('physics')), seed=int(get('seed')), meta=meta)
         except ConfigError as exc:
             msg = str(exc).replace('<ResidualNet>', str(path))
             raise ConfigError(msg if msg.startswith(str(path)) else f'{path}: {msg}') from None
@@ -226,6 +236,12 @@ def _check_net(net: ResidualNet, where: str) -> None:
                               f'{a.shape}')
     if not (np.all(net.x_std > 0) and np.all(net.y_scale > 0)):
         raise ConfigError(f"{where}: keys 'x_std', 'y_scale' must be positive")
+    w = net.physics
+    if isinstance(w, (bool, np.bool_)):
+        w = float(w)
+    if not (isinstance(w, (int, float, np.floating, np.integer)) and 0.0 <= float(w) <= 1.0):
+        raise ConfigError(f"{where}: key 'physics' = {net.physics!r} must be a weight in "
+                          '[0, 1] (1: hybrid, 0: pure network)')
 
 
 def zero_net(window: int, dt_s: float, hidden=(16,), physics: bool = True) -> ResidualNet:
@@ -459,7 +475,7 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
                 family_tag(ship.kind), p, np.asarray(x0, float), hist, n_hist, inputs[a:b],
                 b - a, dt,
                 int(substeps), method, int(net.window), sizes, flat, net.x_mean, net.x_std,
-                net.y_scale, bool(net.physics), seg, seg_res)
+                net.y_scale, float(net.physics), seg, seg_res)
             res[a:b] = seg_res
             ok, status = st == OK, STATUS_TEXT[st]
         out[a:b] = seg
@@ -488,7 +504,8 @@ def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
     """
     states, _, fail_t, why = simulate_segments(ship, net, trial, integrator, restart_every_s,
                                                substeps)
-    kind = 'physics' if net is None else ('hybrid' if net.physics else 'pure network')
+    kind = 'physics' if net is None else {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics,
+                                                                                    'blend')
     notes = [f'simulated by mmg_tuner ({ship.name}, {kind}, {integrator})']
     kw = {}
     if fail_t is not None:

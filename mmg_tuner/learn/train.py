@@ -512,27 +512,32 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
 
 def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
     """
-    Return one network whose output is the mean of the outputs of ``nets``.
+    Return one network whose accelerations are the mean of those of ``nets``.
 
-    The nets (e.g. one per seed, trained on the same trials) must share the window, sample
-    interval, mode, standardisation and depth. Exact, not a distillation: the hidden layers
-    are stacked side by side (first layer: rows stacked; deeper ones: block-diagonal) and
-    the output layer averages them, so inference runs it as any other network.
+    The nets (e.g. one per seed) must share the window, sample interval, depth and hidden
+    sizes. Exact, not a distillation: the hidden layers are stacked side by side (first
+    layer: rows stacked; deeper ones: block-diagonal) and the output layer averages them, so
+    inference runs it as any other network. Members standardised otherwise (a pure network
+    trained on the published physics' scales beside a hybrid on the tuned one's) are first
+    rewritten exactly in the first member's standardisation (:func:`restandardised`).
+
+    Hybrid and pure networks may be mixed (a *blend*): a hybrid member's acceleration is the
+    physics plus its output, a pure one's its output alone, so their mean is the hybrids'
+    share times the physics plus the mean output: ``physics`` is that share. Used with the
+    physics the hybrids were trained on (a blend keeps the hybrid's physics).
     """
     nets = list(nets)
     if not nets:
         raise ConfigError('ensemble: no networks given')
     a = nets[0]
     for i, n in enumerate(nets[1:], 1):
-        same = (n.window == a.window and n.dt_s == a.dt_s and n.physics == a.physics
-                and len(n.weights) == len(a.weights)
-                and all(np.array_equal(x, y) for x, y in ((n.x_mean, a.x_mean),
-                                                          (n.x_std, a.x_std),
-                                                          (n.y_scale, a.y_scale))))
+        same = (n.window == a.window and n.dt_s == a.dt_s and len(n.weights) == len(a.weights)
+                and all(x.shape == y.shape for x, y in zip(n.weights[:-1], a.weights[:-1])))
         if not same:
             raise ConfigError(f'ensemble: network {i} (seed {n.seed}) differs from network 0 '
-                              'in window, dt_s, physics, depth or standardisation: train them '
-                              'on the same trials with the same options')
+                              'in window, dt_s, depth or hidden sizes: train them with the '
+                              'same options')
+    nets = [a] + [restandardised(n, a.x_mean, a.x_std, a.y_scale) for n in nets[1:]]
     k, L = len(nets), len(a.weights)
     ws, bs = [], []
     for layer in range(L):
@@ -552,12 +557,45 @@ def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
                 r, c = r + w.shape[0], c + w.shape[1]
             ws.append(out)
             bs.append(np.concatenate(b))
-    # each member's output bias (the ensemble keeps only their mean): members() splits it back
+    # each member's output bias (the ensemble keeps only their mean) and physics weight:
+    # members() splits them back
     meta = {'ensemble_of_seeds': [n.seed for n in nets],
             'members': [n.meta for n in nets],
-            'member_output_biases': [np.asarray(n.biases[-1], float).tolist() for n in nets]}
+            'member_output_biases': [np.asarray(n.biases[-1], float).tolist() for n in nets],
+            'member_physics': [float(n.physics) for n in nets]}
     return ResidualNet(a.window, a.dt_s, tuple(ws), tuple(bs), a.x_mean, a.x_std, a.y_scale,
-                       a.physics, a.seed, meta)
+                       float(np.mean([n.physics for n in nets])), a.seed, meta)
+
+
+def restandardised(net: ResidualNet, x_mean: np.ndarray, x_std: np.ndarray,
+                   y_scale: np.ndarray) -> ResidualNet:
+    """
+    Return ``net`` rewritten, exactly, to read inputs and give outputs in other scales.
+
+    The first layer absorbs the change of input standardisation (W (x - m') / s' = W diag(s /
+    s') z + W (m - m') / s' with z = (x - m) / s, per feature, over the window), the last
+    layer's rows the change of output scale (y' / y). The accelerations are unchanged (to
+    rounding).
+    """
+    if (np.array_equal(net.x_mean, x_mean) and np.array_equal(net.x_std, x_std)
+            and np.array_equal(net.y_scale, y_scale)):
+        return net
+    ws = [np.array(w, float) for w in net.weights]
+    bs = [np.array(b, float) for b in net.biases]
+    gain = np.tile(np.asarray(x_std, float) / net.x_std, net.window)
+    shift = np.tile((np.asarray(x_mean, float) - net.x_mean) / net.x_std, net.window)
+    bs[0] = bs[0] + ws[0] @ shift
+    ws[0] = ws[0] * gain[None, :]
+    out = net.y_scale / np.asarray(y_scale, float)
+    ws[-1] = ws[-1] * out[:, None]
+    bs[-1] = bs[-1] * out
+    meta = dict(net.meta)
+    if 'member_output_biases' in meta:   # an ensemble's members' own biases, rescaled alike
+        meta['member_output_biases'] = [(np.asarray(b, float) * out).tolist()
+                                        for b in meta['member_output_biases']]
+    return ResidualNet(net.window, net.dt_s, tuple(ws), tuple(bs), np.asarray(x_mean, float),
+                       np.asarray(x_std, float), np.asarray(y_scale, float), net.physics,
+                       net.seed, meta)
 
 
 def members(net: ResidualNet) -> list[ResidualNet]:
@@ -591,8 +629,10 @@ def members(net: ResidualNet) -> list[ResidualNet]:
                                                             (m + 1) * (W.shape[1] // k))
                 ws.append(W[m * h:(m + 1) * h, cols])
                 bs.append(b[m * h:(m + 1) * h])
+        phys = net.meta.get('member_physics')   # a blend's members: hybrid or pure each
         out.append(ResidualNet(net.window, net.dt_s, tuple(ws), tuple(bs), net.x_mean,
-                               net.x_std, net.y_scale, net.physics, int(seeds[m]),
+                               net.x_std, net.y_scale, phys[m] if phys else net.physics,
+                               int(seeds[m]),
                                dict(infos[m]) if m < len(infos) else {}))
     return out
 

@@ -142,7 +142,7 @@ def _learned_windows(model: Model, trial: Trial, x0s: np.ndarray, ctrl: np.ndarr
         seg = np.full((L, 6), np.nan)
         simulate_hybrid_one(tag, p, x0s[i], hist, k - lo, np.ascontiguousarray(ctrl[i, :L]),
                             L, float(trial.dt), int(substeps), method, w, sizes, flat,
-                            net.x_mean, net.x_std, net.y_scale, bool(net.physics), seg,
+                            net.x_mean, net.x_std, net.y_scale, float(net.physics), seg,
                             res[:L])
         out[i, :L] = seg
     return out

@@ -474,4 +474,67 @@ def test_ensemble_is_the_mean_of_its_members():
         assert np.allclose(_forward(ens, x), want, rtol=1e-12, atol=1e-15)
     assert ens.meta['ensemble_of_seeds'] == [1, 2, 3]
     with pytest.raises(ConfigError, match='network 1'):
-        ensemble([nets[0], random_net(hidden=(8, 6), seed=5)])   # other standardisation
+        ensemble([nets[0], random_net(hidden=(8, 5), seed=5)])   # other hidden sizes
+
+
+# ------------------------------------------------------------------- blends of hybrid and pure
+def _raw_forward(net, x_raw):
+    """Return the net's accelerations [m/s^2, rad/s^2] for an unstandardised window."""
+    z = (x_raw - np.tile(net.x_mean, net.window)) / np.tile(net.x_std, net.window)
+    return _forward(net, z) * net.y_scale
+
+
+def test_restandardised_gives_the_same_accelerations():
+    """
+    A network rewritten in other scales gives the same accelerations.
+
+    A wrong shift, gain or output scale changes them by the scales' ratio (order one).
+    """
+    from mmg_tuner.learn.train import restandardised
+    net = random_net(hidden=(8, 6), seed=1)
+    other = random_net(hidden=(8, 6), seed=2)
+    moved = restandardised(net, other.x_mean, other.x_std, np.array([2e-3, 5e-4, 1e-4]))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        x = rng.normal(0, 2, 3 * N_FEATURES)
+        assert np.allclose(_raw_forward(moved, x), _raw_forward(net, x), rtol=1e-10,
+                           atol=1e-15)
+
+
+def test_a_blend_steps_as_the_mean_of_its_hybrid_and_pure_members(suzaku, trial, tmp_path):
+    """
+    An ensemble of two hybrid and one pure network is one model: physics weight 2/3.
+
+    One Euler step of the blend from each measured state equals the mean of its members'
+    steps (each member with its own physics flag and standardisation); a blend that added the
+    whole physics, or none, misses by the physics' acceleration x dt. The weight survives the
+    file (format 2) and members() gives each member back with its own flag.
+    """
+    from mmg_tuner.learn import ensemble
+    from mmg_tuner.learn.residual import FORMAT_BLEND
+    from mmg_tuner.learn.model import Model
+    from mmg_tuner.learn.train import members
+    nets = [random_net(window=3, hidden=(8, 6), scale=1e-3, seed=s, physics=s != 3)
+            for s in (1, 2, 3)]
+    blend = ensemble(nets)
+    assert blend.physics == pytest.approx(2 / 3)
+    assert Model(suzaku, blend).kind == 'blend'
+    short = trial.slice(0.0, 40.0)
+    step = 2 * float(trial.dt)   # restarts every 2 samples: each odd sample is one step
+
+    def one_steps(net):
+        return simulate_segments(suzaku, net, short, 'euler', restart_every_s=step)[0]
+
+    got = one_steps(blend)
+    want = np.mean([one_steps(n) for n in nets], axis=0)
+    assert np.allclose(got, want, rtol=0, atol=1e-9), np.abs(got - want).max()
+    physics_only = one_steps(None)
+    assert np.abs(got[1::2, 3:] - physics_only[1::2, 3:]).max() > 1e-4   # the nets matter
+    path = tmp_path / 'blend.npz'
+    blend.save(path)
+    back = ResidualNet.load(path)
+    with np.load(path) as z:
+        assert str(z['format']) == FORMAT_BLEND
+    assert back.physics == pytest.approx(2 / 3)
+    assert [m.physics for m in members(back)] == [1.0, 1.0, 0.0]
+    assert np.allclose(one_steps(members(back)[2]), one_steps(nets[2]), rtol=0, atol=1e-9)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import mmg_tuner as mt
 from mmg_tuner.learn import ensemble, members
+from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import ResidualNet, zero_net
 from mmg_tuner.tuning.choice import choose_model
 from mmg_tuner.tuning.interval import (calibrate_interval, coverage, Interval,
@@ -120,7 +121,7 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
                   residual_seeds=2, groups=groups,
                   residual_options={'epochs': 2, 'hidden': (6,), 'horizon_s': 6.0})
     c = res.choice
-    assert set(c.by_kind) == {'physics', 'hybrid', 'network'}
+    assert list(c.by_kind) == ['physics', 'hybrid', 'network', 'blend']
     assert c.score[c.chosen] == min(c.score.values()) >= 1.0
     res.write(tmp_path / 'out', plots=False)
     params = (tmp_path / 'out' / 'params.yaml').read_text()
@@ -129,6 +130,8 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
         assert res.residual is None and 'residual:' not in params
     else:
         assert 'residual:' in params and 'interval' in res.residual.net.meta
+        back = load_model('suzaku', tmp_path / 'out' / 'params.yaml')
+        assert back.kind == {'network': 'pure network'}.get(c.chosen, c.chosen)
     with pytest.raises(mt.MmgTunerError, match='model'):
         mt.TuneConfig(model='best')
 
