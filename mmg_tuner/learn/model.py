@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.learn.residual import load_residual, ResidualNet
+from mmg_tuner.learn.residual import load_residual, model_kind, ResidualNet
 
 
 @dataclass(frozen=True)
@@ -23,15 +23,8 @@ class Model:
 
     @property
     def kind(self) -> str:
-        """
-        'physics', 'hybrid' (physics + residual network), 'pure network', or 'blend'.
-
-        A blend is an ensemble of hybrid and pure networks (``learn.train.ensemble``).
-        """
-        net = self.residual
-        if net is None:
-            return 'physics'
-        return {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics, 'blend')
+        """'physics', 'hybrid', 'pure network' or 'blend' (:func:`~.residual.model_kind`)."""
+        return model_kind(self.residual)
 
     @property
     def name(self) -> str:

@@ -173,6 +173,17 @@ class ResidualNet:
         return net
 
 
+def model_kind(net: ResidualNet | None) -> str:
+    """
+    'physics' (no network), 'hybrid', 'pure network' or 'blend' (physics weight in (0, 1)).
+
+    A blend is an ensemble of hybrid and pure networks (``learn.ensemble``).
+    """
+    if net is None:
+        return 'physics'
+    return {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics, 'blend')
+
+
 def load_residual(params_file) -> ResidualNet | None:
     """
     Return the residual network a params.yaml names (``residual: FILE.npz``, relative to it).
@@ -504,8 +515,7 @@ def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
     """
     states, _, fail_t, why = simulate_segments(ship, net, trial, integrator, restart_every_s,
                                                substeps)
-    kind = 'physics' if net is None else {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics,
-                                                                                    'blend')
+    kind = model_kind(net)
     notes = [f'simulated by mmg_tuner ({ship.name}, {kind}, {integrator})']
     kw = {}
     if fail_t is not None:
