@@ -425,10 +425,16 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
     if choice.chosen != 'physics':
         r = trained[choice.chosen]
         if r.seeds >= 2:
-            iv = calibrate_interval(cands[choice.chosen], val, 0.9, integrator=rc.integrator)
-            r.net = with_interval(iv).residual
-            notes.append(f'prediction interval: nominal 90 %, factors {iv.to_dict()["scale"]}'
-                         ' (calibrated on the validation part)')
+            try:
+                iv = calibrate_interval(cands[choice.chosen], val, 0.9, integrator=rc.integrator)
+            except TuningError as exc:   # e.g. a member diverges where their mean does not
+                notes.append(f'no prediction interval: {exc}')
+                logger.warning('--model auto: the recommended %s is written without a '
+                               'prediction interval: %s', choice.chosen, exc)
+            else:
+                r.net = with_interval(iv).residual
+                notes.append('prediction interval: nominal 90 %, factors '
+                             f'{iv.to_dict()["scale"]} (calibrated on the validation part)')
         result.residual = r
     result.choice, result.choice_notes = choice, notes
 

@@ -7,10 +7,11 @@ before the seven fresh runs were added.
 from pathlib import Path
 
 import mmg_tuner as mt
+from mmg_tuner.errors import TuningError
 from mmg_tuner.learn import ensemble, members
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import ResidualNet, zero_net
-from mmg_tuner.tuning.choice import choose_model
+from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.interval import (calibrate_interval, coverage, Interval,
                                        model_interval, with_interval)
 import numpy as np
@@ -128,12 +129,41 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
     assert '## Model chosen (--model auto)' in (tmp_path / 'out' / 'report.md').read_text()
     if c.chosen == 'physics':
         assert res.residual is None and 'residual:' not in params
-    else:
-        assert 'residual:' in params and 'interval' in res.residual.net.meta
+    else:   # with its interval, or a note why not (a 2-epoch member may diverge alone)
+        assert 'residual:' in params
+        assert ('interval' in res.residual.net.meta) != any(
+            n.startswith('no prediction interval') for n in res.choice_notes), res.choice_notes
         back = load_model('suzaku', tmp_path / 'out' / 'params.yaml')
         assert back.kind == {'network': 'pure network'}.get(c.chosen, c.chosen)
     with pytest.raises(mt.MmgTunerError, match='model'):
         mt.TuneConfig(model='best')
+
+
+def test_a_recommended_ensemble_whose_interval_fails_is_written_without_one(
+        trials, tmp_path, monkeypatch):
+    """
+    A member that diverges alone (the fresh clone's CI met it) costs the interval, not the run.
+
+    The recommended model is written and loads back; the note says why it has no interval.
+    """
+    pytest.importorskip('jax')
+    from mmg_tuner.api import tuning as api_tuning
+
+    def fails(*a, **k):
+        raise TuningError('the interval could not be calibrated: a member diverged')
+
+    def network(cands, *a, **k):   # recommend an ensemble whatever the scores
+        return Choice('network', {n: {'turning': 1.0} for n in cands},
+                      dict.fromkeys(cands, 1.0))
+    monkeypatch.setattr(api_tuning, 'calibrate_interval', fails)
+    monkeypatch.setattr(api_tuning, 'choose_model', network)
+    res = mt.tune(mt.load_ship('suzaku'), trials, max_evals=40, model='auto',
+                  residual_seeds=2, groups={t.name: KINDS[t.name] for t in trials},
+                  residual_options={'epochs': 2, 'hidden': (6,), 'horizon_s': 6.0})
+    assert res.choice.chosen == 'network' and 'interval' not in res.residual.net.meta
+    assert any(n.startswith('no prediction interval') for n in res.choice_notes)
+    res.write(tmp_path / 'out', plots=False)
+    assert load_model('suzaku', tmp_path / 'out' / 'params.yaml').kind == 'pure network'
 
 
 def test_the_fresh_test_was_registered_with_its_hypotheses():
