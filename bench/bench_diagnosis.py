@@ -41,7 +41,13 @@ the hidden truth with a 2 % relative normal error (1 sigma, independent per coef
 by the case's class and seed): the order of a towing tank's repeatability for resistance and
 thrust; the derived wake fraction and thrust deduction are less certain, so this is the
 optimistic end (a 2 % error of w_P0 = 0.42 alone mimics an rpm scale of ~1.4 %, half the
-smallest worth finding). Nothing else uses the truth (the advised trial, as the issue defines
+smallest worth finding). When the advice names an instrument that measures a degenerate
+effect itself (``DIRECT``: the rudder-angle feedback logged beside the order for a steering-gear
+lag, one clock on every topic for a time offset, the indicator checked against the blade for a
+rudder offset; issue 26, sixth session), that effect is measured too, from the truth with the
+instrument's error, and enters the same way: the diagnosis holds it in every model and names it
+as measured when it lies clearly apart from no effect and the trials alone do not contradict
+it. Nothing else uses the truth (the advised trial, as the issue defines
 the loop, is sailed in the missed and clean cases).
 
     python -m bench run bench_diagnosis [--quick] [--cases 5] [--seed0 0] [--budget standard]
@@ -69,6 +75,7 @@ import time
 
 import mmg_tuner as mt
 from mmg_tuner.cli.diagnose import BUDGETS
+from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.generate import generate_trial, out_of_library, SensorNoise
 from mmg_tuner.diagnosis.advice import trial_from_spec, TrialSpec
@@ -92,6 +99,14 @@ TUG_TEST = ('zigzag_m20deg_7rps', 'turning_m20deg_7rps', 'differential_2', 'rand
 OUT_OF_LIBRARY = ('hull_scale', 'derivative_scale')
 # the stages of a diagnosis, in the order they run (timings_s keys; others are appended)
 MEASUREMENT_ERROR = 0.02   # relative, 1 sigma: see the module docstring
+# effects whose own parameter an instrument the advice names measures directly (its
+# settle_by), with that instrument's 1-sigma error: (relative, absolute floor). The steering
+# gear's lag from the rudder-angle feedback logged at the trials' 1 Hz beside the order (a
+# first-order fit: 10 % of tau, plus a third of a sample); the command-to-state delay from one
+# clock on every topic (0.1 s); the rudder offset from the indicator checked against the blade
+# (0.2 deg)
+DIRECT = {'rudder_lag': (0.10, 0.3), 'time_offset': (0.0, 0.1),
+          'rudder_offset': (0.0, math.radians(0.2))}
 STAGES = ('setup', 'base_tune', 'identifiability', 'screen', 'retune', 'backward', 'advice',
           'residual_model', 'report')
 
@@ -262,6 +277,23 @@ def measure(truth, names, seed: int, rel_error: float = MEASUREMENT_ERROR) -> di
             for p in names}
 
 
+def direct_advice(advice: list[dict]) -> list[str]:
+    """Return the advised effects (degenerate: no trial settles them) an instrument measures."""
+    return [a['about'] for a in advice if a.get('degenerate') and a.get('about') in DIRECT]
+
+
+def measure_direct(ship, truth, effect: str, seed: int) -> dict[str, Measurement]:
+    """Return an effect's parameters as its instrument (DIRECT) would measure them."""
+    rng = np.random.default_rng(seed)
+    rel, floor = DIRECT[effect]
+    out = {}
+    for p, (lo, hi) in zip(EFFECTS[effect].params, EFFECTS[effect].bounds(ship)):
+        se = math.hypot(rel * abs(truth[p]), floor)
+        v = float(np.clip(truth[p] + se * rng.standard_normal(), lo, hi))  # a lag is >= 0
+        out[p] = Measurement(v, se, f'simulated: {EFFECTS[effect].settle_by.split(",")[0]}')
+    return out
+
+
 def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
     named = [c.effect for c in d.causes]
     est = {p: v for c in d.causes for p, v in c.parameters.items()}
@@ -331,16 +363,23 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
                          'separation_recorded': pick['separation_recorded'],
                          **_outcome(cls, effect, d2, wall2)}
     pin = pin_advice(last.advice)   # the advice of the latest diagnosis the crew has
-    if advice and pin is not None:   # taken whenever advised: the truth chooses nothing here
+    # and the instruments it names for effects no trial settles (the rudder-angle feedback)
+    direct = direct_advice(last.advice)
+    if advice and (pin is not None or direct):   # taken whenever advised: no truth chooses
         measured = measure(truth, pin['pinned_by'], 20_000 + 100 * CLASSES.index(cls) + seed,
-                           measurement_error)
+                           measurement_error) if pin is not None else {}
         # as issue 26 asks: the measured values enter every tuning as priors with their
         # stated error (the test's 2 %), not as fixed values; the ship starts from them
         priors = {p: Measurement(v, measurement_error * abs(v), 'simulated test')
                   for p, v in measured.items()}
+        for k, e in enumerate(direct):
+            got = measure_direct(ship, truth, e, 30_000 + 100 * CLASSES.index(cls) + 10 * k + seed)
+            priors.update(got)
+            measured.update({p: m.value for p, m in got.items()})
         d3, wall3 = _diagnose(ship.with_params(measured), tune + extra, test + held, budget,
                               seed, retune, measured=priors)
-        row['measured'] = {'about': pin['about'], 'pinned': measured,
+        about = ([pin['about']] if pin is not None else []) + direct
+        row['measured'] = {'about': ', '.join(about), 'pinned': measured,
                            'rel_error': measurement_error,
                            'truth_pinned': {p: float(truth[p]) for p in measured},
                            'with_trial': bool(extra),
@@ -409,9 +448,11 @@ def summarise(rows: list[dict]) -> str:
                 if 'measured' in r), MEASUREMENT_ERROR)
     more, _, _ = confusion(meas, 'Confusion matrix with the advised trial or measurement (where '
                            'the advice names a measurement of base coefficients: the truth '
-                           f'measured with a {100 * rel:.3g} % relative error (1 sigma), '
-                           'entered as priors with that error, in every case whose advice '
-                           'names it)')
+                           f'measured with a {100 * rel:.3g} % relative error (1 sigma); where '
+                           'it names an instrument for an effect no trial settles (the '
+                           'rudder-angle feedback for a lag, one clock for a time offset): '
+                           'that effect measured with the errors of DIRECT; entered as priors '
+                           'with those errors, in every case whose advice names them)')
     lines += more
     # the trial's gate (only where the case is still wrong) for comparison: it uses the truth
     gated = [_with_measurement(r) if not _with_advice(r)['correct'] else _with_advice(r)

@@ -66,7 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='coefficients measured outside the trials (resistance test, wake '
                     'fraction, rudder-angle feedback), each with its standard error: '
                     "'measured: {R_0: {value: V, se: S}}'; priors of every tuning, not fixed "
-                    'values')
+                    'values. An effect whose parameters are all measured (rudder_lag_tau from '
+                    'the rudder-angle feedback) is held at its value and named as measured '
+                    'when the trials do not contradict it')
     ap.add_argument('--setting', metavar='VENUE[,POSITION]',
                     help='where the trials were recorded: sea, pond, basin or tank, optionally '
                     'with antenna or reference (positions at a GNSS antenna or of the reference '
@@ -134,7 +136,9 @@ def command(argv: list[str] | None = None) -> int:
     print()
     if dx.causes:
         for c in dx.causes:
-            print(f'CAUSE: {c.summary} -- held-out gain {100 * c.heldout_gain:.1f} %'
+            print(f'CAUSE: {c.summary}'
+                  + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
+                  + f' -- held-out gain {100 * c.heldout_gain:.1f} %'
                   + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
                      if c.indistinguishable_from else ''))
     elif dx.mimicking:

@@ -39,7 +39,9 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
         lines.append('**What was wrong, and why:**')
         lines.append('')
         for c in doc['causes']:
-            lines.append(f"- **{c['effect']}** — {c['summary']}. Held-out gain "
+            lines.append(f"- **{c['effect']}** — {c['summary']}"
+                         + (f" (measured: {c['measured']}; held at that value, not fitted)"
+                            if c.get('measured') else '') + '. Held-out gain '
                          f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])} "
                          f"(jackknife over test trials). {c['description'].capitalize()}."
                          + (f' These trials cannot tell it apart from '

@@ -43,6 +43,9 @@ class Cause:
     The effect, its estimated parameters (SI, radians) with Gauss-Newton standard errors, and the
     held-out gain (1 - J_test(with it) / J_test(without)) with its jackknife standard error over
     test trials. A measured signal used as a cause (e.g. ``measured_wind``) has no parameters.
+    ``measured``: the source of the measurement that sized it, when the trials could not (its
+    values and errors are then the measurement's, held in every model; '' when the trials
+    sized it).
     """
 
     effect: str
@@ -52,6 +55,7 @@ class Cause:
     heldout_gain_se: float
     indistinguishable_from: list[str] = field(default_factory=list)
     description: str = ''
+    measured: str = ''
 
     @property
     def summary(self) -> str:

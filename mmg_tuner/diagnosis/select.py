@@ -106,7 +106,7 @@ from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.diagnosis.results import Candidate, Cause, Diagnosis
 from mmg_tuner.diagnosis.settings import DiagnosisSettings, MapFn, MEASURED, RETUNE_METHODS
-from mmg_tuner.diagnosis.stats import acceptance, pinned_on_bound
+from mmg_tuner.diagnosis.stats import acceptance, jackknife_se, pinned_on_bound
 from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
@@ -140,6 +140,7 @@ class _Model:
                 lo.append(a)
                 hi.append(b)
                 pre.append(min(max(EFFECT_NEUTRAL[p], a), b))
+        self.base = base
         self.effects = effects
         self.measured_wind = measured_wind
         self.space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
@@ -380,6 +381,15 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         if not effects:
             raise DiagnosisError(f'none of the effects {list(s.effects)} acts on {ship.name} '
                                  f'(its actuators: {", ".join(ship.family.actuators)})')
+    # an effect whose every parameter was measured outside the trials (a steering-gear lag
+    # from the rudder-angle feedback) is in every model at its measured value (the ship above
+    # carries it): the trials could not size it, which is why it was measured, so it is not
+    # searched; after the search it is named as measured when the measurement sets it clearly
+    # apart from no effect and the trials do not contradict it (_by_measurement)
+    by_measurement = [e for e in effects if all(p in meas for p in EFFECTS[e].params)]
+    if by_measurement:
+        effects = [e for e in effects if e not in by_measurement]
+        log(f"   measured, so held in every model and not searched: {', '.join(by_measurement)}")
     if 'wind' in effects and not ship.has_windage:
         effects.remove('wind')
         log(f'   wind left out: {ship.source or ship.name} has no windage section (A_F, A_L, '
@@ -745,6 +755,13 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         for c in causes:
             c.parameters = {p: float(final_vals[p]) for p in c.parameters}
             c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
+    for e in by_measurement:
+        c, wanted = _by_measurement(ship, EFFECTS[e], meas, model, theta, plain_objs, ot_fin,
+                                    s, baseline['J_test'], J_floor, store, map_fn, log)
+        if c is not None:
+            causes.append(c)
+        if wanted is not None:
+            impossible_fits.append({**wanted, 'round': len(rounds)})
     advice = []
     if s.advice and (aliased or rival_pairs):
         clock('advice')
@@ -760,12 +777,90 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         final['diverged'] = _failure_text(ot_fin, ship, model.space, theta)
     timings = {k: round(v, 3) for k, v in clock.t.items()}
     log('   time per stage: ' + ', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))
-    return Diagnosis(causes, baseline, final, rounds, dict(zip(model.space.names,
-                                                               theta.tolist())),
+    # the measured effects' values are in every model (the ship carries them): in its params
+    held = {p: meas[p].value for e in by_measurement for p in EFFECTS[e].params}
+    return Diagnosis(causes, baseline, final, rounds,
+                     {**held, **dict(zip(model.space.names, theta.tolist()))},
                      dict(zip(base.names, base_theta.tolist())),
                      time.perf_counter() - t_start, aliased, setting,
                      {e: w for e, w in impossible.items() if e in effects or e in measured},
                      impossible_fits, measured_doc, timings, model.measured_wind, advice, noise)
+
+
+def _by_measurement(ship: ShipConfig, eff: Effect, meas: dict, model: _Model, theta,
+                    plain_objs: _Objectives, ot_fin: Objective, s: DiagnosisSettings,
+                    baseline_J: float, J_floor: float | None, store: SearchCheckpoint | None,
+                    map_fn: MapFn | None,
+                    log: Callable[[str], None]) -> tuple[Cause | None, dict | None]:
+    """
+    Return (the cause a measurement sizes or None, a contradicted fit or None).
+
+    ``eff``'s parameters are all measured, held in every model. It is fitted once more by the
+    tuning trials alone (the final model with the effect free, no prior). Named as measured
+    when a sized parameter lies more than two of its standard errors and at least the smallest
+    magnitude worth finding from no effect, and the trials-alone fit lies within three combined
+    standard errors (its trial-robust one and the measurement's) of the measured value: a
+    barely identifiable effect (why it was measured) passes with a wide fit; a wrong
+    measurement of one the trials do size does not. Its held-out gain is the final model's
+    against the same model at no effect (nothing re-tuned: an upper bound).
+
+    The second value: when the trials-alone fit is significant by the held-out rule but lies
+    on its bound or where the measurement rules it out, the fit the search would have weighed
+    as structural evidence (a time offset on its bound beside a hull 46 % stronger), in
+    ``impossible_fits``' form: the measurement says the trials want something the library
+    lacks.
+    """
+    vals = {p: float(meas[p].value) for p in eff.params}
+    ses = {p: float(meas[p].se) for p in eff.params}
+    src = '; '.join(sorted({meas[p].source or 'a measurement' for p in eff.params}))
+    words = describe_values(eff, vals, ses)
+    # the trials alone: the final model with the effect free, without the measurements' prior
+    m = _Model(ship, model.base, model.effects + [eff], model.measured_wind)
+    o, ot = plain_objs.of(m)
+    x0 = np.concatenate([theta, [vals[p] for p in eff.params]])
+    th = _tune_many([_Fit(ship, m.space, 0, o, x0, s.effect_evals, s.seed, False, s.retune)],
+                    store, map_fn)[0]
+    gn, robust = trial_robust_standard_errors(o, m.space, th)
+    k = [m.space.names.index(p) for p in eff.params]
+    fit = {p: float(th[i]) for p, i in zip(eff.params, k)}
+    se_fit = {p: float(max(gn[i], robust[i])) for p, i in zip(eff.params, k)}
+    alone = describe_values(eff, fit, se_fit)
+    z = [abs(fit[p] - vals[p]) / math.hypot(se_fit[p], ses[p])
+         for p, per in zip(eff.params, eff.periodic) if not per]
+    contradicted = any(not math.isfinite(x) or x > 3.0 for x in z)
+    J_with = _per_trial_J(ot_fin, ship, model.space, theta)
+    v = acceptance(J_with, _per_trial_J(ot, ship, m.space, th), len(eff.params), baseline_J, s,
+                   J_floor)
+    pinned = pinned_on_bound(m.space, th, eff.params, s.bound_tol)
+    wanted = None
+    if v.significant and (contradicted or pinned):
+        wanted = {'effect': eff.name, 'gain': float(v.gain), 'gain_se': float(v.gain_se),
+                  'reason': f'measured {words}, the trials alone fit {alone}'
+                            + (' on its bound' if pinned else ''),
+                  'values': fit, 'on_bound': pinned, 'round': 0}
+        log(f'   {eff.name}: the trials alone fit {alone}, a held-out gain of {_pct(v.gain)}, '
+            f'but it was measured: {words}; the trials want what the library lacks')
+    apart = [p for p, n, per in zip(eff.params, eff.neutral, eff.periodic)
+             if not per and abs(vals[p] - n) > 2.0 * ses[p]]
+    if not apart or eff.too_small(ship, vals):
+        log(f'   {eff.name}: measured {words}: not apart from no effect (within two standard '
+            'errors of it, or smaller than the smallest magnitude worth finding); held in the '
+            'model, not named')
+        return None, wanted
+    if contradicted:
+        log(f'   {eff.name}: measured {words}, but the trials alone fit {alone}: more than '
+            'three combined standard errors apart; held in the model, not named: check the '
+            'measurement')
+        return None, wanted
+    without = ship.with_params(dict(zip(eff.params, eff.neutral)))
+    J_without = _per_trial_J(ot_fin, without, model.space, theta)
+    gain = _gain(float(J_without.sum()), float(J_with.sum()))
+    se = float(jackknife_se(J_without, J_with)) \
+        if np.all(np.isfinite(J_without)) and np.all(np.isfinite(J_with)) else math.nan
+    log(f'   -> named (measured: {src}): {eff.name}, {words} (the trials alone: {alone}); '
+        f'held-out gain against the same model at no {eff.name.replace("_", " ")} {_pct(gain)}'
+        f' ± {_pct(se)}')
+    return Cause(eff.name, vals, ses, gain, se, [], eff.description, src), wanted
 
 
 def _with_measurements(objs: _Objectives, meas: dict, s2: float) -> _Objectives:

@@ -281,21 +281,25 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
 def one_verdict(causes: list, st: dict, J_base: float | None = None,
                 noise: Mapping | None = None) -> tuple[list, list]:
     """
-    Return (causes, mimicking): every named effect moves to mimicking when structure wins.
+    Return (causes, mimicking): every fitted cause moves to mimicking when structure wins.
 
     ``causes``: the search's named causes; ``st``: the structure verdict (:func:`verdict`),
     updated in place. A report never names a CAUSE in the same breath as "the model
     structure is the likely cause": if the structure check wins, the effects are listed as
-    mimicking it. What remains after the named causes is then the base model's error
+    mimicking it (a cause a measurement sized stays: it mimics nothing). What remains after the
+    named causes is then the base model's error
     (``J_base``, held out): the noise statement is made of it (``noise``: the floor).
     """
-    if st.get('verdict') != 'structure' or not causes:
+    # a cause sized by a measurement (Cause.measured) is a fact, not a fit that could mimic
+    kept = [c for c in causes if getattr(c, 'measured', '')]
+    fitted = [c for c in causes if not getattr(c, 'measured', '')]
+    if st.get('verdict') != 'structure' or not fitted:
         return list(causes), []
     if J_base is not None:
         is_noise, text = describe_noise(float(J_base), noise)
         st['remaining_is_noise'] = is_noise
         st['noise'] = text + ' (after the named causes: none; the tuned base model)'
-    return [], list(causes)
+    return kept, fitted
 
 
 def markdown_lines(doc: Mapping) -> list[str]:

@@ -131,6 +131,15 @@ def test_one_verdict_never_names_a_cause_beside_a_structural_gap():
     assert one_verdict(causes, {'verdict': 'none'}) == (causes, [])
 
 
+def test_a_cause_a_measurement_sized_stays_a_cause_beside_a_structural_gap():
+    from mmg_tuner.diagnosis.results import Cause
+    lag = Cause('rudder_lag', {'rudder_lag_tau': 5.0}, {'rudder_lag_tau': 0.5}, 0.1, 0.05,
+                measured='rudder-angle feedback')
+    fitted = Cause('current', {'current_speed': 0.2, 'current_dir': 0.0}, {}, 0.5, 0.1)
+    assert one_verdict([fitted, lag], {'verdict': 'structure'}) == ([lag], [fitted])
+    assert one_verdict([lag], {'verdict': 'structure'}) == ([lag], [])
+
+
 def test_causes_that_leave_most_of_an_error_above_the_noise_beside_bent_coefficients():
     """
     A cause that leaves much above the noise beside bent coefficients mimics a gap.
@@ -302,3 +311,74 @@ def test_a_loose_measurement_leaves_room_for_the_antenna_and_a_tight_one_holds(s
         n: Measurement(v, 1e-4 * abs(v)) for n, v in off.items()}, **kw)
     for n, v in off.items():
         assert tight.params[n] == pytest.approx(v, rel=2e-3), n   # (8 % off the truth)
+
+
+def test_a_measured_steering_gear_lag_is_named_as_measured_beside_the_current(suzaku):
+    """
+    The case the trials cannot settle (test above), with the advised measurement.
+
+    The rudder-angle feedback gives the lag, 5.0 +- 0.5 s: it is held in every model, not
+    searched, and named as measured beside the current the trials find. A feedback that shows
+    no lag (0.3 +- 0.5 s) names none, and a lag measured with the wrong sign is refused before
+    any work.
+    """
+    from mmg_tuner.diagnosis.measured import Measurement
+    tune, test = _trials(suzaku, {'current_speed': 0.25, 'current_dir': math.radians(200.0),
+                                  'rudder_lag_tau': 5.0})
+    fb = 'rudder-angle feedback'
+    dx = _diagnose(suzaku, tune, test, residual=False,
+                   measured={'rudder_lag_tau': Measurement(5.0, 0.5, fb)})
+    by = {c.effect: c for c in dx.causes}
+    assert set(by) == {'current', 'rudder_lag'}, [c.summary for c in dx.causes]
+    assert by['rudder_lag'].measured == fb and not by['current'].measured
+    assert by['rudder_lag'].parameters == {'rudder_lag_tau': 5.0}
+    assert dx.params['rudder_lag_tau'] == 5.0      # in the written model
+    # 0.14 +- 0.055 m/s on these 200 s trials (0.21 without the measurement): within three
+    # of its own trial-robust standard errors, which is what the report claims
+    cur = by['current']
+    assert abs(cur.parameters['current_speed'] - 0.25) < 3 * cur.uncertainty['current_speed']
+    none = _diagnose(suzaku, tune, test, residual=False,
+                     measured={'rudder_lag_tau': Measurement(0.3, 0.5, fb)})
+    assert 'rudder_lag' not in [c.effect for c in none.causes]
+    assert none.params['rudder_lag_tau'] == 0.3
+    with pytest.raises(ConfigError, match='rudder_lag_tau must not be negative'):
+        _diagnose(suzaku, tune, test, measured={'rudder_lag_tau': Measurement(-1.0, 0.5)})
+
+
+def test_a_measurement_the_trials_contradict_is_not_named(suzaku):
+    """
+    A rudder offset of +2 deg, which these trials size, "measured" at -2 +- 0.2 deg.
+
+    Fitted by the trials alone the offset is far from the measurement: it is not named as
+    measured (the report says to check the measurement).
+    """
+    from mmg_tuner.diagnosis.measured import Measurement
+    from mmg_tuner.diagnosis.select import diagnose as search
+    tune, test = _trials(suzaku, {'rudder_offset': math.radians(2.0)})
+    lines = []
+    dx = search(
+        suzaku, tune, test, mt.DiagnoseConfig(
+            budget='quick', max_effects=1, residual=False, measured={
+                'rudder_offset': Measurement(math.radians(-2.0), math.radians(0.2))}
+        ).settings(), log=lines.append)
+    assert 'rudder_offset' not in [c.effect for c in dx.causes]
+    assert any('check the measurement' in x for x in lines), lines
+
+
+def test_a_measured_clock_still_lets_the_structure_check_see_a_stronger_hull(suzaku):
+    """
+    Hull forces x 1.45 with the time offset measured (one clock): 0.0 +- 0.1 s.
+
+    Unmeasured, a time offset pinned on its bound is the evidence that the structure, not an
+    effect, is wrong. Measured, it is no longer searched; its trials-alone fit is what still
+    shows it: the trials want a delay the clock rules out, so it is listed as would-fit-but-
+    impossible and no effect is named as a cause.
+    """
+    from mmg_tuner.diagnosis.measured import Measurement
+    tune, test = _trials(suzaku, {}, hull_scale=1.45)
+    dx = _diagnose(suzaku, tune, test, residual=False,
+                   measured={'time_offset': Measurement(0.0, 0.1, 'one clock')})
+    assert dx.causes == [], [c.summary for c in dx.causes]
+    assert dx.structure['verdict'] in ('structure', 'unexplained'), dx.structure['summary']
+    if dx.structure['verdict'] == 'structure':
+        assert any(x['effect'] == 'time_offset' for x in dx.impossible_fits) or dx.mimicking
