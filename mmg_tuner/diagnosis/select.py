@@ -837,7 +837,7 @@ def _by_measurement(ship: ShipConfig, eff: Effect, meas: dict, model: _Model, th
         wanted = {'effect': eff.name, 'gain': float(v.gain), 'gain_se': float(v.gain_se),
                   'reason': f'measured {words}, the trials alone fit {alone}'
                             + (' on its bound' if pinned else ''),
-                  'values': fit, 'on_bound': pinned, 'round': 0}
+                  'values': fit, 'on_bound': pinned}   # the caller adds its 'round'
         log(f'   {eff.name}: the trials alone fit {alone}, a held-out gain of {_pct(v.gain)}, '
             f'but it was measured: {words}; the trials want what the library lacks')
     apart = [p for p, n, per in zip(eff.params, eff.neutral, eff.periodic)
