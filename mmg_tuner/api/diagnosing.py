@@ -168,6 +168,9 @@ class DiagnosisResult:
     mimicking: list[Cause] = field(default_factory=list)
     # the sensor noise and the held-out J it alone leaves (diagnosis/noise.py)
     noise: dict = field(default_factory=dict)
+    # effects the trials hint at but cannot name, each with the trial that would settle it in
+    # advice (kind 'suspected'): {effect, values, gain, gain_se, round, summary, beside}
+    suspected: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -184,6 +187,7 @@ class DiagnosisResult:
                 'measured_signals': self.measured, 'advice': self.advice,
                 'structure': self.structure,
                 'mimicking': [c.to_dict() for c in self.mimicking], 'noise': self.noise,
+                'suspected': self.suspected,
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -277,7 +281,7 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         dict(d.params), d.rounds, d.aliased,
         {'base_model': res_base, 'final_model': res_final}, d.wall_s, ship, test, cfg,
         d.setting, d.impossible, d.impossible_fits, d.measured, timings, test_base, test_final,
-        d.advice, noise=d.noise)
+        d.advice, noise=d.noise, suspected=d.suspected)
     dx.structure = _structure_of(dx, trials, d.measured_wind_used or not cfg.measured_signals)
     dx.causes, dx.mimicking = _structure.one_verdict(dx.causes, dx.structure,
                                                      dx.baseline.J_test, dx.noise)

@@ -148,6 +148,12 @@ def command(argv: list[str] | None = None) -> int:
     for c in dx.mimicking:
         print(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
               f'{100 * c.heldout_gain:.1f} %')
+    settle = {a['about']: a for a in dx.advice if a.get('kind') == 'suspected'}
+    for x in dx.suspected:   # hinted at by the trials, not named: what would settle it
+        a = settle.get(x['effect'])
+        print(f"SUSPECTED (not named): {x['summary']} -- held-out gain {100 * x['gain']:.1f} "
+              f"± {100 * x['gain_se']:.1f} %, the held-out trials disagree"
+              + (f"; to settle it: {a.get('measure') or a['instruction']}" if a else ''))
     b, f = dx.baseline.J_test, dx.final.J_test
     for x in dx.impossible_fits:
         print(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "

@@ -47,6 +47,13 @@ self-propulsion tests), the advice gives the re-run: those held at the measured 
 (``--params``), the run's other targets tuned (``--targets``), and the resolution the recorded
 trials (and the best trial) reach with them held, from the same linearisation.
 
+A suspected effect (one the held-out trials hint at but disagree on; select.suspected_effects)
+comes as a rival pair of kind 'suspected': the model without it against the model with it.
+When no trial of the repertoire separates them by MIN_SEPARATION, its advice is the effect's
+own measurement (``settle_by``, marked degenerate: no trial is sailed
+for it, and the joint trial does not serve it): a rudder offset beside a wind bent to take its
+share is told apart by the rudder indicator against the blade, not by a manoeuvre.
+
 A crew sails one trial, and the diagnosis does not know which suspect is real: when two or
 more things can be settled by a trial (rival pairs, and flagged effects that are not
 degenerate), :func:`advise_all` puts first the one trial chosen for all of them jointly
@@ -415,6 +422,27 @@ def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict:
             'version': SPEC_VERSION}
 
 
+def suspect_measurement(a: dict) -> dict:
+    """
+    Turn a suspected effect's rival entry into the measurement that settles it.
+
+    For a suspected effect ('about': its name, kind 'suspected') that no trial separates by
+    MIN_SEPARATION (when the recorded trials already do, the trial advice stands: their
+    disagreement, not the manoeuvres, kept it unnamed): the model with it and the one without
+    explain every manoeuvre of the
+    repertoire about equally (a rudder offset beside a wind bent to take its share: 0.75
+    against 0.57 recorded), so the effect's own measurement (its ``settle_by``) decides.
+    """
+    settle_by = EFFECTS[a['about']].settle_by or 'fix it from a measurement outside these trials'
+    rec = a['separation_recorded']
+    return {**a, 'degenerate': True, 'settle_by': settle_by, 'measure': settle_by,
+            'best_trial': a['instruction'],
+            'instruction': ('no trial separates the model with it from the model without it '
+                            f"(the best of the repertoire: {a['separation']:.2g}, the recorded "
+                            f"trials {'-' if rec is None else f'{rec:.2g}'}; 1 and "
+                            f'{SETTLES:g} x the recorded needed); instead: {settle_by}')}
+
+
 def _twice(spec: TrialSpec) -> str:
     return (spec.instruction() + '; sail it twice, once to each side (one run for tuning, one '
             'held out)')
@@ -645,6 +673,11 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     pairs = _rival_figures(ship, rivals, trials, sigma, specs, dt) if rivals else []
     pairs = [it for it in pairs if np.any(it.figures > 0)]   # no trial of them can be run
     out = [_rival_entry(it, specs) for it in pairs]
+    # a suspected effect that no trial separates from the model without it is settled by its
+    # measurement, and a joint trial need not serve it
+    out = [suspect_measurement(a) if a['kind'] == 'suspected' and a['separation'] < MIN_SEPARATION
+           else a for a in out]
+    pairs = [it for it, a in zip(pairs, out) if not a.get('degenerate')]
     probe = [e for e in effects if len(EFFECTS[e].params) == 1]
     about = [e for e in about if e in probe]
     items: list[_Item] = []
@@ -696,7 +729,9 @@ def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | N
     if best is None:
         return None
     spec = specs[best]
-    figs = {it.about: (float(it.figures[best]), it.recorded) for it in items}
+    # (a suspected effect may also be barely identifiable: two items of one name)
+    figs = {it.about + (' (suspected)' if it.kind == 'suspected' else ''):
+            (float(it.figures[best]), it.recorded) for it in items}
     settled = [a for a, (f, r) in figs.items() if _settles(f, r)]
     lead = max(settled or list(figs), key=lambda a: ratio(*figs[a]))
     f, r = figs[lead]
@@ -704,9 +739,9 @@ def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | N
             'spec': spec.to_dict(), 'pair': mirrored(spec).to_dict(), 'separation': f,
             'separation_recorded': r, 'settles': _settles(f, r), 'lead': lead,
             'lifts': settled,
-            'figures': {it.about: {'with': figs[it.about][0], 'recorded': it.recorded,
-                                   'settles': it.about in settled, 'kind': it.kind}
-                        for it in items},
+            'figures': {a: {'with': figs[a][0], 'recorded': it.recorded,
+                            'settles': a in settled, 'kind': it.kind}
+                        for a, it in zip(figs, items)},
             'runner_up': '', 'version': SPEC_VERSION}
 
 

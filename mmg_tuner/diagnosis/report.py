@@ -54,6 +54,16 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
+    if doc.get('suspected'):
+        lines += ['', '**Suspected, not named.** The trials hint at these (a held-out gain above '
+                  'the least a cause needs, with a reduction that counts as evidence), but the '
+                  'held-out trials disagree on them (one made worse, or the gain within its '
+                  'standard error). "The trial that would settle it" below says what would:', '']
+        for x in doc['suspected']:
+            lines.append(f"- {x['effect']}: {x['summary']}, held-out gain {_pct(x['gain'])} ± "
+                         f"{_pct(x['gain_se'])} (round {x['round']}"
+                         + (f", beside {', '.join(x['beside'])}" if x.get('beside') else '')
+                         + ')')
     fits = doc.get('would_fit_but_impossible') or []
     if fits:
         lines += ['', '**Would fit, but impossible here.** These effects explain the held-out '

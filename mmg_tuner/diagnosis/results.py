@@ -92,3 +92,6 @@ class Diagnosis:
     # the sensor noise estimated from the held-out recordings and the held-out J it alone
     # leaves with the base model (diagnosis/noise.py): {'sigma': {state: sd}, 'J', 'J_se', ...}
     noise: dict = field(default_factory=dict)
+    # effects the last round hints at but cannot name (select._suspects): {effect, values,
+    # gain, gain_se, round, summary, beside}; never causes, each with an advised trial
+    suspected: list[dict] = field(default_factory=list)

@@ -29,7 +29,8 @@ class Verdict:
 
 
 def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
-               s: DiagnosisSettings, J_floor: float | None = None) -> Verdict:
+               s: DiagnosisSettings, J_floor: float | None = None,
+               floor_per_trial: Sequence[float] | None = None) -> Verdict:
     """
     Return the one acceptance rule, used by the forward and the backward step.
 
@@ -41,7 +42,12 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
     jackknife standard errors, the reduction is at least min_abs_gain of the base model's
     held-out error (or, given the noise floor J_floor of the held-out trials, the reduction
     exceeds noise_margin x J_floor), and no test trial gets worse both by a factor above
-    1 + worse_tol and by more than worse_abs of the total held-out J without it (sum(J_ref)).
+    1 + worse_tol and by more than worse_abs of the total held-out J without it (sum(J_ref))
+    and, given ``floor_per_trial`` (the held-out J sensor noise alone leaves on each test
+    trial, diagnosis/noise.py), by more than that trial's floor: near the noise a trial
+    getting worse by less than noise leaves is no evidence against an effect (a wind and a
+    rudder offset at their true values made one held-out trial 2.6 x worse, +10 % of the
+    held-out error, than a wind bent to take the offset's share: 0.7 of that trial's floor).
     A run that diverges (infinite J) on either side is never significant.
     """
     J_ref = np.asarray(J_ref, float)
@@ -58,6 +64,8 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
     # worse by the factor and by an amount that matters against the total
     increase = (J_new - J_ref) / max(J_ref.sum(), 1e-300)
     bad = (ratio >= 1 + s.worse_tol) & (increase > s.worse_abs)
+    if floor_per_trial is not None and len(floor_per_trial) == len(J_ref):
+        bad &= J_new - J_ref > np.asarray(floor_per_trial, float)
     worst = float(np.max(ratio))
     reasons = []
     if not gain > need:

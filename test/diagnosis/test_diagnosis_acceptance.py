@@ -1,6 +1,7 @@
 """The one acceptance rule: a test trial getting worse vetoes only when it matters."""
 from mmg_tuner.diagnosis import acceptance, DiagnosisSettings
 import numpy as np
+import pytest
 
 
 def _pieces():
@@ -40,3 +41,80 @@ def test_same_ratio_vetoes_once_it_matters_in_absolute_terms():
     J_ref[0], J_new[0] = 30.0, 12 * 30.0   # the same 12x, now +330 of 1930 (17 %): vetoed
     v = acceptance(J_ref, J_new, 2, float(J_ref.sum()), s)
     assert not v.significant and 'worse (12.00 x' in v.reason
+
+
+def test_a_trial_worse_by_less_than_its_noise_floor_does_not_veto():
+    """
+    Near the noise, a trial worse by less than its noise floor vetoes nothing.
+
+    What noise alone leaves on a trial is no evidence against an effect (issue 26, seventh
+    session): the bench's wind + rudder offset
+    at their true values made one held-out trial 2.6 x worse than a wind bent to take the
+    offset's share, +10 % of the held-out error but 0.7 of that trial's noise floor.
+    """
+    s = DiagnosisSettings()
+    J_ref = np.array([0.64, 3.9, 3.9, 3.9, 4.06]) * 1e6   # 1.64e7 held out, 1.3 floors
+    J_new = np.array([2.31, 1.1, 1.4, 3.3, 0.8]) * 1e6    # 45 % better, trial 0 2.6 x worse
+    floors = np.full(5, 2.52e6)                           # 1.26e7 over five trials
+    vetoed = acceptance(J_ref, J_new, 1, 5.9e8, s, 1.26e7)
+    assert not vetoed.significant and 'a test trial gets worse (3.61 x' in vetoed.reason
+    v = acceptance(J_ref, J_new, 1, 5.9e8, s, 1.26e7, floors)
+    assert v.significant, v.reason
+    # worse by more than its floor: vetoed as before
+    v = acceptance(J_ref, J_new, 1, 5.9e8, s, 1.26e7, floors * 0.5)
+    assert not v.significant and 'gets worse' in v.reason
+
+
+# ---------------------------------------------------------------- suspected, not named (i26)
+def _round_two(effect: str, values: dict, J_test: float, gain_se: float = 0.398, **kw):
+    """
+    Return a second round's candidate with held-out J J_test.
+
+    Held-out J 1.64e7 without it (the bench's wind beside an offset, 1.3 x the noise floor
+    1.26e7).
+    """
+    from mmg_tuner.diagnosis.results import Candidate
+    J_ref = 1.64e7
+    return Candidate(effect, J_test, [], 1 - J_test / J_ref, gain_se, False, values,
+                     J_ref=J_ref, **kw)
+
+
+def test_an_effect_the_held_out_trials_disagree_on_is_suspected_with_its_rival(suzaku):
+    """
+    An effect gaining but with held-out trials disagreeing is suspected, not named.
+
+    A rudder offset beside a named wind, as the bench found it (seed 0): held-out gain
+    46 % +- 40 %, not named for one held-out trial 2.6 x worse. Its reduction is a sliver of
+    the base error (1.2 % of 5.9e8) but 0.6 noise floors: evidence, so it is suspected, with
+    the models without and with it for the advice; a candidate that fails any other part of
+    the rule is not.
+    """
+    from mmg_tuner.diagnosis.select import suspected_effects
+    s, base_J, floor = DiagnosisSettings(), 5.9e8, 1.26e7
+    now, with_it = np.zeros(3), np.ones(3)
+    offset = {'rudder_offset': np.radians(1.5)}
+
+    def run(cand, J_floor=floor, params_now=now):
+        return suspected_effects(suzaku, [(cand, with_it)], s, base_J, J_floor, 2, ['wind'],
+                                 params_now)
+
+    got = run(_round_two('rudder_offset', offset, 0.89e7))
+    assert [x['effect'] for x in got] == ['rudder_offset'] and got[0]['beside'] == ['wind']
+    assert got[0]['gain'] == pytest.approx(0.457, abs=0.01) and got[0]['round'] == 2
+    rival = got[0]['rival']
+    assert rival['kind'] == 'suspected' and rival['about'] == 'rudder_offset'
+    assert rival['params_a'] is now and rival['params_b'] is with_it
+    # without the noise floor the same reduction is no evidence (below 5 % of the base error)
+    assert run(_round_two('rudder_offset', offset, 0.89e7), J_floor=None) == []
+    # a gain below the least for one parameter (12 %), too small an offset (0.3 deg), on its
+    # bound, impossible here, or already named: not suspected
+    assert run(_round_two('rudder_offset', offset, 1.5e7)) == []
+    assert run(_round_two('rudder_offset', {'rudder_offset': np.radians(0.3)}, 0.89e7)) == []
+    assert run(_round_two('rudder_offset', offset, 0.89e7, on_bound=['rudder_offset'])) == []
+    assert run(_round_two('rudder_offset', offset, 0.89e7, impossible='indoors')) == []
+    named = _round_two('rudder_offset', offset, 0.89e7)
+    named.accepted = True
+    assert run(named) == []
+    # a model the measured wind drives cannot be simulated apart: suspected, without a rival
+    got = run(_round_two('rudder_offset', offset, 0.89e7), params_now=None)
+    assert got and 'rival' not in got[0]

@@ -248,3 +248,58 @@ def test_a_measurement_that_pins_base_targets_comes_with_the_re_run_and_settles_
                    'residuals': {'base_model': {'per_trial': {}, 'correlation': {}},
                                  'final_model': {'per_trial': {}}}}, suzaku)
     assert '--targets ' + ' '.join(rest) in md[md.index('## The trial that would settle it'):]
+
+
+def test_a_suspected_effect_no_trial_separates_is_advised_its_measurement(suzaku):
+    """
+    A suspected effect no trial separates from its absence is advised its measurement.
+
+    A suspected effect (diagnosis: the held-out trials disagree on it) comes as a rival pair,
+    the model without it and with it. When no trial of the repertoire separates them (a
+    0.01 deg rudder offset apart: best 0.26), the advice is the effect's own measurement (the
+    rudder indicator against the blade), marked degenerate so that no trial is sailed for it
+    and the joint trial does not serve it. 0.05 deg apart a trial settles it (1.3 against 0.88
+    recorded): a trial, and one for it and a rival pair jointly.
+    """
+    trials = [generate_trial(suzaku, m, a, None, 106.0, 3.086, 200.0, 1.0, SensorNoise(),
+                             i, f'{m}{a:+d}')[1]
+              for i, (m, a) in enumerate([('zigzag', 10), ('turning', 20)])]
+    obj = Objective(suzaku, TrialBatch.from_trials(trials), integrator='rk4')
+    base = ParameterSpace.around(suzaku)
+    now = suzaku.params.copy()
+
+    def advice(offset_deg: float) -> list[dict]:
+        rivals = [{'about': 'rudder_offset', 'kind': 'suspected', 'params_a': now,
+                   'params_b': suzaku.with_params(
+                       {'rudder_offset': math.radians(offset_deg)}).params},
+                  {'about': 'yaw_moment_bias vs wind', 'kind': 'indistinguishable',
+                   'params_a': now,
+                   'params_b': suzaku.with_params({'yaw_moment_bias': 0.003}).params}]
+        return advise_all(suzaku, base, base.pre, obj, [], trials, [], rivals, (1.0, 0.01))
+
+    out = advice(0.01)
+    per = {a['about']: a for a in out}
+    s = per['rudder_offset']
+    assert s['kind'] == 'suspected' and s.get('degenerate') and not s['settles']
+    assert s['separation'] < 1.0
+    assert s['settle_by'] == EFFECTS['rudder_offset'].settle_by == s['measure']
+    assert s['instruction'].startswith('no trial separates the model with it')
+    assert EFFECTS['rudder_offset'].settle_by in s['instruction']
+    assert not per['yaw_moment_bias vs wind'].get('degenerate')
+    assert all(a['kind'] != 'joint' for a in out)   # one trial-worthy item: nothing joint
+    from mmg_tuner.diagnosis.report import markdown
+    doc = {'baseline': {'J_test': 1.0}, 'final': {'J_test': 0.5}, 'causes': [],
+           'candidates': [], 'advice': out,
+           'suspected': [{'effect': 'rudder_offset', 'summary': 'rudder offset 1.50 deg',
+                          'gain': 0.456, 'gain_se': 0.398, 'round': 2, 'beside': ['wind']}],
+           'residuals': {'base_model': {'per_trial': {}, 'correlation': {}},
+                         'final_model': {'per_trial': {}}}}
+    md = markdown(doc, suzaku)
+    assert '**Suspected, not named.**' in md
+    assert '- rudder_offset: rudder offset 1.50 deg, held-out gain 45.6 % ± 39.8 % (round 2, ' \
+        'beside wind)' in md
+    assert EFFECTS['rudder_offset'].settle_by in md[md.index('## The trial that would'):]
+    out = advice(0.05)
+    per = {a['about']: a for a in out}
+    assert per['rudder_offset']['settles'] and not per['rudder_offset'].get('degenerate')
+    assert out[0]['kind'] == 'joint' and 'rudder_offset (suspected)' in out[0]['figures']

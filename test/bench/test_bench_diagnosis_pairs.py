@@ -1,0 +1,38 @@
+"""
+bench/bench_diagnosis.py's cases the seventh session fixed (issue 26), plain diagnosis.
+
+The benchmark's own cases (SUZAKU with its 12 targets moved, ten 400 s trials at 1 Hz with
+sensor noise, five tuned and five held out; quick budget, no advice loop): a wind and a rudder
+offset hidden together. Both fail without this session's two changes, as the benchmark found:
+seed 0 named the wind alone (bent 17 deg to take the offset's share; the pair at its true
+values made one held-out trial worse by less than that trial's noise floor, which vetoed it),
+seed 2 the wind alone (the offset, significant beside the wind where it was named, screened at
+a loss beside it and was never re-tuned). And a false cause: a yaw moment bias (seed 2) was
+named as a 6.8 m/s wind, the bias and a propeller side force listed as explaining the trials
+as well; fitted jointly with the wind from before the wind was named, the bias leaves the wind
+at 0 m/s.
+"""
+import math
+
+from bench.bench_diagnosis import run_case
+import pytest
+
+
+@pytest.mark.parametrize('seed', [0, 2])
+def test_a_wind_and_a_rudder_offset_are_both_named_on_the_benchmarks_cases(suzaku, seed):
+    row = run_case(suzaku, 'rudder_offset+wind', seed, 'quick', 10, 400.0, advice=False)
+    assert sorted(row['named']) == ['rudder_offset', 'wind'], row['named']
+    truth, est = row['truth'], row['estimates']
+    assert est['wind_speed'] == pytest.approx(truth['wind_speed'], abs=1.0)
+    dir_err = (math.degrees(est['wind_dir'] - truth['wind_dir']) + 180) % 360 - 180
+    assert abs(dir_err) < 10
+    assert math.degrees(est['rudder_offset']) == pytest.approx(
+        math.degrees(truth['rudder_offset']), abs=0.5)
+
+
+def test_a_yaw_moment_bias_is_named_not_the_wind_it_was_first_named_as(suzaku):
+    row = run_case(suzaku, 'yaw_moment_bias', 2, 'quick', 10, 400.0, advice=False)
+    assert row['named'] == ['yaw_moment_bias'], row['named']
+    assert 'wind' in row['rivals']['yaw_moment_bias']   # said: as good alone
+    truth, est = row['truth']['yaw_moment_bias'], row['estimates']['yaw_moment_bias']
+    assert est == pytest.approx(truth, rel=0.4)   # -1.69e-3 for -1.37e-3
