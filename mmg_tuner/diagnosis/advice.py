@@ -429,9 +429,9 @@ def suspect_measurement(a: dict) -> dict:
     For a suspected effect ('about': its name, kind 'suspected') that no trial separates by
     MIN_SEPARATION (when the recorded trials already do, the trial advice stands: their
     disagreement, not the manoeuvres, kept it unnamed): the model with it and the one without
-    explain every manoeuvre of the
-    repertoire about equally (a rudder offset beside a wind bent to take its share: 0.75
-    against 0.57 recorded), so the effect's own measurement (its ``settle_by``) decides.
+    explain every manoeuvre of the repertoire about equally (a rudder offset beside a wind
+    bent to take its share: 0.75 against 0.57 recorded), so the effect's own measurement (its
+    ``settle_by``) decides.
     """
     settle_by = EFFECTS[a['about']].settle_by or 'fix it from a measurement outside these trials'
     rec = a['separation_recorded']

@@ -106,7 +106,7 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 from mmg_tuner.core.effects import describe_values, Effect, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
@@ -158,6 +158,17 @@ class _Model:
         self.effects = effects
         self.measured_wind = measured_wind
         self.space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
+
+
+class _NamedFrom(NamedTuple):
+    """The round that named a cause, as a later joint fit starts from it."""
+
+    model: _Model                  # the model before the cause
+    theta: np.ndarray              # its optimum
+    screened: dict                 # {effect: its screened theta}
+    ranking: list[str]             # the screen's order
+    significant: list[str]         # effects significant beside the cause, not named
+    accepted: dict                 # {effect: (Candidate, model, theta, J_test)}, as good alone
 
 
 @dataclass(frozen=True, eq=False)
@@ -707,7 +718,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # and what was significant beside the last named one where it was named: the next
         # screen, beside it, ranks by a loss (a rudder offset at -3486 % beside a wind bent
         # from 7.9 to 10.7 m/s, so never re-tuned), but the joint fit starts from before it
-        news += [e for e in (named_from[4] if named_from is not None else [])
+        news += [e for e in (named_from.significant if named_from is not None else [])
                  if e in remaining and e not in news + [last]]
         if not accepted and news and named_from is not None and last in EFFECTS \
                 and s.pairs > 1 and len(causes) + 1 <= s.max_effects:
@@ -721,10 +732,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             # wind, the wind fitted at 0 m/s beside the bias). The rival is named instead,
             # the other listed as indistinguishable; never back (swapped_out)
             swap = [b for b in absorbed if joint is None and b not in swapped_out
-                    and b in causes[-1].indistinguishable_from and b in named_from[5]]
+                    and b in causes[-1].indistinguishable_from and b in named_from.accepted]
             if swap:
-                b = max(swap, key=lambda e: named_from[5][e][0].gain)
-                cb, model, theta, J_test = named_from[5][b]
+                b = max(swap, key=lambda e: named_from.accepted[e][0].gain)
+                cb, model, theta, J_test = named_from.accepted[b]
                 se_all = dict(zip(model.space.names,
                                   standard_errors(objs.of(model)[0], model.space, theta)))
                 old = causes.pop()
@@ -735,8 +746,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 swapped_out.add(last)
                 remaining.remove(b)
                 remaining.append(last)
-                named_from = named_from[:4] + (
-                    [e for e in named_from[4] if e != b] + [last], named_from[5])
+                named_from = named_from._replace(
+                    significant=[e for e in named_from.significant if e != b] + [last])
                 log(f'   -> named instead of {last}: {b} (fitted jointly from before {last} '
                     f'was named, the trials leave {last} too small beside it)')
                 continue
@@ -764,11 +775,11 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         best = max(accepted, key=lambda c: c[0].gain)
         # the model before this cause, its optimum and each candidate's screened values: a
         # later round may fit this cause jointly with another from there
-        named_from = (model, theta, {n: th for _, n, th in screened},
-                      [n for _, n, _ in screened],
-                      [c[0].effect for c in cands if c[0].significant and c[0] is not best[0]
-                       and c[0].effect in EFFECTS and not c[0].impossible],
-                      {c[0].effect: c for c in accepted if c[0].effect in EFFECTS})
+        named_from = _NamedFrom(
+            model, theta, {n: th for _, n, th in screened}, [n for _, n, _ in screened],
+            [c[0].effect for c in cands if c[0].significant and c[0] is not best[0]
+             and c[0].effect in EFFECTS and not c[0].impossible],
+            {c[0].effect: c for c in accepted if c[0].effect in EFFECTS})
         cand, model, theta, J_test = best
         # another significant effect whose gain is within the combined uncertainty explains
         # these trials about as well: say so rather than pretend to know
@@ -1100,29 +1111,25 @@ def _refit_on(every: _Objectives | None, ship, m: _Model, th: np.ndarray,
                                     s.seed, False, s.retune)], store, map_fn)[0]
 
 
-def _joint_round(ship, base: ParameterSpace, named_from: tuple, last: str, news: list[str],
-                 objs: _Objectives, J_ref: np.ndarray, baseline: dict, s: DiagnosisSettings,
-                 noise: dict, singles: dict, store: SearchCheckpoint | None,
+def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
+                 news: list[str], objs: _Objectives, J_ref: np.ndarray, baseline: dict,
+                 s: DiagnosisSettings, noise: dict, singles: dict, store: SearchCheckpoint | None,
                  map_fn: MapFn | None, log, every: _Objectives | None = None):
     """
     Fit the last named effect jointly with each new candidate, from before it was named.
 
-    ``named_from``: (the model without ``last``, its optimum, {effect: screened theta}, the
-    screen's ranking, the effects significant beside it) of the round that named it. Each
-    pair starts from that optimum with both members at their screened values (the last named
-    one has not yet bent toward the other) and is re-tuned with the base targets; it is judged
-    against the current model (``J_ref``, with ``last``; parameters: the new member's) by the
-    rule of one effect
-    (:func:`_joint_objections`; ``every``: the objectives on every trial, where a member sized
-    too small by the tuning trials is sized).
+    ``named_from``: the round that named ``last`` (:class:`_NamedFrom`). Each pair starts
+    from the optimum before ``last`` with both members at their screened values (the last
+    named one has not yet bent toward the other) and is re-tuned with the base targets; it is
+    judged against the current model (``J_ref``, with ``last``; parameters: the new member's)
+    by the rule of one effect (:func:`_joint_objections`; ``every``: the objectives on every
+    trial, where a member sized too small by the tuning trials is sized).
     Returns ((Candidate, model, theta, J_test, (new effect, its values), [effects sized on
     every trial], the parameters they were sized at) or None, [the new effects beside which
     the tuning fit leaves ``last`` below its smallest magnitude worth finding while they are
     not]).
-    ``named_from``'s sixth item: {effect: (Candidate, model, theta, J_test)} of the effects
-    accepted in that round (a rival may replace ``last``).
     """
-    model0, theta0, screened0 = named_from[:3]
+    model0, theta0, screened0 = named_from.model, named_from.theta, named_from.screened
     absorbed: list[str] = []
     n0 = len(theta0)
     options = []
