@@ -11,12 +11,12 @@ direction (or none: the clean control). The diagnosis runs with the command's bu
 the public API (mt.diagnose). A case is correct when exactly the hidden effect is named
 (nothing, for clean data).
 
-Issue 26 adds harder classes: two effects at once ('current+rudder_lag', 'rudder_offset+wind';
-correct when exactly both are named), each at a realistic or a small size (the seed
-alternates), and changes outside the library made with the generator's ``out_of_library``
-('hull_scale': every hull force and moment x 1.2-1.5; 'derivative_scale': N_r alone x
-1.3-1.6; correct when nothing is named: no false cause). The summary's first column then
-reads the named set ('a+b' for two).
+Issue 26 adds harder classes: two effects at once ('current+rudder_lag', 'rudder_offset+wind',
+'current+rudder_offset'; correct when exactly both are named), each at a realistic or a small
+size (the seed alternates), and changes outside the library made with the generator's
+``out_of_library`` ('hull_scale': every hull force and moment x 1.2-1.5; 'derivative_scale':
+N_r alone x 1.3-1.6; correct when nothing is named: no false cause). The summary's first
+column then reads the named set ('a+b' for two).
 
 The advice loop: for every case the plain diagnosis misses (and every clean case, to check
 that an added trial raises no false alarm), the advised trial (diagnosis.json's advice: the
@@ -87,7 +87,9 @@ OUT = Path(__file__).resolve().parent / 'out'
 CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale',
            'yaw_moment_bias', 'antenna_offset', 'time_offset', 'prop_side_force',
            'current+rudder_lag', 'rudder_offset+wind', 'hull_scale', 'derivative_scale',
-           'tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd')
+           'tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd',
+           # (eighth session; last, so that the seeds of the classes above stay as they were)
+           'current+rudder_offset')
 # the twin-azimuth tug's classes (issue 24): qiuxin_tug's twin, not SUZAKU (see tug_case)
 TUG_CLASSES = ('tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd')
 # its trials: from generate's catalogue (data/generate.py twin_catalogue), 5 tuned, 5 held out

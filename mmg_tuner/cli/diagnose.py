@@ -95,6 +95,47 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
                               measured=getattr(args, 'measured', None))
 
 
+def verdict_lines(dx) -> list[str]:
+    """
+    Return the lines the command prints about the causes, in order.
+
+    CAUSE (or why none), MIMICS THE STRUCTURAL GAP, SUSPECTED (not named) with what would
+    settle it, IMPOSSIBLE HERE, the learnable structure and STRUCTURE; ``dx``: a
+    :class:`mmg_tuner.api.DiagnosisResult`.
+    """
+    out: list[str] = []
+    for c in dx.causes:
+        out.append(f'CAUSE: {c.summary}'
+                   + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
+                   + f' -- held-out gain {100 * c.heldout_gain:.1f} %'
+                   + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
+                      if c.indistinguishable_from else ''))
+    if not dx.causes:
+        out.append('CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)'
+                   if dx.mimicking else
+                   'CAUSE: none found -- no effect in the library explains the errors '
+                   'significantly')
+    for c in dx.mimicking:
+        out.append(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
+                   f'{100 * c.heldout_gain:.1f} %')
+    settle = {a['about']: a for a in dx.advice if a.get('kind') == 'suspected'}
+    for x in dx.suspected:   # hinted at by the trials, not named: what would settle it
+        a = settle.get(x['effect'])
+        out.append(f"SUSPECTED (not named): {x['summary']} -- held-out gain "
+                   f"{100 * x['gain']:.1f} ± {100 * x['gain_se']:.1f} %, the held-out trials "
+                   'disagree'
+                   + (f"; to settle it: {a.get('measure') or a['instruction']}" if a else ''))
+    for x in dx.impossible_fits:
+        out.append(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "
+                   f"{100 * x['gain']:.1f} %), but {x['reason']}: a structural gap of the model")
+    st = dx.structure or {}
+    if (st.get('learnable') or {}).get('line'):
+        out.append(st['learnable']['line'])
+    if st.get('verdict') in ('structure', 'unexplained'):
+        out.append(f"STRUCTURE: {st['summary']}")
+    return out
+
+
 def command(argv: list[str] | None = None) -> int:
     args, notes, resume = parse_or_resume(build_parser(), argv, 'diagnose', 'trials')
     config = diagnose_config(args)        # every option checked before any work
@@ -134,35 +175,9 @@ def command(argv: list[str] | None = None) -> int:
             return 130
         dx.write(out, plots=not args.no_plots)
     print()
-    if dx.causes:
-        for c in dx.causes:
-            print(f'CAUSE: {c.summary}'
-                  + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
-                  + f' -- held-out gain {100 * c.heldout_gain:.1f} %'
-                  + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
-                     if c.indistinguishable_from else ''))
-    elif dx.mimicking:
-        print('CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)')
-    else:
-        print('CAUSE: none found -- no effect in the library explains the errors significantly')
-    for c in dx.mimicking:
-        print(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
-              f'{100 * c.heldout_gain:.1f} %')
-    settle = {a['about']: a for a in dx.advice if a.get('kind') == 'suspected'}
-    for x in dx.suspected:   # hinted at by the trials, not named: what would settle it
-        a = settle.get(x['effect'])
-        print(f"SUSPECTED (not named): {x['summary']} -- held-out gain {100 * x['gain']:.1f} "
-              f"± {100 * x['gain_se']:.1f} %, the held-out trials disagree"
-              + (f"; to settle it: {a.get('measure') or a['instruction']}" if a else ''))
+    for line in verdict_lines(dx):
+        print(line)
     b, f = dx.baseline.J_test, dx.final.J_test
-    for x in dx.impossible_fits:
-        print(f"IMPOSSIBLE HERE: {x['effect']} would fit (held-out gain "
-              f"{100 * x['gain']:.1f} %), but {x['reason']}: a structural gap of the model")
-    st = dx.structure or {}
-    if (st.get('learnable') or {}).get('line'):
-        print(st['learnable']['line'])
-    if st.get('verdict') in ('structure', 'unexplained'):
-        print(f"STRUCTURE: {st['summary']}")
     print(f'held-out J: tuned base model {fmt_J(b)} -> final model {fmt_J(f)} '
           f'({fmt_gain(b, f)} lower); {dx.wall_s:.0f} s ('
           + ', '.join(f'{k} {v:.0f} s' for k, v in dx.timings_s.items()) + ')')

@@ -30,7 +30,7 @@ class Verdict:
 
 def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test: float,
                s: DiagnosisSettings, J_floor: float | None = None,
-               floor_per_trial: Sequence[float] | None = None) -> Verdict:
+               floor_per_trial: Sequence[float] | None = None, veto: bool = True) -> Verdict:
     """
     Return the one acceptance rule, used by the forward and the backward step.
 
@@ -48,7 +48,9 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
     getting worse by less than noise leaves is no evidence against an effect (a wind and a
     rudder offset at their true values made one held-out trial 2.6 x worse, +10 % of the
     held-out error, than a wind bent to take the offset's share: 0.7 of that trial's floor).
-    A run that diverges (infinite J) on either side is never significant.
+    A run that diverges (infinite J) on either side is never significant. ``veto=False``
+    (the backward step: is a named effect redundant beside the others?) leaves out the test
+    of a trial getting worse: that is a test for naming, which the effect passed when named.
     """
     J_ref = np.asarray(J_ref, float)
     J_new = np.asarray(J_new, float)
@@ -79,7 +81,7 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
                        f'{100 * s.min_abs_gain:.0f} %'
                        + (f' and the reduction within {s.noise_margin:g} noise floor(s)'
                           if J_floor else ''))
-    if bad.any():
+    if veto and bad.any():
         k = int(np.flatnonzero(bad)[np.argmax(ratio[bad])])
         reasons.append(f'a test trial gets worse ({ratio[k]:.2f} x, +{100 * increase[k]:.1f} % '
                        'of the held-out error)')

@@ -245,8 +245,9 @@ def test_backward_step_drops_what_the_acceptance_rule_rejects(suzaku, monkeypatc
                            f'{m}{a:+d}')[1] for i, (m, a) in enumerate(specs)]
     real, named, asked, log = select.acceptance, [], [], []
 
-    def rule(J_ref, J_new, n_params, J_base_test, s, J_floor=None, floor_per_trial=None):
-        v = real(J_ref, J_new, n_params, J_base_test, s, J_floor, floor_per_trial)
+    def rule(J_ref, J_new, n_params, J_base_test, s, J_floor=None, floor_per_trial=None,
+             **options):
+        v = real(J_ref, J_new, n_params, J_base_test, s, J_floor, floor_per_trial, **options)
         if len(named) < 2:                        # the forward step: the real rule
             return v
         asked.append((np.array(J_ref), np.array(J_new), n_params, v.gain))
