@@ -135,9 +135,12 @@ logger = logging.getLogger(__name__)
 # show a far better start (a tug azimuth offset: tuning J 24 there, 226 000 from the tuned
 # base); the re-tune polishes it. A full second screen cost the tug tests 16 % more simulation
 PRE_SCREEN_SHARE = 0.25
-# a joint fit leaves an effect "at nothing" when it lies within this many (Gauss-Newton)
-# standard errors of neutral: the rival that does it may be named in its place
-AT_NOTHING_Z = 2.0
+# a joint fit leaves an effect "at nothing" when every sized parameter lies within this
+# fraction of its smallest magnitude worth finding: the rival that does it may be named in its
+# place. Their standard errors do not tell: Gauss-Newton's leave a yaw moment bias of 1.4e-4
+# beside a real rudder offset 10 standard errors from none (1.4e-5), the trial-robust ones a
+# real offset of -0.68 deg beside a bias within 1.2 of none (0.59 deg)
+AT_NOTHING = 0.5
 
 
 class _Model:
@@ -1231,25 +1234,26 @@ def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
         fitted = [{p: vals[p] for p in EFFECTS[e].params} for e in (a, b)]
         if a == last and EFFECTS[last].too_small(ship, fitted[0]) \
                 and not EFFECTS[b].too_small(ship, fitted[1]) \
-                and _at_nothing(EFFECTS[last], fitted[0], dict(zip(
-                    m.space.names, standard_errors(objs.of(m)[0], m.space, th)))):
+                and _at_nothing(ship, EFFECTS[last], fitted[0]):
             absorbed.append(b)
     return best, absorbed
 
 
-def _at_nothing(e: Effect, values: dict, se: dict) -> bool:
+def _at_nothing(ship: ShipConfig, e: Effect, values: dict) -> bool:
     """
-    Tell whether a fit leaves an effect at nothing (sized parameters near neutral).
+    Tell whether a fit leaves an effect at nothing: well below the smallest worth finding.
 
-    Every sized parameter within AT_NOTHING_Z standard errors of neutral. Two effects that
-    mimic each other share the error in a joint fit; that one comes out under the smallest
-    magnitude worth finding is no sign the other is the real one (a real
-    rudder offset of -1.53 deg kept -0.68 deg beside a yaw moment bias, which was then named
-    in its place: a false cause). Left at nothing, it is: a wind named for a yaw moment bias
-    fits at 0 m/s beside the bias.
+    Every sized parameter within AT_NOTHING of the smallest magnitude worth finding from
+    neutral. Two effects that mimic each other share the error in a joint fit; that one comes
+    out under the smallest magnitude worth finding is no sign the other is the real one (a real
+    rudder offset of -1.53 deg kept -0.68 deg beside a yaw moment bias, which was then named in
+    its place: a false cause). Left at nothing, it is: a wind named for a yaw moment bias fits
+    at 0 m/s beside the bias, a yaw moment bias named for a rudder offset of 2.27 deg at
+    1.4e-4 (0.28 of the 5e-4 worth finding) beside the offset.
     """
-    sized = [(p, n) for p, n, sm in zip(e.params, e.neutral, e.smallest) if sm > 0]
-    return bool(sized) and all(abs(values[p] - n) <= AT_NOTHING_Z * se[p] for p, n in sized)
+    sized = [(p, n, sm) for p, n, sm in zip(e.params, e.neutral, e.smallest_for(ship))
+             if sm > 0]
+    return bool(sized) and all(abs(values[p] - n) < AT_NOTHING * sm for p, n, sm in sized)
 
 
 def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict, s: DiagnosisSettings,

@@ -47,8 +47,8 @@ def test_a_rudder_offset_is_not_replaced_by_a_mimic_that_shares_its_error(suzaku
     force listed as explaining the trials as well. Fitted jointly with the bias, the offset
     keeps -0.68 deg of its -1.35 deg alone: under the 1 deg worth finding, so the seventh
     session's swap named the bias in its place (with the side force: that one), a false cause.
-    A rival now replaces the named effect only when the joint fit leaves it at nothing (within
-    two standard errors of none), as a wind named for a yaw moment bias is left at 0 m/s.
+    A rival now replaces the named effect only when the joint fit leaves it at nothing (under
+    half the smallest worth finding), as a wind named for a yaw moment bias is left at 0 m/s.
     """
     row = run_case(suzaku, 'current+rudder_offset', 2, 'quick', 10, 400.0, advice=False)
     assert sorted(row['named']) == ['current', 'rudder_offset'], row['named']
