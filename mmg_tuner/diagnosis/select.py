@@ -1246,10 +1246,11 @@ def _at_nothing(ship: ShipConfig, e: Effect, values: dict) -> bool:
     Every sized parameter within AT_NOTHING of the smallest magnitude worth finding from
     neutral. Two effects that mimic each other share the error in a joint fit; that one comes
     out under the smallest magnitude worth finding is no sign the other is the real one (a real
-    rudder offset of -1.53 deg kept -0.68 deg beside a yaw moment bias, which was then named in
-    its place: a false cause). Left at nothing, it is: a wind named for a yaw moment bias fits
-    at 0 m/s beside the bias, a yaw moment bias named for a rudder offset of 2.27 deg at
-    1.4e-4 (0.28 of the 5e-4 worth finding) beside the offset.
+    rudder offset of -1.53 deg kept -0.68 deg beside a yaw moment bias and -0.90 deg beside a
+    propeller side force, which was then named in its place: a false cause). Left at nothing,
+    it is: a wind named for a yaw moment bias fits at 0 m/s beside the bias, a yaw moment bias
+    named for a rudder offset of 2.27 deg at 1.4e-4 (0.28 of the 5e-4 worth finding) beside
+    the offset.
     """
     sized = [(p, n, sm) for p, n, sm in zip(e.params, e.neutral, e.smallest_for(ship))
              if sm > 0]
