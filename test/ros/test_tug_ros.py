@@ -237,8 +237,14 @@ def test_replay_node_plays_a_tug_recording(ros, tug_csv, tmp_path, kind):
         node.create_subscription(Float64, t, cmd[ch].append, 300) for ch, t in topics.items()]
     proc = start('replay_node', env, f'trial:={path}', 'ship:=qiuxin_tug', 'dt:=0.2',
                  'speed:=20.0', 'wait_for_subscribers:=true')
+
+    def last_heard() -> bool:   # every channel's last recorded sample has arrived
+        return all(v and abs(v[-1].data - trial[ch][-1]) <= 1e-12 for ch, v in cmd.items())
     try:
         spin_until(ex, lambda: proc.poll() is not None, 240.0)
+        # the node's last messages may still be in flight when it exits (a loaded machine
+        # once had the last thrust of the bag's run missing): take them, within a few seconds
+        spin_until(ex, last_heard, 5.0)
     finally:
         for s in subs:
             node.destroy_subscription(s)
