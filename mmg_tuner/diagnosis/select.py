@@ -1232,9 +1232,9 @@ def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
         if not why and (best is None or v.gain > best[0].gain):
             best = (cand, m, th, Jt, members, on_all, th_all)
         fitted = [{p: vals[p] for p in EFFECTS[e].params} for e in (a, b)]
-        if a == last and EFFECTS[last].too_small(ship, fitted[0]) \
-                and not EFFECTS[b].too_small(ship, fitted[1]) \
-                and _at_nothing(ship, EFFECTS[last], fitted[0]):
+        # (at nothing implies too small)
+        if a == last and _at_nothing(ship, EFFECTS[last], fitted[0]) \
+                and not EFFECTS[b].too_small(ship, fitted[1]):
             absorbed.append(b)
     return best, absorbed
 
