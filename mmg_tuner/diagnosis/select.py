@@ -731,7 +731,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # nothing however much it explains with them free (a rudder offset of -1.3 deg beside
         # a 0.33 m/s current screened at -2 %, while current + offset with the base free left
         # a held-out J 0.28 x the current's alone; a wind was named in its place)
-        if noise_describe(float(np.sum(J_test)), noise)[0] is False:
+        above_noise = noise_describe(float(np.sum(J_test)), noise)[0] is False
+        if above_noise:
             news += [e for e in aliased if e in remaining and e not in news + [last]
                      and e not in impossible]
         if not accepted and news and named_from is not None and last in EFFECTS \
@@ -792,8 +793,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                   if named_from is not None and r in named_from.accepted and r in remaining
                   and r not in swapped_out]
         if not accepted and rivals and last in EFFECTS and s.pairs > 1 \
-                and len(causes) + 1 <= s.max_effects \
-                and noise_describe(float(np.sum(J_test)), noise)[0] is False:
+                and len(causes) + 1 <= s.max_effects and above_noise:
             clock('pairs')
             partners = [e for e in named_from.ranking
                         if e in EFFECTS and e in remaining and e not in impossible]
