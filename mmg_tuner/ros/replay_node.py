@@ -32,10 +32,13 @@ from mmg_tuner.ros.run import declare_parameters, Param, spin_node
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32, Float64
+
+ACK_TIMEOUT_S = 2.0   # at most this long per publisher for its last samples to be delivered
 
 # All read once at start-up: none can change while the node runs.
 PARAMS = {
@@ -255,6 +258,12 @@ class ReplayNode(Node):
                 f"{s['position_final_m']:.2f} m; heading rms {s['heading_rms_deg']:.2f} deg; "
                 f"speed rms {s['speed_rms_ms']:.3f} m/s")
             if self.exit_at_end:
+                # the last samples may still sit in the publishers' queues: deliver them to
+                # the reliable subscribers before exiting (a loaded machine once lost the
+                # last thrust command of a bag's replay when the process left first)
+                for pub in [*self.pub_cmd.pubs.values(), self.pub_clock, self.pub_rec,
+                            self.pub_odom]:
+                    pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
                 raise SystemExit(0)
 
 
