@@ -298,7 +298,8 @@ def measure_direct(ship, truth, effect: str, seed: int) -> dict[str, Measurement
 
 def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
     named = [c.effect for c in d.causes]
-    est = {p: v for c in d.causes for p, v in c.parameters.items()}
+    # the values of every effect fitted, named or undecided
+    est = {p: v for c in d.causes + d.undecided for p, v in c.parameters.items()}
     want = expected(cls)
     return {'named': named, 'correct': sorted(named) == want,
             'estimates': est,
@@ -308,6 +309,8 @@ def _outcome(cls: str, effect: dict, d, wall: float) -> dict:
             'structure': d.structure.get('verdict'),
             'remaining_is_noise': d.structure.get('remaining_is_noise'),
             'rivals': {c.effect: list(c.indistinguishable_from) for c in d.causes},
+            # as good as a rival: "one of them", not named (results.split_undecided)
+            'undecided': {c.effect: list(c.indistinguishable_from) for c in d.undecided},
             'barely_identifiable': sorted(d.barely_identifiable),
             'heldout_gain': d.final.heldout_gain_total, 'wall_s': wall,
             'timings_s': dict(d.timings_s)}
@@ -394,15 +397,27 @@ def run_case(ship, cls: str, seed: int, budget: str, n_trials: int, duration_s: 
 def _with_advice(r: dict) -> dict:
     """Return the case's outcome once the advised trial was added (the plain one if none was)."""
     return {**r, **{k: v for k, v in r['advice'].items() if k in (
-        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
+        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable',
+        'undecided')}} \
         if 'advice' in r else r
 
 
 def _with_measurement(r: dict) -> dict:
     """Return the case's outcome once the advised measurement was used (else as advised)."""
     return {**r, **{k: v for k, v in r['measured'].items() if k in (
-        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable')}} \
+        'named', 'correct', 'estimates', 'param_error', 'barely_identifiable',
+        'undecided')}} \
         if 'measured' in r else _with_advice(r)
+
+
+def false_cause(r: dict) -> bool:
+    """Whether the case named an effect that was not hidden (worse than a missed one)."""
+    return any(e not in expected(r['class']) for e in r['named'])
+
+
+def truth_undecided(r: dict) -> bool:
+    """Whether a hidden effect is in a set the case left undecided ("one of A, B")."""
+    return any({k, *v} & set(expected(r['class'])) for k, v in r.get('undecided', {}).items())
 
 
 def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
@@ -431,7 +446,9 @@ def confusion(rows: list[dict], title: str) -> tuple[list[str], int, int]:
                                                 else str(other or '') for c in cols)
                      + f' | {ok}/{len(rs)} | {second} | '
                      + (f'{flagged}/{len(rs)}' if expected(cls) else '') + ' |')
-    lines += ['', f'Correct: {correct}/{total} = {100 * correct / max(total, 1):.0f} %', '']
+    lines += ['', f'Correct: {correct}/{total} = {100 * correct / max(total, 1):.0f} %; a false '
+              f'cause named in {sum(false_cause(r) for r in rows)}; undecided with the hidden '
+              f'effect in the set ("one of ..."): {sum(truth_undecided(r) for r in rows)}', '']
     return lines, correct, total
 
 
@@ -607,6 +624,11 @@ def main(argv: list[str] | None = None) -> dict:
             'correct_with_advised_trial': sum(_with_advice(r)['correct'] for r in sel),
             'correct_with_trial_or_measurement': sum(_with_measurement(r)['correct']
                                                      for r in sel),
+            'false_cause_plain': sum(false_cause(r) for r in sel),
+            'false_cause_with_advised_trial': sum(false_cause(_with_advice(r)) for r in sel),
+            'false_cause_with_trial_or_measurement': sum(false_cause(_with_measurement(r))
+                                                         for r in sel),
+            'undecided_with_truth_plain': sum(truth_undecided(r) for r in sel),
             'median_diagnosis_s': float(np.median([r['wall_s'] for r in sel])) if sel else None,
             'max_diagnosis_s': max((r['wall_s'] for r in sel), default=None),
             'summary': text}

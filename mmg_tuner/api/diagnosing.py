@@ -19,7 +19,7 @@ from mmg_tuner.diagnosis.context import Setting
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
-from mmg_tuner.diagnosis.results import Candidate, Cause
+from mmg_tuner.diagnosis.results import Candidate, Cause, split_undecided
 from mmg_tuner.diagnosis.select import check_trial_sets
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.diagnosis.settings import BUDGETS, DiagnosisSettings, MapFn, RETUNE_METHODS
@@ -136,7 +136,9 @@ class DiagnosisResult:
     The named ``causes``, the tuned base model (``baseline``) and the final model with the causes
     (``final``, its full parameters in ``params``: ``ship.with_params(dx.params)``), every
     candidate tried per round, effects the trials can barely see, and the residuals of both models
-    on the test trials.
+    on the test trials. ``undecided``: effects in the final model that these trials cannot tell
+    from their rivals (``Cause.indistinguishable_from``): the verdict is "one of them", never
+    the first alone (results.split_undecided).
     """
 
     causes: list[Cause]
@@ -171,6 +173,8 @@ class DiagnosisResult:
     # effects the trials hint at but cannot name, each with the trial that would settle it in
     # advice (kind 'suspected'): {effect, values, gain, gain_se, round, summary, beside}
     suspected: list[dict] = field(default_factory=list)
+    # fitted, in the final model, but as good as a rival: "one of them", not named
+    undecided: list[Cause] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -188,6 +192,7 @@ class DiagnosisResult:
                 'structure': self.structure,
                 'mimicking': [c.to_dict() for c in self.mimicking], 'noise': self.noise,
                 'suspected': self.suspected,
+                'undecided': [c.to_dict() for c in self.undecided],
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
     def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
@@ -200,7 +205,9 @@ class DiagnosisResult:
         doc = self.to_dict()
         names = ', '.join([c.effect for c in self.causes]
                           + [f'{c.effect} (mimicking a structural gap)'
-                             for c in self.mimicking]) or 'none'
+                             for c in self.mimicking]
+                          + [f"{c.effect} (undecided: or {', '.join(c.indistinguishable_from)})"
+                             for c in self.undecided]) or 'none'
         docs = [('params.yaml', params_yaml_text(
                     self.ship, self.params,
                     f'tuned and extended by mmg_tuner diagnose (effects: {names})')),
@@ -285,6 +292,7 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
     dx.structure = _structure_of(dx, trials, d.measured_wind_used or not cfg.measured_signals)
     dx.causes, dx.mimicking = _structure.one_verdict(dx.causes, dx.structure,
                                                      dx.baseline.J_test, dx.noise)
+    dx.causes, dx.undecided = split_undecided(dx.causes)
     return dx
 
 

@@ -99,22 +99,33 @@ def verdict_lines(dx) -> list[str]:
     """
     Return the lines the command prints about the causes, in order.
 
-    CAUSE (or why none), MIMICS THE STRUCTURAL GAP, SUSPECTED (not named) with what would
-    settle it, IMPOSSIBLE HERE, the learnable structure and STRUCTURE; ``dx``: a
+    CAUSE (or why none), UNDECIDED (one of a set) with the trial that would tell them apart,
+    MIMICS THE STRUCTURAL GAP, SUSPECTED (not named) with what would settle it, IMPOSSIBLE
+    HERE, the learnable structure and STRUCTURE; ``dx``: a
     :class:`mmg_tuner.api.DiagnosisResult`.
     """
     out: list[str] = []
     for c in dx.causes:
         out.append(f'CAUSE: {c.summary}'
                    + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
-                   + f' -- held-out gain {100 * c.heldout_gain:.1f} %'
-                   + (f" (not distinguishable here from {', '.join(c.indistinguishable_from)})"
-                      if c.indistinguishable_from else ''))
+                   + f' -- held-out gain {100 * c.heldout_gain:.1f} %')
     if not dx.causes:
         out.append('CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)'
                    if dx.mimicking else
-                   'CAUSE: none found -- no effect in the library explains the errors '
+                   'CAUSE: none named alone -- see UNDECIDED' if dx.undecided
+                   else 'CAUSE: none found -- no effect in the library explains the errors '
                    'significantly')
+    pairs = {a['about']: a for a in dx.advice if a.get('kind') == 'indistinguishable'}
+    for c in dx.undecided:
+        sep = [pairs[k] for k in (f'{c.effect} vs {r}' for r in c.indistinguishable_from)
+               if k in pairs]
+        best = max(sep, key=lambda a: (a['settles'], a['separation']), default=None)
+        out.append(f'UNDECIDED: one of {c.summary} or '
+                   + ', '.join(r.replace('_', ' ') for r in c.indistinguishable_from)
+                   + f' -- held-out gain {100 * c.heldout_gain:.1f} %, these trials cannot tell '
+                   'them apart'
+                   + ('' if best is None else f"; to tell them apart: {best['instruction']}"
+                      if best['settles'] else '; no trial of the repertoire tells them apart'))
     for c in dx.mimicking:
         out.append(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
                    f'{100 * c.heldout_gain:.1f} %')

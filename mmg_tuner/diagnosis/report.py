@@ -51,9 +51,21 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     elif doc.get('mimicking'):
         lines.append('**No cause is named: the model structure is the likely cause** (see '
                      '"Model structure"). The effects that fit only mimic the gap.')
+    elif doc.get('undecided'):
+        lines.append('**No cause is named alone:** these trials cannot tell the effects below '
+                     'from their rivals.')
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
+    if doc.get('undecided'):
+        lines += ['', '**Undecided: one of a set.** Each fits the trials, and is in the fitted '
+                  'model, but a rival explains them about as well (held-out gains within their '
+                  'combined uncertainty), so neither is named. "The trial that would settle '
+                  'it" below says what would tell them apart:', '']
+        for c in doc['undecided']:
+            lines.append(f"- one of **{c['effect']}** ({c['summary']}, held-out gain "
+                         f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])}) or "
+                         f"{', '.join(c['indistinguishable_from'])}")
     if doc.get('suspected'):
         lines += ['', '**Suspected, not named.** The trials hint at these (a held-out gain above '
                   'the least a cause needs, with a reduction that counts as evidence), but the '

@@ -72,6 +72,22 @@ class Cause:
         return {**asdict(self), 'summary': self.summary}
 
 
+def split_undecided(causes: list[Cause]) -> tuple[list[Cause], list[Cause]]:
+    """
+    Return (named, undecided): a cause the trials cannot tell from a rival is not named.
+
+    A cause with ``indistinguishable_from`` won its round by less than the combined uncertainty
+    of its and a rival's held-out gains: the trials say "one of these", not which. Naming the
+    first member was a false cause whenever the truth was a rival (seeds 3-5 of
+    bench/bench_diagnosis.py: a rudder offset named as a yaw moment bias, twice the offset
+    beside a current named as a propeller side force), and a false cause is worse than a missed
+    one. It stays in the fitted model (it explains the trials as well as its rivals do); the
+    verdict names the set, with the trial that would separate them (the advice's rival pairs).
+    """
+    return ([c for c in causes if not c.indistinguishable_from],
+            [c for c in causes if c.indistinguishable_from])
+
+
 @dataclass
 class Diagnosis:
     causes: list[Cause]

@@ -174,6 +174,9 @@ def _diagnose(job: ShipJob, ld: Loaded, fan_out: bool) -> StepOutput:
                            'parameters': c.parameters, 'heldout_gain': c.heldout_gain,
                            'indistinguishable_from': list(c.indistinguishable_from)}
                           for c in dx.causes],
+               'undecided': [{'effect': c.effect, 'summary': c.summary,
+                              'indistinguishable_from': list(c.indistinguishable_from)}
+                             for c in dx.undecided],
                'params': dx.params,
                'J_test': {'base': dx.baseline.J_test, 'final': dx.final.J_test},
                'heldout_gain': dx.final.heldout_gain_total}

@@ -36,7 +36,9 @@ def fleet_doc(manifest: Manifest, result) -> dict:
             tu, dg, tr = s.get('tune'), s.get('diagnose'), s.get('trend')
             entry['heldout_gain'] = {'tune': tu and tu.get('heldout_gain'),
                                      'diagnose': dg and dg.get('heldout_gain')}
-            entry['causes'] = [c['summary'] for c in dg['causes']] if dg else None
+            entry['causes'] = [c['summary'] for c in dg['causes']] + [
+                f"undecided: one of {u['summary']} or {', '.join(u['indistinguishable_from'])}"
+                for u in dg.get('undecided', [])] if dg else None
             for c in (dg or {}).get('causes', []):
                 causes.setdefault(c['effect'], []).append(job.name)
             if tr:

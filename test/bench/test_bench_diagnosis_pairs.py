@@ -12,6 +12,7 @@ named as a 6.8 m/s wind, the bias and a propeller side force listed as explainin
 as well; fitted jointly with the wind from before the wind was named, the bias leaves the wind
 at 0 m/s. The eighth session: a rival replaces the named effect only when the joint fit
 leaves that one at nothing (a rudder offset beside a current had been replaced by a mimic).
+The tenth session: a cause as good as a rival is not named but left undecided, "one of them".
 """
 import math
 
@@ -31,10 +32,12 @@ def test_a_wind_and_a_rudder_offset_are_both_named_on_the_benchmarks_cases(suzak
         math.degrees(truth['rudder_offset']), abs=0.5)
 
 
-def test_a_yaw_moment_bias_is_named_not_the_wind_it_was_first_named_as(suzaku):
+def test_a_yaw_moment_bias_is_fitted_not_the_wind_it_was_first_named_as(suzaku):
+    """The bias is fitted, as one of a set with the wind (as good alone): nothing named."""
     row = run_case(suzaku, 'yaw_moment_bias', 2, 'quick', 10, 400.0, advice=False)
-    assert row['named'] == ['yaw_moment_bias'], row['named']
-    assert 'wind' in row['rivals']['yaw_moment_bias']   # said: as good alone
+    assert row['named'] == [], row['named']
+    assert list(row['undecided']) == ['yaw_moment_bias'], row['undecided']
+    assert 'wind' in row['undecided']['yaw_moment_bias']   # said: as good alone
     truth, est = row['truth']['yaw_moment_bias'], row['estimates']['yaw_moment_bias']
     assert est == pytest.approx(truth, rel=0.4)   # -1.69e-3 for -1.37e-3
 
@@ -51,7 +54,9 @@ def test_a_rudder_offset_is_not_replaced_by_a_mimic_that_shares_its_error(suzaku
     half the smallest worth finding), as a wind named for a yaw moment bias is left at 0 m/s.
     """
     row = run_case(suzaku, 'current+rudder_offset', 2, 'quick', 10, 400.0, advice=False)
-    _assert_current_and_offset_found(row)
+    _assert_current_and_offset_found(row, undecided=True)
+    # the offset is fitted, but these trials cannot tell it from its mimics: one of a set
+    assert {'yaw_moment_bias', 'wind'} <= set(row['undecided']['rudder_offset'])
 
 
 def test_a_rudder_offset_the_base_mimics_is_found_beside_the_current_not_a_wind(suzaku):
@@ -69,9 +74,16 @@ def test_a_rudder_offset_the_base_mimics_is_found_beside_the_current_not_a_wind(
     assert row['remaining_is_noise'] is True
 
 
-def _assert_current_and_offset_found(row: dict) -> None:
-    """Both named, the offset within 0.5 deg and the current within 0.1 m/s of the truth."""
-    assert sorted(row['named']) == ['current', 'rudder_offset'], row['named']
+def _assert_current_and_offset_found(row: dict, undecided: bool = False) -> None:
+    """
+    Both found, the offset within 0.5 deg and the current within 0.1 m/s of the truth.
+
+    ``undecided``: the offset is fitted but as good as a rival, so only the current is named.
+    """
+    if undecided:
+        assert row['named'] == ['current'] and list(row['undecided']) == ['rudder_offset'], row
+    else:
+        assert sorted(row['named']) == ['current', 'rudder_offset'], row['named']
     truth, est = row['truth'], row['estimates']
     assert math.degrees(est['rudder_offset']) == pytest.approx(
         math.degrees(truth['rudder_offset']), abs=0.5)

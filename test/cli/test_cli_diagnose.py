@@ -6,7 +6,7 @@ from mmg_tuner.cli.diagnose import verdict_lines
 
 def _dx(**fields):
     base = {'causes': [], 'mimicking': [], 'suspected': [], 'advice': [],
-            'impossible_fits': [], 'structure': {}}
+            'impossible_fits': [], 'structure': {}, 'undecided': []}
     return SimpleNamespace(**{**base, **fields})
 
 
@@ -46,3 +46,33 @@ def test_a_suspect_without_advice_and_a_structural_verdict():
         'SUSPECTED (not named): current 0.1 m/s -- held-out gain 20.0 ± 30.0 %, the held-out '
         'trials disagree',
         'STRUCTURE: the model STRUCTURE']
+
+
+def test_a_cause_as_good_as_a_rival_is_undecided_with_the_trial_that_tells_them_apart():
+    """Never the first of a rival set as the CAUSE: the set, and the pair's best settling trial."""
+    offset = SimpleNamespace(effect='rudder_offset', summary='rudder offset -1.3 ± 0.2 deg',
+                             heldout_gain=0.912,
+                             indistinguishable_from=['yaw_moment_bias', 'wind'])
+    current = SimpleNamespace(effect='current', summary='current 0.3 m/s toward 84 deg',
+                              heldout_gain=0.7, measured='', indistinguishable_from=[])
+    pair = {'kind': 'indistinguishable', 'settles': True}
+    dx = _dx(causes=[current], undecided=[offset],
+             advice=[{**pair, 'about': 'rudder_offset vs yaw_moment_bias', 'separation': 1.2,
+                      'instruction': 'turning circle at 127 rpm'},
+                     {**pair, 'about': 'rudder_offset vs wind', 'separation': 3.0,
+                      'instruction': 'zigzag 20/20 at 85 rpm'},
+                     {**pair, 'about': 'rudder_offset vs prop_side_force', 'separation': 9.0,
+                      'instruction': 'not a rival of this cause'}])
+    assert verdict_lines(dx) == [
+        'CAUSE: current 0.3 m/s toward 84 deg -- held-out gain 70.0 %',
+        'UNDECIDED: one of rudder offset -1.3 ± 0.2 deg or yaw moment bias, wind -- held-out '
+        'gain 91.2 %, these trials cannot tell them apart; to tell them apart: zigzag 20/20 at '
+        '85 rpm']
+    dx = _dx(undecided=[offset], advice=[{**pair, 'about': 'rudder_offset vs wind',
+                                          'settles': False, 'separation': 0.3,
+                                          'instruction': 'zigzag'}])
+    assert verdict_lines(dx) == [
+        'CAUSE: none named alone -- see UNDECIDED',
+        'UNDECIDED: one of rudder offset -1.3 ± 0.2 deg or yaw moment bias, wind -- held-out '
+        'gain 91.2 %, these trials cannot tell them apart; no trial of the repertoire tells '
+        'them apart']
