@@ -5,7 +5,7 @@ Moved from ``select.py`` unchanged.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 import math
 
 from mmg_tuner.core.effects import describe_values, EFFECTS
@@ -83,9 +83,14 @@ def split_undecided(causes: list[Cause]) -> tuple[list[Cause], list[Cause]]:
     beside a current named as a propeller side force), and a false cause is worse than a missed
     one. It stays in the fitted model (it explains the trials as well as its rivals do); the
     verdict names the set, with the trial that would separate them (the advice's rival pairs).
+    A rival that is itself a cause of the final model is no rival any more (both are needed:
+    the backward step kept each), so only rivals outside it count, and only they are listed.
     """
-    return ([c for c in causes if not c.indistinguishable_from],
-            [c for c in causes if c.indistinguishable_from])
+    fitted = {c.effect for c in causes}
+    out = [replace(c, indistinguishable_from=[r for r in c.indistinguishable_from
+                                              if r not in fitted]) for c in causes]
+    return ([c for c in out if not c.indistinguishable_from],
+            [c for c in out if c.indistinguishable_from])
 
 
 @dataclass

@@ -1,5 +1,6 @@
-"""The one acceptance rule: a test trial getting worse vetoes only when it matters."""
+"""The one acceptance rule: a test trial getting worse vetoes only when it matters; rivals."""
 from mmg_tuner.diagnosis import acceptance, DiagnosisSettings
+from mmg_tuner.diagnosis.results import Cause, split_undecided
 import numpy as np
 import pytest
 
@@ -118,3 +119,15 @@ def test_an_effect_the_held_out_trials_disagree_on_is_suspected_with_its_rival(s
     # a model the measured wind drives cannot be simulated apart: suspected, without a rival
     got = run(_round_two('rudder_offset', offset, 0.89e7), params_now=None)
     assert got and 'rival' not in got[0]
+
+
+def test_a_cause_as_good_as_a_rival_outside_the_model_is_undecided_not_named():
+    """One of a set is not named; a rival that is itself in the final model is no rival."""
+    current = Cause('current', {}, {}, 0.9, 0.1, ['rudder_offset'])
+    offset = Cause('rudder_offset', {}, {}, 0.5, 0.1, ['yaw_moment_bias', 'current'])
+    wind = Cause('wind', {}, {}, 0.4, 0.1, [])
+    named, undecided = split_undecided([current, offset, wind])
+    assert [c.effect for c in named] == ['current', 'wind']
+    assert [(c.effect, c.indistinguishable_from) for c in undecided] == [
+        ('rudder_offset', ['yaw_moment_bias'])]
+    assert split_undecided([offset]) == ([], [offset])
