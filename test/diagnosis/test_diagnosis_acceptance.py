@@ -1,5 +1,6 @@
 """The one acceptance rule: a test trial getting worse vetoes only when it matters; rivals."""
 from mmg_tuner.diagnosis import acceptance, DiagnosisSettings
+from mmg_tuner.diagnosis.report import markdown
 from mmg_tuner.diagnosis.results import Cause, split_undecided
 import numpy as np
 import pytest
@@ -131,3 +132,17 @@ def test_a_cause_as_good_as_a_rival_outside_the_model_is_undecided_not_named():
     assert [(c.effect, c.indistinguishable_from) for c in undecided] == [
         ('rudder_offset', ['yaw_moment_bias'])]
     assert split_undecided([offset]) == ([], [offset])
+
+
+def test_the_report_names_an_undecided_cause_as_one_of_a_set(suzaku):
+    offset = Cause('rudder_offset', {'rudder_offset': -0.023}, {'rudder_offset': 0.004}, 0.912,
+                   0.05, ['yaw_moment_bias', 'wind'])
+    doc = {'baseline': {'J_test': 1.0}, 'final': {'J_test': 0.1}, 'causes': [],
+           'undecided': [offset.to_dict()], 'candidates': [], 'advice': [],
+           'residuals': {'base_model': {'per_trial': {}, 'correlation': {}},
+                         'final_model': {'per_trial': {}}}}
+    md = markdown(doc, suzaku)
+    assert '**No cause is named alone:**' in md
+    assert 'No effect in the library explains' not in md
+    line = next(x for x in md.splitlines() if x.startswith('- one of **rudder_offset**'))
+    assert line.endswith(') or yaw_moment_bias, wind') and offset.summary in line
