@@ -46,8 +46,7 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                          f"(jackknife over test trials). {c['description'].capitalize()}."
                          + (f' These trials cannot tell it apart from '
                             f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
-                            'their combined uncertainty, or a held-out trial clearly prefers '
-                            'the other).' if c.get('indistinguishable_from')
+                            'their combined uncertainty).' if c.get('indistinguishable_from')
                             else ''))
     elif doc.get('mimicking'):
         lines.append('**No cause is named: the model structure is the likely cause** (see '
@@ -61,8 +60,7 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     if doc.get('undecided'):
         lines += ['', '**Undecided: one of a set.** Each fits the trials, and is in the fitted '
                   'model, but a rival explains them about as well (held-out gains within their '
-                  'combined uncertainty, or a held-out trial clearly prefers the rival), so '
-                  'neither is named. "The trial that would settle '
+                  'combined uncertainty), so neither is named. "The trial that would settle '
                   'it" below says what would tell them apart:', '']
         for c in doc['undecided']:
             lines.append(f"- one of **{c['effect']}** ({c['summary']}, held-out gain "

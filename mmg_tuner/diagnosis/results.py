@@ -77,8 +77,7 @@ def split_undecided(causes: list[Cause]) -> tuple[list[Cause], list[Cause]]:
     Return (named, undecided): a cause the trials cannot tell from a rival is not named.
 
     A cause with ``indistinguishable_from`` won its round by less than the combined uncertainty
-    of its and a rival's held-out gains, or by more while a held-out trial clearly prefers the
-    rival (select.py): the trials say "one of these", not which. Naming the
+    of its and a rival's held-out gains: the trials say "one of these", not which. Naming the
     first member was a false cause whenever the truth was a rival (seeds 3-5 of
     bench/bench_diagnosis.py: a rudder offset named as a yaw moment bias, twice the offset
     beside a current named as a propeller side force), and a false cause is worse than a missed

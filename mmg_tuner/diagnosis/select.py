@@ -31,11 +31,7 @@ Selection rule (stepwise, like forward-backward regression):
   a bound that is not its neutral value) is not accepted: the optimiser is using the effect to
   absorb something else, as the paper's tuned coefficients pinned on their bounds do;
 * the best accepted effect joins the model and the search repeats, up to max_effects; another
-  significant effect within the combined uncertainty is reported as indistinguishable, and so
-  is one that a held-out trial clearly prefers to it (by the test that makes a trial "clearly
-  worse"): the trials disagree on which; and one as good that only the veto ("inconsistent")
-  kept from being named. Only the verdict sees these two kinds (merged after the search; the
-  search's rival steps use the first);
+  significant effect within the combined uncertainty is reported as indistinguishable;
 * joint round: after a cause is named, when a candidate competes (significant, not
   acceptable alone), the last named effect is re-fitted jointly with each such candidate from the
   model before it was named (it may have bent to take the other's share) and a pair is
@@ -528,7 +524,6 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     first_screen: dict[str, float] = {}
     named_from = None
     swapped_out: set[str] = set()   # named, then replaced by a rival (never named back)
-    disputed: dict[str, list[str]] = {}   # named effect -> accepted ones a held-out trial prefers
     remaining = effects + measured
     while remaining and len(causes) < s.max_effects:
         clock('screen')
@@ -857,30 +852,12 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # these trials about as well: say so rather than pretend to know
         rivals = [c[0].effect for c in accepted if c[0] is not cand
                   and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)]
-        # one whose gain is clearly lower, yet which a held-out trial clearly prefers (the
-        # veto's test, the other way round): the trials disagree on which of the two it is. A
-        # yaw moment bias held-out 86 % against a rudder offset's 96 % was the truth, the
-        # offset 20 % against its 73 % on one trial (benchmark seed 8): named, the offset was
-        # a false cause. Kept from the search (its rival steps are for the first kind)
-        # And one as good alone (within the combined uncertainty) that was not named only for
-        # the veto ("inconsistent": a held-out trial made worse, or per-trial estimates that
-        # disagree): the veto is fallible and the winner no better. A propeller side force,
-        # the truth, 65 % ± 52 % vetoed for one zigzag, named as a yaw moment bias 80 % ± 37 %
-        # (seed 8)
-        names_now = objs.of(model)[1].batch.names
-        disputed[cand.effect] = [
-            c[0].effect for c in accepted if c[0] is not cand and c[0].effect not in rivals
-            and _clearly_worse(c[3], J_test, noise, s, names_now)] + [
-            c[0].effect for c in cands if c[0].significant and c[0].inconsistent
-            and not c[0].impossible and not c[0].implausible and not c[0].on_bound
-            and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)]
         clock('identifiability')
         se_all = standard_errors(objs.of(model)[0], model.space, theta)
         errs = {p: float(e) for p, e in zip(model.space.names, se_all) if p in cand.values}
         full_c = model.space.full_params(ship.params, theta)[0]
-        for c in cands:   # the rival models, for advice on the trial that separates them
-            if c[0].effect in rivals + disputed[cand.effect] and not model.measured_wind \
-                    and not c[1].measured_wind:
+        for c in accepted:   # the rival models, for advice on the trial that separates them
+            if c[0].effect in rivals and not model.measured_wind and not c[1].measured_wind:
                 rival_pairs.append({'about': f'{cand.effect} vs {c[0].effect}',
                                     'kind': 'indistinguishable', 'params_a': full_c,
                                     'params_b': c[1].space.full_params(ship.params, c[2])[0]})
@@ -890,10 +867,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                             desc))
         remaining.remove(cand.effect)
         log(f'   -> named: {cand.effect}' + (f' (but {", ".join(rivals)} explain(s) the trials '
-                                             'about as well)' if rivals else '')
-            + (f' (but the trials do not rule out {", ".join(disputed[cand.effect])}: a '
-               'held-out trial clearly prefers it, or it is as good and only vetoed)'
-               if disputed[cand.effect] else ''))
+                                             'about as well)' if rivals else ''))
     if len(model.effects) + model.measured_wind > 1:
         clock('backward')
         model, theta, J_test = _backward_pass(ship, base, model, theta, objs, causes, s,
@@ -928,9 +902,6 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         for c in causes:
             c.parameters = {p: float(final_vals[p]) for p in c.parameters}
             c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
-    for c in causes:   # the verdict's rivals: as good alone, or preferred by a held-out trial
-        c.indistinguishable_from += [e for e in disputed.get(c.effect, [])
-                                     if e not in c.indistinguishable_from]
     for e in by_measurement:
         c, wanted = _by_measurement(ship, EFFECTS[e], meas, model, theta, plain_objs, ot_fin,
                                     s, baseline['J_test'], J_floor, store, map_fn, log)
