@@ -20,6 +20,7 @@ import fcntl
 import os
 from pathlib import Path
 import tempfile
+import weakref
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner.errors import OutputError
@@ -40,6 +41,9 @@ class OutputDir:
         self.path = path
         self._lock_fd = lock_fd
         self.written: list[Path] = []
+        # released (and the lock file removed) also when a caller forgets close or the
+        # interpreter exits with the folder open
+        self._finalizer = weakref.finalize(self, _release, path / LOCK_NAME, lock_fd, os.getpid())
 
     @classmethod
     def open(cls, path: str | Path, *, resume: bool = False, option: str = '--out',  # noqa: A003
@@ -67,18 +71,27 @@ class OutputDir:
             probe_fd, probe = tempfile.mkstemp(dir=path, prefix='.write_probe.')
             os.close(probe_fd)
             os.unlink(probe)  # our own probe file, created just above
-            fd = os.open(path / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
             raise OutputError(f'{option} {path}: cannot write there ({exc.strerror})') from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise OutputError(f'{option} {path} is in use by another running command; '
-                                  'wait for it or choose another folder') from None
-            raise
-        return cls(path, fd)
+        for _ in range(100):   # the lock file a finishing run removed: lock the new one
+            try:
+                fd = os.open(path / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise OutputError(f'{option} {path}: cannot write there '
+                                  f'({exc.strerror})') from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise OutputError(f'{option} {path} is in use by another running command; '
+                                      'wait for it or choose another folder') from None
+                raise
+            if _same_file(fd, path / LOCK_NAME):
+                return cls(path, fd)
+            os.close(fd)   # locked a file another run removed on finishing: try again
+        raise OutputError(f'{option} {path}: its lock file keeps changing; another command '
+                          'is using the folder: choose another one')
 
     def _write(self, name: str | Path, data: str | bytes) -> Path:
         target = self.path / name
@@ -101,9 +114,15 @@ class OutputDir:
         return self._write(name, data)
 
     def close(self) -> None:
-        """Release the lock (the lock file stays: removing it would race a waiting run)."""
+        """
+        Release the lock and remove the lock file.
+
+        Removed while still locked; a run that opened it meanwhile sees that the file it
+        locked is no longer the folder's and locks the new one (:meth:`open`).
+        """
         if self._lock_fd >= 0:
-            os.close(self._lock_fd)
+            self._finalizer.detach()
+            _release(self.path / LOCK_NAME, self._lock_fd, os.getpid())
             self._lock_fd = -1
 
     def __enter__(self) -> 'OutputDir':
@@ -111,3 +130,25 @@ class OutputDir:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether the open ``fd`` is the file now at ``path`` (not one removed meanwhile)."""
+    try:
+        a, b = os.fstat(fd), os.stat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _release(lock: Path, fd: int, pid: int) -> None:
+    """Remove our lock file (while holding it) and close it; never raises (nor in a fork)."""
+    try:
+        if os.getpid() == pid and _same_file(fd, lock):
+            os.unlink(lock)
+    except OSError:
+        pass
+    try:
+        os.close(fd)
+    except OSError:
+        pass

@@ -15,6 +15,8 @@ import sys
 import tempfile
 from typing import Callable
 
+from mmg_tuner._atomic import file_mode
+from mmg_tuner._limits import one_line
 from mmg_tuner.cli.args import bounded
 from mmg_tuner.core.limits import FN_TOP, input_limits
 from mmg_tuner.errors import MmgTunerError, OutputError
@@ -61,9 +63,8 @@ def run_command(command: Callable[[list[str] | None], int], argv: list[str] | No
     _never_fail_printing()
     try:
         return command(argv)
-    except MmgTunerError as exc:  # one line, whatever a library put into the message
-        text = ' '.join(ln.strip() for ln in str(exc).splitlines() if ln.strip())
-        print(f'ERROR: {text}', file=sys.stderr)
+    except MmgTunerError as exc:  # one line of at most a screen, whatever a message quotes
+        print(f'ERROR: {one_line(str(exc))}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
@@ -126,6 +127,7 @@ def write_new_file(path: str | Path, data: str | bytes, option: str) -> Path:
     tmp = None
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.tmp')
+        os.fchmod(fd, file_mode())   # the umask's mode, not mkstemp's 0600
         with os.fdopen(fd, 'wb' if isinstance(data, bytes) else 'w', encoding=None
                        if isinstance(data, bytes) else 'utf-8') as f:
             f.write(data)

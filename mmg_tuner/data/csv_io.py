@@ -21,6 +21,7 @@ from pathlib import Path
 import warnings
 
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner._limits import check_lines
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.data.files import brief, check_regular_file, display_text, safe_name
@@ -104,10 +105,10 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
     't') is not a number; other non-numeric fields become NaN (dropped later, with a note).
     """
     path = Path(path)
-    check_regular_file(path, 'CSV file', MAX_CSV_BYTES)
+    size = check_regular_file(path, 'CSV file', MAX_CSV_BYTES)
     try:
-        with open(path, 'rb') as f:
-            raw = f.read(MAX_CSV_BYTES + 1)
+        with open(path, 'rb') as f:   # not a buffer of the limit's size for a small file
+            raw = f.read(min(size, MAX_CSV_BYTES) + 1)
         text = raw.decode('utf-8-sig')
     except OSError as exc:
         raise TrialDataError(f'{path}: cannot read CSV ({exc.strerror or exc})') from None
@@ -119,6 +120,7 @@ def read_csv_table(path: str | Path) -> tuple[list[str], np.ndarray, list[str]]:
     lines = text.splitlines()
     if not lines:
         raise TrialDataError(f'{path}: empty file, no CSV header')
+    check_lines(lines, path, 'CSV trial', error=TrialDataError)   # before any line is split
     header = [h.strip().strip('"').strip().lower() for h in lines[0].split(',')]
     for k, h in enumerate(header):   # which of two 'u' columns is the speed? never guess
         if h and h in header[:k]:

@@ -35,10 +35,12 @@ import math
 from pathlib import Path
 import warnings
 
+from mmg_tuner._limits import check_lines, read_text
 from mmg_tuner.core import frames
 from mmg_tuner.data.consistency import (check_motion, clock_resets, keep_slices, Motion,
                                         reset_findings, split_at, unusable_reason,
                                         UnusableRecordingError, warn)
+from mmg_tuner.data.csv_io import MAX_CSV_BYTES
 from mmg_tuner.data.files import brief
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -97,11 +99,10 @@ def read_esso_table(path: str | Path) -> tuple[dict[str, np.ndarray], list[str]]
     removed. Raises TrialDataError naming the file when nothing usable is left.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8', errors='strict')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TrialDataError(f'{path}: cannot read ({exc})') from None
+    # at most MAX_CSV_BYTES, lines of at most MAX_LINE_CHARS (_limits.py)
+    text = read_text(path, 'FRT-DS-ESSO CSV', limit=MAX_CSV_BYTES, error=TrialDataError)
     lines = text.splitlines()
+    check_lines(lines, path, 'FRT-DS-ESSO CSV', error=TrialDataError)
     if not lines or not lines[0].strip():
         raise TrialDataError(f'{path}: empty file (expected an FRT-DS-ESSO header line)')
     header = [_norm(h) for h in lines[0].split(',')]

@@ -8,9 +8,9 @@ from pathlib import Path
 import stat
 from typing import Any, Mapping
 
+from mmg_tuner._limits import yaml_loads
 from mmg_tuner.core.geodesy import Datum
 from mmg_tuner.errors import ConfigError
-import yaml
 
 NAVSATFIX = 'sensor_msgs/msg/NavSatFix'
 IMU = 'sensor_msgs/msg/Imu'
@@ -225,12 +225,8 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
         if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_MAP_BYTES:
             raise ConfigError(f'topic map {path}: not a regular YAML file of at most '
                               f'{MAX_MAP_BYTES >> 20} MB')
-        doc = yaml.safe_load(path.read_bytes().decode('utf-8-sig'))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        raise ConfigError(f'topic map {path}: not valid YAML '
-                          f'({getattr(exc, "problem", None) or exc}{where})') from None
+        # depth and alias-expansion limits; invalid YAML is a ConfigError naming the line
+        doc = yaml_loads(path.read_bytes().decode('utf-8-sig'), f'topic map {path}')
     except UnicodeDecodeError as exc:
         raise ConfigError(f'topic map {path}: not UTF-8 text (byte {exc.start})') from None
     except OSError as exc:

@@ -766,18 +766,14 @@ def _settles(res: float, rec: float | None) -> bool:
 
 def load_advice(path) -> list[TrialSpec]:
     """Return the advised trials of a diagnosis.json file (errors name the file)."""
-    import json
     from pathlib import Path
+
+    from mmg_tuner._limits import load_json
 
     p = Path(path)
     if p.is_dir():
         p = p / 'diagnosis.json'
-    try:
-        doc = json.loads(p.read_text())
-    except OSError as exc:
-        raise DiagnosisError(f'{p}: cannot read the diagnosis ({exc.strerror or exc})') from None
-    except ValueError as exc:
-        raise DiagnosisError(f'{p}: not JSON ({exc})') from None
+    doc = load_json(p, 'diagnosis', error=DiagnosisError)   # size and depth limits
     try:
         specs = specs_from_diagnosis(doc)
     except DiagnosisError as exc:

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner._limits import json_loads
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.diagnosis.settings import DiagnosisSettings
 from mmg_tuner.errors import DiagnosisError, OutputError
@@ -48,11 +49,10 @@ class SearchCheckpoint:
             raise DiagnosisError(f'{self.path}: unreadable checkpoint '
                                  f'({exc.strerror or exc})') from None
         refuse_pickle(self.path, blob[:4], DiagnosisError)
-        try:
-            doc = json.loads(blob)
-        except ValueError as exc:   # JSON and UTF-8 errors alike
-            raise DiagnosisError(f'{self.path}: unreadable checkpoint, damaged or not JSON '
-                                 f'({exc}); re-run without --resume') from None
+        try:   # size and nesting checked before parsing (_limits.py)
+            doc = json_loads(blob, self.path, error=DiagnosisError, what='checkpoint')
+        except DiagnosisError as exc:   # JSON and UTF-8 errors alike
+            raise DiagnosisError(f'{exc}; re-run without --resume') from None
         if not isinstance(doc, dict) or doc.get('format') != self.FORMAT:
             raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of mmg_tuner; re-run '
                                  'without --resume')

@@ -27,13 +27,13 @@ import math
 from pathlib import Path
 from typing import Mapping
 
+from mmg_tuner._limits import clip, load_yaml
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.errors import ConfigError
 from mmg_tuner.tuning.objective import Objective, Prior
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
-import yaml
 
 
 @dataclass(frozen=True)
@@ -65,10 +65,7 @@ def check(measured: Mapping[str, Measurement], where: str = 'measured') -> dict:
 def load(path: str | Path) -> dict[str, Measurement]:
     """Read a measurements file (module docstring); errors name the file and the field."""
     p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f'{p}: unreadable measurements file ({exc})') from None
+    doc = load_yaml(p, 'measurements file')   # size, depth and alias limits
     if not isinstance(doc, dict) or not isinstance(doc.get('measured'), dict):
         raise ConfigError(f"{p}: no 'measured:' mapping of coefficient -> {{value, se}}")
     out = {}
@@ -76,7 +73,7 @@ def load(path: str | Path) -> dict[str, Measurement]:
         if not isinstance(entry, dict) or set(entry) - {'value', 'se', 'source'} \
                 or 'value' not in entry or 'se' not in entry:
             raise ConfigError(f'{p}: measured.{name}: must be {{value: V, se: S[, source: '
-                              f'text]}}, got {entry!r}')
+                              f'text]}}, got {clip(repr(entry))}')
         try:
             out[name] = Measurement(float(entry['value']), float(entry['se']),
                                     str(entry.get('source', '')))

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from typing import Mapping, Sequence
 
+from mmg_tuner._limits import load_yaml
 from mmg_tuner.core.effects import EFFECTS, froude_factor
 from mmg_tuner.core.ship import resolve_config_path, ShipConfig
 from mmg_tuner.errors import ConfigError
@@ -29,7 +30,6 @@ from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
-import yaml
 
 RANGES_FILE = 'effect_plausibility'
 DISAGREE_Z = 3.0
@@ -43,7 +43,7 @@ _cache: dict[str, dict] = {}
 def _table() -> dict:
     if 'table' not in _cache:
         path = resolve_config_path(RANGES_FILE)
-        doc = yaml.safe_load(path.read_text(encoding='utf-8')) or {}
+        doc = load_yaml(path, 'ranges file') or {}
         known = {p for e in EFFECTS.values() for p in e.params}
         for p, entry in doc.items():
             if p not in known:

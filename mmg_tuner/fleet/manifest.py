@@ -39,9 +39,9 @@ import re
 from typing import Any, Mapping
 
 from mmg_tuner import api
+from mmg_tuner._limits import load_yaml
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.errors import ConfigError, MmgTunerError
-import yaml
 
 STEPS = ('tune', 'diagnose')
 _TUNE_FIELDS = tuple(f.name for f in fields(api.TuneConfig))
@@ -127,14 +127,7 @@ def _plain(v):
 def load_manifest(path: str | Path) -> Manifest:
     """Read and validate a manifest YAML (see the module docstring)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f'manifest {path}: cannot read it ({exc.strerror or exc})') from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'manifest {path}: not valid YAML ({exc})') from None
+    doc = load_yaml(path, 'manifest')   # size, depth and alias limits (_limits.py)
     return manifest_from_dict(doc, path)
 
 

@@ -20,6 +20,7 @@ import json
 from pathlib import Path
 
 import mmg_tuner
+from mmg_tuner._limits import load_json
 from mmg_tuner.core.ship import resolve_config_path
 from mmg_tuner.errors import ConfigError, OutputError
 from mmg_tuner.fleet.manifest import ShipJob
@@ -105,9 +106,9 @@ def read_record(ship_dir: Path) -> ShipRecord | None:
     """
     p = Path(ship_dir) / RECORD
     try:
-        doc = json.loads(p.read_text())
+        doc = load_json(p, 'fleet record', limit=1 << 20)   # size and depth limits
         rec = ShipRecord(**doc)
-    except (OSError, ValueError, TypeError):
+    except (ConfigError, TypeError):
         return None
     # the files a rerun deletes when it does not rewrite them: only plain relative paths inside
     # the ship's folder (a record edited to name '../x' or '/x' is no record of ours)

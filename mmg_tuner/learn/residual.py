@@ -29,9 +29,9 @@ import io
 import json
 import math
 from pathlib import Path
-import zipfile
 
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner._limits import json_loads, load_yaml, read_npz
 from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.dynamics import (actuate_start, apparent_wind, family_tag,
                                      N_ACT_STATES)
@@ -135,11 +135,8 @@ class ResidualNet:
         path = Path(path)
         if not path.is_file():
             raise ConfigError(f'residual network file {path} does not exist')
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise ConfigError(f'{path}: not a residual network file (.npz): {exc}') from None
+        # only the members the format names, each checked from its header before it is read
+        data = read_npz(path, path, 'residual network file', members=_is_member)
 
         def get(key):
             if key not in data:
@@ -157,7 +154,7 @@ class ResidualNet:
                               f'{FEATURES}')
         try:
             n = int(get('n_layers'))
-            meta = json.loads(str(get('meta')))
+            meta = json_loads(str(get('meta')), path, what="key 'meta'", limit=1 << 20)
             net = cls(window=int(get('window')), dt_s=float(get('dt_s')),
                       weights=tuple(np.asarray(get(f'W{i}'), float) for i in range(n)),
                       biases=tuple(np.asarray(get(f'b{i}'), float) for i in range(n)),
@@ -171,6 +168,16 @@ class ResidualNet:
         except (TypeError, ValueError) as exc:
             raise ConfigError(f'{path}: malformed residual network file ({exc})') from None
         return net
+
+
+_MEMBERS = frozenset(('format', 'window', 'dt_s', 'physics', 'seed', 'n_layers', 'x_mean',
+                      'x_std', 'y_scale', 'features', 'meta'))
+
+
+def _is_member(name: str) -> bool:
+    """Whether ``name`` is an array a residual network file has (see :meth:`ResidualNet.save`)."""
+    return name in _MEMBERS or (name[:1] in ('W', 'b') and name[1:].isdigit()
+                                and len(name) < 6)
 
 
 def model_kind(net: ResidualNet | None) -> str:
@@ -192,12 +199,8 @@ def load_residual(params_file) -> ResidualNet | None:
     both files. A model is (ship, parameters, this network): ``load_ship(name, params_file)``
     gives the first two.
     """
-    import yaml
     path = Path(params_file)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f'params file {path}: cannot be read: {exc}') from None
+    doc = load_yaml(path, 'params file')   # size, depth and alias limits (_limits.py)
     name = doc.get('residual') if isinstance(doc, dict) else None
     if name is None:
         return None

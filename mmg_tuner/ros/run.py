@@ -9,12 +9,12 @@ from dataclasses import dataclass
 import difflib
 import faulthandler
 import os
-from pathlib import Path
 import signal
 import sys
 import threading
 from typing import Any, Callable, Mapping
 
+from mmg_tuner._limits import one_line
 from mmg_tuner.errors import ConfigError, MmgTunerError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
@@ -144,11 +144,11 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
     try:
         node = make_node()
         rclpy.spin(node)
-    except MmgTunerError as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+    except MmgTunerError as exc:   # one line of at most a screen (_limits.one_line)
+        print(f'ERROR: {one_line(str(exc))}', file=sys.stderr)
         code = 2
     except ParameterException as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(str(exc))}', file=sys.stderr)
         code = 2
     except SystemExit as exc:
         code = int(exc.code or 0)
@@ -195,10 +195,10 @@ def _explain_init_error(exc: Exception, argv: list[str]) -> str:
 
 
 def _is_tuned_params(path: str) -> bool:
-    import yaml
+    from mmg_tuner._limits import load_yaml
     try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        doc = load_yaml(path, 'params file')   # size, depth and alias limits
+    except ConfigError:
         return False
     return isinstance(doc, dict) and isinstance(doc.get('params'), dict) and \
         not any(isinstance(v, dict) and 'ros__parameters' in v for v in doc.values())

@@ -14,14 +14,18 @@ API is used (Figure + the Agg canvas): no global backend is set here.
 from __future__ import annotations
 
 import io
+import logging
 import math
+import re
 from typing import Mapping, Sequence
+import warnings
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.trial import Trial
 import numpy as np
 
 DEG = 180.0 / math.pi
+logger = logging.getLogger(__name__)
 
 STATE_AXES: dict[str, tuple[str, float]] = {
     'x': ('x_E [m, north]', 1.0),
@@ -51,12 +55,36 @@ INPUT_COLORS = {'rudder': 'tab:green', 'rpm': 'tab:red', 'bow': 'tab:purple',
 
 
 def png_bytes(fig) -> bytes:
-    """Render a matplotlib Figure to PNG bytes through the Agg canvas (no global backend)."""
+    """
+    Render a matplotlib Figure to PNG bytes through the Agg canvas (no global backend).
+
+    matplotlib's "Glyph ... missing from font(s)" warnings (a trial name in a script the font
+    lacks) are said once per process in our words instead; other warnings pass through.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
-    fig.savefig(buf, format='png', dpi=90)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        fig.savefig(buf, format='png', dpi=90)
+    missing = set()
+    for w in caught:
+        m = _GLYPH.match(str(w.message))
+        if m:
+            missing.add(chr(int(m.group(1))))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    new = missing - _SAID_MISSING
+    if new:
+        _SAID_MISSING.update(new)
+        logger.warning('WARNING: plots: the plot font has no glyph for %s (in a trial name or '
+                       'title); shown as empty boxes in the figures, the data are unaffected',
+                       ' '.join(sorted(new)[:20]) + (' ...' if len(new) > 20 else ''))
     return buf.getvalue()
+
+
+_GLYPH = re.compile(r'Glyph (\d+) .*missing from')
+_SAID_MISSING: set[str] = set()
 
 
 def trial_title(name: str, set_name: str | None = None,

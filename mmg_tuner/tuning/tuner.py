@@ -16,10 +16,10 @@ import math
 from pathlib import Path
 import time
 from typing import Callable
-import zipfile
 
 from cmaes import CMA
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner._limits import clip, json_loads, read_npz
 from mmg_tuner.errors import OutputError, TuningError
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
@@ -34,6 +34,14 @@ _CMA = 'cma.'                    # prefix of the optimizer's attributes among th
 _KINDS = ('array', 'numpy', 'bool', 'int', 'float')
 _STATE_INTS = ('seed', 'restart', 'popsize', 'evaluations', 'flat_gens')
 _STATE_FLOATS = ('best_J', 'wall_s', 'last_best_run')
+_MEMBERS = frozenset(_STATE_INTS + _STATE_FLOATS + (
+    'best_z', 'history_counts', 'history_best', 'meta', 'rng.keys', 'rng.pos_has_gauss',
+    'rng.gauss'))
+
+
+def _is_member(name: str) -> bool:
+    """Whether ``name`` is an array a tuning checkpoint has (see ``Tuner._encode``)."""
+    return name in _MEMBERS or (name.startswith(_CMA) and name[len(_CMA):].isidentifier())
 
 
 def refuse_pickle(path: Path | str, head: bytes, error: type[Exception]) -> None:
@@ -283,13 +291,14 @@ class Tuner:
         if blob[:4] != _ZIP_MAGIC:   # checked before any parsing: only a zip reaches np.load
             raise TuningError(f'{src}: not a tuning checkpoint (.npz of mmg_tuner): re-run '
                               'without --resume, into a new output folder')
-        try:
-            with np.load(io.BytesIO(blob), allow_pickle=False) as z:
-                a = {k: z[k] for k in z.files}
-            meta = json.loads(str(a['meta']))
-        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
-            raise TuningError(f'{src}: unreadable checkpoint, damaged or incomplete ({exc}); '
-                              're-run without --resume') from None
+        try:   # only the checkpoint's members, each checked from its header (_limits.py)
+            a = read_npz(blob, src, 'tuning checkpoint', members=_is_member, error=TuningError)
+            meta = json_loads(str(a['meta']), src, error=TuningError, what="member 'meta'",
+                              limit=1 << 20)
+        except (TuningError, KeyError) as exc:
+            raise TuningError(f'{src}: unreadable checkpoint, damaged or incomplete '
+                              f'({str(exc).removeprefix(f"{src}: ")}); re-run without '
+                              '--resume') from None
         if not isinstance(meta, dict) or meta.get('format') != CHECKPOINT_FORMAT:
             raise TuningError(f'{src}: not a tuning checkpoint of mmg_tuner')
         if meta.get('version') != CHECKPOINT_VERSION:
@@ -308,6 +317,9 @@ class Tuner:
         except KeyError as exc:
             raise TuningError(f'{src}: checkpoint incomplete, array {exc} missing; re-run '
                               'without --resume') from None
+        except (TypeError, ValueError, OverflowError) as exc:   # e.g. a scalar of shape (2,)
+            raise TuningError(f'{src}: damaged checkpoint ({clip(exc)}); re-run without '
+                              '--resume') from None
 
     def _state_from(self, a: dict[str, np.ndarray], meta: dict, src) -> _State:
         """Rebuild the state from checked arrays; shapes compared with what this run expects."""
