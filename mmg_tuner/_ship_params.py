@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mmg_tuner._limits import clip, load_yaml
+from mmg_tuner.core.plausibility import warn_once
 from mmg_tuner.core.ship import load_ship, ShipConfig
 from mmg_tuner.errors import ConfigError
-import yaml
 
 
 def params_file_ship(path: str | Path) -> str | None:
@@ -20,14 +21,11 @@ def params_file_ship(path: str | Path) -> str | None:
 
     Call after the file was read once (:func:`load_ship` checks it is a readable YAML mapping).
     """
-    path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f'params file {path}: cannot read it ({exc})') from None
+    doc = load_yaml(path, 'params file')   # the limits of _limits.py
     name = doc.get('ship') if isinstance(doc, dict) else None
     if name is not None and not isinstance(name, str):
-        raise ConfigError(f'{path}: key "ship" = {name!r} must be a ship name (e.g. suzaku)')
+        raise ConfigError(f'{path}: key "ship" = {clip(repr(name))} must be a ship name (e.g. '
+                          'suzaku)')
     return name
 
 
@@ -48,4 +46,6 @@ def load_ship_with_params(name_or_path: str | Path = 'suzaku',
     ship = load_ship(name_or_path, params_file)
     if params_file is not None:
         check_params_ship(ship, params_file)
+    # implausible (a sign, instability, a wrong-way turn): one WARNING line each, once
+    warn_once(ship, ship.name if params_file is None else f'{ship.name} with {params_file}')
     return ship

@@ -7,9 +7,12 @@ from typing import Sequence
 
 from mmg_tuner.api._common import _as_list, _check, _config, _finite, _is_int
 from mmg_tuner.core.layout import INTEGRATORS
+from mmg_tuner.core.plausibility import refuse_impossible, warn_once
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.learn.model import as_model, Model
+from mmg_tuner.learn.plausibility import warn_network_once
+from mmg_tuner.learn.residual import ResidualNet
 from mmg_tuner.learn.residual import simulate_hybrid as _simulate_hybrid
 from mmg_tuner.tuning.evaluate import evaluate as _evaluate
 from mmg_tuner.tuning.evaluate import EvaluateResult
@@ -35,7 +38,7 @@ def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4'
     _check('integrator', integrator, integrator in INTEGRATORS, f'one of {sorted(INTEGRATORS)}')
     _check('substeps', substeps, _is_int(substeps) and 1 <= substeps <= 1000,
            'a whole number in [1, 1000]')
-    ship, net = as_model(model).ship, as_model(model).residual
+    ship, net = _checked(model, 'simulate')
     if net is not None:  # a hybrid (or pure network) named by the params.yaml
         return _simulate_hybrid(ship, net, trial, integrator=integrator, substeps=substeps)
     traj = simulate_recorded(ship, trial, None, integrator, substeps)
@@ -50,6 +53,25 @@ def simulate(model: ShipConfig | Model, trial: Trial, *, integrator: str = 'rk4'
     return Trial(trial.t.copy(), traj.states, name=trial.name,
                  source=f'simulated: {trial.source or trial.name}', notes=notes,
                  start_s=trial.start_s, inputs={n: v.copy() for n, v in trial.inputs.items()})
+
+
+def _checked(model: ShipConfig | Model, entry: str
+             ) -> tuple[ShipConfig, ResidualNet | None]:
+    """
+    Refuse a model that cannot be a ship; warn once on an implausible one; return (ship, net).
+
+    The API's own entry check (``ship.with_params`` in memory never passed ``load_ship``): one
+    ConfigError line for an impossible model (``core/plausibility.refuse_impossible``: a mass
+    <= 0, a singular mass matrix ...), each implausible finding of the physics and of its
+    network (full rudder each way: ``learn/plausibility.py``) a ``WARNING:`` line, once per
+    model. Never inside a tuner's objective.
+    """
+    m = as_model(model)
+    where = f'{m.ship.name}, as given to {entry}'   # its values may be in memory only
+    refuse_impossible(m.ship, where)
+    warn_once(m.ship, where)
+    warn_network_once(m.ship, m.residual, where)
+    return m.ship, m.residual
 
 
 @dataclass(frozen=True)
@@ -107,6 +129,7 @@ def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
     """
     cfg = _config(EvaluateConfig, config, options)
     trials = _as_list(trials)
+    _checked(ship, 'evaluate')
     res = _evaluate(ship, trials, cfg.restart_every_s, cfg.integrator, cfg.substeps,
                     horizons=cfg.horizons)
     interval = model_interval(as_model(ship))

@@ -20,7 +20,7 @@ import sys
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, STRICT_HELP
 from mmg_tuner.cli.common import Parser, run_command
-from mmg_tuner.data.consistency import refuse_warnings, WarningLog
+from mmg_tuner.data.consistency import refuse_warnings, warn_rpm_units, WarningLog
 from mmg_tuner.data.csv_io import trial_csv_text
 from mmg_tuner.data.load import parse_event_cut
 from mmg_tuner.data.summary import format_summary, summarize_many
@@ -52,7 +52,7 @@ def command(argv: list[str] | None = None) -> int:
     tm = load_topic_map(args.topics)
     if args.dt is not None:
         tm = replace(tm, dt=args.dt)
-    limits = None
+    limits = ship = None
     keep_astern = False
     if args.ship:
         from mmg_tuner.core.limits import input_limits
@@ -65,6 +65,8 @@ def command(argv: list[str] | None = None) -> int:
     try:
         with WarningLog() as log:
             summaries, trials = summarize_many(args.inputs, tm, limits, keep_astern, cut)
+            if ship is not None:   # rpm logged as rev/s: the ship's own force balance says
+                warn_rpm_units(trials, ship)
         if args.strict:
             refuse_warnings(log.lines)
         for rs in summaries:

@@ -14,11 +14,12 @@ from pathlib import Path
 import re
 from typing import Any, Collection, Mapping
 
+from mmg_tuner._limits import clip, load_yaml
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, MODEL_KINDS, N_PARAMS, PARAM_INDEX, PARAM_NAMES
 from mmg_tuner.core.models import Family, family
+from mmg_tuner.core.plausibility import refuse_impossible
 from mmg_tuner.errors import ConfigError
 import numpy as np
-import yaml
 
 _SECTIONS = ('particulars', 'added_mass', 'hull', 'propeller', 'rudder', 'thrusters', 'windage')
 
@@ -209,7 +210,7 @@ def _check_top_level(doc: Mapping[str, Any], source: str) -> None:
     if unknown:
         k = unknown[0]
         close = difflib.get_close_matches(str(k), _TOP_LEVEL, n=1)
-        raise ConfigError(f'{source}: unknown top-level key {k!r}'
+        raise ConfigError(f'{source}: unknown top-level key {clip(repr(k), 60)}'
                           + (f" (did you mean '{close[0]}'?)" if close else '')
                           + f"; the known keys are {', '.join(_TOP_LEVEL)}")
 
@@ -235,8 +236,10 @@ def load_ship(name_or_path: str | Path = 'suzaku', params_file: str | Path | Non
     """
     path = resolve_config_path(name_or_path)
     ship = ship_from_dict(_read_yaml(path, 'ship config'), str(path))
+    refuse_impossible(ship, str(path))   # a model that cannot be a ship: core/plausibility.py
     if params_file is not None:
         ship = ship.with_params(load_params_file(params_file), source=str(params_file))
+        refuse_impossible(ship, str(params_file))
     return ship
 
 
@@ -244,22 +247,7 @@ def _read_yaml(path: Path, what: str) -> Any:
     """Return a YAML document from a text file, or a ConfigError saying why not."""
     if not path.is_file():
         raise ConfigError(f'{what} {path} is not a file')
-    try:
-        with open(path, 'rb') as f:
-            raw = f.read(10_000_001)
-    except OSError as exc:
-        raise ConfigError(f'{path}: cannot read {what} ({exc.strerror})') from None
-    if len(raw) > 10_000_000:
-        raise ConfigError(f'{path}: over 10 MB, not a {what}')
-    try:
-        text = raw.decode('utf-8')
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f'{path}: not UTF-8 text (byte {exc.start}); a {what} is a YAML '
-                          'file') from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'{path}: not valid YAML ({exc})') from None
+    return load_yaml(path, what)   # size, depth and alias-expansion limits (_limits.py)
 
 
 def ship_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> ShipConfig:
@@ -369,6 +357,11 @@ def _derive_mass(values: dict[str, Any], source: str) -> None:
         values['I_zG'] = float(values['m']) * (0.25 * L) ** 2
 
 
+# the top-level keys of a params overlay (tune/diagnose write the first four; residual names a
+# network, provenance is the benchmarks' record of their inputs)
+PARAMS_FILE_KEYS = ('ship', 'ship_config', 'note', 'params', 'residual', 'provenance')
+
+
 def load_params_file(path: str | Path) -> dict[str, float]:
     """Read a params.yaml written by ``tune``/``diagnose``: ``{params: {name: value}}``."""
     path = Path(path)
@@ -378,6 +371,12 @@ def load_params_file(path: str | Path) -> dict[str, float]:
     params = doc.get('params') if isinstance(doc, Mapping) else None
     if not isinstance(params, Mapping):
         raise ConfigError(f'{path}: expected a mapping under key "params"')
+    unknown = [str(k) for k in doc if k not in PARAMS_FILE_KEYS]
+    if unknown:   # a typo (residul:) would drop what it names in silence
+        shown = ', '.join(repr(clip(k, 40)) for k in unknown[:3])
+        raise ConfigError(f'{path}: unknown top-level key(s) {shown}'
+                          + (f' and {len(unknown) - 3} more' if len(unknown) > 3 else '')
+                          + f"; a params file has only {', '.join(PARAMS_FILE_KEYS)}")
     out = {}
     for k, v in params.items():
         if not isinstance(k, str) or k not in PARAM_INDEX:

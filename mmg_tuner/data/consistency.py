@@ -39,6 +39,7 @@ import math
 import sys
 
 from mmg_tuner.core import frames
+from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
 
@@ -479,3 +480,158 @@ class WarningLog(logging.Handler):
 
     def __exit__(self, *exc) -> None:
         logging.getLogger('mmg_tuner').removeHandler(self)
+
+
+# ------------------------------------------- a trial read at its own rate (a channel CSV)
+
+MIN_PART_SAMPLES = 10   # as data/assemble.py: a shorter piece left between cuts is dropped
+
+
+def checked_parts(trial: Trial, length_m: float = 0.0) -> list[Trial]:
+    """
+    Check a trial read as it stands (a channel CSV: the tug's) as the readers check theirs.
+
+    The same :func:`check_motion` at its own samples (no propeller channel: the astern check
+    is off); each finding logged as its ``WARNING:`` line and kept as a note; a short one cut
+    out (the trial split around it, the parts named ``<name>_1``, ...), a long one an
+    :class:`UnusableRecordingError`.
+    """
+    s = trial.states
+    rpm = trial.inputs.get('rpm', np.full(len(trial), np.nan))
+    findings = check_motion(trial.name, Motion(trial.t, s[:, 0], s[:, 1], s[:, 2], s[:, 3],
+                                               s[:, 4], s[:, 5], rpm), length_m)
+    if not findings:
+        return [trial]
+    warn(findings)
+    if any(f.long for f in findings):
+        raise UnusableRecordingError(f'{trial.source or trial.name}: not used: '
+                                     f'{unusable_reason(findings)}')
+    notes = [f.note() for f in findings]
+    parts = []
+    for sl in keep_slices(trial.t, findings):
+        if sl.stop - sl.start < MIN_PART_SAMPLES:
+            notes.append(f'segment {trial.t[sl.start]:.1f}-{trial.t[sl.stop - 1]:.1f} s '
+                         f'shorter than {MIN_PART_SAMPLES} samples: dropped')
+            continue
+        parts.append(trial.slice(float(trial.t[sl.start]), float(trial.t[sl.stop - 1])))
+    if not parts:
+        raise UnusableRecordingError(f'{trial.source or trial.name}: no usable part left: '
+                                     + '; '.join(notes))
+    for i, part in enumerate(parts, 1):
+        part.start_s = trial.start_s + float(part.t[0])
+        part.t = part.t - part.t[0]
+        part.notes.extend(notes)
+        if len(parts) > 1:
+            part.name = f'{trial.name}_{i}'
+    return parts
+
+
+# ------------------------------------------------- propeller speed unit: rpm or rev/s?
+
+RPS_BAND = (25.0, 150.0)   # rpm the balance needs / rpm logged: 60 means rev/s logged
+STEADY_FROUDE = 0.05       # steady running: at least this Froude number ...
+STEADY_RUDDER_RAD = math.radians(5.0)   # ... the rudder within this ...
+STEADY_R_PRIME = 0.05      # ... |r| L / u, |v| / u below this ...
+STEADY_ACCEL_PRIME = 0.05  # ... and |du/dt| L / u^2 below this (speed smoothed over 10 s)
+STEADY_MIN_SAMPLES = 6
+BALANCE_SAMPLES = 25       # at most this many steady samples solved for the balance
+
+
+def _balance_rps(ship, u: float) -> float:
+    """Return the shaft speed [rev/s] at which the family's surge force is 0 at u (NaN: none)."""
+    fam = ship.family
+    outs = fam.outputs
+
+    def surge(n: float) -> float:
+        return float(fam.forces(ship.params, u, 0.0, 0.0,
+                                tuple(n if o == 'n_P' else 0.0 for o in outs))[0])
+    lo, hi = 1e-3, 1e3
+    if not (surge(lo) < 0.0 < surge(hi)):
+        return math.nan
+    for _ in range(30):   # bisection in log n: thrust grows with n (to 1e-8 relative)
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if surge(mid) < 0.0 else (lo, mid)
+    return math.sqrt(lo * hi)
+
+
+def _median_slope(u: np.ndarray, t: np.ndarray, half: int, idx: np.ndarray) -> np.ndarray:
+    """
+    Return d/dt of u's running median (2 half + 1 samples) at the indices idx only.
+
+    As ``np.gradient(_rolling_median(u, half), t)[idx]`` on a uniform grid (central
+    differences, one-sided at the ends), the medians taken at idx and its neighbours only.
+    """
+    n = u.size
+    lo, hi = np.maximum(idx - 1, 0), np.minimum(idx + 1, n - 1)
+    need = np.unique(np.concatenate([lo, hi]))
+    win = np.lib.stride_tricks.sliding_window_view(np.pad(u, half, mode='edge'), 2 * half + 1)
+    u_s = np.empty(n)
+    for c0 in range(0, need.size, 4096):   # bounded memory on long recordings
+        part = need[c0:c0 + 4096]
+        u_s[part] = np.median(win[part], axis=1)
+    return (u_s[hi] - u_s[lo]) / (t[hi] - t[lo])
+
+
+def rpm_unit_warning(trial: Trial, ship) -> str:
+    """
+    Say when a trial's rpm channel looks like rev/s, from the ship's own force balance ('' if not).
+
+    In steady straight running (rudder near 0, v and r small, speed steady, Froude number at
+    least STEADY_FROUDE) the propeller's thrust balances the resistance: the family's own
+    surge force (hull, propeller, rudder: ``Family.forces``) is 0 at the logged speed for one
+    shaft speed n*. Logged in rpm, 60 n* / rpm is about 1; logged in rev/s, about 60 (the
+    thrust, ~n^2, 60^2 too small). A record faster than the ship's Froude number 0.5 of a
+    model ship (``scale_ratio``) is taken as full scale and Froude-scaled first. '' when the
+    ship has no screw (``n_P``), the trial no rpm or too little steady running to tell.
+    """
+    if 'rpm' not in trial.inputs or 'rudder' not in trial.inputs or \
+            'n_P' not in ship.family.outputs or len(trial) < STEADY_MIN_SAMPLES:
+        return ''
+    L = ship.L_pp
+    if ship.scale_ratio != 1.0 and float(np.max(trial['u'])) > 0.5 * math.sqrt(9.81 * L):
+        trial = trial.froude_scaled(ship.scale_ratio)   # a full-scale record of a model ship
+    t = trial.t
+    u, v, r = trial['u'], trial['v'], trial['r']
+    rpm, rudder = trial['rpm'], trial['rudder']
+    k = max(1, int(round(5.0 / trial.dt))) if trial.dt > 0 else 1
+    with np.errstate(divide='ignore', invalid='ignore'):
+        steady = ((u > STEADY_FROUDE * math.sqrt(9.81 * L)) & (rpm > 0)
+                  & (np.abs(rudder) < STEADY_RUDDER_RAD) & (np.abs(r) * L / u < STEADY_R_PRIME)
+                  & (np.abs(v) / u < STEADY_R_PRIME))
+    idx = np.nonzero(steady)[0]
+    if idx.size >= STEADY_MIN_SAMPLES:   # the smoothed speed's slope only where it is needed
+        du = _median_slope(u, t, k, idx)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            idx = idx[np.abs(du) * L / u[idx] ** 2 < STEADY_ACCEL_PRIME]
+    if idx.size < STEADY_MIN_SAMPLES:
+        return ''
+    idx = idx[np.linspace(0, idx.size - 1, min(BALANCE_SAMPLES, idx.size)).astype(int)]
+    ratio = []
+    for i in idx:
+        n_star = _balance_rps(ship, float(u[i]))
+        if math.isfinite(n_star):
+            ratio.append(60.0 * n_star / float(rpm[i]))
+    if len(ratio) < STEADY_MIN_SAMPLES // 2:
+        return ''
+    q = float(np.median(ratio))   # rpm the balance needs per rpm logged
+    if not RPS_BAND[0] <= q <= RPS_BAND[1]:
+        return ''
+    i = idx[len(idx) // 2]
+    return (f"channel 'rpm': in steady straight running ({idx.size} samples, e.g. "
+            f'u = {u[i]:.3g} m/s) the resistance of {ship.name} balances its propeller at '
+            f'{q:.3g} times the logged rpm (logged {float(rpm[i]):.4g}): read as rpm the '
+            f'thrust is about 1/{q * q:.3g} of the resistance, read as rev/s it balances '
+            f'within x{(60.0 / q) ** 2:.2f}: it looks like rev/s; the format wants rpm '
+            '(multiply by 60; a bag: rpm unit rps in the topic map)')
+
+
+def warn_rpm_units(trials: list[Trial], ship) -> list[str]:
+    """Log a ``WARNING:`` line for each trial whose rpm looks like rev/s; return the lines."""
+    out = []
+    for tr in trials:
+        w = rpm_unit_warning(tr, ship)
+        if w:
+            line = f'WARNING: {tr.name}: {w}'
+            logger.warning(line)
+            out.append(line)
+    return out

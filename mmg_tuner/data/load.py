@@ -7,6 +7,7 @@ recursively) -> list of trials.
 from __future__ import annotations
 
 from dataclasses import replace
+import functools
 import logging
 import math
 from pathlib import Path
@@ -14,7 +15,7 @@ from pathlib import Path
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import IncompleteMcapError, read_series
-from mmg_tuner.data.consistency import UnusableRecordingError
+from mmg_tuner.data.consistency import checked_parts, UnusableRecordingError
 from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording, is_channel_csv, read_channel_csv
 from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
@@ -22,6 +23,7 @@ from mmg_tuner.data.marin import read_marin_dat
 from mmg_tuner.data.topics import TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, TrialDataError
+import numpy as np
 
 TRIAL_SUFFIXES = ('.mcap', '.csv', '.dat')
 MAX_DEPTH = 8  # folders below the one given; deeper is not a data set layout
@@ -156,7 +158,7 @@ def load_trials(path: str | Path, tm: TopicMap | None = None,
         trials.extend(found)
     if skipped and not trials:
         raise skipped[0]
-    return unique_names(trials)
+    return unique_names(drop_repeats(trials))
 
 
 def load_many(paths: list[str | Path], tm: TopicMap | None = None,
@@ -171,7 +173,43 @@ def load_many(paths: list[str | Path], tm: TopicMap | None = None,
     trials: list[Trial] = []
     for p in paths:
         trials.extend(load_trials(p, tm, time_ranges, keep_astern, limits))
-    return unique_names(trials)
+    return unique_names(drop_repeats(trials))
+
+
+def _same_data(a: Trial, b: Trial) -> bool:
+    """Whether two trials hold the same samples (to the 10 digits a written CSV keeps)."""
+    if a.t.shape != b.t.shape or a.states.shape != b.states.shape or \
+            set(a.inputs) != set(b.inputs):
+        return False
+    same = functools.partial(np.allclose, rtol=1e-7, atol=1e-7, equal_nan=True)
+    return same(a.t, b.t) and same(a.states, b.states) and all(
+        np.shape(a.inputs[k]) == np.shape(b.inputs[k]) and same(a.inputs[k], b.inputs[k])
+        for k in a.inputs)
+
+
+def drop_repeats(trials: list[Trial]) -> list[Trial]:
+    """
+    Keep the first of trials that hold the same data under two names, with a WARNING.
+
+    ``inspect bags --csv out`` then ``tune bags out`` reads every trial twice (the recording
+    and its CSV); tuned twice it would count double. Compared by samples (time, states and
+    inputs, to 1e-7), not by name or file.
+    """
+    kept: list[Trial] = []
+    groups: dict[tuple, list[Trial]] = {}
+    for tr in trials:
+        key = (tr.t.shape, round(float(tr.t[0]), 6) if len(tr.t) else None)
+        first = next((k for k in groups.get(key, []) if _same_data(k, tr)), None)
+        if first is not None:
+            logger.warning('WARNING: %s (%s) holds the same data as %s (%s): read once, as %s',
+                           tr.name, display_text(tr.source or '?'), first.name,
+                           display_text(first.source or '?'), first.name)
+            first.notes.append(f'the same data was also given as {tr.source or tr.name}; '
+                               'read once')
+            continue
+        groups.setdefault(key, []).append(tr)
+        kept.append(tr)
+    return kept
 
 
 # a model-frame CSV is read in its own units and names (its columns), whatever the user's map says
@@ -199,7 +237,8 @@ def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
         found = read_esso_csv(p, keep_astern=keep_astern,
                               length_m=limits.length_m if limits is not None else 0.0)
     elif p.suffix == '.csv' and is_channel_csv(p):   # another actuator's channels, own rate
-        found = [read_channel_csv(p)]
+        found = checked_parts(read_channel_csv(p),   # GNSS spikes, jumps: as a bag's
+                              limits.length_m if limits is not None else 0.0)
     elif p.suffix == '.csv':
         found = assemble_trials(csv_recording(p), replace(tm, **_CSV_TOPICS), name=name,
                                 limits=limits, keep_astern=keep_astern)

@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 from mmg_tuner.core import frames
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.limits import InputLimits
 from mmg_tuner.data.assemble import assemble_trials
 from mmg_tuner.data.bag import read_series
@@ -21,12 +22,16 @@ def detect_maneuver(trial: Trial) -> str:
     """
     'straight', 'turning', 'pull-out', 'zigzag' or 'mixed' (e.g. random manoeuvres).
 
-    From the rudder history and the heading change.
+    From the rudder history and the heading change; a craft steered by azimuth thrusters (no
+    rudder channel): their mean azimuth order stands for the rudder, their mean shaft speed
+    for the rpm.
     """
-    rud = np.degrees(trial['rudder'])
+    rud, rpm = _steer_and_speed(trial)
     psi = np.degrees(frames.unwrap(trial['psi']))
-    if np.abs(rud).max() < 3.0:
-        return 'straight'
+    if rud is None:   # no steering channel to read: say only whether it turned
+        return 'straight' if np.ptp(psi) < 10.0 else 'mixed'
+    if np.abs(rud).max() < 3.0:   # a tug turning on differential thrust is no straight run
+        return 'straight' if 'rudder' in trial.inputs or np.ptp(psi) < 10.0 else 'mixed'
     on = np.abs(rud) >= 3.0
     big = rud[on]
     amp = float(np.percentile(np.abs(big), 95))   # a spike of the sensor is not an order
@@ -44,12 +49,27 @@ def detect_maneuver(trial: Trial) -> str:
         return 'turning'
     # one reversal is a zigzag cut short (its first overshoot recorded); the propeller keeps
     # one ahead speed through a zigzag (berthing and random runs change it)
-    rpm = trial['rpm']
     mid = float(np.median(rpm))   # most of the run at one rpm: a start from rest is allowed
     one_rpm = mid > 0 and np.mean(np.abs(rpm - mid) <= 0.05 * mid) >= 0.7
     if steady and reversals >= 1 and np.ptp(psi) < 120.0 and one_rpm:
         return 'zigzag'
     return 'mixed'
+
+
+def _steer_and_speed(trial: Trial) -> tuple[np.ndarray | None, np.ndarray]:
+    """Return (the steering angle [deg] or None, the propulsion speed) of a trial."""
+    if 'rudder' in trial.inputs and 'rpm' in trial.inputs:
+        return np.degrees(trial['rudder']), trial['rpm']
+
+    def mean_of(prefix: str) -> np.ndarray | None:
+        cols = [a for n, a in trial.inputs.items() if n.startswith(prefix)]
+        return np.mean(cols, axis=0) if cols else None
+    steer = mean_of('azimuth_cmd_')
+    if steer is None or not np.all(np.isfinite(steer)):
+        steer = mean_of('azimuth_')
+    speed = mean_of('n_')
+    return (None if steer is None else np.degrees(steer),
+            np.zeros(len(trial)) if speed is None else speed)
 
 
 def _slewing(t: np.ndarray, rud_deg: np.ndarray) -> np.ndarray:
@@ -74,6 +94,8 @@ class TrialSummary:
     rpm_range: tuple[float, float]
     rudder_range_deg: tuple[float, float]
     notes: list[str]
+    # a craft commanded per thruster: each input channel's (min, max, unit), angles in deg
+    channels: dict[str, tuple[float, float, str]] = field(default_factory=dict)
 
 
 @dataclass
@@ -97,12 +119,31 @@ def summarize_trial(tr: Trial) -> TrialSummary:
         lo, hi = tr.thrusters.min(axis=0), tr.thrusters.max(axis=0)
         notes.append(f'thrusters [rev/s]: bow {lo[0]:+.1f}..{hi[0]:+.1f}, stern '
                      f'{lo[1]:+.1f}..{hi[1]:+.1f} (used by a family that reads them)')
+    if 'rpm' not in tr.inputs or 'rudder' not in tr.inputs:
+        return TrialSummary(tr.name, tr.duration_s, tr.dt, detect_maneuver(tr),
+                            (float(tr['u'].min()), float(tr['u'].max())), (math.nan,) * 2,
+                            (math.nan,) * 2, notes, _channel_ranges(tr))
     return TrialSummary(
         tr.name, tr.duration_s, tr.dt, detect_maneuver(tr),
         (float(tr['u'].min()), float(tr['u'].max())),
         (float(tr['rpm'].min()), float(tr['rpm'].max())),
         (math.degrees(float(tr['rudder'].min())), math.degrees(float(tr['rudder'].max()))),
         notes)
+
+
+def _channel_ranges(tr: Trial) -> dict[str, tuple[float, float, str]]:
+    """Return each input channel's (min, max, unit) over the trial (radians shown in deg)."""
+    out = {}
+    for name, a in tr.inputs.items():
+        a = a[np.isfinite(a)]
+        if not a.size:
+            continue
+        unit = TABLE[name].unit if name in TABLE else ''
+        lo, hi = float(a.min()), float(a.max())
+        if unit == 'rad':
+            lo, hi, unit = math.degrees(lo), math.degrees(hi), 'deg'
+        out[name] = (lo, hi, unit)
+    return out
 
 
 def summarize(path: str | Path, tm: TopicMap, limits: InputLimits | None = None,
@@ -188,6 +229,13 @@ def format_summary(rs: RecordingSummary) -> str:
     if rs.error:
         lines.append(f'  PROBLEM: {rs.error}')
     for ts in rs.trials:
+        if ts.channels:   # a craft commanded per thruster: its own channels
+            lines.append(f'  trial {ts.name}: {ts.maneuver}, {ts.duration_s:.1f} s at dt '
+                         f'{ts.dt:g} s, u {ts.speed_range_ms[0]:.2f}..{ts.speed_range_ms[1]:.2f}'
+                         ' m/s, ' + ', '.join(f'{n} {lo:+.1f}..{hi:+.1f} {u}'
+                                              for n, (lo, hi, u) in ts.channels.items()))
+            lines.extend(f'    - {n}' for n in ts.notes if n not in rs.reading)
+            continue
         lines.append(f'  trial {ts.name}: {ts.maneuver}, {ts.duration_s:.1f} s at dt {ts.dt:g} s,'
                      f' u {ts.speed_range_ms[0]:.2f}..{ts.speed_range_ms[1]:.2f} m/s, rpm '
                      f'{ts.rpm_range[0]:.1f}..{ts.rpm_range[1]:.1f}, rudder '

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.learn.plausibility import warn_network_once
 from mmg_tuner.learn.residual import load_residual, model_kind, ResidualNet
 
 
@@ -41,7 +42,12 @@ def load_model(name_or_path: str | Path = 'suzaku', params_file: str | Path | No
     """
     Return the ship, with a params.yaml's values and the residual network it names, if any.
 
-    A params file tuned for another ship (its key ``ship``) is refused, naming both.
+    A params file tuned for another ship (its key ``ship``) is refused, naming both. A network
+    whose response to full rudder is implausible (the wrong way, too fast:
+    ``learn/plausibility.py``) is loaded with one ``WARNING:`` line each, once.
     """
     ship = load_ship_with_params(name_or_path, params_file)
-    return Model(ship, None if params_file is None else load_residual(params_file))
+    net = None if params_file is None else load_residual(params_file)
+    if net is not None:
+        warn_network_once(ship, net, f'{ship.name} with {params_file}')
+    return Model(ship, net)

@@ -5,8 +5,10 @@ Three statuses, each with key/values and a level (REP-107 style names "<node>: <
 
 - ``real time``: requested and achieved real-time factor; WARN on a shortfall (< 90 %).
 - ``commands``: each command's last value, age and state; WARN while a command is stale
-  (older than command_timeout_s) or for HOLD_S after a clamped one, ERROR for HOLD_S after
-  one was rejected (ignored: the ship kept the previous value). A command the ship's model
+  (older than command_stale_s, or never received in that long since the start:
+  ``ros/command_watch.py``), timed out (command_timeout_s: zeroed) or for HOLD_S after a
+  clamped one, ERROR for HOLD_S after one was rejected (ignored: the ship kept the previous
+  value). A command the ship's model
   cannot take (thrusters on a family without them) is listed only once it arrives, as one
   WARN state "<name> unsupported" while such messages keep coming, with their count.
 - ``model``: simulated time and divergence resets; ERROR for HOLD_S after a reset.
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from mmg_tuner.ros.command_watch import channel_state
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 HOLD_S = 5.0  # [s, wall] a clamped/rejected command or a reset keeps its level this long
@@ -35,6 +38,7 @@ class CommandHealth:
     supported: bool = True  # False: the ship's model has no such input (every one refused)
     last_rx: float | None = None
     stale: bool = False
+    timed_out: bool = False  # command_timeout_s passed: zeroed (thrust) until the next one
     clamped: int = 0
     rejected: int = 0
     last_clamped: float = -math.inf
@@ -55,6 +59,7 @@ class Health:
     rtf_requested: float = 1.0
     rtf_achieved: float | None = None
     waiting: bool = False
+    since: float | None = None  # when the watch began (None: never received is not judged)
 
     def command(self, which: str, value: float | None, problem: str, now: float) -> None:
         """
@@ -64,6 +69,7 @@ class Health:
         """
         c = self.commands[which]
         c.last_rx = now
+        c.timed_out = False
         if value is not None:
             c.value = value
         if problem:
@@ -82,7 +88,8 @@ class Health:
     def update_stale(self, which: str, now: float, limit_s: float) -> str:
         """'stale' or 'resumed' on a transition of the command's staleness, else ''."""
         c = self.commands[which]
-        stale = c.supported and c.last_rx is not None and now - c.last_rx > limit_s
+        stale = c.supported and channel_state(c.last_rx, now, self.since, limit_s,
+                                              required=c.required).stale
         if stale == c.stale:
             return ''
         c.stale = stale
@@ -117,7 +124,7 @@ class Health:
         return self._status('real time', OK, 'on time' if req > 0 else 'free running', values)
 
     def _commands(self, now: float, limit_s: float) -> DiagnosticStatus:
-        level, problems, values = OK, [], {'command timeout [s]': f'{limit_s:g}'}
+        level, problems, values = OK, [], {'stale after [s]': f'{limit_s:g}'}
         for which, c in self.commands.items():
             if not c.supported:
                 if c.last_rx is not None:  # listed once someone sends it
@@ -131,6 +138,8 @@ class Health:
             values[f'{which} [{c.unit}]'] = f'{c.value:.6g}'
             values[f'{which} age [s]'] = age
             values[f'{which} stale'] = str(c.stale)
+            if c.timed_out:
+                values[f'{which} timed out'] = 'True'
             values[f'{which} clamped (total)'] = c.clamped
             values[f'{which} rejected (total)'] = c.rejected
             values[f'{which} last problem'] = c.last_problem
@@ -142,7 +151,11 @@ class Health:
                 problems.append(f'{which} clamped')
             if c.stale:
                 level = max(level, WARN)
-                problems.append(f'{which} stale')
+                problems.append(f'{which} ' + ('stale' if c.last_rx is not None
+                                               else 'never received'))
+            if c.timed_out:
+                level = max(level, WARN)
+                problems.append(f'{which} timed out')
         return self._status('commands', level, ', '.join(problems) or 'ok', values)
 
     def _model(self, now: float, sim_time_s: float) -> DiagnosticStatus:
@@ -151,3 +164,24 @@ class Health:
         if now - self.last_reset < HOLD_S:
             return self._status('model', ERROR, 'diverged: reset to the initial state', values)
         return self._status('model', OK, 'ok', values)
+
+
+def plausibility_status(node_name: str, hardware_id: str, findings) -> DiagnosticStatus:
+    """
+    Return the ``model plausibility`` status of the simulated model (core/plausibility.py).
+
+    OK when nothing is implausible; WARN listing each finding (a hull derivative's sign, a
+    straight-line instability beyond its tolerance, a wrong-way turn) with its figure, ERROR
+    for an impossible one (refused at load, so not met in a running node). ``findings``:
+    :func:`mmg_tuner.core.plausibility.checked` of the node's ship, then
+    :func:`mmg_tuner.learn.plausibility.network_checked` of its network (full rudder each way).
+    """
+    level = OK
+    values = {}
+    for f in findings:
+        level = max(level, ERROR if f.level == 'error' else WARN)
+        values[f.what] = f'{f.figure:.4g}: {f.text}'
+    message = '; '.join(f'{f.what} {f.figure:.3g}' for f in findings) or 'plausible'
+    return DiagnosticStatus(level=level, name=f'{node_name}: model plausibility',
+                            message=message, hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])

@@ -22,6 +22,7 @@ import tempfile
 
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
+from mmg_tuner.data.consistency import rpm_unit_warning
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import AZIMUTH_ROLES, load_topic_map, THRUSTER_ROLES, TopicMap
 from mmg_tuner.errors import MmgTunerError, OutputError
@@ -200,6 +201,9 @@ class ReplayNode(Node):
         self.trial = trials[p['trial_index']]
         model = load_model(p['ship'], p['params_file'] or None)
         ship = model.ship
+        unit = rpm_unit_warning(self.trial, ship)   # rpm logged as rev/s: the ship's balance
+        if unit:
+            self.get_logger().warn(f'{self.trial.name}: {unit}')
         if model.residual is not None:   # the params file names a network: run the hybrid
             sim = simulate_hybrid(ship, model.residual, self.trial, integrator=p['integrator'],
                                   restart_every_s=0.0)   # from the recorded first state

@@ -29,12 +29,15 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
+from mmg_tuner.core.plausibility import checked
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
 from mmg_tuner.errors import MmgTunerError
 from mmg_tuner.learn.model import load_model
+from mmg_tuner.learn.plausibility import network_checked
+from mmg_tuner.ros.command_watch import channel_state, zeroed_on_timeout
 from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, seconds_from_stamp,
                                        stamp_from_seconds, transform_from_state)
-from mmg_tuner.ros.health import CommandHealth, Health
+from mmg_tuner.ros.health import CommandHealth, Health, plausibility_status
 from mmg_tuner.ros.run import declare_parameters, Param, spin_node
 from mmg_tuner.ros.sensors import datum_from_params, SimulatedSensors
 from mmg_tuner.ros.uncertainty import EnsembleSpread, fill_covariance
@@ -150,8 +153,15 @@ PARAMS = {
                            read_only=True),
     'wait_for_commands': Param(False, 'hold the simulation until both commands have arrived',
                                read_only=True),
-    'command_timeout_s': Param(5.0, 'a command older than this is stale (diagnostics WARN) '
-                               '[s, wall clock]', (0.1, 86400.0)),
+    'command_stale_s': Param(1.0, 'a command channel whose last message is older than this, '
+                             'or that has received none this long after the start, is stale '
+                             '(diagnostics WARN: the node is not being driven) [s, wall clock]',
+                             (0.1, 86400.0)),
+    'command_timeout_s': Param(0.0, 'after this long without a message on a channel, its '
+                               'shaft speed (rpm, thrusters) is set to zero and the rudder and '
+                               'azimuth angles held, with a WARN (rpm only where the model '
+                               'covers rpm 0); checked once a second [s, wall clock]; 0: off',
+                               (0.0, 86400.0)),
 }
 FRAME_PARAMS = {'frame_id', 'odom_frame_id', 'child_frame_id', 'frame_prefix'}
 DATUM_PARAMS = {'datum_lat_deg', 'datum_lon_deg', 'datum_alt_m'}
@@ -231,7 +241,7 @@ class SimNode(Node):
                 **{f'{w}_thruster': CommandHealth('rev/s', 0.0, required=False,
                                                   supported=thrusters) for w in THRUSTERS}}
         self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name,
-                             commands=commands)
+                             commands=commands, since=self._steady_s())
         self._unsupported_logged: set[str] = set()
         self.health.rtf_requested = self.p['real_time_factor']
         self._warned: dict[str, float] = {}
@@ -371,8 +381,9 @@ class SimNode(Node):
         now = self._steady_s()
         cmd = self.health.commands[which]
         if cmd.stale:  # one line per transition, not one per message
-            self.get_logger().info(f'{which} commands resumed after '
-                                   f'{now - cmd.last_rx:.0f} s')
+            self.get_logger().info(
+                f'{which} commands resumed after {now - cmd.last_rx:.0f} s' if cmd.last_rx
+                is not None else f'first {which} command received')
             cmd.stale = False
         self.health.command(which, value, problem, now)
         if problem:
@@ -505,14 +516,53 @@ class SimNode(Node):
         self._report_at = (now, self._steps_done)
         if self.started:
             self.health.rtf_achieved = (self._steps_done - steps0) * self.sim.dt / (now - t0)
-        limit = self.p['command_timeout_s']
+        limit = self.p['command_stale_s']
+        self._timeouts(now)
         for which, cmd in self.health.commands.items():
-            if self.health.update_stale(which, now, limit) == 'stale':
+            if self.health.update_stale(which, now, limit) != 'stale':
+                continue
+            if cmd.last_rx is None:
+                self.get_logger().warn(
+                    f'no {which} command received in the {limit:g} s since the start (topic '
+                    f'{self._command_topic(which)}): the ship is not being driven (holding '
+                    f'{cmd.value:.6g} {cmd.unit}; see /diagnostics)')
+            else:
                 self.get_logger().warn(
                     f'no {which} command for {limit:g} s: holding the last value '
                     f'{cmd.value:.6g} {cmd.unit} (stale until the next one; see /diagnostics)')
-        self.diag_pub.publish(self.health.array(now, stamp_from_seconds(
-            self.stamp0 + self.sim.t), self.sim.t, limit))
+        msg = self.health.array(now, stamp_from_seconds(self.stamp0 + self.sim.t), self.sim.t,
+                                limit)
+        msg.status.append(plausibility_status(   # implausible model: WARN with the figure
+            self.health.node_name, self.health.hardware_id, checked(self.sim.ship)
+            + network_checked(self.sim.ship, self.sim.residual)))   # its network's full helm
+        self.diag_pub.publish(msg)
+
+    def _command_topic(self, which: str) -> str:
+        """Return the topic a command channel is subscribed on (for the log)."""
+        if which in self.channel_topics:
+            return self.channel_topics[which]
+        key = {'rudder': 'rudder_topic', 'rpm': 'rpm_topic'}.get(which, f'{which}_topic')
+        return self.p.get(key, which)
+
+    def _timeouts(self, now: float) -> None:
+        """Zero the shaft speed of each channel silent beyond command_timeout_s (once each)."""
+        timeout = self.p['command_timeout_s']
+        if timeout <= 0:
+            return
+        for which, cmd in self.health.commands.items():
+            if cmd.timed_out or not cmd.supported or not zeroed_on_timeout(which) or \
+                    not channel_state(cmd.last_rx, now, self.health.since, timeout, timeout,
+                                      cmd.required).timed_out or cmd.value == 0.0:
+                continue
+            problem = self.sim.set_command(which, 0.0)
+            if problem:   # rpm 0 is outside a model of ahead revolutions only: held
+                self._warn(f'no {which} command for {timeout:g} s (command_timeout_s): cannot '
+                           f'zero it ({problem}); holding {cmd.value:.6g} {cmd.unit}',
+                           key=f'timeout {which}', period_s=60.0)
+                continue
+            cmd.timed_out, cmd.value = True, 0.0
+            self.get_logger().warn(f'no {which} command for {timeout:g} s '
+                                   '(command_timeout_s): set to 0 until the next one')
 
     # ---- services and parameters --------------------------------------------------------
     def _on_reset(self, request, response):

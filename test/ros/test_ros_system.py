@@ -370,7 +370,7 @@ def test_diagnostics_stale_and_rejected_commands_and_new_parameters(ros):
     rpm = node.create_publisher(Float64, '/diag/propeller_rpm', 10)
     name = '/diag/sim_node'
     with running('sim_node', env, '-r', '__ns:=/diag',
-                 params=('command_timeout_s:=1.0', 'real_time_factor:=5.0')) as proc:
+                 params=('command_stale_s:=1.0', 'real_time_factor:=5.0')) as proc:
         # one command each, then silence: stale after 1 s, and it stays one state
         assert spin_until(ex, lambda: rud.get_subscription_count() > 0 and
                           rpm.get_subscription_count() > 0, 20), proc.output
@@ -405,7 +405,7 @@ def test_diagnostics_stale_and_rejected_commands_and_new_parameters(ros):
         pcli = node.create_client(SetParameters, f'{name}/set_parameters')
         assert pcli.wait_for_service(timeout_sec=20)
         # (a long timeout from here on: no new stale transition while parameters are set)
-        assert set_param(node, ex, pcli, 'command_timeout_s', 60.0).successful
+        assert set_param(node, ex, pcli, 'command_stale_s', 60.0).successful
         assert set_param(node, ex, pcli, 'frame_prefix', 'red/ship').successful
         odom.clear()
         assert spin_until(ex, lambda: len(odom) > 3, 10, every=lambda: rud.publish(
