@@ -51,6 +51,7 @@ setup(
             'evaluate = mmg_tuner.cli.evaluate:main',
             'fleet = mmg_tuner.cli.fleet:main',
             'precompile = mmg_tuner.cli.precompile:main',
+            'export = mmg_tuner.cli.export:main',
             'sim_node = mmg_tuner.ros.sim_node:main',
             'replay_node = mmg_tuner.ros.replay_node:main',
         ],

@@ -14,6 +14,7 @@ from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, IdentifyResult, METHODS,
                                     read_bollard_table)
 from mmg_tuner.tuning.lo_go import identify as _identify
+import numpy as np
 
 
 logger = logging.getLogger('mmg_tuner.api')   # one logger for the API, as before the split
@@ -32,8 +33,9 @@ class IdentifyConfig:
     family's); smooth_s: Savitzky-Golay window on the velocities before LO [s] (0: none);
     ridge: GO's pull toward LO per squared relative change; segment_s: GO simulates pieces of
     this length from the measured state (0: whole trials, single shooting); integrator,
-    substeps: GO's simulation; max_iter: GO's Levenberg-Marquardt iterations; grow: add the
-    trials one by one (the paper's Algorithm 1).
+    substeps: GO's simulation (substeps None: steps of at most 0.1 s); max_iter: GO's
+    Levenberg-Marquardt iterations; grow: add the trials one by one (the paper's Algorithm
+    1).
     """
 
     method: str = 'lo-go'
@@ -44,7 +46,7 @@ class IdentifyConfig:
     ridge: float = 1e-6
     segment_s: float = 20.0
     integrator: str = 'rk4'
-    substeps: int = 1
+    substeps: int | None = None
     max_iter: int = 40
     grow: bool = False
 
@@ -59,8 +61,9 @@ class IdentifyConfig:
             _check(name, v, _finite(v) and v >= 0, 'a finite number >= 0', E)
         _check('integrator', self.integrator, self.integrator in INTEGRATORS,
                f'one of {sorted(INTEGRATORS)}', E)
-        _check('substeps', self.substeps, _is_int(self.substeps) and 1 <= self.substeps <= 1000,
-               'a whole number in [1, 1000]', E)
+        _check('substeps', self.substeps, self.substeps is None or (
+            _is_int(self.substeps) and 1 <= self.substeps <= 1000),
+            'a whole number in [1, 1000] (or None: steps of at most 0.1 s)', E)
         _check('max_iter', self.max_iter, _is_int(self.max_iter) and self.max_iter >= 1,
                'a whole number >= 1', E)
         if self.targets is not None:
@@ -92,7 +95,9 @@ def identify(ship: ShipConfig, trials: Trial | Sequence[Trial],
     if table is not None and not isinstance(table, BollardTable):
         table = read_bollard_table(table)
     elif isinstance(table, BollardTable):
-        table = check_bollard_table(table.n, table.thrust, table.source or 'bollard table')
+        table = check_bollard_table(np.concatenate([-table.astern_n, table.n]),
+                                    np.concatenate([table.astern_thrust, table.thrust]),
+                                    table.source or 'bollard table')
     return _identify(ship, trials, cfg.method, table, cfg.thrust_degree, cfg.targets,
                      cfg.smooth_s, cfg.ridge, cfg.segment_s, cfg.integrator, cfg.substeps,
                      cfg.max_iter, cfg.grow)

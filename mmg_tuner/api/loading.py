@@ -11,7 +11,7 @@ from mmg_tuner.api._common import _check, _finite
 from mmg_tuner.core.limits import input_limits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data import load as _load
-from mmg_tuner.data.consistency import refuse_warnings, WarningLog
+from mmg_tuner.data.consistency import refuse_warnings, warn_rpm_units, WarningLog
 from mmg_tuner.data.topics import load_topic_map
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError
@@ -66,7 +66,9 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     manually steered approach) or ``propeller_first_astern``; a trial without the event is
     kept whole with a note.
     strict: any ``WARNING:`` line logged while reading (channels that disagree, a column in a
-    likely wrong unit, a file skipped) is a TrialDataError instead (``--strict``).
+    likely wrong unit, a file skipped) is a TrialDataError instead (``--strict``). With a ship,
+    an rpm channel that looks like rev/s (its resistance balances the propeller at ~60 times
+    the logged rpm: ``data.consistency.rpm_unit_warning``) is one such line per trial.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -96,6 +98,12 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     with WarningLog() as log:
         trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
                                               limits=limits)
+        if ship is not None and any(t.inputs for t in trials):   # a twin-thruster craft's
+            from mmg_tuner.data.tug_units import channel_unit_warnings, warn_all
+            for t in trials:
+                warn_all(channel_unit_warnings(t, ship), logger)
+        if ship is not None:   # rpm logged as rev/s, from the ship's own force balance
+            warn_rpm_units(trials, ship)
     if strict:
         refuse_warnings(log.lines)
     if cut is not None:

@@ -20,6 +20,8 @@ from mmg_tuner.learn.train import members, split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.evaluate import compare_index
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
+from mmg_tuner.tuning.gate import check_before_writing, mark_note
+from mmg_tuner.tuning.gate import markdown as gate_markdown
 from mmg_tuner.tuning.interval import calibrate_interval, with_interval
 from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, paper_weights
@@ -131,6 +133,10 @@ class TuneConfig:
         _check('max_evals', self.max_evals, self.max_evals >= 1 or (
             _is_int(self.polish) and self.polish >= 1), '>= 1 unless polish is set (else '
             'nothing would tune)', E)
+        _check('max_evals', self.max_evals, self.max_evals >= 1 or not self.shoot_every_s,
+               f'>= 1 with shoot_every_s = {self.shoot_every_s:g} (the polish alone does not '
+               'model its restarts: max_evals=0 and shoot_every_s cancel each other, nothing '
+               'would tune)', E)
 
     def objective_spec(self) -> ObjectiveSpec:
         """Return what CMA-ES minimises, for the one objective factory (tuning/factory.py)."""
@@ -252,18 +258,25 @@ class TuneResult:
                 **self.choice.to_dict(), 'notes': list(self.choice_notes)},
         }
 
-    def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
+    def write(self, out: str | Path | OutputDir, plots: bool = True,
+              write_unphysical: bool = False) -> list[Path]:
         """
         Write the result's files into ``out``, the completion marker last.
 
         params.yaml, report.md, plot_<trial>.png, and report.json last (its presence means the set
         is complete). ``out``: a new or empty folder, or an open :class:`OutputDir`. With a trained
         residual, its weights (params.residual.npz) come first and params.yaml names them.
+        A model that cannot be a ship or diverges on its trials is refused (TuningError) unless
+        ``write_unphysical`` (``tuning/gate.py``; marked in the report).
         """
         names = ', '.join(unique_names(self.trials)) or 'the tuning trials'
+        marks = check_before_writing(self.ship, self.params, self.trials + self.test,
+                                     'tuned parameters', write_unphysical,
+                                     self.config.integrator, self.config.substeps)
         rep = self.report()
-        params_text = params_yaml_text(self.ship, self.params, f'tuned by mmg_tuner on {names}')
-        md = markdown_report(rep)
+        params_text = params_yaml_text(self.ship, self.params,
+                                       mark_note(f'tuned by mmg_tuner on {names}', marks))
+        md = markdown_report(rep) + gate_markdown(marks)
         if self.choice is not None:   # --model auto: what was compared, and why this one
             md += ('\n## Model chosen (--model auto)\n\nIndex (Wakita et al. 2022 eq. 26, '
                    'restarts every 100 s) on the last quarter of each tuning trial, mean per '

@@ -78,6 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the candidates' warm-started re-tunes: local least squares or CMA-ES")
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress messages')
+    ap.add_argument('--write-unphysical', action='store_true',
+                    help='write params.yaml even when the model cannot be a ship (a mass '
+                    'matrix not positive definite, a negative resistance) or diverges on '
+                    'its trials; each failure is marked in the report (default: refused '
+                    'with an ERROR naming it)')
     return ap
 
 
@@ -99,20 +104,23 @@ def verdict_lines(dx) -> list[str]:
     """
     Return the lines the command prints about the causes, in order.
 
-    CAUSE (or why none), UNDECIDED (one of a set) with the trial that would tell them apart,
-    MIMICS THE STRUCTURAL GAP, SUSPECTED (not named) with what would settle it, IMPOSSIBLE
-    HERE, the learnable structure and STRUCTURE; ``dx``: a
+    CAUSE with its share of the held-out error (or why none), UNDECIDED (one of a set) with
+    the trial that would tell them apart, NOT A CAUSE (fits, but its evidence is against it),
+    SUSPECTED (not named) with what would settle it, IMPOSSIBLE HERE, the learnable structure
+    and REMAINS (what the causes leave: noise, structural or unexplained); ``dx``: a
     :class:`mmg_tuner.api.DiagnosisResult`.
     """
     out: list[str] = []
     for c in dx.causes:
         out.append(f'CAUSE: {c.summary}'
                    + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
-                   + f' -- held-out gain {100 * c.heldout_gain:.1f} %')
+                   + (f' -- {100 * c.share:.0f} % of the held-out error (held-out gain '
+                      f'{100 * c.heldout_gain:.1f} %)' if getattr(c, 'share', None) is not None
+                      else f' -- held-out gain {100 * c.heldout_gain:.1f} %'))
     if not dx.causes:
-        out.append('CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)'
-                   if dx.mimicking else
-                   'CAUSE: none named alone -- see UNDECIDED' if dx.undecided
+        out.append('CAUSE: none named alone -- see UNDECIDED' if dx.undecided
+                   else 'CAUSE: none named -- what the fitted effects explain is not one '
+                   'value over the trials (see NOT A CAUSE)' if dx.mimicking
                    else 'CAUSE: none found -- no effect in the library explains the errors '
                    'significantly')
     pairs = {a['about']: a for a in dx.advice if a.get('kind') == 'indistinguishable'}
@@ -126,9 +134,10 @@ def verdict_lines(dx) -> list[str]:
                    'them apart'
                    + ('' if best is None else f"; to tell them apart: {best['instruction']}"
                       if best['settles'] else '; no trial of the repertoire tells them apart'))
+    why = {e['effect']: e['why'] for e in getattr(dx, 'decision', None) or []}
     for c in dx.mimicking:
-        out.append(f'MIMICS THE STRUCTURAL GAP (not a cause): {c.summary} -- held-out gain '
-                   f'{100 * c.heldout_gain:.1f} %')
+        out.append(f'NOT A CAUSE: {c.summary} fits (held-out gain {100 * c.heldout_gain:.1f} %), '
+                   f"but {why.get(c.effect, 'it mimics what the model lacks')}")
     settle = {a['about']: a for a in dx.advice if a.get('kind') == 'suspected'}
     for x in dx.suspected:   # hinted at by the trials, not named: what would settle it
         a = settle.get(x['effect'])
@@ -143,7 +152,9 @@ def verdict_lines(dx) -> list[str]:
     if (st.get('learnable') or {}).get('line'):
         out.append(st['learnable']['line'])
     if st.get('verdict') in ('structure', 'unexplained'):
-        out.append(f"STRUCTURE: {st['summary']}")
+        out.append(f"REMAINS: {st['summary']}")
+    elif dx.causes and st.get('summary'):
+        out.append(f"REMAINS: {st['summary']}")
     return out
 
 
@@ -184,7 +195,8 @@ def command(argv: list[str] | None = None) -> int:
             print(f'interrupted: every completed tuning is kept in {out.path / CHECKPOINT}; '
                   f'continue with: diagnose --resume {out.path}', file=sys.stderr)
             return 130
-        dx.write(out, plots=not args.no_plots)
+        dx.write(out, plots=not args.no_plots,
+                 write_unphysical=getattr(args, 'write_unphysical', False))
     print()
     for line in verdict_lines(dx):
         print(line)

@@ -24,11 +24,12 @@ import signal
 import sys
 
 from mmg_tuner import api
+from mmg_tuner._limits import load_json
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, nonneg_int,
                                 positive_float, positive_int, STRICT_HELP)
 from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
-from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.errors import ConfigError, MmgTunerError
 from mmg_tuner.tuning.lo_go import METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
@@ -159,6 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="GO: add the trials one by one (the paper's Algorithm 1)")
     ap.add_argument('--no-plots', action='store_true')
     ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
+    ap.add_argument('--write-unphysical', action='store_true',
+                    help='write params.yaml even when the model cannot be a ship (a mass '
+                    'matrix not positive definite, a negative resistance) or diverges on '
+                    'its trials; each failure is marked in the report (default: refused '
+                    'with an ERROR naming it)')
     return ap
 
 
@@ -265,10 +271,10 @@ def resumed_args(parser: argparse.ArgumentParser, argv: list[str] | None, comman
                              'format; it is never loaded, because unpickling a file runs '
                              'whatever code it holds (and a folder may come from someone '
                              f'else): re-run without --resume, with --out in a new folder')
-    try:
-        doc = json.loads(saved.read_text())
-    except (OSError, ValueError) as exc:
-        raise UsageError(f'--resume {out}: {saved} is unreadable ({exc})') from None
+    try:   # a handed-over folder: size and depth checked before parsing
+        doc = load_json(saved, ARGS_FILE, limit=1 << 20)
+    except ConfigError as exc:
+        raise UsageError(f'--resume {out}: {exc}') from None
     if isinstance(doc, list):  # version 1: the raw argv (paths relative to where it ran)
         stored = vars(parser.parse_args(doc))
     elif isinstance(doc, dict) and doc.get('command') == command and 'options' in doc:
@@ -426,27 +432,39 @@ def identify_command(args: argparse.Namespace, method: str) -> int:
         ship = api.load_ship(args.ship, args.params)
         load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
                 'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None)}
+                'cut_from_event': getattr(args, 'cut_from_event', None),
+                'strict': getattr(args, 'strict', False)}
         trials = api.load_trials(args.trials, **load)
         test = api.load_trials(args.test, **load) if args.test else []
         store_args(out, 'tune', args)
-        result = api.identify(ship, trials, config)
-        result.write(out)
+        from mmg_tuner.data.consistency import refuse_warnings, WarningLog
+        with WarningLog() as log:   # the bollard table's units: errors under --strict
+            result = api.identify(ship, trials, config)
+        if getattr(args, 'strict', False):
+            refuse_warnings([ln for ln in log.lines if 'bollard' in ln])
+        result.write(out, getattr(args, 'write_unphysical', False), trials + test)
         rep = result.report()
         if result.thrust is not None:
             t = result.thrust
             print(f'thrust: degree {t.degree} polynomial, RMSE {t.rmse_N:.3g} N over '
-                  f'{t.points} bollard points')
+                  f'{t.points} bollard points'
+                  + (f'; astern {t.astern_ratio:.3g} x ahead from {t.astern_points} astern '
+                     'rows' if t.astern_ratio is not None else ''))
         if result.azimuth is not None:
             a = result.azimuth
             print(f'azimuth: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s (R^2 {a.r2:.5f})')
         if 'lo' in rep:
-            print(f"LO: {rep['lo']['samples']} intervals, one least-squares problem, "
-                  f"{rep['lo']['wall_s']:.2f} s")
+            lo = rep['lo']
+            print(f"LO: {lo['samples']} "
+                  + (f"windows of {lo['window_s']:g} s" if lo['window_s'] > 0 else 'intervals')
+                  + ', one least-squares problem'
+                  + (f" (constrained: {', '.join(lo['constraints_active'])})"
+                     if lo['constraints_active'] else '') + f", {lo['wall_s']:.2f} s")
         if 'go' in rep:
             g = rep['go']
             print(f"GO: cost {g['cost_start']:.4g} -> {g['cost']:.4g} in {g['evaluations']} "
-                  f"simulations, {g['wall_s']:.1f} s ({g['message']})")
+                  f"simulations, {g['wall_s']:.1f} s ({g['message']})"
+                  + (f"; start {g['start_line']}" if g.get('start_line') else ''))
         if test:
             ev = api.evaluate(result.identified_ship, test, horizons=(1, 10, 50))
             rel = ev.relative.pooled
@@ -463,8 +481,10 @@ def command(argv: list[str] | None = None) -> int:
     if getattr(args, 'method', None) not in (None, 'cmaes') or getattr(args, 'bollard_pull',
                                                                        None):
         return identify_command(args, identify_method(args, None))
+    given = explicit_options(parser, argv)
     recipe = [] if resume else apply_recipe(   # a resumed run keeps its stored options
-        args, explicit_options(parser, argv), api.load_ship(args.ship, args.params))
+        args, given, api.load_ship(args.ship, args.params))
+    refuse_cancelling(args, given)         # before any work: nothing would run
     config = tune_config(args)             # every option checked before any work
     if not resume:
         try:
@@ -499,7 +519,8 @@ def command(argv: list[str] | None = None) -> int:
         finally:
             if bar is not None:
                 bar.close()
-        result.write(out, plots=not args.no_plots)
+        result.write(out, plots=not args.no_plots,
+                     write_unphysical=getattr(args, 'write_unphysical', False))
         J, J0 = result.J, result.J_pre
         print(f'J tuning: {fmt_J(J0.tune)} -> {fmt_J(J.tune)}'
               + (f'; J test: {fmt_J(J0.test)} -> {fmt_J(J.test)} '
@@ -520,7 +541,38 @@ def command(argv: list[str] | None = None) -> int:
             print(f'interrupted: best so far written; continue with: tune --resume {out.path}',
                   file=sys.stderr)
             return 130
+        if result.residual is None and result.choice is None and all(
+                float(v) == float(ship[n]) for n, v in result.params.items()):
+            print(f'nothing changed: the {len(result.params)} tuned values are the ship '
+                  f"config's ({ship.source}) as they were; exit status {NOTHING_CHANGED}")
+            return NOTHING_CHANGED
     return 0
+
+
+NOTHING_CHANGED = 3
+"""Exit status of a tune that ran but left every value as it was (doc/reference/commands.md)."""
+
+
+def refuse_cancelling(args: argparse.Namespace, given: dict) -> None:
+    """
+    Refuse options that cancel each other, naming both and where each came from.
+
+    ``--max-evals 0`` (no CMA-ES: the ``--polish`` alone, e.g. a ship's ``tuning.recipe``) with
+    ``--shoot-every H``: the polish does not model the restarts and is skipped, so nothing
+    would be tuned (issue 45: ``0 evaluations`` and the published values, exit 0).
+    """
+    if not (getattr(args, 'max_evals', 1) == 0 and getattr(args, 'shoot_every', 0)):
+        return
+
+    def said(dest: str, option: str) -> str:
+        where = '' if dest in given else " (from the ship config's tuning.recipe)"
+        return f'{option} {getattr(args, dest):g}{where}'
+
+    raise UsageError(f"{said('shoot_every', '--shoot-every')} and "
+                     f"{said('max_evals', '--max-evals')} cancel each other: without CMA-ES "
+                     'only the least-squares --polish would run, and it does not model '
+                     '--shoot-every restarts, so nothing would be tuned; drop --shoot-every '
+                     'or give --max-evals N')
 
 
 def _residual_line(r) -> str:

@@ -57,6 +57,8 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate_batch
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
+from mmg_tuner.tuning.gate import check_before_writing, mark_note
+from mmg_tuner.tuning.gate import markdown as gate_markdown
 from mmg_tuner.tuning.objective import TrialBatch
 from mmg_tuner.tuning.report import json_text, params_yaml_text, unique_names
 from mmg_tuner.tuning.segments import split_trials
@@ -71,6 +73,8 @@ MIN_BOLLARD_POINTS = 4
 MAX_THRUST_DEGREE = 5
 THRUST_PARAMS = tuple(f'thrust_p{k}' for k in range(MAX_THRUST_DEGREE + 1))
 AZIMUTH_PARAMS = ('azimuth_k1', 'azimuth_k2')
+LO_WINDOW_S = 4.0
+"""LO fits velocity increments over windows this long [s] (0: accelerations per interval)."""
 _VEL = (3, 4, 5)   # u, v, r in the state
 
 
@@ -82,15 +86,17 @@ class BollardTable:
     n: np.ndarray
     thrust: np.ndarray
     source: str = ''
+    astern_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """The astern rows (n < 0) as measured: shaft speed [rev/s] and thrust [N], |n| ascending."""
+    astern_thrust: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def read_bollard_table(path: str | Path) -> BollardTable:
     """Read a CSV with a header ``n,thrust`` (rev/s, N per thruster) and check it."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TuningError(f'bollard-pull table {path}: cannot read it ({exc})') from None
+    from mmg_tuner._limits import check_lines, read_text   # size and line-length limits
+    text = read_text(path, 'bollard-pull table', limit=1 << 20, error=TuningError)
+    check_lines(text, path, 'bollard-pull table', error=TuningError)
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith('#')]
     if not lines:
         raise TuningError(f'bollard-pull table {path}: empty; expected a header n,thrust '
@@ -125,11 +131,26 @@ def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> Bollar
         k = int(np.argmax(~(np.isfinite(n) & np.isfinite(F))))
         raise TuningError(f'{source}: row {k + 1} has a non-finite value (n = {n[k]}, '
                           f'thrust = {F[k]})')
-    if np.any(n < 0):
-        k = int(np.argmax(n < 0))
-        raise TuningError(f'{source}: n = {n[k]:g} rev/s at row {k + 1}: give the ahead '
-                          'curve (n >= 0); astern thrust is the ship config value '
-                          'thrust_astern_ratio')
+    astern = n < 0
+    an, aF = -n[astern], F[astern]
+    n, F = n[~astern], F[~astern]
+    if an.size:
+        if np.all(aF >= 0) and np.any(aF > 0):   # magnitudes: the astern pull as a positive force
+            aF = -aF
+        if np.any(aF > 0):
+            k = int(np.argmax(aF > 0))
+            raise TuningError(f'{source}: astern row n = {-an[k]:g} rev/s has thrust '
+                              f'{aF[k]:g} N: astern rows give the thrust astern (negative, or '
+                              'every astern row positive as a magnitude), not a mix of signs')
+        o = np.argsort(an, kind='stable')
+        an, aF = an[o], aF[o]
+        if np.any(np.diff(an) <= 0):
+            raise TuningError(f'{source}: an astern shaft speed appears twice; one thrust per '
+                              'speed')
+    if len(n) < MIN_BOLLARD_POINTS:
+        raise TuningError(f'{source}: {len(n)} ahead rows (n >= 0); the ahead curve needs at '
+                          f'least {MIN_BOLLARD_POINTS} shaft speeds (astern rows give the '
+                          'astern ratio only)')
     order = np.argsort(n, kind='stable')
     n, F = n[order], F[order]
     if np.any(np.diff(n) <= 0):
@@ -143,7 +164,7 @@ def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> Bollar
                           'pull grows with shaft speed (check the units and the rows)')
     if not F[-1] > 0:
         raise TuningError(f'{source}: no positive thrust at any shaft speed')
-    return BollardTable(n, F, source)
+    return BollardTable(n, F, source, an, aF)
 
 
 @dataclass(frozen=True)
@@ -155,10 +176,16 @@ class ThrustFit:
     rmse_N: float
     r2: float
     points: int
+    astern_ratio: float | None = None
+    """|thrust astern| / thrust ahead at the same |n|, from the astern rows (None: none)."""
+    astern_points: int = 0
 
     @property
     def params(self) -> dict[str, float]:
-        return dict(zip(THRUST_PARAMS, self.coefficients))
+        out = dict(zip(THRUST_PARAMS, self.coefficients))
+        if self.astern_ratio is not None:
+            out['thrust_astern_ratio'] = self.astern_ratio
+        return out
 
 
 def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
@@ -199,8 +226,19 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
     _, d, c, e = best
     coef = tuple(float(x) for x in c) + (0.0,) * (MAX_THRUST_DEGREE - d)
     ss = float(np.sum((F - F.mean()) ** 2))
+    ratio = None
+    an, aF = table.astern_n, table.astern_thrust
+    if an.size:   # astern: the ahead curve times one ratio, least squares over the astern rows
+        ahead = np.vander(an, len(coef), increasing=True) @ np.array(coef)
+        if float(ahead @ ahead) > 0:
+            ratio = float(-aF @ ahead / (ahead @ ahead))
+        if ratio is None or not 0.05 <= ratio <= 2.0:
+            raise TuningError(f'{table.source}: the astern rows give {abs(aF).max():g} N at '
+                              f'most, an astern/ahead ratio of {ratio if ratio else math.nan:.3g}'
+                              ': outside 0.05 ... 2 (check the astern rows, their sign and units)')
     return ThrustFit(coef, d, float(np.sqrt(np.mean(e ** 2))),
-                     1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0, len(n))
+                     1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0, len(n), ratio,
+                     int(an.size))
 
 
 # ------------------------------------------------------------------------------ azimuth
@@ -213,10 +251,15 @@ class AzimuthFit:
     r2: float
     rmse_rad: float
     samples: int
+    rate_max: float | None = None
+    """The drive's rate limit [rad/s] when the data determine it (None: the ship's kept)."""
 
     @property
     def params(self) -> dict[str, float]:
-        return {'azimuth_k1': self.k1, 'azimuth_k2': self.k2}
+        out = {'azimuth_k1': self.k1, 'azimuth_k2': self.k2}
+        if self.rate_max is not None:
+            out['azimuth_rate_max'] = self.rate_max
+        return out
 
 
 def _has_commands(trial: Trial, cmd_channels: Sequence[str]) -> bool:
@@ -261,10 +304,13 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
         data.append((ctrl, np.column_stack([tr.inputs[c] for c in meas_ch])[1:], tr.dt))
         # row 0 is where the replay starts: compared from row 1 on
     i1, i2 = PARAM_INDEX['azimuth_k1'], PARAM_INDEX['azimuth_k2']
+    i3 = PARAM_INDEX['azimuth_rate_max']
 
     def angles(z):
         p = base.copy()
         p[i1], p[i2] = math.exp(z[0]), math.exp(z[1])
+        if len(z) > 2:
+            p[i3] = math.exp(z[2])
         out = []
         for ctrl, _, dt in data:
             T = len(ctrl)
@@ -280,11 +326,18 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial]) -> AzimuthFit | None:
     z0 = np.log([k1 if k1 > 0 else 4.0, k2 if k2 > 0 else 3.0])
     sol = least_squares(resid, z0, method='trf', x_scale=1.0, diff_step=1e-4)
     e = resid(sol.x)
+    rate = None
+    if base[i3] > 0:   # a rate-limited drive: its limit too, kept where it explains the angles
+        sol3 = least_squares(resid, np.append(sol.x, math.log(base[i3])), method='trf',
+                             x_scale=1.0, diff_step=1e-4)
+        e3 = resid(sol3.x)
+        if float(e3 @ e3) < 0.8 * float(e @ e):
+            sol, e, rate = sol3, e3, float(math.exp(sol3.x[2]))
     m = np.concatenate([d[1].ravel() for d in data])
     ss = float(np.sum((m - m.mean()) ** 2))
     return AzimuthFit(float(math.exp(sol.x[0])), float(math.exp(sol.x[1])),
                       1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0,
-                      float(np.sqrt(np.mean(e ** 2))), int(e.size))
+                      float(np.sqrt(np.mean(e ** 2))), int(e.size), rate)
 
 
 # ----------------------------------------------------------------------------------- LO
@@ -455,28 +508,235 @@ class LoResult:
     condition: float
     samples: int
     wall_s: float
+    window_s: float = 0.0
+    constraints: tuple[str, ...] = ()
+    """The physical constraints active at the solution (empty: the least-squares optimum)."""
+
+
+def _window_sums(A: np.ndarray, c: np.ndarray, dt: float, K: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Sum the interval rows A (n, 3, d), c (n, 3) over windows of K intervals, times dt.
+
+    The sum of M dnu dt over K intervals is M (nu_end - nu_start); that of the trapezoid
+    forces, their integral: the windowed rows are M delta-nu = integral (tau - C nu - D nu) dt,
+    linear in the coefficients as the interval rows are, with the velocity noise entering
+    through two samples per window instead of being divided by dt. Windows start every K / 2
+    intervals; K <= 1: the interval rows as they are (the derivative form).
+    """
+    n = len(A)
+    K = min(K, n)
+    if K <= 1:
+        return A, c
+    cA = np.concatenate([np.zeros((1,) + A.shape[1:]), np.cumsum(A, axis=0)])
+    cc = np.concatenate([np.zeros((1,) + c.shape[1:]), np.cumsum(c, axis=0)])
+    starts = np.arange(0, n - K + 1, max(1, K // 2))
+    return (cA[starts + K] - cA[starts]) * dt, (cc[starts + K] - cc[starts]) * dt
+
+
+@dataclass(frozen=True)
+class Physics:
+    """
+    The family's physics, linear in the coefficients: M(theta) and the hull's power.
+
+    mass(theta) = mass0 + sum_j theta_j mass_cols[j] (None: the coefficients do not move M, or
+    M is not linear in them); power rows P theta + p0 >= 0: nu^T D(nu) nu (the power the hull's
+    damping takes out; the Coriolis terms do none) at sampled velocities, for the whole nu,
+    for surge alone and for sway-yaw alone (None: an actuator coefficient is among the
+    names, so the hull's power cannot be told from the actuator's).
+    """
+
+    names: tuple[str, ...]
+    mass0: np.ndarray | None
+    mass_cols: np.ndarray | None
+    power: np.ndarray | None
+    power0: np.ndarray | None
+    diag_floor: np.ndarray | None
+
+    def mass(self, theta: np.ndarray) -> np.ndarray | None:
+        if self.mass0 is None:
+            return None
+        return self.mass0 + np.tensordot(theta, self.mass_cols, axes=1)
+
+    def mass_minors(self, theta: np.ndarray) -> np.ndarray:
+        """
+        (diagonal of sym M - floor, 1 - c12^2, det C): each >= 0 for a positive definite M.
+
+        C = D^-1/2 sym(M) D^-1/2 (D its diagonal): the minors of the normalised matrix, so
+        the margin is the same whatever the units.
+        """
+        S = self.mass(theta)
+        S = 0.5 * (S + S.T)
+        d = np.diag(S)
+        if np.any(d <= 0):
+            return np.concatenate([d - self.diag_floor, [-1.0, -1.0]])
+        q = 1.0 / np.sqrt(d)
+        C = S * q[:, None] * q[None, :]
+        return np.concatenate([d - self.diag_floor, [1.0 - C[0, 1] ** 2, np.linalg.det(C)]])
+
+    def mass_ok(self, theta: np.ndarray, margin: float = 0.0) -> bool:
+        """Whether M(theta) is positive definite (its normalised minors above ``margin``)."""
+        if self.mass0 is None:
+            return True
+        m = self.mass_minors(theta)
+        return bool(np.all(m[:3] > 0) and np.all(m[3:] > margin))
+
+    def dissipative(self, theta: np.ndarray, tol: float = 0.0) -> bool:
+        """Whether the hull takes power out at every sampled velocity (within tol x scale)."""
+        if self.power is None:
+            return True
+        pw = self.power @ theta + self.power0
+        return bool(np.all(pw >= -tol * self.power_scale))
+
+    @property
+    def power_scale(self) -> float:
+        return float(np.max(np.abs(self.power0))) if self.power0 is not None and len(
+            self.power0) else 1.0
+
+
+MASS_MARGIN = 0.1
+"""LO keeps the normalised mass matrix's minors (1 - c12^2, det) at least this far from 0."""
+
+
+def physics(ship: ShipConfig, names: Sequence[str], velocities: np.ndarray) -> Physics:
+    """Return :class:`Physics` of ``ship`` for ``names``, its power sampled at ``velocities``."""
+    names = tuple(names)
+    p0 = ship.params.copy()
+    idx = [PARAM_INDEX[n] for n in names]
+    steps = np.array([max(abs(p0[j]), 1.0) for j in idx])
+    mass0 = mass_cols = floor = None
+    try:
+        M0 = mass_matrix(ship, p0)
+        cols = []
+        for j, h in zip(idx, steps):
+            p = p0.copy()
+            p[j] += h
+            cols.append((mass_matrix(ship, p) - M0) / h)
+        Mc = np.array(cols)
+        p = p0.copy()
+        p[idx] += 0.5 * steps
+        linear = np.allclose(mass_matrix(ship, p), M0 + np.tensordot(0.5 * steps, Mc, axes=1),
+                             rtol=1e-8, atol=1e-8 * float(np.max(np.abs(M0))))
+        if linear and np.any(np.abs(Mc) > 0) and np.all(np.isfinite(M0)):
+            mass_cols = Mc
+            mass0 = M0 - np.tensordot(p0[idx], Mc, axes=1)
+            d0 = np.abs(np.diag(M0))
+            floor = 1e-3 * np.where(d0 > 0, d0, max(float(np.max(d0)), 1.0))
+    except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):
+        pass
+    power = power0 = None
+    own = set(_actuator_params(ship))
+    if not own & set(names) and len(velocities):
+        nu = np.asarray(velocities, dtype=float)
+        sets = [nu, nu * np.array([1.0, 0.0, 0.0]), nu * np.array([0.0, 1.0, 1.0])]
+        nu = np.ascontiguousarray(np.concatenate(sets))
+        act = np.zeros((len(nu), len(ship.family.outputs)))
+
+        def pw(p):
+            acc = np.empty((len(nu), 3))
+            accelerations_many(ship.kind, p, nu, act, acc)
+            f = -(acc @ mass_matrix(ship, p).T)    # C nu + D nu (tau = 0)
+            return np.sum(f * nu, axis=1)
+        try:
+            base = pw(p0)
+            cols = []
+            for j, h in zip(idx, steps):
+                p = p0.copy()
+                p[j] += h
+                cols.append((pw(p) - base) / h)
+            P = np.column_stack(cols)
+            if np.all(np.isfinite(P)) and np.all(np.isfinite(base)):
+                power, power0 = P, base - P @ p0[idx]
+        except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):
+            pass
+    return Physics(names, mass0, mass_cols, power, power0, floor)
+
+
+def _sample_velocities(trials: Sequence[Trial], smooth_s: float, most: int = 300
+                       ) -> np.ndarray:
+    """Return up to ``most`` measured (smoothed) velocities of the trials, spread over them."""
+    nu = np.concatenate([_smooth(t.states[:, _VEL], t.dt, max(smooth_s, 1.0)) for t in trials])
+    nu = nu[np.all(np.isfinite(nu), axis=1)]
+    if len(nu) > most:
+        nu = nu[np.linspace(0, len(nu) - 1, most).astype(int)]
+    return nu
+
+
+def _constrained(B: np.ndarray, y: np.ndarray, cn: np.ndarray, phys: Physics,
+                 x0: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
+    """
+    Minimise ||B x - y||^2 (theta = x / cn), M positive definite, the hull dissipative.
+
+    SciPy's SLSQP on the normal equations (d unknowns): the power rows are linear
+    inequalities, the mass matrix's normalised minors smooth ones (margin
+    :data:`MASS_MARGIN`). Returns (x, the constraints active at the solution).
+    """
+    from scipy.optimize import minimize
+
+    H = B.T @ B
+    g = B.T @ y
+    scale = max(float(np.max(np.abs(np.diag(H)))), 1e-300)
+    cons = []
+    if phys.power is not None:
+        G = phys.power / cn[None, :]
+        gs = np.maximum(np.linalg.norm(G, axis=1), 1e-300)
+        cons.append({'type': 'ineq', 'fun': lambda x: (G @ x + phys.power0) / gs,
+                     'jac': lambda x: G / gs[:, None]})
+    if phys.mass0 is not None:
+        def minors(x):
+            m = phys.mass_minors(x / cn)
+            m[3:] -= MASS_MARGIN
+            m[:3] /= np.maximum(np.abs(np.diag(phys.mass0)) + phys.diag_floor * 1e3, 1e-300)
+            return m
+        cons.append({'type': 'ineq', 'fun': minors})
+    sol = minimize(lambda x: (x @ H @ x - 2 * g @ x) / scale, x0,
+                   jac=lambda x: 2 * (H @ x - g) / scale, method='SLSQP', constraints=cons,
+                   options={'maxiter': 300, 'ftol': 1e-12})
+    x = sol.x
+    active = []
+    if phys.power is not None and np.min(phys.power @ (x / cn) + phys.power0) \
+            < 1e-6 * phys.power_scale:
+        active.append('dissipative damping')
+    if phys.mass0 is not None and np.min(phys.mass_minors(x / cn)[3:]) < MASS_MARGIN + 1e-6:
+        active.append('positive definite mass matrix')
+    return x, tuple(active)
 
 
 def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | None = None,
-           smooth_s: float = 2.0) -> LoResult:
+           smooth_s: float = 2.0, window_s: float | None = None,
+           constrain: bool = True) -> LoResult:
     """
-    Solve the local step: one linear least-squares problem over all samples of all trials.
+    Solve the local step: one (constrained) linear least-squares problem over all trials.
 
     A theta = -c (:func:`regressor`): with the hull's coefficients alone, c is minus the
     thrust and this is M nu_dot + C nu + D nu = tau; with the actuator's coefficients among
     them (``screw_rudder_tau``), their columns come from tau and c holds what stays fixed (a
-    mass matrix kept at its published values). Rows: the three equations of every sample
-    interval, each DOF scaled by the RMS of its right-hand side (N and N m made comparable);
-    columns scaled to unit norm (conditioning).
+    mass matrix kept at its published values).
+
+    Errors in variables: measured velocities carry noise, and a derivative of them divides it
+    by the sample interval. So the rows are integrated, not differentiated: over windows of
+    ``window_s`` seconds (None: :data:`LO_WINDOW_S`; 0: every interval on its own, the
+    derivative form) M (nu(t + w) - nu(t)) = integral of (tau - C nu - D nu) dt, the forces
+    by trapezoid over the samples (:func:`_window_sums`). Rows: the three equations of every
+    window, each DOF scaled by the RMS of its right-hand side (N and N m made comparable);
+    columns scaled to unit norm (conditioning). ``constrain``: when the least-squares optimum
+    is not physical (a mass matrix that is not positive definite, a hull that puts power in
+    at a sampled velocity), the same problem under those constraints (:func:`_constrained`,
+    SciPy SLSQP). ``residual_rms``: the equation error per sample interval [N, N, N m].
     """
     t0 = time.perf_counter()
     _check_family(ship)
     names = tuple(names or coefficient_names(ship))
-    As, bs = [], []
+    window_s = LO_WINDOW_S if window_s is None else float(window_s)
+    As, bs, Ai, bi = [], [], [], []
     for tr in trials:
         if len(tr) < 3:
             raise TuningError(f'trial {tr.name}: fewer than 3 samples, no acceleration to fit')
         A, c = regressor(ship, names, interval_data(ship, tr, smooth_s))
+        Ai.append(A)
+        bi.append(-c)
+        K = int(round(window_s / tr.dt)) if window_s > 0 else 1
+        A, c = _window_sums(A, c, tr.dt, K)
         As.append(A)
         bs.append(-c)
     A = np.concatenate(As)
@@ -495,11 +755,20 @@ def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | Non
     cn[~(cn > 0)] = 1.0
     sol, *_ = np.linalg.lstsq(Aw / cn, bw, rcond=None)
     theta = sol / cn
+    active: tuple[str, ...] = ()
+    if constrain:
+        phys = physics(ship, names, _sample_velocities(trials, smooth_s))
+        if not (phys.mass_ok(theta, MASS_MARGIN) and phys.dissipative(theta)):
+            start = np.array([ship[n] for n in names])
+            ok = phys.mass_ok(start, MASS_MARGIN) and phys.dissipative(start)
+            x, active = _constrained(Aw / cn, bw, cn, phys, start * cn if ok else sol)
+            theta = x / cn
     s = np.linalg.svd(Aw / cn, compute_uv=False)
-    res = (A @ theta) - b
+    A1, b1 = np.concatenate(Ai), np.concatenate(bi)
+    res = (A1 @ theta) - b1
     return LoResult(names, theta, tuple(float(x) for x in np.sqrt(np.mean(res ** 2, axis=0))),
                     float(s[0] / s[-1]) if s[-1] > 0 else math.inf, len(b),
-                    time.perf_counter() - t0)
+                    time.perf_counter() - t0, window_s, active)
 
 
 # ----------------------------------------------------------------------------------- GO
@@ -516,6 +785,29 @@ class GoResult:
     wall_s: float
     success: bool
     message: str
+    data_cost: float = math.nan
+    """The simulation error alone (no pull toward the prior): what candidates are compared on."""
+    start: str = ''
+    """Where the winning GO started: 'LO' or "the ship's values"."""
+    candidates: dict = field(default_factory=dict)
+    """Each start's data_cost (lo-go: GO from LO and GO from the ship's values)."""
+
+
+def go_start_line(g: GoResult) -> str:
+    """Say which GO start won and by how much (the simulation error alone, lower wins)."""
+    if not g.candidates:
+        return ''
+    others = {k: v for k, v in g.candidates.items() if k != g.start}
+    text = f'from {g.start} won, simulation error {g.data_cost:.4g}'
+    for k, v in others.items():
+        w = g.data_cost
+        pc = 100.0 * (v - w) / w if math.isfinite(v) and math.isfinite(w) and w > 0 \
+            else math.nan
+        note = ('' if not math.isfinite(pc) else
+                f' ({pc:.1f} % higher than the winner)' if pc >= 0 else
+                ' (not physical: set aside)')
+        text += f'; from {k}: {v:.4g}{note}'
+    return text
 
 
 class _Simulator:
@@ -551,6 +843,17 @@ class _Simulator:
         r[~np.isfinite(r)] = 10.0
         np.clip(r, -10.0, 10.0, out=r)
         return r.reshape(len(thetas), -1) / math.sqrt(self.n)
+
+    def diverges(self, theta: np.ndarray) -> bool:
+        """Whether the model leaves the measured velocities' range tenfold or turns non-finite."""
+        P = self.ship.params[None, :].copy()
+        P[:, self.idx] = theta
+        out, _, _ = simulate_batch(self.ship.kind, P, self.meas[:, 0], self.ctrls, self.dt,
+                                   self.lengths, self.integrator, self.substeps)
+        sim = out[0][..., _VEL][self.mask]
+        top = np.max(np.abs(self.meas[..., _VEL][self.mask]), axis=0)
+        return bool(not np.all(np.isfinite(sim))
+                    or np.any(np.max(np.abs(sim), axis=0) > 10 * np.maximum(top, 1e-3)))
 
 
 def pooled_velocity_sigma(trials: Sequence[Trial]) -> np.ndarray:
@@ -605,7 +908,8 @@ def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 
 def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
            names: Sequence[str] | None = None, prior: np.ndarray | None = None,
            ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
-           substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> GoResult:
+           substeps: int = 1, max_nfev: int = 40, grow: bool = False,
+           phys: Physics | None = None) -> GoResult:
     """
     Minimise the simulation error of u, v, r from theta0, pulled toward ``prior`` (LO).
 
@@ -616,7 +920,8 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
     simulation of the d + 1 candidates. ``grow``: the trials are added one by one
     (Algorithm 1), each stage from the last one's solution or from LO, whichever fits that
     stage's trials better (the paper's "from LO if GO fails"), earlier stages a quarter of the
-    iterations.
+    iterations. ``phys`` (:func:`physics`): a step to a mass matrix that is not positive
+    definite is refused (its cost taken as the largest), so GO stays where M is physical.
     """
     t0 = time.perf_counter()
     _check_family(ship)
@@ -642,6 +947,8 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
             cand = np.vstack([th[None], th[None] + np.diag(h * scale)]) if jacobian \
                 else th[None]
             R = sim.residuals(cand)
+            if not jacobian and phys is not None and not phys.mass_ok(th):
+                R[0] = 10.0 / math.sqrt(sim.n)   # no ship: the worst cost there is
             r = np.concatenate([R[0], rw * z])
             if not jacobian:
                 return r, None
@@ -661,8 +968,9 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
             rj, z0, max_nfev if last else max(3, max_nfev // 4))
         evals += nfev + njev * (len(names) + 1)
         theta = prior + z * scale
+    r_end = sim.residuals(theta[None])[0]
     return GoResult(names, theta, cost_start, cost, evals, len(stages),
-                    time.perf_counter() - t0, True, why)
+                    time.perf_counter() - t0, True, why, float(r_end @ r_end))
 
 
 # ------------------------------------------------------------------------------ identify
@@ -701,12 +1009,14 @@ class IdentifyResult:
         if self.lo is not None:
             d['lo'] = {'residual_rms': list(self.lo.residual_rms),
                        'condition': self.lo.condition, 'samples': self.lo.samples,
-                       'wall_s': self.lo.wall_s}
+                       'wall_s': self.lo.wall_s, 'window_s': self.lo.window_s,
+                       'constraints_active': list(self.lo.constraints)}
         if self.go is not None:
             g = self.go
             d['go'] = {'cost_start': g.cost_start, 'cost': g.cost, 'evaluations': g.evaluations,
                        'stages': g.stages, 'wall_s': g.wall_s, 'success': g.success,
-                       'message': g.message}
+                       'message': g.message, 'data_cost': g.data_cost, 'start': g.start,
+                       'candidates': dict(g.candidates), 'start_line': go_start_line(g)}
         return d
 
     def markdown(self) -> str:
@@ -722,29 +1032,44 @@ class IdentifyResult:
             lines.append(f'- azimuth dynamics: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s, '
                          f'R^2 {a.r2:.5f} over {a.samples} angles')
         if self.lo is not None:
-            lines.append(f'- LO: one least-squares problem over {self.lo.samples} intervals, '
-                         f'condition {self.lo.condition:.3g}, equation error RMS '
-                         + ', '.join(f'{x:.3g}' for x in self.lo.residual_rms)
-                         + ' [N, N, N m]')
+            lo = self.lo
+            lines.append(f'- LO: one least-squares problem over {lo.samples} '
+                         + (f'windows of {lo.window_s:g} s (velocity increments)'
+                            if lo.window_s > 0 else 'intervals')
+                         + f', condition {lo.condition:.3g}, equation error RMS '
+                         + ', '.join(f'{x:.3g}' for x in lo.residual_rms)
+                         + ' [N, N, N m]; constraints active: '
+                         + (', '.join(lo.constraints) or 'none'))
         if self.go is not None:
             g = self.go
             lines.append(f'- GO: cost {g.cost_start:.4g} -> {g.cost:.4g} in {g.evaluations} '
                          f'simulations ({g.stages} stage(s)), {g.wall_s:.1f} s; {g.message}')
+            if g.candidates:
+                lines.append(f'- GO start: {go_start_line(g)}')
         lines += ['', '| parameter | pre-determined | identified |', '|---|---|---|']
         for n, v in r['params'].items():
             lines.append(f'| {n} | {v["pre"]:.6g} | {v["identified"]:.6g} |')
         return '\n'.join(lines) + '\n'
 
-    def write(self, out: str | Path | OutputDir) -> list[Path]:
-        """params.yaml, identify.md, then identify.json (its presence: the set is complete)."""
+    def write(self, out: str | Path | OutputDir, write_unphysical: bool = False,
+              trials: Sequence[Trial] = ()) -> list[Path]:
+        """
+        params.yaml, identify.md, then identify.json (its presence: the set is complete).
+
+        The model is checked first (``tuning/gate.py``: plausibility, and a simulation of
+        ``trials``, the identification's): a failure is a TuningError unless
+        ``write_unphysical`` (then marked in identify.md and params.yaml's note).
+        """
+        marks = check_before_writing(self.ship, self.params, trials, 'identified parameters',
+                                     write_unphysical)
         own = not isinstance(out, OutputDir)
         od = OutputDir.open(out) if own else out
         try:
-            note = (f'identified by mmg_tuner ({self.method}) on '
-                    + (', '.join(self.trials) or 'the trials'))
+            note = mark_note(f'identified by mmg_tuner ({self.method}) on '
+                             + (', '.join(self.trials) or 'the trials'), marks)
             paths = [od.write_text('params.yaml', params_yaml_text(self.ship, self.params,
                                                                    note)),
-                     od.write_text('identify.md', self.markdown()),
+                     od.write_text('identify.md', self.markdown() + gate_markdown(marks)),
                      od.write_text('identify.json', json_text(self.report()))]
         finally:
             if own:
@@ -756,12 +1081,15 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
              bollard: BollardTable | None = None, thrust_degree: int | None = None,
              names: Sequence[str] | None = None, smooth_s: float = 2.0,
              ridge: float = 1e-6, segment_s: float = 20.0, integrator: str = 'rk4',
-             substeps: int = 1, max_nfev: int = 40, grow: bool = False) -> IdentifyResult:
+             substeps: int | None = None, max_nfev: int = 40, grow: bool = False
+             ) -> IdentifyResult:
     """
     Identify the whole ship: thrust curve, azimuth dynamics, hull coefficients (LO, GO).
 
     ``method``: 'lo', 'go' (from the ship's values) or 'lo-go' (GO from LO, pulled toward
-    it). ``bollard``: the bollard-pull table (None: the ship's thrust curve is kept).
+    it; GO from the ship's values runs too and the physical one that fits the trials better
+    wins, :func:`_best_go`). ``bollard``: the bollard-pull table (None: the ship's thrust
+    curve is kept). ``substeps`` None: GO integrates in steps of at most 0.1 s.
     """
     t0 = time.perf_counter()
     if method not in METHODS:
@@ -774,6 +1102,10 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
     params: dict[str, float] = {}
     thrust = None
     if bollard is not None:
+        from mmg_tuner.data.tug_units import bollard_unit_warnings, warn_all
+        warn_all(bollard_unit_warnings(ship, np.concatenate([-bollard.astern_n, bollard.n]),
+                                       np.concatenate([bollard.astern_thrust, bollard.thrust]),
+                                       bollard.source or 'bollard-pull table'), logger)
         thrust = fit_thrust(bollard, thrust_degree)
         params.update(thrust.params)
         logger.info('thrust: degree %d, RMSE %.3g N over %d bollard points', thrust.degree,
@@ -790,14 +1122,52 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
         lo = lo_fit(work, trials, names, smooth_s)
         theta = lo.theta
         logger.info('LO: %d intervals, %.2f s', lo.samples, lo.wall_s)
+    if substeps is None:
+        substeps = max(1, math.ceil(max(t.dt for t in trials) / 0.1 - 1e-9))
     if method in ('go', 'lo-go'):
-        go = go_fit(work, trials, theta, names, prior=theta, ridge=ridge, segment_s=segment_s,
-                    integrator=integrator, substeps=substeps, max_nfev=max_nfev, grow=grow)
+        phys = physics(work, names, _sample_velocities(trials, smooth_s))
+        opts = {'ridge': ridge, 'segment_s': segment_s, 'integrator': integrator,
+                'substeps': substeps, 'max_nfev': max_nfev, 'grow': grow, 'phys': phys}
+        starts = [('LO', theta)] if method == 'lo-go' else []
+        starts.append(("the ship's values", np.array([work[n] for n in names])))
+        runs = [(label, go_fit(work, trials, th0, names, prior=th0, **opts))
+                for label, th0 in starts]
+        go = _best_go(work, trials, names, runs, phys, integrator, substeps)
         theta = go.theta
-        logger.info('GO: cost %.4g -> %.4g, %.1f s', go.cost_start, go.cost, go.wall_s)
+        logger.info('GO: cost %.4g -> %.4g, %.1f s, from %s', go.cost_start, go.cost,
+                    go.wall_s, go.start)
     params.update({n: float(v) for n, v in zip(names, theta)})
     return IdentifyResult(ship, method, params, thrust, az, lo, go, time.perf_counter() - t0,
                           unique_names(trials))
+
+
+def _best_go(ship: ShipConfig, trials: Sequence[Trial], names: tuple[str, ...],
+             runs: list[tuple[str, GoResult]], phys: Physics, integrator: str,
+             substeps: int) -> GoResult:
+    """
+    Return the GO run with the least simulation error among the physical ones.
+
+    Physical: a positive definite mass matrix and a free run of every identification trial
+    that stays finite and within ten times the measured velocities. When none is, the least
+    error (the model check before writing names what is wrong). The winner carries every
+    start's error (``candidates``) and where it started (``start``).
+    """
+    full = _Simulator(ship, trials, names, 0.0, integrator, substeps,
+                      pooled_velocity_sigma(trials)) if len(runs) else None
+    scored = []
+    for label, g in runs:
+        ok = phys.mass_ok(g.theta) and not full.diverges(g.theta)
+        scored.append((not ok, g.data_cost, label, g))
+        if not ok:
+            logger.warning('GO from %s: %s', label, 'mass matrix not positive definite'
+                           if not phys.mass_ok(g.theta) else 'diverges on its own trials')
+    scored.sort(key=lambda x: (x[0], x[1] if math.isfinite(x[1]) else math.inf))
+    best = scored[0][3]
+    best.start = scored[0][2]
+    best.candidates = {label: g.data_cost for label, g in runs}
+    best.wall_s = sum(g.wall_s for _, g in runs)
+    best.evaluations = sum(g.evaluations for _, g in runs)
+    return best
 
 
 def _actuator_params(ship: ShipConfig) -> tuple[str, ...]:
