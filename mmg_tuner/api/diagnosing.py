@@ -16,6 +16,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis import measured as _measured
 from mmg_tuner.diagnosis import structure as _structure
 from mmg_tuner.diagnosis.context import Setting
+from mmg_tuner.diagnosis.decide import decide
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
@@ -25,7 +26,10 @@ from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.diagnosis.settings import BUDGETS, DiagnosisSettings, MapFn, RETUNE_METHODS
 from mmg_tuner.errors import DiagnosisError, MissingDependencyError
 from mmg_tuner.learn import require_jax
+from mmg_tuner.tuning.gate import check_before_writing, mark_note
+from mmg_tuner.tuning.gate import markdown as gate_markdown
 from mmg_tuner.tuning.report import json_text, params_yaml_text, plot_trials, unique_names
+import numpy as np
 
 
 logger = logging.getLogger('mmg_tuner.api')   # one logger for the API, as before the split
@@ -165,8 +169,9 @@ class DiagnosisResult:
     # whether the model structure, not the named effects, is the likely cause (structure.py)
     structure: dict = field(default_factory=dict)
     structure_images: dict = field(repr=False, default_factory=dict)   # {file: PNG}
-    # effects the search kept that only mimic a structural gap (structure.one_verdict): in the
-    # fitted model (params), never named as causes
+    # effects the search kept that the verdict does not name (diagnosis/decide.py: their value
+    # follows the manoeuvre, or they add nothing beside the others): in the fitted model
+    # (params), never named as causes
     mimicking: list[Cause] = field(default_factory=list)
     # the sensor noise and the held-out J it alone leaves (diagnosis/noise.py)
     noise: dict = field(default_factory=dict)
@@ -175,6 +180,9 @@ class DiagnosisResult:
     suspected: list[dict] = field(default_factory=list)
     # fitted, in the final model, but as good as a rival: "one of them", not named
     undecided: list[Cause] = field(default_factory=list)
+    # the verdict's evidence per fitted effect (diagnosis/decide.py): contribution, share,
+    # per-trial estimates, dispersion, verdict and why
+    decision: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """diagnosis.json's content."""
@@ -193,15 +201,21 @@ class DiagnosisResult:
                 'mimicking': [c.to_dict() for c in self.mimicking], 'noise': self.noise,
                 'suspected': self.suspected,
                 'undecided': [c.to_dict() for c in self.undecided],
+                'decision': self.decision,
                 'params': self.params, 'wall_s': self.wall_s, 'timings_s': self.timings_s}
 
-    def write(self, out: str | Path | OutputDir, plots: bool = True) -> list[Path]:
+    def write(self, out: str | Path | OutputDir, plots: bool = True,
+              write_unphysical: bool = False) -> list[Path]:
         """
         Write the result's files into ``out``, the completion marker last.
 
         params.yaml first, diagnosis.md, plots, and diagnosis.json last (its presence means the set
-        is complete).
+        is complete). A model that cannot be a ship or diverges on the test trials is refused
+        (TuningError) unless ``write_unphysical`` (``tuning/gate.py``; marked in the report).
         """
+        marks = check_before_writing(self.ship, self.params, self.test_final or self.test,
+                                     'diagnosed parameters', write_unphysical,
+                                     self.config.integrator)
         doc = self.to_dict()
         names = ', '.join([c.effect for c in self.causes]
                           + [f'{c.effect} (mimicking a structural gap)'
@@ -210,8 +224,9 @@ class DiagnosisResult:
                              for c in self.undecided]) or 'none'
         docs = [('params.yaml', params_yaml_text(
                     self.ship, self.params,
-                    f'tuned and extended by mmg_tuner diagnose (effects: {names})')),
-                ('diagnosis.md', _diagnosis_markdown(doc, self.ship))]
+                    mark_note(f'tuned and extended by mmg_tuner diagnose (effects: {names})',
+                              marks))),
+                ('diagnosis.md', _diagnosis_markdown(doc, self.ship) + gate_markdown(marks))]
         images = {}
         if plots:
             integ = self.config.integrator
@@ -290,10 +305,48 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
         d.setting, d.impossible, d.impossible_fits, d.measured, timings, test_base, test_final,
         d.advice, noise=d.noise, suspected=d.suspected)
     dx.structure = _structure_of(dx, trials, d.measured_wind_used or not cfg.measured_signals)
-    dx.causes, dx.mimicking = _structure.one_verdict(dx.causes, dx.structure,
-                                                     dx.baseline.J_test, dx.noise)
+    _decide(dx, trials)
     dx.causes, dx.undecided = split_undecided(dx.causes)
     return dx
+
+
+def _decide(dx: 'DiagnosisResult', tune_trials: list[Trial]) -> None:
+    """
+    Name the causes of the final model by their own evidence (diagnosis/decide.py).
+
+    A fitted effect whose value follows the manoeuvre (inconsistent over the trials) or whose
+    contribution is within its error of none moves to ``mimicking`` (kept in the fitted model,
+    not named); the rest stay causes with their share of the base held-out error. What remains
+    is the structure section's (never a veto of a cause).
+    """
+    if not dx.causes:
+        return
+    t0 = time.perf_counter()
+    J_base = np.array([dx.baseline.J_test_per_trial[n] for n in unique_names(dx.test)])
+    wind_used = any(c.effect == 'measured_wind' for c in dx.causes)
+    no_wind = [replace(t, wind=None) if t.wind is not None else t for t in dx.test]
+    tune_final = tune_trials if wind_used else [replace(t, wind=None) if t.wind is not None
+                                                else t for t in tune_trials]
+    evidence = decide(dx.ship, dx.params, [c.effect for c in dx.causes], tune_final,
+                      dx.test_final or dx.test, J_base, dx.config.integrator,
+                      test_without_wind=no_wind)
+    dx.decision = [e.to_dict() for e in evidence]
+    verdict = {e.effect: e for e in evidence}
+    kept = []
+    for c in dx.causes:
+        e = verdict[c.effect]
+        c.share = e.share
+        if e.verdict == 'cause' or c.measured:
+            kept.append(c)
+        else:
+            dx.mimicking.append(c)
+        logger.info('   %s: %s -- %s (contribution %.1f %% +- %.1f, share %.1f %%)', c.effect,
+                    e.verdict, e.why, 100 * e.contribution, 100 * e.contribution_se,
+                    100 * e.share)
+    dx.causes = kept
+    remaining = dx.final.J_test / dx.baseline.J_test if dx.baseline.J_test > 0 else None
+    dx.structure['remaining_fraction'] = remaining
+    dx.timings_s['decide'] = round(time.perf_counter() - t0, 3)
 
 
 def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bool) -> dict:
@@ -327,10 +380,8 @@ def _residual_wanted(dx: 'DiagnosisResult', tune_final: list[Trial],
     """
     Return whether to train the residual network after the search, and why ('' if asked).
 
-    residual='auto' trains it when what remains is not noise, as the report will say it: the
-    structure verdict without the network, with the named causes moved to mimicking when it
-    wins (:func:`~mmg_tuner.diagnosis.structure.one_verdict`: what remains is then the tuned
-    base model's error), judged against what sensor noise alone reaches (diagnosis/noise.py:
+    residual='auto' trains it when what the final model leaves is not noise, as the report will
+    say it, judged against what sensor noise alone reaches (diagnosis/noise.py:
     the floor + 2 standard deviations of its draws, about 2 x the floor; "no sign of a
     structural gap" is said below it), and JAX is importable. On the verdict tests' SUZAKU
     trials: clean 1.0 x the floor and a lag left beside a named current 1.7 x (noise: not
@@ -343,7 +394,6 @@ def _residual_wanted(dx: 'DiagnosisResult', tune_final: list[Trial],
     st = _structure.assess(dx.to_dict(), dx.ship, list(tune_final) + list(test_final),
                            dx.ship.with_params(dx.params).params, cfg.integrator,
                            targets=cfg.targets, a_r=cfg.a_r)
-    _structure.one_verdict(list(dx.causes), st, dx.baseline.J_test, dx.noise)
     if st.get('remaining_is_noise') is not False:
         return False, ('not trained: ' + (st.get('noise') or 'no noise floor to judge what '
                                           'remains against'))

@@ -7,6 +7,7 @@ PNG bytes; the caller writes them).
 from __future__ import annotations
 
 from dataclasses import asdict
+import math
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -43,14 +44,18 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                          + (f" (measured: {c['measured']}; held at that value, not fitted)"
                             if c.get('measured') else '') + '. Held-out gain '
                          f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])} "
-                         f"(jackknife over test trials). {c['description'].capitalize()}."
+                         '(jackknife over test trials)'
+                         + (f"; it explains {_pct(c['share'])} of the base model's held-out "
+                            'error' if c.get('share') is not None else '')
+                         + f". {c['description'].capitalize()}."
                          + (f' These trials cannot tell it apart from '
                             f"{', '.join(c['indistinguishable_from'])} (held-out gains within "
                             'their combined uncertainty).' if c.get('indistinguishable_from')
                             else ''))
     elif doc.get('mimicking'):
-        lines.append('**No cause is named: the model structure is the likely cause** (see '
-                     '"Model structure"). The effects that fit only mimic the gap.')
+        lines.append('**No cause is named:** the effects that fit take a different value on '
+                     'each trial, or add nothing beside the others (see "Evidence per effect" '
+                     'and "Model structure").')
     elif doc.get('undecided'):
         lines.append('**No cause is named alone:** these trials cannot tell the effects below '
                      'from their rivals.')
@@ -96,6 +101,7 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                   f"| with it | {_fmt_J(m['J_test_with'])} |",
                   f"| held-out gain | {_pct(m['heldout_gain'])} ± {_pct(m['heldout_gain_se'])} "
                   f"({'named' if m['named'] else 'not named: ' + (m['note'] or '—')}) |"]
+    lines += _decision_lines(doc)   # diagnosis/decide.py: why each fitted effect is named or not
     lines += structure_lines(doc)   # diagnosis/structure.py: is the model structure to blame?
     lines += ['', '## Candidates', '', '| round | effect | held-out gain | ± | named | note |',
               '|---|---|---|---|---|---|']
@@ -197,6 +203,33 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                                                      for k, v in doc['timings_s'].items())
                   + f" (total {doc.get('wall_s', 0.0):.0f} s)."]
     return '\n'.join(lines) + '\n'
+
+
+def _decision_lines(doc: dict) -> list[str]:
+    """Return the verdict's evidence per fitted effect (diagnosis.json's ``decision``)."""
+    rows = doc.get('decision') or []
+    if not rows:
+        return []
+    out = ['', '## Evidence per effect', '',
+           'Each effect of the fitted model: the held-out error lost without it (fraction of '
+           "the base model's, jackknife error over held-out trials), the factor by which the "
+           'held-out trials lose without it (geometric mean, with its standard error), its '
+           'share of what the model explains, and how much its value fitted on each trial '
+           'alone scatters (fraction of its size; a physical effect has one value). Named: a '
+           'factor above two standard errors from 1, and a scatter of at most 0.5.', '',
+           '| effect | contribution | ± | factor | ± | share | scatter | trials | verdict | '
+           'why |', '|---|---|---|---|---|---|---|---|---|---|']
+    for e in rows:
+        disp = '-' if e.get('dispersion') is None else f"{e['dispersion']:.2f}"
+        out.append(f"| {e['effect']} | {_pct(e['contribution'])} | {_pct(e['contribution_se'])}"
+                   f" | {_factor(e['log_ratio'])} | {_factor(e['log_ratio_se'])} | "
+                   f"{_pct(e['share'])} | {disp} | {e['trials_used']} | {e['verdict']} | "
+                   f"{e['why']} |")
+    return out
+
+
+def _factor(log_x: float | None) -> str:
+    return '-' if log_x is None or not math.isfinite(log_x) else f'{math.exp(log_x):.2f}'
 
 
 def _pct(x: float | None) -> str:

@@ -56,6 +56,7 @@ class Cause:
     indistinguishable_from: list[str] = field(default_factory=list)
     description: str = ''
     measured: str = ''
+    share: float | None = None    # of the base model's held-out error it explains (decide.py)
 
     @property
     def summary(self) -> str:

@@ -29,9 +29,9 @@ held-out error above NOISE_RATIO noise floors (diagnosis/noise.py: what sensor n
 leaves) is a systematic error. Otherwise ``none``, "no sign of a structural gap" -- said only
 when what remains is noise; when the noise could not be estimated it says so instead.
 
-One verdict (:func:`one_verdict`): when the verdict is ``structure``, no effect is named as a
-CAUSE in the same report; the effects the search kept are listed as mimicking the gap (they
-stay in the fitted model, where they absorb part of it, but they are not what is wrong).
+The verdict describes what the named causes leave; it never withdraws a cause (a cause and
+a structural remainder can both be true: diagnosis/decide.py names the causes by their own
+evidence and apportions the error).
 """
 from __future__ import annotations
 
@@ -190,7 +190,9 @@ def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = Non
         if near:
             strong.append(f"{c['effect']} was named with {', '.join(near)} within "
                           f'{100 * NEAR_BOUND:.0f} % of the edge of its box')
-    params = (doc.get('baseline') or {}).get('params') or {}
+    # read from the final model, with the named causes in it: the base model, tuned without
+    # them, bends to absorb them (8 of 12 coefficients on a bound for a 0.35 m/s current)
+    params = doc.get('params') or (doc.get('baseline') or {}).get('params') or {}
     if params:
         space = ParameterSpace.around(ship, tuple(targets) if targets else None, a_r)
         theta = np.array([params.get(n, p) for n, p in zip(space.names, space.pre)])
@@ -252,16 +254,18 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
     # error, 3.9 x what noise leaves, with 8 of 12 coefficients on a bound
     doubtful = bool(doc.get('causes')) and remaining is not None \
         and remaining >= REMAINING_LARGE and is_noise is False
+    left = ('what remains' if remaining is None else
+            f"{100 * remaining:.0f} % of the base model's held-out error remains")
     if strong and large or weak and (measured or doubtful):
         v = 'structure'
-        summary = ('the model STRUCTURE (a force or moment it lacks), not the effects that fit, '
-                   'is the likely cause of the remaining error: '
+        summary = (f'{left}, STRUCTURAL (a force or moment the model lacks, beside any named '
+                   'cause): '
                    + '; '.join((strong or weak)[:2])
                    + ('' if not systematic else '; measured: ' + systematic[0].split(':')[0])
                    + (f' ({noise_text})' if is_noise is False else ''))
     elif systematic:
         v = 'unexplained'
-        summary = ('a systematic error remains that no effect in the library explains: '
+        summary = (f'{left}, systematic, and no effect in the library explains it: '
                    + systematic[0].split(':')[0]
                    + (f' ({noise_text})' if is_noise is False else ''))
     elif is_noise:
@@ -276,30 +280,6 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
             'remaining_fraction': remaining, 'asymmetry': asym,
             'learnable': dict(learnable) if learnable else None, 'noise': noise_text,
             'remaining_is_noise': is_noise}
-
-
-def one_verdict(causes: list, st: dict, J_base: float | None = None,
-                noise: Mapping | None = None) -> tuple[list, list]:
-    """
-    Return (causes, mimicking): every fitted cause moves to mimicking when structure wins.
-
-    ``causes``: the search's named causes; ``st``: the structure verdict (:func:`verdict`),
-    updated in place. A report never names a CAUSE in the same breath as "the model
-    structure is the likely cause": if the structure check wins, the effects are listed as
-    mimicking it (a cause a measurement sized stays: it mimics nothing). What remains after the
-    named causes is then the base model's error
-    (``J_base``, held out): the noise statement is made of it (``noise``: the floor).
-    """
-    # a cause sized by a measurement (Cause.measured) is a fact, not a fit that could mimic
-    kept = [c for c in causes if getattr(c, 'measured', '')]
-    fitted = [c for c in causes if not getattr(c, 'measured', '')]
-    if st.get('verdict') != 'structure' or not fitted:
-        return list(causes), []
-    if J_base is not None:
-        is_noise, text = describe_noise(float(J_base), noise)
-        st['remaining_is_noise'] = is_noise
-        st['noise'] = text + ' (after the named causes: none; the tuned base model)'
-    return kept, fitted
 
 
 def markdown_lines(doc: Mapping) -> list[str]:
@@ -318,8 +298,8 @@ def markdown_lines(doc: Mapping) -> list[str]:
         lines += ['', 'Evidence that the effects only mimic a gap:', '']
         lines += [f'- {x}' for x in items]
     if doc.get('mimicking'):
-        lines += ['', 'Effects kept in the fitted model that only mimic the gap (not causes):',
-                  '']
+        lines += ['', 'Effects kept in the fitted model but not named (their value follows the '
+                  'manoeuvre, or they add nothing beside the causes):', '']
         lines += [f"- {c['effect']}: {c['summary']} (held-out gain "
                   f"{100 * c['heldout_gain']:.0f} %)" for c in doc['mimicking']]
     if st.get('remaining_fraction') is not None:

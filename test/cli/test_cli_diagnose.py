@@ -34,18 +34,39 @@ def test_a_suspected_effect_is_printed_with_what_would_settle_it():
 
 
 def test_a_suspect_without_advice_and_a_structural_verdict():
-    cause = SimpleNamespace(summary='wind 8.0 m/s from 41 deg', heldout_gain=0.776)
+    """An effect the verdict did not name says why; what remains is its own line."""
+    cause = SimpleNamespace(effect='wind', summary='wind 8.0 m/s from 41 deg', heldout_gain=0.776)
     dx = _dx(mimicking=[cause],
+             decision=[{'effect': 'wind', 'why': 'its value fitted on each trial alone '
+                        'scatters by 0.92 of its size'}],
              suspected=[{'effect': 'current', 'summary': 'current 0.1 m/s', 'gain': 0.2,
                          'gain_se': 0.3}],
-             structure={'verdict': 'structure', 'summary': 'the model STRUCTURE'})
+             structure={'verdict': 'structure', 'summary': "60 % of the base model's "
+                        'held-out error remains, STRUCTURAL'})
     assert verdict_lines(dx) == [
-        'CAUSE: none named -- the model structure is the likely cause (see STRUCTURE)',
-        'MIMICS THE STRUCTURAL GAP (not a cause): wind 8.0 m/s from 41 deg -- held-out gain '
-        '77.6 %',
+        'CAUSE: none named -- what the fitted effects explain is not one value over the '
+        'trials (see NOT A CAUSE)',
+        'NOT A CAUSE: wind 8.0 m/s from 41 deg fits (held-out gain 77.6 %), but its value '
+        'fitted on each trial alone scatters by 0.92 of its size',
         'SUSPECTED (not named): current 0.1 m/s -- held-out gain 20.0 ± 30.0 %, the held-out '
         'trials disagree',
-        'STRUCTURE: the model STRUCTURE']
+        "REMAINS: 60 % of the base model's held-out error remains, STRUCTURAL"]
+
+
+def test_a_cause_and_a_structural_remainder_are_both_said():
+    """A cause is never withdrawn because something structural remains (issue 42)."""
+    current = SimpleNamespace(effect='current', summary='current 0.35 m/s toward 109 deg',
+                              heldout_gain=0.959, share=0.959, measured='',
+                              indistinguishable_from=[])
+    dx = _dx(causes=[current], structure={
+        'verdict': 'structure',
+        'summary': "4 % of the base model's held-out error remains, STRUCTURAL (a force or "
+                   'moment the model lacks, beside any named cause)'})
+    assert verdict_lines(dx) == [
+        'CAUSE: current 0.35 m/s toward 109 deg -- 96 % of the held-out error (held-out gain '
+        '95.9 %)',
+        "REMAINS: 4 % of the base model's held-out error remains, STRUCTURAL (a force or "
+        'moment the model lacks, beside any named cause)']
 
 
 def test_a_cause_as_good_as_a_rival_is_undecided_with_the_trial_that_tells_them_apart():

@@ -12,9 +12,10 @@ import math
 import mmg_tuner as mt
 from mmg_tuner.data.generate import generate_trial, out_of_library, SensorNoise
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.decide import D_MAX, dispersion
 from mmg_tuner.diagnosis.noise import describe, sensor_noise
 from mmg_tuner.diagnosis.plausible import disagreement, implausible, plausible_range
-from mmg_tuner.diagnosis.structure import one_verdict, verdict
+from mmg_tuner.diagnosis.structure import verdict
 from mmg_tuner.errors import ConfigError
 from mmg_tuner.tuning import ParameterSpace
 import numpy as np
@@ -122,22 +123,36 @@ def test_a_trial_pointing_the_other_way_contradicts_a_cause(suzaku):
     assert 'points the other way' in disagreement(suzaku, 'current', cur, joint)
 
 
-def test_one_verdict_never_names_a_cause_beside_a_structural_gap():
-    causes = ['a', 'b']
-    st = {'verdict': 'structure', 'remaining_is_noise': True}
-    assert one_verdict(causes, st, 4.0e6, {'J': 1.0e6, 'J_bound': 2.0e6}) == ([], causes)
-    assert st['remaining_is_noise'] is False and 'after the named causes: none' in st['noise']
-    assert one_verdict(causes, {'verdict': 'unexplained'}) == (causes, [])
-    assert one_verdict(causes, {'verdict': 'none'}) == (causes, [])
+def test_one_value_over_the_trials_is_consistent_a_value_that_follows_the_manoeuvre_is_not(
+        suzaku):
+    """
+    The test of a mimic (diagnosis/decide.py): the scatter of per-trial estimates.
 
-
-def test_a_cause_a_measurement_sized_stays_a_cause_beside_a_structural_gap():
-    from mmg_tuner.diagnosis.results import Cause
-    lag = Cause('rudder_lag', {'rudder_lag_tau': 5.0}, {'rudder_lag_tau': 0.5}, 0.1, 0.05,
-                measured='rudder-angle feedback')
-    fitted = Cause('current', {'current_speed': 0.2, 'current_dir': 0.0}, {}, 0.5, 0.1)
-    assert one_verdict([fitted, lag], {'verdict': 'structure'}) == ([lag], [fitted])
-    assert one_verdict([lag], {'verdict': 'structure'}) == ([lag], [])
+    A real current has one value over the trials of a day (its estimates on each trial
+    alone scatter by their errors); an effect bending to absorb a missing force takes the
+    value each manoeuvre needs.
+    """
+    same = [{'current_speed': 0.35 + ds, 'current_dir': 1.9 + da}
+            for ds, da in ((0.02, 0.05), (-0.03, -0.04), (0.01, 0.0), (0.0, 0.06), (0.03, -0.1))]
+    D, n = dispersion(suzaku, 'current', same)
+    assert n == 5 and D < 0.2
+    follows = [{'current_speed': sp, 'current_dir': d}
+               for sp, d in ((0.3, 0.0), (0.35, 2.0), (0.2, -2.5), (0.4, 1.0), (0.25, -1.2))]
+    D, _ = dispersion(suzaku, 'current', follows)
+    assert D > D_MAX
+    # a scalar: a rudder offset of +1.5 deg on every trial, or +2, -1.5, +0.5 deg ...
+    deg = math.radians
+    assert dispersion(suzaku, 'rudder_offset', [{'rudder_offset': deg(x)}
+                                                for x in (1.4, 1.6, 1.5, 1.3)])[0] < 0.2
+    assert dispersion(suzaku, 'rudder_offset', [{'rudder_offset': deg(x)}
+                                                for x in (2.0, -1.5, 0.5, 2.5)])[0] > D_MAX
+    # estimates run to a far edge of the box say nothing of the effect; with fewer than
+    # three left, the test cannot be made (None), never a verdict of "inconsistent"
+    edge = [{'current_speed': 1.5, 'current_dir': 0.3}] * 3 + same[:2]
+    assert dispersion(suzaku, 'current', edge) == (None, 2)
+    # at neutral is no edge: a trial that finds no current counts against a 0.35 m/s one
+    assert dispersion(suzaku, 'current', same[:3] + [{'current_speed': 0.0,
+                                                      'current_dir': 0.0}] * 3)[0] > D_MAX
 
 
 def test_causes_that_leave_most_of_an_error_above_the_noise_beside_bent_coefficients():

@@ -1,0 +1,245 @@
+"""
+The verdict: which of the fitted effects are causes, and how the held-out error divides.
+
+One procedure, run after the search has fitted its final model F (the base targets re-tuned
+with the effects E_1 .. E_k in it; B is the tuned base model, without effects). No rule about
+the rest of the model vetoes an effect: each stands or falls on its own evidence, and what the
+causes leave is reported beside them.
+
+1. **Contribution** (evidence for). Per held-out trial t, l_t = log(J_t(F without E_i) /
+   J_t(F)); "without E_i": E_i at its neutral value, everything else as in F (a measured
+   signal: the trials without it). A trial is the unit of independent evidence (samples along
+   one trajectory are correlated), and on the log scale each trial weighs the same whatever
+   its size (a turning circle's J is many times a zigzag's). E_i has evidence for it when the
+   mean of l_t exceeds Z_FOR of its standard errors (sd / sqrt(n), a one-sided t-test over the
+   held-out trials). Its size is reported as d_i = sum_t [J_t(F without E_i) - J_t(F)] /
+   sum_t J_t(B), the held-out error lost without it (fraction of the base model's), with its
+   jackknife standard error.
+2. **Consistency** (the test of a mimic). E_i's parameters are fitted on each recorded trial
+   alone, tuning and held-out, F's other parameters held. A physical effect has one value over
+   the trials of a day; an effect bending to absorb a force the model lacks takes a value that
+   follows each manoeuvre. In the effect's physical components (a current or a wind as its
+   north/east velocity, an antenna as its position, any other effect as its value from
+   neutral), the dispersion is D_i = RMS_k |x_k - median| / max(|median|, smallest worth
+   finding). Consistent when D_i <= D_MAX. Trials whose own estimate runs to a far edge of the
+   box (that trial alone does not determine it) are left out; with fewer than MIN_TRIALS left
+   the test cannot be made and says so. A measured signal is a fact: no consistency test.
+3. **Named**: evidence for and consistent, unless other evidence is against it (implausible for
+   the ship, or an equally good rival: the search's undecided sets, results.split_undecided).
+   Fitted but inconsistent: listed as mimicking what the model lacks, not named.
+4. **Apportioned**: the held-out error of B divides into what each cause explains (exact
+   Shapley values of the effects over the subsets of F, scaled to the total explained,
+   1 - J(F)/J(B)) and what remains, J(F)/J(B): noise (what sensor noise alone leaves), and the
+   rest systematic -- structural when the structure check shows where it lives (a learnable
+   share, an asymmetry, coefficients on their bounds in F), else unexplained.
+
+Z_FOR = 2 and D_MAX = 0.5 were set before any benchmark ran (two standard errors; a scatter
+half the effect's size) and checked on the development seeds of
+bench/bench_diagnosis_mismatch.py, then on fresh seeds registered before they were run.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from itertools import combinations
+import math
+from typing import Mapping, Sequence
+
+from mmg_tuner.core.effects import EFFECTS, froude_factor
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.plausible import per_trial
+from mmg_tuner.diagnosis.settings import MEASURED
+from mmg_tuner.tuning.objective import Objective, TrialBatch
+from mmg_tuner.tuning.parameters import ParameterSpace
+import numpy as np
+
+Z_FOR = 2.0          # mean per-trial log ratio above this many standard errors: evidence for
+D_MAX = 0.5          # dispersion of the per-trial estimates above this: a mimic
+MIN_TRIALS = 3       # per-trial estimates needed for the consistency test
+FAR_EDGE = 0.01      # a per-trial estimate this close (box fraction) to a non-neutral edge
+
+
+@dataclass
+class Evidence:
+    """What decided one fitted effect: its contribution, consistency and verdict."""
+
+    effect: str
+    contribution: float            # d_i: held-out J lost without it, fraction of J(B)
+    contribution_se: float         # jackknife over held-out trials
+    log_ratio: float               # mean over held-out trials of log(J without / J with)
+    log_ratio_se: float            # its standard error (sd / sqrt(n))
+    share: float                   # Shapley share of J(B) explained (apportioned)
+    dispersion: float | None       # D_i (None: not testable, or a measured signal)
+    trials_used: int               # per-trial estimates that entered D_i
+    per_trial: list[dict] = field(default_factory=list)   # {trial, estimate components}
+    verdict: str = ''              # 'cause' | 'mimic' | 'weak'
+    why: str = ''
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _components(effect: str, values: Mapping[str, float]) -> np.ndarray:
+    """Return an effect's values as physical components from neutral (see the docstring)."""
+    e = EFFECTS[effect]
+    if any(e.periodic) and len(e.params) == 2:   # (speed, direction): a velocity vector
+        sp, dr = e.params
+        return np.array([values[sp] * math.cos(values[dr]), values[sp] * math.sin(values[dr])])
+    return np.array([values[p] - n for p, n, per in zip(e.params, e.neutral, e.periodic)
+                     if not per])
+
+
+def _smallest(ship: ShipConfig, effect: str) -> float:
+    """Return the smallest magnitude worth finding at the ship's scale (first sized param)."""
+    e = EFFECTS[effect]
+    for sm, unit, per in zip(e.smallest, e.units, e.periodic):
+        if not per and sm > 0:
+            return float(sm) * froude_factor(unit, ship.scale_ratio)
+    return 0.0
+
+
+def _far_edge(ship: ShipConfig, effect: str, est: Mapping[str, float]) -> bool:
+    """Whether a per-trial estimate ran to an edge of its box that is not its neutral value."""
+    e = EFFECTS[effect]
+    for p, n, per, (lo, hi) in zip(e.params, e.neutral, e.periodic, e.bounds(ship)):
+        if per:
+            continue
+        w = FAR_EDGE * (hi - lo)
+        if (est[p] - lo < w and lo != n) or (hi - est[p] < w and hi != n):
+            return True
+    return False
+
+
+def dispersion(ship: ShipConfig, effect: str, estimates: Sequence[Mapping[str, float]]
+               ) -> tuple[float | None, int]:
+    """Return (D, trials used) of per-trial estimates (None when fewer than MIN_TRIALS)."""
+    used = [_components(effect, x) for x in estimates if not _far_edge(ship, effect, x)]
+    if len(used) < MIN_TRIALS:
+        return None, len(used)
+    X = np.array(used)
+    centre = np.median(X, axis=0)
+    spread = float(np.sqrt(np.mean(np.sum((X - centre) ** 2, axis=1))))
+    scale = max(float(np.linalg.norm(centre)), _smallest(ship, effect), 1e-12)
+    return spread / scale, len(used)
+
+
+def _per_trial_J(ship: ShipConfig, trials: Sequence[Trial], params: np.ndarray,
+                 integrator: str) -> np.ndarray:
+    obj = Objective(ship, TrialBatch.from_trials(list(trials)), integrator=integrator)
+    J, _ = obj.per_trial(params)
+    return J[0]
+
+
+def _jackknife(num: np.ndarray, den: np.ndarray) -> float:
+    """Return the jackknife standard error over trials of sum(num) / sum(den)."""
+    n = len(num)
+    if n < 2 or not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+        return math.inf
+    loo = np.array([(num.sum() - num[i]) / max(den.sum() - den[i], 1e-300) for i in range(n)])
+    return float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
+
+
+def _x(log_ratio: float) -> str:
+    """Return a mean log ratio as a factor ('x 1.8')."""
+    return f'x {math.exp(log_ratio):.2f}' if math.isfinite(log_ratio) else 'an undefined factor'
+
+
+def _neutral(effect: str) -> dict[str, float]:
+    e = EFFECTS[effect]
+    return dict(zip(e.params, e.neutral))
+
+
+def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str],
+           tune_trials: Sequence[Trial], test_trials: Sequence[Trial],
+           J_base: np.ndarray, integrator: str = 'rk4',
+           test_without_wind: Sequence[Trial] | None = None) -> list[Evidence]:
+    """
+    Weigh every effect of the final model (see the module docstring).
+
+    ``params``: the final model's parameters (base targets and effects); ``effects``: the
+    effects in it (a measured signal such as 'measured_wind' included); ``J_base``: the tuned
+    base model's held-out J per trial (as the search measured it); ``test_without_wind``: the
+    held-out trials without their measured wind (the model without 'measured_wind').
+    Returns one :class:`Evidence` per effect, in the order given.
+    """
+    final = ship.with_params(dict(params))
+    J_base = np.asarray(J_base, float)
+    signals = [e for e in effects if e in MEASURED]
+    no_wind = list(test_without_wind) if test_without_wind is not None else list(test_trials)
+
+    def J_of(dropped: Sequence[str]) -> np.ndarray:
+        over: dict[str, float] = {}
+        for e in dropped:
+            if e in EFFECTS:
+                over.update(_neutral(e))
+        trials = no_wind if any(e in signals for e in dropped) else test_trials
+        return _per_trial_J(final, trials, final.with_params(over).params, integrator)
+
+    # every subset of the effects dropped: k <= max_effects (2-3), so 2^k held-out simulations
+    names = list(effects)
+    J_sub = {frozenset(s): J_of(s) for r in range(len(names) + 1)
+             for s in combinations(names, r)}
+    J_F = J_sub[frozenset()]
+    Jb = float(J_base.sum())
+    shap = {}
+    k = len(names)
+    for e in names:   # exact Shapley value of e in the held-out J lost when effects are dropped
+        v = 0.0
+        others = [x for x in names if x != e]
+        for r in range(k):
+            for s in combinations(others, r):
+                kept = frozenset(s)   # the effects kept besides e
+                drop_with = frozenset(x for x in names if x not in kept)
+                drop_without = drop_with - {e}
+                w = math.factorial(r) * math.factorial(k - r - 1) / math.factorial(k)
+                v += w * float(J_sub[drop_with].sum() - J_sub[drop_without].sum())
+        shap[e] = v
+    explained = max(0.0, 1.0 - float(J_F.sum()) / Jb) if Jb > 0 else 0.0
+    total = sum(max(v, 0.0) for v in shap.values())
+    out = []
+    for e in names:
+        delta = J_sub[frozenset([e])] - J_F
+        d = float(delta.sum()) / Jb if Jb > 0 else math.nan
+        se = _jackknife(delta, J_base)
+        share = explained * max(shap[e], 0.0) / total if total > 0 else 0.0
+        lr = np.log(np.maximum(J_sub[frozenset([e])], 1e-300) / np.maximum(J_F, 1e-300))
+        n = len(lr)
+        lr_mean = float(np.mean(lr)) if n else math.nan
+        lr_se = float(np.std(lr, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+        ev = Evidence(e, d, se, lr_mean, lr_se, share, None, 0)
+        if e in EFFECTS:
+            ev.per_trial = _estimates(final, e, list(tune_trials) + list(test_trials),
+                                      integrator)
+            ev.dispersion, ev.trials_used = dispersion(ship, e, ev.per_trial)
+        for_it = bool(np.all(np.isfinite(lr))) and lr_mean > Z_FOR * lr_se and d > 0
+        if not for_it:
+            ev.verdict = 'weak'
+            ev.why = (f'without it the held-out trials lose {_x(lr_mean)} on average, within '
+                      f'{Z_FOR:g} standard errors (x {math.exp(lr_se):.2f}) of nothing')
+        elif ev.dispersion is not None and ev.dispersion > D_MAX:
+            ev.verdict = 'mimic'
+            ev.why = (f'its value fitted on each trial alone scatters by {ev.dispersion:.2f} of '
+                      f'its size over {ev.trials_used} trials (a physical effect has one value; '
+                      f'at most {D_MAX:g}): it follows the manoeuvre, as a missing force does')
+        else:
+            ev.verdict = 'cause'
+            ev.why = ('measured, not fitted' if e in MEASURED else
+                      'one value over the trials: dispersion '
+                      + (f'{ev.dispersion:.2f}' if ev.dispersion is not None else
+                         f'not testable ({ev.trials_used} trials determine it alone)'))
+        out.append(ev)
+    return out
+
+
+def _estimates(final: ShipConfig, effect: str, trials: Sequence[Trial], integrator: str
+               ) -> list[dict]:
+    """Fit the effect's parameters on each trial alone, the rest of the model held."""
+    e = EFFECTS[effect]
+    lo, hi = (np.array(b, float) for b in zip(*e.bounds(final)))
+    theta = np.array([final[p] for p in e.params], float)
+    theta = np.clip(theta, lo, hi)
+    space = ParameterSpace(tuple(e.params), theta.copy(), lo, hi)
+    objs = [Objective(final, TrialBatch.from_trials([t]), integrator=integrator)
+            for t in trials]
+    est = per_trial(final, space, theta, e.params, objs)
+    return [{**{p: x[p] for p in e.params}, 'trial': t.name} for x, t in zip(est, trials)]
