@@ -75,9 +75,11 @@ def test_clean_generated_trials_give_no_warning(ship_name, maneuver, rudder, rat
     ship = mt.load_ship(ship_name)
     rpm, speed, _ = approach(ship, None, None)
     noise = SensorNoise() if noisy else SensorNoise.none()
-    for seed in (0, 11):
-        _, tr = generate_trial(ship, maneuver, rudder, None, rpm, speed, 300.0, rate, noise,
-                               seed, maneuver)
+    # two different manoeuvres (noise-free, the same one twice is one trial under two names,
+    # which load_trials rightly reads once with a warning)
+    for seed, extra in ((0, 0), (11, 2)):
+        _, tr = generate_trial(ship, maneuver, rudder - extra, None, rpm, speed, 300.0, rate,
+                               noise, seed, maneuver)
         write_trial_csv(tr, tmp_path / f'{maneuver}_{seed}.csv')
     with caplog.at_level(logging.WARNING, logger='mmg_tuner'):
         plain = mt.load_trials(tmp_path)

@@ -85,8 +85,15 @@ def test_tune_reports_where_the_start_model_diverges(tmp_path, capsys):
     overlay = tmp_path / 'bad.yaml'
     overlay.write_text(yaml.safe_dump({'params': UNSTABLE}))
     out = tmp_path / 'tuned'
-    rc = tune([str(gen / 'turning_p35'), '--params', str(overlay), '--targets', 'R_0', 't_P',
-               '--out', str(out), '--max-evals', '50', '--no-plots', '--quiet'])
+    args = [str(gen / 'turning_p35'), '--params', str(overlay), '--targets', 'R_0', 't_P',
+            '--max-evals', '50', '--no-plots', '--quiet']
+    # a model that diverges on its own trials is not written without a word (tuning/gate.py)
+    from mmg_tuner.errors import TuningError
+    with pytest.raises(TuningError, match='diverges at t = .* --write-unphysical'):
+        tune(args + ['--out', str(tmp_path / 'refused')])
+    assert not (tmp_path / 'refused' / 'params.yaml').exists()
+    capsys.readouterr()
+    rc = tune(args + ['--out', str(out), '--write-unphysical'])
     text = capsys.readouterr().out
     assert rc in (0, 1), text
     raw = (out / 'report.json').read_text()
