@@ -50,6 +50,8 @@ BARELY = ('rpm_scale', 'time_offset', 'prop_side_force', 'yaw_moment_bias')
 PAIRS = ('current+rudder_lag', 'rudder_offset+wind', 'current+rudder_offset')
 OUT_OF_LIBRARY = ('hull_scale', 'N_r_scale')
 CLASSES = ('clean',) + IDENTIFIABLE + PAIRS + OUT_OF_LIBRARY + BARELY
+# the verdict measured ('evidence': diagnosis/decide.py, as registered; 'rules' the default)
+VERDICT = ['evidence']
 
 
 def kind_of(cls: str) -> str:
@@ -126,7 +128,8 @@ def score(cls: str, d) -> dict:
 
 def diagnose(ship, tune, test, seed: int):
     t0 = time.perf_counter()
-    d = mt.diagnose(ship, tune, test, budget='quick', seed=seed, residual=False)
+    d = mt.diagnose(ship, tune, test, budget='quick', seed=seed, residual=False,
+                    verdict=VERDICT[0])
     return d, time.perf_counter() - t0
 
 
@@ -207,8 +210,10 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument('--advice', action='store_true', help='sail the advised trial when missed')
     ap.add_argument('--name', default='dev')
     ap.add_argument('--fresh', action='store_true')
+    ap.add_argument('--verdict', choices=('evidence', 'rules'), default='evidence')
     ap.add_argument('--quick', action='store_true', help='one seed, realistic level')
     args = ap.parse_args(argv)
+    VERDICT[0] = args.verdict
     if args.quick:
         args.cases, args.levels = 1, ['realistic']
     OUT.mkdir(parents=True, exist_ok=True)

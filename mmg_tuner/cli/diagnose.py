@@ -53,6 +53,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
+    ap.add_argument('--verdict', choices=('rules', 'evidence'), default='rules',
+                    help='how causes are named after the search: rules (default; a structural '
+                    'verdict withdraws the fitted causes) or evidence (each effect by its own '
+                    'held-out contribution and consistency over the trials, the error '
+                    'apportioned; see doc/guides/diagnosis.md)')
     # a flag, not '--residual MODE': an optional value would swallow the first trial path
     ap.add_argument('--residual', action='store_const', const='on', default='auto',
                     help='after the search, always train a residual network on the final model '
@@ -97,7 +102,8 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
                               setting=getattr(args, 'setting', None),   # (older resumed runs
                               retune=getattr(args, 'retune', 'lsq'),     # stored neither)
                               residual=_RESIDUAL[getattr(args, 'residual', False)],
-                              measured=getattr(args, 'measured', None))
+                              measured=getattr(args, 'measured', None),
+                              verdict=getattr(args, 'verdict', 'rules'))
 
 
 def verdict_lines(dx) -> list[str]:
@@ -118,9 +124,12 @@ def verdict_lines(dx) -> list[str]:
                       f'{100 * c.heldout_gain:.1f} %)' if getattr(c, 'share', None) is not None
                       else f' -- held-out gain {100 * c.heldout_gain:.1f} %'))
     if not dx.causes:
+        by_evidence = bool(getattr(dx, 'decision', None))   # verdict='evidence'
         out.append('CAUSE: none named alone -- see UNDECIDED' if dx.undecided
                    else 'CAUSE: none named -- what the fitted effects explain is not one '
-                   'value over the trials (see NOT A CAUSE)' if dx.mimicking
+                   'value over the trials (see NOT A CAUSE)' if dx.mimicking and by_evidence
+                   else 'CAUSE: none named -- the model structure is the likely cause (see '
+                   'REMAINS)' if dx.mimicking
                    else 'CAUSE: none found -- no effect in the library explains the errors '
                    'significantly')
     pairs = {a['about']: a for a in dx.advice if a.get('kind') == 'indistinguishable'}
@@ -137,7 +146,7 @@ def verdict_lines(dx) -> list[str]:
     why = {e['effect']: e['why'] for e in getattr(dx, 'decision', None) or []}
     for c in dx.mimicking:
         out.append(f'NOT A CAUSE: {c.summary} fits (held-out gain {100 * c.heldout_gain:.1f} %), '
-                   f"but {why.get(c.effect, 'it mimics what the model lacks')}")
+                   f"but {why.get(c.effect, 'it only mimics the structural gap (REMAINS)')}")
     settle = {a['about']: a for a in dx.advice if a.get('kind') == 'suspected'}
     for x in dx.suspected:   # hinted at by the trials, not named: what would settle it
         a = settle.get(x['effect'])

@@ -29,9 +29,10 @@ held-out error above NOISE_RATIO noise floors (diagnosis/noise.py: what sensor n
 leaves) is a systematic error. Otherwise ``none``, "no sign of a structural gap" -- said only
 when what remains is noise; when the noise could not be estimated it says so instead.
 
-The verdict describes what the named causes leave; it never withdraws a cause (a cause and
-a structural remainder can both be true: diagnosis/decide.py names the causes by their own
-evidence and apportions the error).
+One verdict (:func:`one_verdict`, the default ``verdict='rules'`` of the diagnosis): when
+the verdict is ``structure``, no fitted effect is named as a CAUSE in the same report; they
+are listed as mimicking the gap. With ``verdict='evidence'`` (diagnosis/decide.py) the
+structure verdict describes only what the named causes leave and never withdraws a cause.
 """
 from __future__ import annotations
 
@@ -190,9 +191,7 @@ def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = Non
         if near:
             strong.append(f"{c['effect']} was named with {', '.join(near)} within "
                           f'{100 * NEAR_BOUND:.0f} % of the edge of its box')
-    # read from the final model, with the named causes in it: the base model, tuned without
-    # them, bends to absorb them (8 of 12 coefficients on a bound for a 0.35 m/s current)
-    params = doc.get('params') or (doc.get('baseline') or {}).get('params') or {}
+    params = (doc.get('baseline') or {}).get('params') or {}
     if params:
         space = ParameterSpace.around(ship, tuple(targets) if targets else None, a_r)
         theta = np.array([params.get(n, p) for n, p in zip(space.names, space.pre)])
@@ -280,6 +279,30 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
             'remaining_fraction': remaining, 'asymmetry': asym,
             'learnable': dict(learnable) if learnable else None, 'noise': noise_text,
             'remaining_is_noise': is_noise}
+
+
+def one_verdict(causes: list, st: dict, J_base: float | None = None,
+                noise: Mapping | None = None) -> tuple[list, list]:
+    """
+    Return (causes, mimicking): every fitted cause moves to mimicking when structure wins.
+
+    ``causes``: the search's named causes; ``st``: the structure verdict (:func:`verdict`),
+    updated in place. A report never names a CAUSE in the same breath as "the model
+    structure is the likely cause": if the structure check wins, the effects are listed as
+    mimicking it (a cause a measurement sized stays: it mimics nothing). What remains after the
+    named causes is then the base model's error
+    (``J_base``, held out): the noise statement is made of it (``noise``: the floor).
+    """
+    # a cause sized by a measurement (Cause.measured) is a fact, not a fit that could mimic
+    kept = [c for c in causes if getattr(c, 'measured', '')]
+    fitted = [c for c in causes if not getattr(c, 'measured', '')]
+    if st.get('verdict') != 'structure' or not fitted:
+        return list(causes), []
+    if J_base is not None:
+        is_noise, text = describe_noise(float(J_base), noise)
+        st['remaining_is_noise'] = is_noise
+        st['noise'] = text + ' (after the named causes: none; the tuned base model)'
+    return kept, fitted
 
 
 def markdown_lines(doc: Mapping) -> list[str]:

@@ -1,4 +1,5 @@
 """Trials in and out: rosbag2 (sqlite3, MCAP), bare MCAP, CSV; framing, repairs and errors."""
+import dataclasses
 import math
 import shutil
 
@@ -317,8 +318,9 @@ def test_folders_are_searched_recursively(tmp_path, zigzag_trial):
     (root / 'b' / 'csv').mkdir(parents=True)
     (root / '.cache').mkdir()
     write_trial_csv(zigzag_trial, root / 'a' / 'deep' / 'one.csv')
-    write_trial_bag(zigzag_trial, root / 'b' / 'two')
-    write_trial_csv(zigzag_trial, root / 'b' / 'csv' / 'two.csv')   # generate's copy of 'two'
+    other = dataclasses.replace(zigzag_trial, states=zigzag_trial.states + [1.0, 0, 0, 0, 0, 0])
+    write_trial_bag(other, root / 'b' / 'two')          # (the same data twice is one trial)
+    write_trial_csv(other, root / 'b' / 'csv' / 'two.csv')   # generate's copy of 'two'
     write_trial_csv(zigzag_trial, root / '.cache' / 'three.csv')    # hidden: skipped
     (root / 'README.md').write_text('# runs\n')
     (root / 'LICENSE').write_text('CC BY 4.0\n')

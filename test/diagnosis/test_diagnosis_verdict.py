@@ -15,7 +15,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.decide import D_MAX, dispersion
 from mmg_tuner.diagnosis.noise import describe, sensor_noise
 from mmg_tuner.diagnosis.plausible import disagreement, implausible, plausible_range
-from mmg_tuner.diagnosis.structure import verdict
+from mmg_tuner.diagnosis.structure import one_verdict, verdict
 from mmg_tuner.errors import ConfigError
 from mmg_tuner.tuning import ParameterSpace
 import numpy as np
@@ -153,6 +153,24 @@ def test_one_value_over_the_trials_is_consistent_a_value_that_follows_the_manoeu
     # at neutral is no edge: a trial that finds no current counts against a 0.35 m/s one
     assert dispersion(suzaku, 'current', same[:3] + [{'current_speed': 0.0,
                                                       'current_dir': 0.0}] * 3)[0] > D_MAX
+
+
+def test_one_verdict_never_names_a_cause_beside_a_structural_gap():
+    causes = ['a', 'b']
+    st = {'verdict': 'structure', 'remaining_is_noise': True}
+    assert one_verdict(causes, st, 4.0e6, {'J': 1.0e6, 'J_bound': 2.0e6}) == ([], causes)
+    assert st['remaining_is_noise'] is False and 'after the named causes: none' in st['noise']
+    assert one_verdict(causes, {'verdict': 'unexplained'}) == (causes, [])
+    assert one_verdict(causes, {'verdict': 'none'}) == (causes, [])
+
+
+def test_a_cause_a_measurement_sized_stays_a_cause_beside_a_structural_gap():
+    from mmg_tuner.diagnosis.results import Cause
+    lag = Cause('rudder_lag', {'rudder_lag_tau': 5.0}, {'rudder_lag_tau': 0.5}, 0.1, 0.05,
+                measured='rudder-angle feedback')
+    fitted = Cause('current', {'current_speed': 0.2, 'current_dir': 0.0}, {}, 0.5, 0.1)
+    assert one_verdict([fitted, lag], {'verdict': 'structure'}) == ([lag], [fitted])
+    assert one_verdict([lag], {'verdict': 'structure'}) == ([lag], [])
 
 
 def test_causes_that_leave_most_of_an_error_above_the_noise_beside_bent_coefficients():

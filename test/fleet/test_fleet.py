@@ -83,7 +83,7 @@ def test_manifest_defaults_paths_dates_and_step_options(tmp_path):
     assert a.diagnose_config.budget == 'quick' and b.diagnose_config.budget == 'full'
     assert b.tune_config.integrator == 'rk4' and b.ship == str(tmp_path / 'cfg' / 'my.yaml')
     assert not a.dated  # one date only: no trend
-    with pytest.raises(ConfigError, match='cannot read'):
+    with pytest.raises(ConfigError, match='cannot read|does not exist'):
         load_manifest(tmp_path / 'missing.yaml')
 
 

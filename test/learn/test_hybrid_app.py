@@ -233,7 +233,7 @@ def test_structure_asymmetry_and_verdict_on_a_ship_the_model_cannot_mirror(tmp_p
            'would_fit_but_impossible': [{'effect': 'wind', 'gain': 0.4, 'gain_se': 0.1,
                                          'reason': 'no wind indoors (tank)'}]}
     v = structure.verdict(doc, *structure.evidence(doc, ship), a)
-    assert v['verdict'] == 'structure' and 'STRUCTURE' in v['summary']
+    assert v['verdict'] == 'structure' and 'STRUCTURAL' in v['summary']
     v0 = structure.verdict({'baseline': {'J_test': 1.0}, 'final': {'J_test': 1.0}}, [], [], c)
     assert v0['verdict'] == 'none'
     lines = '\n'.join(structure.markdown_lines({'structure': v}))
