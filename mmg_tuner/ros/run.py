@@ -139,10 +139,19 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         print(f'ERROR: {_explain_init_error(exc, sys.argv if args is None else args)}',
               file=sys.stderr)
         sys.exit(2)
-    node = None
-    code = 0
     try:
         node = make_node()
+    except (MmgTunerError, ParameterException) as exc:
+        # leave before the exception is released: freeing its traceback destroys the half-built
+        # node, and that destructor (rcl/DDS teardown) hung a failed start in CI, past its one
+        # ERROR line and before any watchdog could be armed
+        _exit_now(2, f'ERROR: {one_line(str(exc))}')
+    except SystemExit as exc:
+        _exit_now(int(exc.code or 0))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        _exit_now(0)
+    code = 0
+    try:
         rclpy.spin(node)
     except MmgTunerError as exc:   # one line of at most a screen (_limits.one_line)
         print(f'ERROR: {one_line(str(exc))}', file=sys.stderr)
@@ -158,11 +167,9 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         if rclpy.ok() and not interrupted.is_set():
             raise
     finally:
-        # a shutdown that hangs (seen once, after a start-up error, never reproduced) must not
-        # keep the process: after SHUTDOWN_TIMEOUT_S print every thread's stack and exit 1
+        # a shutdown that hangs must not keep the process: after SHUTDOWN_TIMEOUT_S print every thread's stack and exit 1
         faulthandler.dump_traceback_later(SHUTDOWN_TIMEOUT_S, exit=True)
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
     if code:
@@ -173,6 +180,15 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         sys.stderr.flush()
         os._exit(code)
     sys.exit(code)
+
+
+def _exit_now(code: int, message: str = '') -> None:
+    """Print one line and leave at once: a failed start has nothing to save or tear down."""
+    if message:
+        print(message, file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 def _explain_init_error(exc: Exception, argv: list[str]) -> str:

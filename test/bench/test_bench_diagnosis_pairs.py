@@ -20,7 +20,7 @@ from bench.bench_diagnosis import run_case
 import pytest
 
 
-@pytest.mark.parametrize('seed', [0, 2])
+@pytest.mark.parametrize('seed', [0, pytest.param(2, marks=pytest.mark.slow)])
 def test_a_wind_and_a_rudder_offset_are_both_named_on_the_benchmarks_cases(suzaku, seed):
     row = run_case(suzaku, 'rudder_offset+wind', seed, 'quick', 10, 400.0, advice=False)
     assert sorted(row['named']) == ['rudder_offset', 'wind'], row['named']
@@ -32,6 +32,7 @@ def test_a_wind_and_a_rudder_offset_are_both_named_on_the_benchmarks_cases(suzak
         math.degrees(truth['rudder_offset']), abs=0.5)
 
 
+@pytest.mark.slow
 def test_a_yaw_moment_bias_is_fitted_not_the_wind_it_was_first_named_as(suzaku):
     """The bias is fitted, as one of a set with the wind (as good alone): nothing named."""
     row = run_case(suzaku, 'yaw_moment_bias', 2, 'quick', 10, 400.0, advice=False)
@@ -42,6 +43,7 @@ def test_a_yaw_moment_bias_is_fitted_not_the_wind_it_was_first_named_as(suzaku):
     assert est == pytest.approx(truth, rel=0.4)   # -1.69e-3 for -1.37e-3
 
 
+@pytest.mark.slow
 def test_a_rudder_offset_is_not_replaced_by_a_mimic_that_shares_its_error(suzaku):
     """
     Current 0.58 m/s and rudder offset -1.53 deg (seed 2 of the eighth session's class).
@@ -59,6 +61,7 @@ def test_a_rudder_offset_is_not_replaced_by_a_mimic_that_shares_its_error(suzaku
     assert {'yaw_moment_bias', 'wind'} <= set(row['undecided']['rudder_offset'])
 
 
+@pytest.mark.slow
 def test_a_rudder_offset_the_base_mimics_is_found_beside_the_current_not_a_wind(suzaku):
     """
     Current 0.33 m/s and rudder offset -1.30 deg (seed 1 of the eighth session's class).

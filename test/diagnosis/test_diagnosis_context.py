@@ -85,6 +85,7 @@ def test_wind_in_a_tank_is_listed_as_impossible_not_named(suzaku):
 
 
 # ------------------------------------------------------------------- measured wind as a cause
+@pytest.mark.slow
 def test_the_measured_wind_is_named_when_it_explains_the_trials(suzaku):
     tune, test = _trials(_truth(suzaku, {'wind_speed': 10.0, 'wind_dir': -2.2}),
                          record_wind=True)

@@ -302,6 +302,7 @@ def test_one_hull_derivative_45_percent_larger_is_no_library_cause(suzaku):
     assert dx.causes == [], [c.summary for c in dx.causes]
 
 
+@pytest.mark.slow
 def test_a_current_and_a_steering_gear_lag_name_no_false_cause(suzaku):
     """
     Current 0.25 m/s toward 200 deg and a 5 s steering-gear lag.
@@ -372,6 +373,7 @@ def test_a_loose_measurement_leaves_room_for_the_antenna_and_a_tight_one_holds(s
         assert tight.params[n] == pytest.approx(v, rel=2e-3), n   # (8 % off the truth)
 
 
+@pytest.mark.slow
 def test_a_measured_steering_gear_lag_is_named_as_measured_beside_the_current(suzaku):
     """
     The case the trials cannot settle (test above), with the advised measurement.

@@ -114,3 +114,18 @@ def test_each_unit_mistake_is_a_warning_naming_its_column(tug, twin, caplog):
     assert any("column 'n'" in r.getMessage() and r.getMessage().startswith('WARNING')
                for r in caplog.records)
     assert math.isfinite(F.sum())
+
+
+def test_a_bollard_table_with_load_cell_scatter_near_zero_is_fitted_not_refused():
+    """Near n = 0 the pull is below the noise: rows dip and an astern row reads positive."""
+    n = np.arange(-10.0, 12.5, 1.0)
+    F = np.where(n >= 0, 0.4 * n * n, -0.75 * 0.4 * n * n)
+    noisy = F + np.where(n == 1, -0.5, 0.0) + np.where(n == -1, 0.6, 0.0)   # 0.9 % of 57.6 N
+    fit = lo_go.fit_thrust(lo_go.check_bollard_table(n, noisy))
+    assert fit.params['thrust_p2'] == pytest.approx(0.4, rel=0.02)
+    assert fit.astern_ratio == pytest.approx(0.75, rel=0.02)
+    # a fall of 10 % of the largest pull is a wrong row, not scatter
+    wrong = F.copy()
+    wrong[n == 8] = F[n == 7][0] - 0.10 * F.max()
+    with pytest.raises(mt.TuningError, match='not monotone'):
+        lo_go.check_bollard_table(n, wrong)
