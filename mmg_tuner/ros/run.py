@@ -167,7 +167,8 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
         if rclpy.ok() and not interrupted.is_set():
             raise
     finally:
-        # a shutdown that hangs must not keep the process: after SHUTDOWN_TIMEOUT_S print every thread's stack and exit 1
+        # a shutdown that hangs must not keep the process: after SHUTDOWN_TIMEOUT_S print
+        # every thread's stack and exit 1
         faulthandler.dump_traceback_later(SHUTDOWN_TIMEOUT_S, exit=True)
         node.destroy_node()
         if rclpy.ok():
