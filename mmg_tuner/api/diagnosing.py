@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 import logging
+import math
 from pathlib import Path
 import time
 from typing import Mapping, Sequence
@@ -23,7 +24,8 @@ from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.diagnosis.results import Candidate, Cause, split_undecided
 from mmg_tuner.diagnosis.select import check_trial_sets
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
-from mmg_tuner.diagnosis.settings import BUDGETS, DiagnosisSettings, MapFn, RETUNE_METHODS
+from mmg_tuner.diagnosis.settings import (BUDGETS, DiagnosisSettings, MapFn, restart_period,
+                                          RETUNE_METHODS)
 from mmg_tuner.errors import DiagnosisError, MissingDependencyError
 from mmg_tuner.learn import require_jax
 from mmg_tuner.tuning.gate import check_before_writing, mark_note
@@ -79,11 +81,19 @@ class DiagnoseConfig:
     # effect on its own evidence, the error apportioned: diagnosis/decide.py; issue 42,
     # measured in bench/bench_diagnosis_mismatch.py, not yet the default)
     verdict: str = 'rules'
+    # restart the simulation from the recorded state every this many seconds in every tuning
+    # and held-out judgement of the diagnosis; None: settings.restart_period(L_pp) with the
+    # evidence verdict, a free run (0) with the rules
+    restart_every_s: float | None = None
 
     def __post_init__(self) -> None:
         E = DiagnosisError
         _check('verdict', self.verdict, self.verdict in ('rules', 'evidence'),
                "'rules' or 'evidence'", E)
+        _check('restart_every_s', self.restart_every_s, self.restart_every_s is None or (
+            isinstance(self.restart_every_s, (int, float)) and not isinstance(
+                self.restart_every_s, bool) and 0 <= self.restart_every_s < math.inf),
+            'None or a number of seconds >= 0 (0: a free run)', E)
         if isinstance(self.measured, (str, Path)):
             object.__setattr__(self, 'measured', _measured.load(self.measured))
         else:
@@ -114,15 +124,20 @@ class DiagnoseConfig:
             v = getattr(self, k)
             _check(k, v, v is None or (_is_int(v) and v >= 1), 'a whole number >= 1', E)
 
-    def settings(self) -> DiagnosisSettings:
+    def settings(self, L_pp_m: float | None = None) -> DiagnosisSettings:
+        """Return the search's settings (``L_pp_m``: the ship's, for the restart period)."""
         base_e, screen_e, eff_e = BUDGETS[self.budget]
+        restart = self.restart_every_s
+        if restart is None:
+            restart = (restart_period(L_pp_m) if self.verdict == 'evidence' and L_pp_m
+                       else 0.0)
         return DiagnosisSettings(
             targets=self.targets, a_r=self.a_r, effects=list(self.effects),
             integrator=self.integrator, base_evals=self.base_evals or base_e,
             screen_evals=self.screen_evals or screen_e, effect_evals=self.effect_evals or eff_e,
             max_effects=self.max_effects, seed=self.seed, retune=self.retune,
             setting=self.setting, measured_signals=self.measured_signals,
-            measurements=dict(self.measured))
+            measurements=dict(self.measured), restart_every_s=float(restart))
 
 
 @dataclass
@@ -289,8 +304,8 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
     check_trial_sets(trials, test)
     for t in trials + test:   # before any work: every channel the family needs, all named
         t.input_array(ship.family.channels)
-    d = _diagnose(ship, trials, test, cfg.settings(), checkpoint=checkpoint, resume=resume,
-                  map_fn=map_fn)
+    d = _diagnose(ship, trials, test, cfg.settings(ship.L_pp), checkpoint=checkpoint,
+                  resume=resume, map_fn=map_fn)
     logger.info('3/3 reporting')
     t_report = time.perf_counter()
     # the base model is tuned without a measured wind when it is a candidate
@@ -340,7 +355,8 @@ def _decide(dx: 'DiagnosisResult', tune_trials: list[Trial]) -> None:
                                                 else t for t in tune_trials]
     evidence = decide(dx.ship, dx.params, [c.effect for c in dx.causes], tune_final,
                       dx.test_final or dx.test, J_base, dx.config.integrator,
-                      test_without_wind=no_wind)
+                      test_without_wind=no_wind,
+                      restart_every_s=dx.config.settings(dx.ship.L_pp).restart_every_s)
     dx.decision = [e.to_dict() for e in evidence]
     verdict = {e.effect: e for e in evidence}
     kept = []

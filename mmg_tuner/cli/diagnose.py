@@ -58,6 +58,10 @@ def build_parser() -> argparse.ArgumentParser:
                     'verdict withdraws the fitted causes) or evidence (each effect by its own '
                     'held-out contribution and consistency over the trials, the error '
                     'apportioned; see doc/guides/diagnosis.md)')
+    ap.add_argument('--restart-every', type=float, metavar='S', dest='restart_every_s',
+                    help='restart every simulation of the diagnosis from the recorded state '
+                    'every S seconds (0: one free run per trial). Default: 20 sqrt(L_pp/g) '
+                    '(SUZAKU 58 s) with --verdict evidence, a free run with rules')
     # a flag, not '--residual MODE': an optional value would swallow the first trial path
     ap.add_argument('--residual', action='store_const', const='on', default='auto',
                     help='after the search, always train a residual network on the final model '
@@ -103,7 +107,8 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
                               retune=getattr(args, 'retune', 'lsq'),     # stored neither)
                               residual=_RESIDUAL[getattr(args, 'residual', False)],
                               measured=getattr(args, 'measured', None),
-                              verdict=getattr(args, 'verdict', 'rules'))
+                              verdict=getattr(args, 'verdict', 'rules'),
+                              restart_every_s=getattr(args, 'restart_every_s', None))
 
 
 def verdict_lines(dx) -> list[str]:

@@ -33,6 +33,10 @@ causes leave is reported beside them.
    rest systematic -- structural when the structure check shows where it lives (a learnable
    share, an asymmetry, coefficients on their bounds in F), else unexplained.
 
+Every J here is the diagnosis's own: with the evidence verdict the simulation restarts from the
+recorded state every settings.restart_period (the prediction error over about two ship lengths,
+not a whole run's drift from a noisy start), as in the search that fitted F.
+
 Z_FOR = 2 and D_MAX = 0.5 were set before any benchmark ran (two standard errors; a scatter
 half the effect's size) and checked on the development seeds of
 bench/bench_diagnosis_mismatch.py, then on fresh seeds registered before they were run.
@@ -124,8 +128,9 @@ def dispersion(ship: ShipConfig, effect: str, estimates: Sequence[Mapping[str, f
 
 
 def _per_trial_J(ship: ShipConfig, trials: Sequence[Trial], params: np.ndarray,
-                 integrator: str) -> np.ndarray:
-    obj = Objective(ship, TrialBatch.from_trials(list(trials)), integrator=integrator)
+                 integrator: str, restart_every_s: float) -> np.ndarray:
+    obj = Objective(ship, TrialBatch.from_trials(list(trials)), shoot_every_s=restart_every_s,
+                    integrator=integrator)
     J, _ = obj.per_trial(params)
     return J[0]
 
@@ -152,7 +157,8 @@ def _neutral(effect: str) -> dict[str, float]:
 def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str],
            tune_trials: Sequence[Trial], test_trials: Sequence[Trial],
            J_base: np.ndarray, integrator: str = 'rk4',
-           test_without_wind: Sequence[Trial] | None = None) -> list[Evidence]:
+           test_without_wind: Sequence[Trial] | None = None,
+           restart_every_s: float = 0.0) -> list[Evidence]:
     """
     Weigh every effect of the final model (see the module docstring).
 
@@ -173,7 +179,8 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
             if e in EFFECTS:
                 over.update(_neutral(e))
         trials = no_wind if any(e in signals for e in dropped) else test_trials
-        return _per_trial_J(final, trials, final.with_params(over).params, integrator)
+        return _per_trial_J(final, trials, final.with_params(over).params, integrator,
+                            restart_every_s)
 
     # every subset of the effects dropped: k <= max_effects (2-3), so 2^k held-out simulations
     names = list(effects)
@@ -209,7 +216,7 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
         ev = Evidence(e, d, se, lr_mean, lr_se, share, None, 0)
         if e in EFFECTS:
             ev.per_trial = _estimates(final, e, list(tune_trials) + list(test_trials),
-                                      integrator)
+                                      integrator, restart_every_s)
             ev.dispersion, ev.trials_used = dispersion(ship, e, ev.per_trial)
         for_it = bool(np.all(np.isfinite(lr))) and lr_mean > Z_FOR * lr_se and d > 0
         if not for_it:
@@ -231,15 +238,15 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
     return out
 
 
-def _estimates(final: ShipConfig, effect: str, trials: Sequence[Trial], integrator: str
-               ) -> list[dict]:
+def _estimates(final: ShipConfig, effect: str, trials: Sequence[Trial], integrator: str,
+               restart_every_s: float) -> list[dict]:
     """Fit the effect's parameters on each trial alone, the rest of the model held."""
     e = EFFECTS[effect]
     lo, hi = (np.array(b, float) for b in zip(*e.bounds(final)))
     theta = np.array([final[p] for p in e.params], float)
     theta = np.clip(theta, lo, hi)
     space = ParameterSpace(tuple(e.params), theta.copy(), lo, hi)
-    objs = [Objective(final, TrialBatch.from_trials([t]), integrator=integrator)
-            for t in trials]
+    objs = [Objective(final, TrialBatch.from_trials([t]), shoot_every_s=restart_every_s,
+                      integrator=integrator) for t in trials]
     est = per_trial(final, space, theta, e.params, objs)
     return [{**{p: x[p] for p in e.params}, 'trial': t.name} for x, t in zip(est, trials)]

@@ -103,7 +103,8 @@ def with_prior(obj: Objective, pr: Prior | None) -> Objective:
     """Return the same tuning objective with the prior ``pr`` (unchanged when None)."""
     if pr is None:
         return obj
-    return Objective(obj.ship, obj.batch, obj.weights, 0.0, {0: 'euler', 1: 'rk4'}[obj.method],
+    return Objective(obj.ship, obj.batch, obj.weights, obj.shoot_every_s,
+                     {0: 'euler', 1: 'rk4'}[obj.method],
                      obj.substeps, obj.trial_weights, pr)
 
 

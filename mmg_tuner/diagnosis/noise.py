@@ -60,7 +60,7 @@ def sensor_noise(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict[st
 
 def noise_floor(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
                 sigma: dict[str, float], integrator: str = 'rk4', weights=None,
-                draws: int = DRAWS, seed: int = 0) -> dict:
+                draws: int = DRAWS, seed: int = 0, restart_every_s: float = 0.0) -> dict:
     """
     Return the held-out J that noise alone leaves with this model on these trials.
 
@@ -81,7 +81,8 @@ def noise_floor(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
             if not ok.all():      # a model that fails on a trial: no floor from it
                 sim = np.where(ok[:, None], sim, tr.states)
             fake.append(replace(tr, states=sim + rng.normal(0.0, 1.0, sim.shape) * sd))
-    obj = Objective(ship, TrialBatch.from_trials(fake), weights, integrator=integrator)
+    obj = Objective(ship, TrialBatch.from_trials(fake), weights, restart_every_s,
+                    integrator=integrator)
     J = obj.per_trial(np.asarray(params, float)[None])[0][0].reshape(draws, len(trials))
     per_draw = J.sum(axis=1)
     w = obj.weights

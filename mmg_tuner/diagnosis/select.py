@@ -235,7 +235,7 @@ def _run_fit(f: _Fit) -> np.ndarray:
         sub = ParameterSpace(space.names[n_base:], space.pre[n_base:], space.lower[n_base:],
                              space.upper[n_base:])
         shipb = f.ship.with_params(dict(zip(space.names[:n_base], base_vals)))
-        o = Objective(shipb, f.obj.batch, f.obj.weights, 0.0,
+        o = Objective(shipb, f.obj.batch, f.obj.weights, f.obj.shoot_every_s,
                       {0: 'euler', 1: 'rk4'}[f.obj.method], f.obj.substeps)
         if sub.dim == 0:
             return x0.copy()
@@ -437,7 +437,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     has_wind = any(t.wind is not None for t in list(tune_trials) + list(test_trials))
 
     def mk(trials: Sequence[Trial]) -> Objective:
-        return Objective(ship, TrialBatch.from_trials(trials), integrator=s.integrator)
+        return Objective(ship, TrialBatch.from_trials(trials), shoot_every_s=s.restart_every_s,
+                         integrator=s.integrator)
 
     wind_pair = (mk(tune_trials), mk(test_trials)) if has_wind else None
     if has_wind and s.measured_signals:
@@ -1294,7 +1295,8 @@ def _noise(ship: ShipConfig, params: np.ndarray, test_trials: Sequence[Trial],
                                                       s.integrator))
     if sigma is None:
         return {}
-    floor = noise_floor(ship, params, test_trials, sigma, s.integrator, weights, seed=s.seed)
+    floor = noise_floor(ship, params, test_trials, sigma, s.integrator, weights, seed=s.seed,
+                        restart_every_s=s.restart_every_s)
     log(f"   sensor noise from the held-out recordings: position {sigma['x']:.2g}/"
         f"{sigma['y']:.2g} m, heading {math.degrees(sigma['psi']):.2g} deg; the held-out J "
         f"noise alone leaves: {floor['J']:.4g} ± {floor['J_se']:.2g}")

@@ -5,6 +5,8 @@ Moved from ``select.py`` unchanged; the search is :func:`mmg_tuner.diagnosis.sel
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence, TypeVar
 
@@ -91,3 +93,27 @@ class DiagnosisSettings:
     # measured coefficients {name: diagnosis.measured.Measurement(value, se)}: priors of every
     # tuning with their standard errors (never fixed values; diagnosis/measured.py)
     measurements: Mapping[str, object] = field(default_factory=dict)
+    # every tuning and held-out judgement of the diagnosis restarts the simulation from the
+    # recorded state every this many seconds (0: one free run per trial; restart_period)
+    restart_every_s: float = 0.0
+
+
+RESTART_FROUDE = 20.0
+"""The evidence verdict's restart period, in units of sqrt(L_pp / g) (SUZAKU, 83 m: 58 s)."""
+
+
+def restart_period(L_pp_m: float) -> float:
+    """
+    Return the restart period [s] of the evidence verdict: RESTART_FROUDE sqrt(L_pp / g).
+
+    A free run of several hundred seconds is ruled by how its start was read: a heading 0.2 deg
+    off moves the end of a 400 s run by metres, so sensor noise alone leaves a held-out error
+    that hides a 20 m antenna offset or an 8 m/s wind (bench_diagnosis_mismatch, zero mismatch:
+    noise alone left 1.0e7 of a base model's 1.7e7). Restarting from the recorded state every
+    period (multiple shooting: the prediction error over a horizon, not the simulation error
+    over the whole run) keeps what a missing force does within one period -- about two ship
+    lengths sailed, longer than a turn's yaw time constant -- and drops the drift of the start.
+    Froude-scaled, so a model-scale ship gets the same horizon in ship lengths (Esso Osaka, 3 m:
+    11 s). Set before the registered benchmark (bench/bench_diagnosis_mismatch_preregistration).
+    """
+    return RESTART_FROUDE * math.sqrt(L_pp_m / 9.80665)

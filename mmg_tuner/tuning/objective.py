@@ -216,6 +216,7 @@ class Objective:
         if self.weights.shape != (6,) or np.any(self.weights < 0):
             raise TuningError('weights must be 6 non-negative numbers (x, y, psi, u, v, r)')
         self.shoot_every = int(round(shoot_every_s / batch.dt)) if shoot_every_s > 0 else 0
+        self.shoot_every_s = float(shoot_every_s) if self.shoot_every else 0.0
         self.method = integrator_code(integrator)
         self.substeps = int(substeps)
         self.evaluations = 0
