@@ -90,10 +90,10 @@ class DiagnoseConfig:
         E = DiagnosisError
         _check('verdict', self.verdict, self.verdict in ('rules', 'evidence'),
                "'rules' or 'evidence'", E)
-        _check('restart_every_s', self.restart_every_s, self.restart_every_s is None or (
-            isinstance(self.restart_every_s, (int, float)) and not isinstance(
-                self.restart_every_s, bool) and 0 <= self.restart_every_s < math.inf),
-            'None or a number of seconds >= 0 (0: a free run)', E)
+        r = self.restart_every_s
+        seconds = isinstance(r, (int, float)) and not isinstance(r, bool) and 0 <= r < math.inf
+        _check('restart_every_s', r, r is None or seconds,
+               'None or a number of seconds >= 0 (0: a free run)', E)
         if isinstance(self.measured, (str, Path)):
             object.__setattr__(self, 'measured', _measured.load(self.measured))
         else:
@@ -125,7 +125,7 @@ class DiagnoseConfig:
             _check(k, v, v is None or (_is_int(v) and v >= 1), 'a whole number >= 1', E)
 
     def settings(self, L_pp_m: float | None = None) -> DiagnosisSettings:
-        """Return the search's settings (``L_pp_m``: the ship's, for the restart period)."""
+        """Return the search's settings; ``L_pp_m``, the ship's length, sets the restart period."""
         base_e, screen_e, eff_e = BUDGETS[self.budget]
         restart = self.restart_every_s
         if restart is None:

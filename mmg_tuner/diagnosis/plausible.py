@@ -113,8 +113,8 @@ def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
     out = []
     for o in trial_objs:
         shipb = o.ship.with_params(held)
-        ob = Objective(shipb, o.batch, o.weights, o.shoot_every_s, {0: 'euler', 1: 'rk4'}[o.method],
-                       o.substeps)
+        ob = Objective(shipb, o.batch, o.weights, o.shoot_every_s,
+                       {0: 'euler', 1: 'rk4'}[o.method], o.substeps)
         x = local_least_squares(sub, ob, theta[idx], PER_TRIAL_SIMS).theta
         se = standard_errors(ob, sub, x)
         w = ON_BOUND * (sub.upper - sub.lower)

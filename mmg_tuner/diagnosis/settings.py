@@ -5,9 +5,8 @@ Moved from ``select.py`` unchanged; the search is :func:`mmg_tuner.diagnosis.sel
 """
 from __future__ import annotations
 
-import math
-
 from dataclasses import dataclass, field
+import math
 from typing import Callable, Mapping, Sequence, TypeVar
 
 from mmg_tuner.core.effects import EFFECTS

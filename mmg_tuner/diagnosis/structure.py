@@ -31,7 +31,8 @@ when what remains is noise; when the noise could not be estimated it says so ins
 
 One verdict (:func:`one_verdict`, the default ``verdict='rules'`` of the diagnosis): when
 the verdict is ``structure``, no fitted effect is named as a CAUSE in the same report; they
-are listed as mimicking the gap. With ``verdict='evidence'`` (diagnosis/decide.py) the
+are listed as mimicking the gap. A measured signal (the recorded wind driving the model) and a
+cause a measurement sized fit nothing, so they cannot mimic: they stay causes beside it. With ``verdict='evidence'`` (diagnosis/decide.py) the
 structure verdict describes only what the named causes leave and never withdraws a cause.
 """
 from __future__ import annotations
@@ -45,6 +46,7 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.noise import describe as describe_noise
 from mmg_tuner.diagnosis.residuals import simulate_trials
+from mmg_tuner.diagnosis.settings import MEASURED
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import unique_names
 import numpy as np
@@ -293,9 +295,13 @@ def one_verdict(causes: list, st: dict, J_base: float | None = None,
     named causes is then the base model's error
     (``J_base``, held out): the noise statement is made of it (``noise``: the floor).
     """
-    # a cause sized by a measurement (Cause.measured) is a fact, not a fit that could mimic
-    kept = [c for c in causes if getattr(c, 'measured', '')]
-    fitted = [c for c in causes if not getattr(c, 'measured', '')]
+    # a cause sized by a measurement (Cause.measured) or a measured signal driving the model
+    # (the recorded wind: nothing fitted) is a fact, not a fit that could bend to mimic a gap
+    def fact(c) -> bool:
+        return bool(getattr(c, 'measured', '')) or getattr(c, 'effect', None) in MEASURED
+
+    kept = [c for c in causes if fact(c)]
+    fitted = [c for c in causes if not fact(c)]
     if st.get('verdict') != 'structure' or not fitted:
         return list(causes), []
     if J_base is not None:
