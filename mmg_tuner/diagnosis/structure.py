@@ -32,8 +32,9 @@ when what remains is noise; when the noise could not be estimated it says so ins
 One verdict (:func:`one_verdict`, the default ``verdict='rules'`` of the diagnosis): when
 the verdict is ``structure``, no fitted effect is named as a CAUSE in the same report; they
 are listed as mimicking the gap. A measured signal (the recorded wind driving the model) and a
-cause a measurement sized fit nothing, so they cannot mimic: they stay causes beside it. With ``verdict='evidence'`` (diagnosis/decide.py) the
-structure verdict describes only what the named causes leave and never withdraws a cause.
+cause a measurement sized fit nothing, so they cannot mimic: they stay causes beside it. With
+``verdict='evidence'`` (diagnosis/decide.py) the structure verdict describes only what the
+named causes leave and never withdraws a cause.
 """
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ from bench.bench_diagnosis import run_case
 import pytest
 
 
-@pytest.mark.parametrize('seed', [0, pytest.param(2, marks=pytest.mark.slow)])
+@pytest.mark.parametrize('seed', [pytest.param(s, marks=pytest.mark.slow) for s in (0, 2)])
 def test_a_wind_and_a_rudder_offset_are_both_named_on_the_benchmarks_cases(suzaku, seed):
     row = run_case(suzaku, 'rudder_offset+wind', seed, 'quick', 10, 400.0, advice=False)
     assert sorted(row['named']) == ['rudder_offset', 'wind'], row['named']

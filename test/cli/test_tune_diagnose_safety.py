@@ -191,7 +191,7 @@ def test_diagnose_cli_interrupt_then_resume_from_elsewhere(csv_dir, tmp_path, mo
     assert (out / 'params.yaml').is_file() and 'causes' in doc
 
 
-def _tiny_settings(self):
+def _tiny_settings(self, L_pp_m=None):
     return DiagnosisSettings(effects=list(self.effects), max_effects=self.max_effects,
                              integrator=self.integrator, seed=self.seed, base_evals=600,
                              screen_evals=60, effect_evals=300)

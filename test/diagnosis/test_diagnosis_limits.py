@@ -72,6 +72,7 @@ def test_a_current_at_the_small_end_of_its_range_is_named(suzaku):
     assert abs((math.degrees(p['current_dir']) - math.degrees(2.0) + 180) % 360 - 180) < 60
 
 
+@pytest.mark.slow
 def test_a_rudder_offset_at_the_small_end_of_its_range_is_named(suzaku):
     """
     Name a rudder offset of 1.5 x the smallest worth finding (1 deg).

@@ -203,6 +203,7 @@ def test_causes_that_leave_most_of_an_error_above_the_noise_beside_bent_coeffici
 
 
 # ------------------------------------------------------------------- hidden, then diagnosed
+@pytest.mark.slow
 def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
     """
     Every hull force and moment 45 % larger: out of the library, structural.
@@ -260,6 +261,7 @@ def test_wind_and_a_rudder_offset_are_both_named(suzaku):
     assert dx.structure['remaining_is_noise'] is True, dx.structure['summary']
 
 
+@pytest.mark.slow
 def test_a_current_and_a_rudder_offset_are_named_in_place_of_the_wind_they_imitate(suzaku):
     """
     Current 0.25 m/s toward 200 deg and a rudder offset of +1.5 deg: both named.

@@ -150,7 +150,7 @@ def test_wrong_sample_interval_is_refused(suzaku, trial):
         simulate_hybrid(suzaku, random_net(dt=0.5), trial)
 
 
-@pytest.mark.parametrize('integrator', ['euler', 'rk4'])
+@pytest.mark.parametrize('integrator', [pytest.param('euler', marks=pytest.mark.slow), 'rk4'])
 def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
     net = random_net(scale=1e-3)
     ref = simulate_hybrid(suzaku, net, trial, integrator=integrator)
