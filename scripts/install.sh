@@ -24,8 +24,8 @@ export ROS_LOG_DIR=${ROS_LOG_DIR:-$PWD/log/ros}
 echo "== colcon build"
 colcon build --base-paths . --event-handlers console_cohesion- >/dev/null 2>log/colcon_build.err \
   || { cat log/colcon_build.err; exit 1; }
-# compile the nodes' kernels into the installed package's cache now, not on the first ros2 run
-echo "== precompile (the simulator's kernels; first build: about a minute)"
+# compile the kernels into the shared cache (core/_numba_cache.py) now, not on the first run
+echo "== precompile (the simulator's and tuning's kernels; first build: about 6 minutes)"
 # shellcheck disable=SC1091
 set +u; source install/local_setup.bash; set -u
 install/mmg_tuner/lib/mmg_tuner/precompile >log/precompile.log 2>&1 || { cat log/precompile.log; exit 1; }

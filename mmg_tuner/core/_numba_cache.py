@@ -7,8 +7,14 @@ after an upgrade it would run stale machine code. So before any kernel is decora
 ``numba.config.CACHE_DIR`` at a folder named by ``mmg_tuner.__version__``, numba's version
 and a hash of every ``.py`` file under ``mmg_tuner/core`` and of every plugin family or
 actuator module: any change there starts a fresh cache. Base folder: ``$NUMBA_CACHE_DIR`` if
-set, else ``core/__pycache__`` (numba's usual place) if writable, else ``~/.cache/mmg_tuner``,
-else the temp dir.
+set, else ``$XDG_CACHE_HOME/mmg_tuner`` (``~/.cache/mmg_tuner``) if writable, else
+``core/__pycache__``, else the temp dir.
+
+Inside that folder a kernel's file is found by its path *within the package* (``core/models``),
+not by its absolute path as numba does (:class:`PackageLocator`): the same sources installed
+twice (the colcon install and the source tree the tests import, a venv and a ROS overlay) then
+share one compiled copy instead of compiling every kernel again, about 15 s each. The key above
+already names the sources, and numba still checks each file's content hash.
 """
 from __future__ import annotations
 
@@ -51,6 +57,53 @@ def source_hash(core_dir: Path = CORE_DIR) -> str:
     return h.hexdigest()
 
 
+def _inside_package(py_file: str) -> Path | None:
+    """Folder of py_file relative to this mmg_tuner package, or None outside it."""
+    try:
+        return Path(py_file).resolve().parent.relative_to(CORE_DIR.parent)
+    except (OSError, ValueError):
+        return None
+
+
+def _install_locator() -> None:
+    """
+    Put :class:`PackageLocator` first in numba's cache locators (once).
+
+    numba has no public hook for this (``CacheImpl._locator_classes``, ``_CacheImpl`` before
+    0.61); on a numba without it the kernels still cache, only per installation path.
+    """
+    try:
+        from numba import config
+        from numba.core import caching
+        impl = getattr(caching, 'CacheImpl', None) or getattr(caching, '_CacheImpl')
+        locators = impl._locator_classes
+        base = caching.UserProvidedCacheLocator
+    except (ImportError, AttributeError):
+        return
+    if any(getattr(c, 'mmg_tuner_package_locator', False) for c in locators):
+        return
+
+    class PackageLocator(base):  # type: ignore[misc, valid-type]  # numba's untyped class
+        """numba's user-folder locator, keyed by the file's folder within the package."""
+
+        mmg_tuner_package_locator = True
+
+        def __init__(self, py_func: object, py_file: str) -> None:
+            super().__init__(py_func, py_file)
+            rel = _inside_package(py_file)
+            self._cache_path = os.path.join(
+                config.CACHE_DIR, 'package',  # type: ignore[attr-defined]  # set at run time
+                *(rel.parts if rel else ()))
+
+        @classmethod
+        def from_function(cls, py_func: object, py_file: str) -> object:
+            if _inside_package(py_file) is None:
+                return None   # a plugin in another folder: numba's own locators
+            return super().from_function(py_func, py_file)
+
+    locators.insert(0, PackageLocator)
+
+
 def _writable(d: Path) -> bool:
     try:
         d.mkdir(parents=True, exist_ok=True)
@@ -66,8 +119,9 @@ def cache_dir() -> Path:
 
     from mmg_tuner import __version__
     key = f'mmg_tuner-{__version__}-numba-{numba.__version__}-{source_hash()[:16]}'
+    user_cache = Path(os.environ.get('XDG_CACHE_HOME') or Path.home() / '.cache')
     bases = ([Path(_BASE_ENV)] if _BASE_ENV else
-             [CORE_DIR / '__pycache__', Path.home() / '.cache' / 'mmg_tuner',
+             [user_cache / 'mmg_tuner', CORE_DIR / '__pycache__',
               Path(tempfile.gettempdir()) / f'mmg_tuner-{os.getuid()}'])
     for base in bases:
         if _writable(base / key):
@@ -79,3 +133,4 @@ def configure() -> None:
     """Set numba's cache folder (idempotent; call before importing any kernel module)."""
     import numba
     numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]  # set at run time
+    _install_locator()

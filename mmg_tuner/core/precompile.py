@@ -2,11 +2,12 @@
 Compile the simulator's kernels into numba's on-disk cache ahead of their first use.
 
 A kernel compiles on its first call (about 15 s each on a 2-core machine) and is cached per
-installation (core/_numba_cache.py). The nodes and ``simulate`` call two: the whole-run kernel
-(:func:`~mmg_tuner.core.simulate.simulate`, compiled once per model family) and the stepper's
-(:class:`ShipSimulator`, the ``sim_node``'s engine, one for all families). Compiling them once
-after ``colcon build`` makes the first ``ros2 run mmg_tuner sim_node`` start in seconds
-instead of half a minute.
+installation's sources (core/_numba_cache.py). The nodes and ``simulate`` call two: the
+whole-run kernel (:func:`~mmg_tuner.core.simulate.simulate`) and the stepper's
+(:class:`ShipSimulator`, the ``sim_node``'s engine); ``tune`` and ``diagnose`` call the batched
+cost and residuals (:func:`~mmg_tuner.core.integrate.cost_many`, ``residuals_many``). Each is
+compiled per model family. Compiling them once after ``colcon build`` makes the first
+``ros2 run mmg_tuner sim_node`` or ``tune`` start in seconds instead of minutes.
 """
 from __future__ import annotations
 
@@ -45,9 +46,30 @@ def _stepper(ship_yaml: Path) -> None:
     ShipSimulator(load_ship(ship_yaml), dt=0.1).step(2)
 
 
+def _batched(ship_yaml: Path) -> None:
+    """Run the tuning kernels with the argument types tuning/objective.py passes."""
+    from mmg_tuner.core.integrate import cost_many, residuals_many
+    from mmg_tuner.core.ship import load_ship
+    ship = load_ship(ship_yaml)
+    M, T, C = 1, 3, len(ship.family.channels)
+    params = np.ascontiguousarray(np.atleast_2d(ship.params), dtype=float)
+    meas = np.zeros((M, T, 6))
+    meas[:, :, 3] = 1.0
+    ctrls = np.full((M, T, C), 0.1)
+    lengths = np.full(M, T, dtype=np.int64)
+    J = np.empty((1, M))
+    k_fail = np.empty((1, M), dtype=np.int64)
+    cost_many(ship.kind, params, meas, ctrls, lengths, 1.0, 1, 0, np.ones(6), 0, J, k_fail)
+    chans = np.arange(6, dtype=np.int64)
+    offsets = np.array([0, (T - 1) * 6], dtype=np.int64)
+    r = np.empty((1, (T - 1) * 6))
+    residuals_many(ship.kind, params, meas, ctrls, lengths, 1.0, 1, 0, np.ones((M, 6)), chans,
+                   offsets, r, k_fail)
+
+
 def kernels() -> dict[str, Callable[[], None]]:
     """
-    Return what to run, by name: each family's whole-run kernel, then each family's stepper.
+    Return what to run, by name: each family's whole-run kernel, stepper and tuning kernels.
 
     The stepper too is compiled per family (the family's tag is part of its type), so one
     warm-up per family: with a single one, sim_node compiled at its first start for every
@@ -62,6 +84,8 @@ def kernels() -> dict[str, Callable[[], None]]:
     for family, f in ships.items():
         if load_ship(f).family.inputs[:2] == ('rpm', 'rudder'):   # what sim_node drives
             jobs[f'stepper, {family} family (sim_node)'] = partial(_stepper, f)
+    for family, f in ships.items():
+        jobs[f'cost and residuals, {family} family (tune, diagnose)'] = partial(_batched, f)
     return jobs
 
 

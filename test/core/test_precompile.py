@@ -29,3 +29,23 @@ def test_precompile_leaves_the_kernels_in_the_installations_cache(capsys):
     assert all(f'{family} family' in out for family in REGISTRY) and 'stepper' in out
     index = {f.name.split('-')[0] for f in cache_dir().rglob('*.nbi')}
     assert {'stepper._advance_checked', 'integrate._simulate_one'} <= index, sorted(index)
+
+
+def test_precompile_compiles_the_signatures_tuning_calls():
+    """The warm-up's argument types are tune's: a real objective then compiles nothing new."""
+    import numpy as np
+
+    from mmg_tuner.core import integrate
+    from mmg_tuner.data.generate import generate_trial, SensorNoise
+    from mmg_tuner.tuning.factory import make_objective
+    from mmg_tuner.tuning.identifiability import residuals
+    ship = load_ship('suzaku')
+    kernels()[f'cost and residuals, {ship.model} family (tune, diagnose)']()
+    before = (len(integrate._cost_many.signatures), len(integrate._residuals_many.signatures))
+    _, trial = generate_trial(ship, 'zigzag', 10.0, 10.0, 60.0, 5.0, 20.0, 1.0, SensorNoise(),
+                              0, 'z')
+    obj = make_objective(ship, [trial])
+    p = np.atleast_2d(ship.params)
+    assert np.isfinite(obj(p)).all() and np.isfinite(residuals(obj, p)).all()
+    assert (len(integrate._cost_many.signatures),
+            len(integrate._residuals_many.signatures)) == before
