@@ -92,3 +92,36 @@ def event_cut(s: str) -> str:
     except ConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return f'{event}:{before_s:g}'
+
+
+TOPICS_HELP = ('topic map YAML for bags (default: conventions.md topics; a topic left open is '
+               'found by type when unambiguous)')
+
+
+def add_reading_options(ap: argparse.ArgumentParser, dt: object, dt_help: str,
+                        dt_default: float | None = None, scale: bool = True) -> None:
+    """
+    Add the options of how recordings are read, the same in every command that reads them.
+
+    --topics, --dt (value type dt, default dt_default), --trial-scale (scale), --cut-from-event,
+    --strict.
+    """
+    ap.add_argument('--topics', help=TOPICS_HELP)
+    ap.add_argument('--dt', type=dt, default=dt_default, help=dt_help)
+    if scale:
+        ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
+                        help="'full': trials are full scale, Froude-scale them to the ship "
+                        'config')
+    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
+    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
+
+
+def add_writing_options(ap: argparse.ArgumentParser, quiet_help: str) -> None:
+    """Add --no-plots, --quiet and --write-unphysical (commands that write a tuned model)."""
+    ap.add_argument('--no-plots', action='store_true')
+    ap.add_argument('--quiet', action='store_true', help=quiet_help)
+    ap.add_argument('--write-unphysical', action='store_true',
+                    help='write params.yaml even when the model cannot be a ship (a mass '
+                    'matrix not positive definite, a negative resistance) or diverges on '
+                    'its trials; each failure is marked in the report (default: refused '
+                    'with an ERROR naming it)')

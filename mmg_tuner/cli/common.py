@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 import sys
 import tempfile
-from typing import Callable
+from typing import Any, Callable
 
 from mmg_tuner._atomic import file_mode
 from mmg_tuner._limits import one_line
@@ -69,6 +69,23 @@ def run_command(command: Callable[[list[str] | None], int], argv: list[str] | No
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130
+
+
+def progress_bar(total: int, unit: str, show: Callable[[Any, Any], None],
+                 **tqdm_options: Any) -> Callable[[Any], None]:
+    """
+    Return a progress callback drawing a tqdm bar on stderr; call its ``close()`` at the end.
+
+    show(bar, item) moves the bar for one progress item (an outcome, a CMA-ES generation).
+    """
+    from tqdm import tqdm
+    bar = tqdm(total=total, unit=unit, file=sys.stderr, dynamic_ncols=True, **tqdm_options)
+
+    def update(item: Any) -> None:
+        show(bar, item)
+
+    update.close = bar.close  # type: ignore[attr-defined]
+    return update
 
 
 def _never_fail_printing() -> None:

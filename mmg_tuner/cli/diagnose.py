@@ -19,10 +19,10 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, positive_float, STRICT_HELP
+from mmg_tuner.cli.args import add_reading_options, add_writing_options, bounded, positive_float
 from mmg_tuner.cli.common import run_command
-from mmg_tuner.cli.tune import (DT, parse_or_resume, Parser, SEED, show_log, sigterm_as_interrupt,
-                                store_args, UsageError)
+from mmg_tuner.cli.tune import (DT, load_tune_and_test, parse_or_resume, Parser, SEED, show_log,
+                                sigterm_as_interrupt, store_args, UsageError)
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.settings import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
@@ -46,11 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--budget', choices=list(api.BUDGETS), default='standard')
     ap.add_argument('--max-effects', type=bounded(int, 1, len(EFFECTS), 'number of effects'),
                     default=3)
-    ap.add_argument('--topics')
-    ap.add_argument('--dt', type=DT, default=1.0, help='resampling step [s]')
-    ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship')
-    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
-    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
+    add_reading_options(ap, DT, 'resampling step [s]', dt_default=1.0)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
     ap.add_argument('--verdict', choices=('rules', 'evidence'), default='rules',
@@ -85,13 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "named (default: the ship YAML's setting:, else what the trial files say)")
     ap.add_argument('--retune', choices=('lsq', 'cmaes'), default='lsq',
                     help="the candidates' warm-started re-tunes: local least squares or CMA-ES")
-    ap.add_argument('--no-plots', action='store_true')
-    ap.add_argument('--quiet', action='store_true', help='no progress messages')
-    ap.add_argument('--write-unphysical', action='store_true',
-                    help='write params.yaml even when the model cannot be a ship (a mass '
-                    'matrix not positive definite, a negative resistance) or diverges on '
-                    'its trials; each failure is marked in the report (default: refused '
-                    'with an ERROR naming it)')
+    add_writing_options(ap, 'no progress messages')
     return ap
 
 
@@ -180,13 +170,8 @@ def command(argv: list[str] | None = None) -> int:
         for n in notes:
             log.warning('resume: %s', n)
         ship = api.load_ship(args.ship, args.params)
-        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
-                'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None),  # (older runs: none)
-                'strict': getattr(args, 'strict', False)}
-        trials = api.load_trials(args.trials, **load)
-        test = api.load_trials(args.test, **load) if args.test else None
-        if test is None:
+        trials, test = load_tune_and_test(args, ship)
+        if not args.test:
             if len(trials) < 4:
                 raise UsageError(
                     f'{len(trials)} trial(s) and no --test: holding out every second trial '

@@ -19,7 +19,7 @@ import sys
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, nonneg_float, STRICT_HELP
+from mmg_tuner.cli.args import add_reading_options, bounded, nonneg_float
 from mmg_tuner.cli.common import Parser, run_command, UsageError
 from mmg_tuner.cli.tune import show_log
 from mmg_tuner.tuning.evaluate import UNITS
@@ -36,12 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--out', required=True, help='output directory (new or empty)')
     ap.add_argument('--restart-every', type=nonneg_float, default=100.0, metavar='S',
                     help='restart from the measured state every S seconds (0: never)')
-    ap.add_argument('--topics', help='topic map YAML for bags')
-    ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
-    ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
-                    help="'full': trials are full scale, Froude-scale them to the ship config")
-    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
-    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
+    add_reading_options(ap, DT, 'resample every trial to this step [s]')
     ap.add_argument('--horizons', type=bounded(int, 1, 100_000, 'horizon [steps]'), nargs='+',
                     metavar='N', help='also n-step prediction: restart from the measured state '
                     'at every sample, predict N steps; RMSE per horizon and the free-run '

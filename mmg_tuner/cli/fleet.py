@@ -17,7 +17,7 @@ import argparse
 import sys
 
 from mmg_tuner.cli.args import positive_int
-from mmg_tuner.cli.common import Parser, run_command, UsageError
+from mmg_tuner.cli.common import Parser, progress_bar, run_command, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -74,7 +74,7 @@ def command(argv: list[str] | None = None) -> int:
             print(f"fleet: {len(manifest)} ship(s) on {len(info['workers'])} worker(s); "
                   f'dashboard {_dashboard(client, info)}'
                   f"{'; resuming ' + args.out if resumed else ''}", file=sys.stderr)
-            bar = None if args.quiet else _bar(len(manifest))
+            bar = None if args.quiet else progress_bar(len(manifest), 'ship', _show_outcome)
             try:
                 res = run(manifest, args.out, client, fan_out=not args.no_fan_out,
                           progress=bar)
@@ -108,16 +108,9 @@ def _dashboard(client, info: dict) -> str:
     return client.dashboard_link
 
 
-def _bar(total: int):
-    from tqdm import tqdm
-    bar = tqdm(total=total, unit='ship', file=sys.stderr, dynamic_ncols=True)
-
-    def update(outcome) -> None:
-        bar.set_postfix_str(f'{outcome.name} {outcome.status}', refresh=False)
-        bar.update(1)
-
-    update.close = bar.close  # type: ignore[attr-defined]
-    return update
+def _show_outcome(bar, outcome) -> None:
+    bar.set_postfix_str(f'{outcome.name} {outcome.status}', refresh=False)
+    bar.update(1)
 
 
 def main(argv: list[str] | None = None) -> None:

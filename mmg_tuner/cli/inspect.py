@@ -18,7 +18,7 @@ from dataclasses import replace
 import sys
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import bounded, CUT_HELP, event_cut, STRICT_HELP
+from mmg_tuner.cli.args import add_reading_options, bounded
 from mmg_tuner.cli.common import Parser, run_command
 from mmg_tuner.data.consistency import refuse_warnings, warn_rpm_units, WarningLog
 from mmg_tuner.data.csv_io import trial_csv_text
@@ -33,15 +33,11 @@ DT = bounded(float, 1e-3, 3600.0, 'resampling step dt [s]')
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='inspect', description=__doc__.strip().split('\n')[0])
     ap.add_argument('inputs', nargs='+', help='rosbag2 dirs, .mcap, .csv, .dat, or folders')
-    ap.add_argument('--topics', help='topic map YAML (default: conventions.md topics; a topic '
-                                     'left open is found by type when unambiguous)')
-    ap.add_argument('--dt', type=DT, help='resampling step [s] (default: topic map, 1.0)')
+    add_reading_options(ap, DT, 'resampling step [s] (default: topic map, 1.0)', scale=False)
     ap.add_argument('--ship', help='ship config name or YAML: samples beyond its plausible '
                                    'rpm, rudder and speed are dropped with a note (default: '
                                    'generic limits that fit any ship); astern propeller and '
                                    'u <= 0 are kept when its family covers them (lowspeed)')
-    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
-    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
     ap.add_argument('--csv', metavar='OUT_DIR',
                     help='write each trial as CSV into this new (or empty) folder')
     return ap

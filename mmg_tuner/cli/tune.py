@@ -26,9 +26,9 @@ import sys
 from mmg_tuner import api
 from mmg_tuner._limits import load_json
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.cli.args import (bounded, CUT_HELP, event_cut, nonneg_float, nonneg_int,
-                                positive_float, positive_int, STRICT_HELP)
-from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
+from mmg_tuner.cli.args import (add_reading_options, add_writing_options, bounded, nonneg_float,
+                                nonneg_int, positive_float, positive_int)
+from mmg_tuner.cli.common import Parser, progress_bar, run_command, SEED, UsageError
 from mmg_tuner.errors import ConfigError, MmgTunerError
 from mmg_tuner.tuning.lo_go import METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
@@ -94,12 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--prior', type=nonneg_float, default=0.0, metavar='W',
                     help='pull toward the pre-determined values: W x J per sample per squared '
                     'box width (0: none)')
-    ap.add_argument('--topics', help='topic map YAML for bags')
-    ap.add_argument('--dt', type=DT, help='resample every trial to this step [s]')
-    ap.add_argument('--trial-scale', choices=('ship', 'full'), default='ship',
-                    help="'full': trials are full scale, Froude-scale them to the ship config")
-    ap.add_argument('--cut-from-event', type=event_cut, metavar='EVENT[:S]', help=CUT_HELP)
-    ap.add_argument('--strict', action='store_true', help=STRICT_HELP)
+    add_reading_options(ap, DT, 'resample every trial to this step [s]')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
     ap.add_argument('--popsize', type=POPSIZE, default=12)
@@ -158,13 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help='GO: most Levenberg-Marquardt iterations')
     lg.add_argument('--grow', action='store_true',
                     help="GO: add the trials one by one (the paper's Algorithm 1)")
-    ap.add_argument('--no-plots', action='store_true')
-    ap.add_argument('--quiet', action='store_true', help='no progress bar or progress messages')
-    ap.add_argument('--write-unphysical', action='store_true',
-                    help='write params.yaml even when the model cannot be a ship (a mass '
-                    'matrix not positive definite, a negative resistance) or diverges on '
-                    'its trials; each failure is marked in the report (default: refused '
-                    'with an ERROR naming it)')
+    add_writing_options(ap, 'no progress bar or progress messages')
     return ap
 
 
@@ -418,6 +407,20 @@ def identify_method(args: argparse.Namespace, ship) -> str | None:
     return method or 'lo-go'
 
 
+def load_tune_and_test(args: argparse.Namespace, ship) -> tuple[list, list]:
+    """
+    Read the command's trials and its --test trials (none: []) with its reading options.
+
+    Arguments stored by an older version may lack --cut-from-event and --strict.
+    """
+    load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
+            'trial_scale': args.trial_scale,
+            'cut_from_event': getattr(args, 'cut_from_event', None),
+            'strict': getattr(args, 'strict', False)}
+    trials = api.load_trials(args.trials, **load)
+    return trials, (api.load_trials(args.test, **load) if args.test else [])
+
+
 def identify_command(args: argparse.Namespace, method: str) -> int:
     """``tune`` for a control-oriented family: identification local -> global."""
     if args.resume:
@@ -430,12 +433,7 @@ def identify_command(args: argparse.Namespace, method: str) -> int:
                                 grow=args.grow)
     with show_log(args.quiet), OutputDir.open(args.out) as out:
         ship = api.load_ship(args.ship, args.params)
-        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
-                'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None),
-                'strict': getattr(args, 'strict', False)}
-        trials = api.load_trials(args.trials, **load)
-        test = api.load_trials(args.test, **load) if args.test else []
+        trials, test = load_tune_and_test(args, ship)
         store_args(out, 'tune', args)
         from mmg_tuner.data.consistency import refuse_warnings, WarningLog
         with WarningLog() as log:   # the bollard table's units: errors under --strict
@@ -502,15 +500,12 @@ def command(argv: list[str] | None = None) -> int:
                 "options from the ship config's tuning.recipe: %s (options given on the "
                 'command line win)', ', '.join(recipe))
         ship = api.load_ship(args.ship, args.params)
-        load = {'ship': ship, 'dt': args.dt, 'topics': args.topics,
-                'trial_scale': args.trial_scale,
-                'cut_from_event': getattr(args, 'cut_from_event', None),
-                'strict': getattr(args, 'strict', False)}
-        tune_trials = api.load_trials(args.trials, **load)
-        test_trials = api.load_trials(args.test, **load) if args.test else []
+        tune_trials, test_trials = load_tune_and_test(args, ship)
         if not resume:
             store_args(out, 'tune', args)
-        bar = None if args.quiet else _progress_bar(config.max_evals)
+        bar = None if args.quiet else progress_bar(
+            config.max_evals, 'eval', _show_generation, mininterval=0.5,
+            bar_format='{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}] {postfix}')
         try:
             with sigterm_as_interrupt():
                 result = api.tune(ship, tune_trials, test_trials, config,
@@ -590,18 +585,10 @@ def _residual_line(r) -> str:
             f'epochs, {seeds}); weights in {api.RESIDUAL_FILE}')
 
 
-def _progress_bar(total: int):
-    from tqdm import tqdm
-    bar = tqdm(total=total, unit='eval', file=sys.stderr, dynamic_ncols=True, mininterval=0.5,
-               bar_format='{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}] {postfix}')
-
-    def update(p: Progress) -> None:
-        bar.set_postfix_str(f'gen {p.generation} restart {p.restart} pop {p.popsize} '
-                            f'best J {p.best_J:.4g}', refresh=False)
-        bar.update(min(p.evaluations, total) - bar.n)  # tqdm throttles the redraw
-
-    update.close = bar.close  # type: ignore[attr-defined]
-    return update
+def _show_generation(bar, p: Progress) -> None:
+    bar.set_postfix_str(f'gen {p.generation} restart {p.restart} pop {p.popsize} '
+                        f'best J {p.best_J:.4g}', refresh=False)
+    bar.update(min(p.evaluations, bar.total) - bar.n)  # tqdm throttles the redraw
 
 
 def main(argv: list[str] | None = None) -> None:

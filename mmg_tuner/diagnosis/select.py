@@ -1104,15 +1104,26 @@ def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objecti
             ship, m, th, members, v, J_ref, Jt, noise, s, ot_m, singles,
             _refit_on(every, ship, m, th, s, store, map_fn))
         log(f'   pair {a} + {b}: held-out gain {_pct(v.gain)} ± {_pct(v.gain_se)} '
-            + (f'(sized on every trial: {_shown(members)}) ' if on_all else '')
-            + ('significant' if not why else 'not accepted (' + '; '.join(why) + ')'))
-        cand = Candidate(f'{a}+{b}', float(Jt.sum()), v.per_trial_gain.tolist(),
-                         float(v.gain), v.gain_se, not why, {**members[0][1], **members[1][1]},
-                         J_ref=float(J_ref.sum()), significant=bool(v.significant),
-                         inconsistent='; '.join(why) if v.significant else '')
+            + _pair_outcome(members, on_all, why))
+        cand = _pair_candidate(a, b, Jt, J_ref, v, members, why)
         if not why and (best is None or v.gain > best[0].gain):
             best = (cand, m, th, Jt, members, on_all, th_all)
     return best
+
+
+def _pair_outcome(members: list, on_all: bool, why: list[str]) -> str:
+    """End of a pair's log line: how it was sized and whether it was accepted."""
+    return ((f'(sized on every trial: {_shown(members)}) ' if on_all else '')
+            + ('significant' if not why else 'not accepted (' + '; '.join(why) + ')'))
+
+
+def _pair_candidate(a: str, b: str, Jt: np.ndarray, J_ref: np.ndarray, v, members: list,
+                    why: list[str]) -> Candidate:
+    """Return the pair a+b as a Candidate: held-out J, gains, fitted values, objections."""
+    return Candidate(f'{a}+{b}', float(Jt.sum()), v.per_trial_gain.tolist(),
+                     float(v.gain), v.gain_se, not why, {**members[0][1], **members[1][1]},
+                     J_ref=float(J_ref.sum()), significant=bool(v.significant),
+                     inconsistent='; '.join(why) if v.significant else '')
 
 
 def _shown(members: list) -> str:
@@ -1231,13 +1242,8 @@ def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
         log(f'   joint {a} + {b}' + (f' in place of {last}' if a != last else '')
             + f' ({shown}): held-out gain over '
             + (f'the model before {last}' if before else f'{last} alone')
-            + f' {_pct(v.gain)} ± {_pct(v.gain_se)} '
-            + (f'(sized on every trial: {_shown(members)}) ' if on_all else '')
-            + ('significant' if not why else 'not accepted (' + '; '.join(why) + ')'))
-        cand = Candidate(f'{a}+{b}', float(Jt.sum()), v.per_trial_gain.tolist(),
-                         float(v.gain), v.gain_se, not why, {**members[0][1], **members[1][1]},
-                         J_ref=float(J_ref.sum()), significant=bool(v.significant),
-                         inconsistent='; '.join(why) if v.significant else '')
+            + f' {_pct(v.gain)} ± {_pct(v.gain_se)} ' + _pair_outcome(members, on_all, why))
+        cand = _pair_candidate(a, b, Jt, J_ref, v, members, why)
         if not why and (best is None or v.gain > best[0].gain):
             best = (cand, m, th, Jt, members, on_all, th_all)
         fitted = [{p: vals[p] for p in EFFECTS[e].params} for e in (a, b)]

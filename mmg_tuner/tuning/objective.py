@@ -9,7 +9,7 @@ from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import cost_many
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
-from mmg_tuner.core.trial import fitted_first_state
+from mmg_tuner.core.trial import fitted_first_state, fitted_state_at
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 import numpy as np
@@ -31,6 +31,8 @@ class TrialBatch:
     lengths: np.ndarray
     dt: float
     channels: tuple[str, ...] = ('rpm', 'rudder')
+    x0_window_s: float = 10.0
+    """The window the first state is fitted over [s]; a restart's state too (0: raw)."""
 
     @classmethod
     def from_trials(cls, trials: Sequence[Trial], x0_window_s: float = 10.0) -> 'TrialBatch':
@@ -72,7 +74,7 @@ class TrialBatch:
             ctrls[j, n:] = inputs[-1]
         return cls([t.name for t in trials], meas, ctrls,
                    np.array([len(t) for t in trials], dtype=np.int64), float(dts.pop()),
-                   channels)
+                   channels, float(x0_window_s))
 
     def inputs_for(self, channels: Sequence[str], ship: str = 'the ship') -> np.ndarray:
         """
@@ -96,6 +98,26 @@ class TrialBatch:
 def initial_state(trial: Trial, window_s: float) -> np.ndarray:
     """Fit the start state over the first window_s seconds (``core.trial.fitted_first_state``)."""
     return fitted_first_state(trial, window_s)
+
+
+def restart_states(batch: TrialBatch, shoot_every: int) -> np.ndarray:
+    """
+    Return batch.meas with the state at every restart (k = shoot_every, 2 shoot_every, ...).
+
+    Fitted over the batch's first-state window centred on it (``core.trial.fitted_state_at``:
+    a restart starts as the first sample does); batch.meas itself without restarts or with a
+    window of 0. The error at a restart sample is then taken against the fitted state too
+    (one sample in shoot_every).
+    """
+    window_s = batch.x0_window_s
+    if shoot_every <= 0 or window_s <= 0:
+        return batch.meas
+    meas = batch.meas.copy()
+    for j, n in enumerate(batch.lengths):
+        t = batch.dt * np.arange(n)
+        for k in range(shoot_every, n - 1, shoot_every):
+            meas[j, k] = fitted_state_at(t, batch.meas[j, :n], k, window_s)
+    return meas
 
 
 def paper_weights(L_pp: float) -> np.ndarray:
@@ -217,6 +239,9 @@ class Objective:
             raise TuningError('weights must be 6 non-negative numbers (x, y, psi, u, v, r)')
         self.shoot_every = int(round(shoot_every_s / batch.dt)) if shoot_every_s > 0 else 0
         self.shoot_every_s = float(shoot_every_s) if self.shoot_every else 0.0
+        # what the kernel reads: the batch, each restart's state fitted over a window as the
+        # first one is (the batch itself stays as measured: other objectives share it)
+        self._meas = restart_states(batch, self.shoot_every)
         self.method = integrator_code(integrator)
         self.substeps = int(substeps)
         self.evaluations = 0
@@ -232,7 +257,7 @@ class Objective:
         N, M = params.shape[0], self.batch.meas.shape[0]
         J = np.empty((N, M))
         k_fail = np.empty((N, M), dtype=np.int64)
-        cost_many(self.ship.kind, params, self.batch.meas, self.ctrls, self.batch.lengths,
+        cost_many(self.ship.kind, params, self._meas, self.ctrls, self.batch.lengths,
                   self.batch.dt, self.substeps, self.method, self.weights, self.shoot_every, J,
                   k_fail)
         self.evaluations += N
