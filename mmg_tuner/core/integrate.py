@@ -452,15 +452,18 @@ def _cost_many(kind: tuple[int, ...], params: FloatArray, meas: FloatArray, ctrl
 @njit(cache=True, fastmath=FASTMATH)
 def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray,
                           ctrl: FloatArray, T: int, dt: float, substeps: int, method: int,
-                          sw: FloatArray, chans: IntArray, out: FloatArray) -> int:
+                          sw: FloatArray, chans: IntArray, shoot_every: int,
+                          out: FloatArray) -> int:
     """
     Write the weighted errors whose squares _trajectory_cost sums, one per (sample, channel).
 
     Samples 1..T-1 in order, for each the channels ``chans`` (those of nonzero weight):
     out[(k - 1) * len(chans) + c] = sw[chans[c]] * (observed - measured) (heading wrapped),
-    sw the square roots of the weights. The run starts from meas[0] and is never restarted.
-    After a failure (diverged or left the model's range) the remaining entries are 1e6, a
-    finite stand-in so a least-squares solver sees a large, not an undefined, error.
+    sw the square roots of the weights. The run starts from meas[0] and, as _trajectory_cost,
+    restarts from meas[k] every shoot_every samples (> 0): a least-squares fit of an objective
+    with restarts minimises that objective's J, not a free run's. After a failure (diverged
+    or left the model's range) the remaining entries are 1e6, a finite stand-in so a
+    least-squares solver sees a large, not an undefined, error.
     Returns k_fail (T when the run completed).
     """
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
@@ -471,9 +474,10 @@ def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatAr
     shift = p[_toff] / dt
     actuate_start(kind, p, ctrl, shift, T, a)
     measured_wind = has_measured_wind(ctrl)  # decided once per run
-    start_state(p, meas[0], s)
     k_fail = T
     for k in range(T - 1):
+        if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
+            start_state(p, meas[k], s)
         if measured_wind:
             use_measured_wind(p, ctrl, k)
         status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
@@ -498,8 +502,8 @@ def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatAr
 @njit(cache=True, parallel=True)
 def _residuals_many(kind: tuple[int, ...], params: FloatArray, meas: FloatArray,
                     ctrls: FloatArray, lengths: IntArray, dt: float, substeps: int, method: int,
-                    sw: FloatArray, chans: IntArray, offsets: IntArray, out: FloatArray,
-                    k_fail: IntArray) -> None:
+                    sw: FloatArray, chans: IntArray, shoot_every: int, offsets: IntArray,
+                    out: FloatArray, k_fail: IntArray) -> None:
     """
     _trajectory_residuals for every (candidate, trial) pair, in parallel.
 
@@ -511,7 +515,7 @@ def _residuals_many(kind: tuple[int, ...], params: FloatArray, meas: FloatArray,
         i = job // M
         j = job % M
         k_fail[i, j] = _trajectory_residuals(kind, params[i], meas[j], ctrls[j], lengths[j], dt,
-                                             substeps, method, sw[j], chans,
+                                             substeps, method, sw[j], chans, shoot_every,
                                              out[i, offsets[j]:offsets[j + 1]])
 
 

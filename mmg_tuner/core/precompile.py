@@ -64,7 +64,7 @@ def _batched(ship_yaml: Path) -> None:
     offsets = np.array([0, (T - 1) * 6], dtype=np.int64)
     r = np.empty((1, (T - 1) * 6))
     residuals_many(ship.kind, params, meas, ctrls, lengths, 1.0, 1, 0, np.ones((M, 6)), chans,
-                   offsets, r, k_fail)
+                   0, offsets, r, k_fail)
 
 
 def kernels() -> dict[str, Callable[[], None]]:

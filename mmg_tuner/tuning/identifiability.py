@@ -25,8 +25,8 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     Weighted residual vectors (N, n) of each candidate over all trials (NaN-free: a failed run
     gives large residuals). Each trial's residuals carry the square root of its factor in the
     objective (``trial_weights``: the segmented objective's balance) and the prior's terms
-    come last, so the sum of squares is what the objective minimises (exactly, for a run
-    without restarts: ``shoot_every`` is not modelled here).
+    come last, so the sum of squares is what the objective minimises, its restarts
+    (``shoot_every``, from the states the objective restarts from) included.
     """
     b = objective.batch
     params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
@@ -40,8 +40,9 @@ def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
     k_fail = np.empty((params.shape[0], len(b.lengths)), dtype=np.int64)
     # compiled: the errors go straight into r, no trajectories are kept (the old route through
     # simulate_batch spent a third of a least-squares fit building and masking them)
-    residuals_many(objective.ship.kind, params, b.meas, objective.ctrls, b.lengths, b.dt,
-                   objective.substeps, objective.method, sw_trial, chans, offsets, r, k_fail)
+    residuals_many(objective.ship.kind, params, objective.kernel_meas, objective.ctrls,
+                   b.lengths, b.dt, objective.substeps, objective.method, sw_trial, chans,
+                   objective.shoot_every, offsets, r, k_fail)
     r[~np.isfinite(r)] = 1e6
     pr = objective.prior
     if pr is None:

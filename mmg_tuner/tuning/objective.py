@@ -241,7 +241,7 @@ class Objective:
         self.shoot_every_s = float(shoot_every_s) if self.shoot_every else 0.0
         # what the kernel reads: the batch, each restart's state fitted over a window as the
         # first one is (the batch itself stays as measured: other objectives share it)
-        self._meas = restart_states(batch, self.shoot_every)
+        self.kernel_meas = restart_states(batch, self.shoot_every)
         self.method = integrator_code(integrator)
         self.substeps = int(substeps)
         self.evaluations = 0
@@ -257,7 +257,7 @@ class Objective:
         N, M = params.shape[0], self.batch.meas.shape[0]
         J = np.empty((N, M))
         k_fail = np.empty((N, M), dtype=np.int64)
-        cost_many(self.ship.kind, params, self._meas, self.ctrls, self.batch.lengths,
+        cost_many(self.ship.kind, params, self.kernel_meas, self.ctrls, self.batch.lengths,
                   self.batch.dt, self.substeps, self.method, self.weights, self.shoot_every, J,
                   k_fail)
         self.evaluations += N
