@@ -17,7 +17,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis import measured as _measured
 from mmg_tuner.diagnosis import structure as _structure
 from mmg_tuner.diagnosis.context import Setting
-from mmg_tuner.diagnosis.decide import decide
+from mmg_tuner.diagnosis.decide import decide, Z_FOR
 from mmg_tuner.diagnosis.report import markdown as _diagnosis_markdown
 from mmg_tuner.diagnosis.report import plot_residuals, residuals_for
 from mmg_tuner.diagnosis.residuals import simulate_trials
@@ -137,7 +137,9 @@ class DiagnoseConfig:
             screen_evals=self.screen_evals or screen_e, effect_evals=self.effect_evals or eff_e,
             max_effects=self.max_effects, seed=self.seed, retune=self.retune,
             setting=self.setting, measured_signals=self.measured_signals,
-            measurements=dict(self.measured), restart_every_s=float(restart))
+            measurements=dict(self.measured), restart_every_s=float(restart),
+            **({'held_out_test_only': True, 'min_gain_z': Z_FOR}
+               if self.verdict == 'evidence' else {}))
 
 
 @dataclass
@@ -356,7 +358,8 @@ def _decide(dx: 'DiagnosisResult', tune_trials: list[Trial]) -> None:
     evidence = decide(dx.ship, dx.params, [c.effect for c in dx.causes], tune_final,
                       dx.test_final or dx.test, J_base, dx.config.integrator,
                       test_without_wind=no_wind,
-                      restart_every_s=dx.config.settings(dx.ship.L_pp).restart_every_s)
+                      restart_every_s=dx.config.settings(dx.ship.L_pp).restart_every_s,
+                      base_targets=list(dx.config.targets or dx.ship.tuning_targets))
     dx.decision = [e.to_dict() for e in evidence]
     verdict = {e.effect: e for e in evidence}
     kept = []

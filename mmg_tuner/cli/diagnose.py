@@ -122,7 +122,8 @@ def verdict_lines(dx) -> list[str]:
         by_evidence = bool(getattr(dx, 'decision', None))   # verdict='evidence'
         out.append('CAUSE: none named alone -- see UNDECIDED' if dx.undecided
                    else 'CAUSE: none named -- what the fitted effects explain is not one '
-                   'value over the trials (see NOT A CAUSE)' if dx.mimicking and by_evidence
+                   'value over the trials, or a hull change explains it better (see NOT A '
+                   'CAUSE)' if dx.mimicking and by_evidence
                    else 'CAUSE: none named -- the model structure is the likely cause (see '
                    'REMAINS)' if dx.mimicking
                    else 'CAUSE: none found -- no effect in the library explains the errors '

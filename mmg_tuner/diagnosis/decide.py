@@ -37,6 +37,19 @@ Every J here is the diagnosis's own: with the evidence verdict the simulation re
 recorded state every settings.restart_period (the prediction error over about two ship lengths,
 not a whole run's drift from a noisy start), as in the search that fitted F.
 
+5. **Beyond a hull change** (evidence against: the structural rival). Every regression-based
+   model's least certain part is its hull's linear derivatives (Y_v, Y_r, N_v, N_r; HULL_RIVAL,
+   those that are not base targets already), and a hull that differs from the regression is
+   what the effects most often mimic (a yaw damping 50 % stronger fitted as a GNSS antenna 6 m
+   aft, one value over every trial). F+ is F re-tuned with them free as well; R_i is F+
+   re-tuned without E_i (its neutral value). E_i is withdrawn, listed as what a hull change
+   explains, when the rival explains the held-out trials better than F (the mean per-trial
+   log(J_t(F) / J_t(R_i)) above Z_FOR of its standard errors) and E_i adds nothing beside it:
+   the mean per-trial log(J_t(R_i) / J_t(F+)) within Z_FOR standard errors of zero, or E_i's
+   value in F+ below its smallest size worth finding. A rival only as good as F leaves E_i
+   named (a steering-gear lag and a stronger yaw damping can fit the same turns; the trials
+   cannot reject the lag). A measured signal is a fact: not tested.
+
 Z_FOR = 2 and D_MAX = 0.5 were set before any benchmark ran (two standard errors; a scatter
 half the effect's size) and checked on the development seeds of
 bench/bench_diagnosis_mismatch.py, then on fresh seeds registered before they were run.
@@ -61,6 +74,8 @@ Z_FOR = 2.0          # mean per-trial log ratio above this many standard errors:
 D_MAX = 0.5          # dispersion of the per-trial estimates above this: a mimic
 MIN_TRIALS = 3       # per-trial estimates needed for the consistency test
 FAR_EDGE = 0.01      # a per-trial estimate this close (box fraction) to a non-neutral edge
+HULL_RIVAL = ('Y_v', 'Y_r', 'N_v', 'N_r')   # the structural rival's free derivatives (5.)
+RIVAL_SIMS = 800     # simulations per re-tune of the rival test (local, warm-started)
 
 
 @dataclass
@@ -76,8 +91,15 @@ class Evidence:
     dispersion: float | None       # D_i (None: not testable, or a measured signal)
     trials_used: int               # per-trial estimates that entered D_i
     per_trial: list[dict] = field(default_factory=list)   # {trial, estimate components}
-    verdict: str = ''              # 'cause' | 'mimic' | 'weak'
+    verdict: str = ''              # 'cause' | 'mimic' | 'weak' | 'hull'
     why: str = ''
+    # 5.: mean per-trial log(J without it / J with it) beside a free hull, its standard error
+    beside_hull: float | None = None
+    beside_hull_se: float | None = None
+    # 5.: mean per-trial log(J(F) / J(R_i)): how much better the hull rival without it is
+    rival: float | None = None
+    rival_se: float | None = None
+    beside_hull_size: float | None = None   # its size in F+, in smallest sizes worth finding
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -158,14 +180,17 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
            tune_trials: Sequence[Trial], test_trials: Sequence[Trial],
            J_base: np.ndarray, integrator: str = 'rk4',
            test_without_wind: Sequence[Trial] | None = None,
-           restart_every_s: float = 0.0) -> list[Evidence]:
+           restart_every_s: float = 0.0,
+           base_targets: Sequence[str] | None = None) -> list[Evidence]:
     """
     Weigh every effect of the final model (see the module docstring).
 
     ``params``: the final model's parameters (base targets and effects); ``effects``: the
     effects in it (a measured signal such as 'measured_wind' included); ``J_base``: the tuned
     base model's held-out J per trial (as the search measured it); ``test_without_wind``: the
-    held-out trials without their measured wind (the model without 'measured_wind').
+    held-out trials without their measured wind (the model without 'measured_wind');
+    ``base_targets``: the base model's tuned coefficients (the rival test frees them with the
+    hull's; None: no rival test).
     Returns one :class:`Evidence` per effect, in the order given.
     """
     final = ship.with_params(dict(params))
@@ -235,6 +260,84 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
                       + (f'{ev.dispersion:.2f}' if ev.dispersion is not None else
                          f'not testable ({ev.trials_used} trials determine it alone)'))
         out.append(ev)
+    fitted = [ev for ev in out if ev.verdict == 'cause' and ev.effect in EFFECTS]
+    if fitted and base_targets is not None:
+        rival = beside_hull(ship, final, [e for e in names if e in EFFECTS], base_targets,
+                            tune_trials, test_trials, integrator, restart_every_s, J_F)
+        for ev in fitted:
+            if ev.effect not in rival:
+                continue
+            (ev.beside_hull, ev.beside_hull_se, free, ev.rival, ev.rival_se,
+             ev.beside_hull_size) = rival[ev.effect]
+            better = ev.rival > Z_FOR * ev.rival_se
+            needed = ev.beside_hull > Z_FOR * ev.beside_hull_se
+            if better and not (needed and ev.beside_hull_size >= 1.0):
+                ev.verdict = 'hull'
+                ev.why = (f'a change of the hull ({", ".join(free)} free) without it explains '
+                          f'the held-out trials better ({_x(ev.rival)} +- '
+                          f'{math.exp(ev.rival_se):.2f}), and beside that change it '
+                          + (f'adds {_x(ev.beside_hull)}, within {Z_FOR:g} standard errors '
+                             f'(x {math.exp(ev.beside_hull_se):.2f}) of nothing' if not needed
+                             else f'shrinks to {ev.beside_hull_size:.2f} of the smallest size '
+                             'worth finding'))
+    return out
+
+
+def beside_hull(ship: ShipConfig, final: ShipConfig, effects: Sequence[str],
+                base_targets: Sequence[str], tune_trials: Sequence[Trial],
+                test_trials: Sequence[Trial], integrator: str, restart_every_s: float,
+                J_F: np.ndarray) -> dict[str, tuple[float, float, list[str], float, float, float]]:
+    """
+    Return {effect: (mean, se, hull names)} of the held-out log(J without / J with) beside a hull.
+
+    Step 5 of the module docstring: F+ (the base targets, the hull's linear derivatives and the
+    effects, re-tuned from F on the tuning trials) against R_i (F+ re-tuned without E_i). Empty
+    when every derivative of HULL_RIVAL is a base target already, or the ship has none free.
+    """
+    from mmg_tuner.tuning.lsq import local_least_squares
+    base = ParameterSpace.around(ship, list(base_targets))
+    hull = ParameterSpace.around(ship, [n for n in HULL_RIVAL if n not in base_targets])
+    keep = hull.upper > hull.lower   # a derivative at zero has no box (+- a_r |0|)
+    if not keep.any():
+        return {}
+    free = [n for n, k in zip(hull.names, keep) if k]
+    names, lo, hi = list(base.names) + free, list(base.lower) + list(hull.lower[keep]), \
+        list(base.upper) + list(hull.upper[keep])
+    n_struct = len(names)
+    for e in effects:
+        for p, (a, b) in zip(EFFECTS[e].params, EFFECTS[e].bounds(ship)):
+            names.append(p)
+            lo.append(a)
+            hi.append(b)
+    lo_a, hi_a = np.array(lo, float), np.array(hi, float)
+    x0 = np.clip(np.array([final[n] for n in names], float), lo_a, hi_a)
+    space = ParameterSpace(tuple(names), x0.copy(), lo_a, hi_a)
+
+    tune = Objective(final, TrialBatch.from_trials(list(tune_trials)),
+                     shoot_every_s=restart_every_s, integrator=integrator)
+    plus = local_least_squares(space, tune, x0, RIVAL_SIMS, method='lm').theta
+    J_plus = _per_trial_J(final, test_trials, space.full_params(final.params, plus),
+                          integrator, restart_every_s)
+    out = {}
+    for e in effects:
+        drop = set(EFFECTS[e].params)
+        idx = [i for i, n in enumerate(names) if n not in drop or i < n_struct]
+        sub = ParameterSpace(tuple(names[i] for i in idx), plus[idx], lo_a[idx], hi_a[idx])
+        start = final.with_params({**dict(zip(names, plus.tolist())), **_neutral(e)})
+        fit = local_least_squares(sub, Objective(start, tune.batch, shoot_every_s=restart_every_s,
+                                                 integrator=integrator),
+                                  plus[idx], RIVAL_SIMS, method='lm').theta
+        J_r = _per_trial_J(start, test_trials, sub.full_params(start.params, fit), integrator,
+                           restart_every_s)
+        lr = np.log(np.maximum(J_r, 1e-300) / np.maximum(J_plus, 1e-300))
+        n = len(lr)
+        se = float(np.std(lr, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+        rv = np.log(np.maximum(J_F, 1e-300) / np.maximum(J_r, 1e-300))
+        rv_se = float(np.std(rv, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+        vals = dict(zip(names, plus.tolist()))
+        size = float(np.linalg.norm(_components(e, vals))) / max(_smallest(ship, e), 1e-12)
+        out[e] = (float(np.mean(lr)) if np.all(np.isfinite(lr)) else -math.inf, se, free,
+                  float(np.mean(rv)) if np.all(np.isfinite(rv)) else -math.inf, rv_se, size)
     return out
 
 

@@ -54,7 +54,8 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                             else ''))
     elif doc.get('mimicking'):
         lines.append('**No cause is named:** the effects that fit take a different value on '
-                     'each trial, or add nothing beside the others (see "Evidence per effect" '
+                     'each trial, add nothing beside the others, or a change of the hull '
+                     'explains the trials better (see "Evidence per effect" '
                      'and "Model structure").')
     elif doc.get('undecided'):
         lines.append('**No cause is named alone:** these trials cannot tell the effects below '
@@ -216,7 +217,9 @@ def _decision_lines(doc: dict) -> list[str]:
            'held-out trials lose without it (geometric mean, with its standard error), its '
            'share of what the model explains, and how much its value fitted on each trial '
            'alone scatters (fraction of its size; a physical effect has one value). Named: a '
-           'factor above two standard errors from 1, and a scatter of at most 0.5.', '',
+           'factor above two standard errors from 1, a scatter of at most 0.5, and no evidence '
+           "against it: verdict 'hull' when the hull's linear derivatives re-tuned without it "
+           'explain the trials better and it adds nothing beside them.', '',
            '| effect | contribution | ± | factor | ± | share | scatter | trials | verdict | '
            'why |', '|---|---|---|---|---|---|---|---|---|---|']
     for e in rows:

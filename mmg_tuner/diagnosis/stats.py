@@ -48,6 +48,8 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
     getting worse by less than noise leaves is no evidence against an effect (a wind and a
     rudder offset at their true values made one held-out trial 2.6 x worse, +10 % of the
     held-out error, than a wind bent to take the offset's share: 0.7 of that trial's floor).
+    With ``s.held_out_test_only`` (the evidence verdict's search) the gain need only exceed
+    min_gain_z standard errors, and no trial may get clearly worse: no fixed sizes.
     A run that diverges (infinite J) on either side is never significant. ``veto=False``
     (the backward step: is a named effect redundant beside the others?) leaves out the test
     of a trial getting worse: that is a test for naming, which the effect passed when named.
@@ -61,7 +63,7 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
     ratio = J_new / np.maximum(J_ref, 1e-300)
     gain = float(1 - J_new.sum() / max(J_ref.sum(), 1e-300))
     se = jackknife_se(J_ref, J_new)
-    need = s.min_gain + s.param_penalty * n_params
+    need = 0.0 if s.held_out_test_only else s.min_gain + s.param_penalty * n_params
     absolute = float((J_ref.sum() - J_new.sum()) / max(J_base_test, 1e-300))
     # worse by the factor and by an amount that matters against the total
     increase = (J_new - J_ref) / max(J_ref.sum(), 1e-300)
@@ -76,7 +78,7 @@ def acceptance(J_ref: np.ndarray, J_new: np.ndarray, n_params: int, J_base_test:
         reasons.append(f'gain within {s.min_gain_z:g} standard error(s) ({100 * se:.1f} %)')
     above_noise = bool(J_floor and J_floor > 0
                        and J_ref.sum() - J_new.sum() > s.noise_margin * J_floor)
-    if not (absolute > s.min_abs_gain or above_noise):
+    if not (absolute > s.min_abs_gain or above_noise or s.held_out_test_only):
         reasons.append(f'{100 * absolute:.1f} % of the base error <= '
                        f'{100 * s.min_abs_gain:.0f} %'
                        + (f' and the reduction within {s.noise_margin:g} noise floor(s)'

@@ -146,3 +146,26 @@ def test_the_report_names_an_undecided_cause_as_one_of_a_set(suzaku):
     assert 'No effect in the library explains' not in md
     line = next(x for x in md.splitlines() if x.startswith('- one of **rudder_offset**'))
     assert line.endswith(') or yaw_moment_bias, wind') and offset.summary in line
+
+
+def test_the_evidence_verdicts_search_accepts_by_the_held_out_test_alone():
+    """
+    A small second effect beside a dominant one: refused by the sizes, accepted by the test.
+
+    Seed 401 of the mismatch benchmark: a rudder offset beside a current, held-out gain 6 %
+    (about three standard errors), 0.2 % of the base model's error (the current took the rest).
+    """
+    J_ref = np.array([10.0, 12.0, 8.0, 11.0, 9.0])
+    J_new = J_ref * np.array([0.92, 0.95, 0.93, 0.96, 0.94])
+    J_base = 50 * J_ref.sum()
+    sized = acceptance(J_ref, J_new, 1, J_base, DiagnosisSettings())
+    assert not sized.significant and '<= 12.0 %' in sized.reason
+    by_test = DiagnosisSettings(held_out_test_only=True, min_gain_z=2.0)
+    v = acceptance(J_ref, J_new, 1, J_base, by_test)
+    assert v.significant, v.reason
+    # ... and the test still refuses a gain within two standard errors, and a trial made worse
+    noisy = J_ref * np.array([0.7, 1.2, 0.8, 1.15, 0.95])
+    assert 'standard error' in acceptance(J_ref, noisy, 1, J_base, by_test).reason
+    hurt = J_new.copy()
+    hurt[1] = 3 * J_ref[1]
+    assert 'gets worse' in acceptance(J_ref, hurt, 1, J_base, by_test).reason
