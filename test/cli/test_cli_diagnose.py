@@ -45,7 +45,7 @@ def test_a_suspect_without_advice_and_a_structural_verdict():
                         'held-out error remains, STRUCTURAL'})
     assert verdict_lines(dx) == [
         'CAUSE: none named -- what the fitted effects explain is not one value over the '
-        'trials (see NOT A CAUSE)',
+        'trials, or a hull change explains it better (see NOT A CAUSE)',
         'NOT A CAUSE: wind 8.0 m/s from 41 deg fits (held-out gain 77.6 %), but its value '
         'fitted on each trial alone scatters by 0.92 of its size',
         'SUSPECTED (not named): current 0.1 m/s -- held-out gain 20.0 ± 30.0 %, the held-out '
