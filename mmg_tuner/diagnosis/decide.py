@@ -66,6 +66,7 @@ from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.plausible import per_trial
 from mmg_tuner.diagnosis.settings import MEASURED
+from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
@@ -267,13 +268,14 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
         for ev in fitted:
             if ev.effect not in rival:
                 continue
-            (ev.beside_hull, ev.beside_hull_se, free, ev.rival, ev.rival_se,
-             ev.beside_hull_size) = rival[ev.effect]
+            h = rival[ev.effect]
+            ev.beside_hull, ev.beside_hull_se, ev.rival, ev.rival_se, ev.beside_hull_size = (
+                h.beside, h.beside_se, h.rival, h.rival_se, h.size)
             better = ev.rival > Z_FOR * ev.rival_se
             needed = ev.beside_hull > Z_FOR * ev.beside_hull_se
             if better and not (needed and ev.beside_hull_size >= 1.0):
                 ev.verdict = 'hull'
-                ev.why = (f'a change of the hull ({", ".join(free)} free) without it explains '
+                ev.why = (f'a change of the hull ({", ".join(h.free)} free) without it explains '
                           f'the held-out trials better ({_x(ev.rival)} +- '
                           f'{math.exp(ev.rival_se):.2f}), and beside that change it '
                           + (f'adds {_x(ev.beside_hull)}, within {Z_FOR:g} standard errors '
@@ -283,26 +285,47 @@ def decide(ship: ShipConfig, params: Mapping[str, float], effects: Sequence[str]
     return out
 
 
+@dataclass
+class HullRival:
+    """Step 5 for one effect E_i: F+ (a free hull) and R_i (F+ without E_i) on held-out trials."""
+
+    beside: float       # mean per-trial log(J(R_i) / J(F+)): what E_i adds beside the hull
+    beside_se: float
+    rival: float        # mean per-trial log(J(F) / J(R_i)): how much better the rival is
+    rival_se: float
+    size: float         # E_i's size in F+, in smallest sizes worth finding
+    free: list[str]     # the hull's derivatives freed
+
+
+def _mean_log_ratio(J_num: np.ndarray, J_den: np.ndarray) -> tuple[float, float]:
+    """Return the mean over trials of log(J_num / J_den) (-inf if undefined), its SE."""
+    lr = np.log(np.maximum(J_num, 1e-300) / np.maximum(J_den, 1e-300))
+    n = len(lr)
+    se = float(np.std(lr, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+    return (float(np.mean(lr)) if np.all(np.isfinite(lr)) else -math.inf), se
+
+
 def beside_hull(ship: ShipConfig, final: ShipConfig, effects: Sequence[str],
                 base_targets: Sequence[str], tune_trials: Sequence[Trial],
                 test_trials: Sequence[Trial], integrator: str, restart_every_s: float,
-                J_F: np.ndarray) -> dict[str, tuple[float, float, list[str], float, float, float]]:
+                J_F: np.ndarray) -> dict[str, HullRival]:
     """
-    Return {effect: (mean, se, hull names)} of the held-out log(J without / J with) beside a hull.
+    Return {effect: HullRival} (step 5 of the module docstring) for the effects of F.
 
-    Step 5 of the module docstring: F+ (the base targets, the hull's linear derivatives and the
-    effects, re-tuned from F on the tuning trials) against R_i (F+ re-tuned without E_i). Empty
-    when every derivative of HULL_RIVAL is a base target already, or the ship has none free.
+    F+ (the base targets, the hull's linear derivatives and the effects, re-tuned from F on
+    the tuning trials) against R_i (F+ re-tuned without E_i) and against F (held-out J per
+    trial ``J_F``). Empty when every derivative of HULL_RIVAL is a base target already, or the
+    ship has none free.
     """
-    from mmg_tuner.tuning.lsq import local_least_squares
     base = ParameterSpace.around(ship, list(base_targets))
     hull = ParameterSpace.around(ship, [n for n in HULL_RIVAL if n not in base_targets])
     keep = hull.upper > hull.lower   # a derivative at zero has no box (+- a_r |0|)
     if not keep.any():
         return {}
     free = [n for n, k in zip(hull.names, keep) if k]
-    names, lo, hi = list(base.names) + free, list(base.lower) + list(hull.lower[keep]), \
-        list(base.upper) + list(hull.upper[keep])
+    names = list(base.names) + free
+    lo = list(base.lower) + list(hull.lower[keep])
+    hi = list(base.upper) + list(hull.upper[keep])
     n_struct = len(names)
     for e in effects:
         for p, (a, b) in zip(EFFECTS[e].params, EFFECTS[e].bounds(ship)):
@@ -329,15 +352,11 @@ def beside_hull(ship: ShipConfig, final: ShipConfig, effects: Sequence[str],
                                   plus[idx], RIVAL_SIMS, method='lm').theta
         J_r = _per_trial_J(start, test_trials, sub.full_params(start.params, fit), integrator,
                            restart_every_s)
-        lr = np.log(np.maximum(J_r, 1e-300) / np.maximum(J_plus, 1e-300))
-        n = len(lr)
-        se = float(np.std(lr, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
-        rv = np.log(np.maximum(J_F, 1e-300) / np.maximum(J_r, 1e-300))
-        rv_se = float(np.std(rv, ddof=1) / math.sqrt(n)) if n > 1 else math.inf
-        vals = dict(zip(names, plus.tolist()))
-        size = float(np.linalg.norm(_components(e, vals))) / max(_smallest(ship, e), 1e-12)
-        out[e] = (float(np.mean(lr)) if np.all(np.isfinite(lr)) else -math.inf, se, free,
-                  float(np.mean(rv)) if np.all(np.isfinite(rv)) else -math.inf, rv_se, size)
+        beside, beside_se = _mean_log_ratio(J_r, J_plus)
+        rival, rival_se = _mean_log_ratio(J_F, J_r)
+        size = float(np.linalg.norm(_components(e, dict(zip(names, plus.tolist()))))
+                     ) / max(_smallest(ship, e), 1e-12)
+        out[e] = HullRival(beside, beside_se, rival, rival_se, size, free)
     return out
 
 
