@@ -243,6 +243,87 @@ def use_measured_wind(p: FloatArray, ctrl: FloatArray, k: int) -> None:
         p[_dirw] = math.atan2(-we, -wn)  # blows from the opposite of where the air goes
 
 
+RECORD = 0     # the driver writes the observed states (T, 6)
+COST = 1       # it sums the weighted squared errors against a measured trial
+RESIDUALS = 2  # it writes those weighted errors, one per (sample, channel)
+
+
+@njit(cache=True, fastmath=FASTMATH, inline='always')
+def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: FloatArray, T: int,
+           dt: float, substeps: int, method: int, shoot_every: int, mode: int, w: FloatArray,
+           chans: IntArray, states: FloatArray, res: FloatArray) -> tuple[int, int, float]:
+    """
+    Run one trajectory sample by sample: the one sample loop of the whole-run kernels.
+
+    The run starts from the observed state meas[0] (antenna position, velocities over ground)
+    and, with shoot_every > 0, restarts from meas[k] every shoot_every samples (multiple
+    shooting); ctrl[k] holds the family's channels (commands, then the measured wind) held from
+    sample k to k+1 (delayed by time_offset). What it does with each observed sample k+1 is
+    ``mode``, a constant in each caller (inlined, so the branches fold away):
+    RECORD writes it to states[k+1] (NaN from the failure on); COST sums
+    sum_i w[i] (observed - measured)^2 (heading wrapped; velocities only when weighted);
+    RESIDUALS writes w[chans[c]] (observed - measured) to res[k * len(chans) + c] (w the
+    square roots of the weights; 1e6, a finite stand-in, from the failure on).
+    Returns (status, k_fail, J): k_fail < T when the run failed (diverged or left the model's
+    range) at that sample; J covers the samples before it.
+    """
+    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
+    s = np.empty(6)
+    o = np.empty((1, 6))
+    a = np.zeros(N_ACT_STATES)
+    nc = chans.shape[0]
+    shift = p[_toff] / dt
+    actuate_start(kind, p, ctrl, shift, T, a)
+    measured_wind = has_measured_wind(ctrl)  # decided once per run
+    start_state(p, meas[0], s)
+    if mode == RECORD:
+        observe_row(p, s, states, 0)
+    J = 0.0
+    status = OK
+    k_fail = T
+    for k in range(T - 1):
+        if shoot_every > 0 and k > 0 and k % shoot_every == 0:
+            start_state(p, meas[k], s)
+        if measured_wind:
+            use_measured_wind(p, ctrl, k)
+        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
+                         1.0)
+        if status != OK:
+            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
+            break
+        m = k + 1  # meas[m, i], not a row view (see observe_row)
+        if mode == RECORD:
+            observe_row(p, s, states, m)
+            continue
+        observe_row(p, s, o, 0)
+        if mode == COST:
+            e = o[0, 0] - meas[m, 0]
+            J += w[0] * e * e
+            e = o[0, 1] - meas[m, 1]
+            J += w[1] * e * e
+            e = wrap_pi(o[0, 2] - meas[m, 2])
+            J += w[2] * e * e
+            if w[3] != 0.0 or w[4] != 0.0 or w[5] != 0.0:
+                for i in range(3, 6):
+                    e = o[0, i] - meas[m, i]
+                    J += w[i] * e * e
+        else:
+            for c in range(nc):
+                i = chans[c]
+                e = o[0, i] - meas[m, i]
+                if i == 2:
+                    e = wrap_pi(e)
+                res[k * nc + c] = w[i] * e
+    if k_fail < T and mode == RECORD:
+        for k in range(k_fail, T):
+            for i in range(6):
+                states[k, i] = np.nan
+    elif k_fail < T and mode == RESIDUALS:
+        for j in range(max(k_fail - 1, 0) * nc, (T - 1) * nc):
+            res[j] = 1e6
+    return status, k_fail, J
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def _simulate_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray, ctrl: FloatArray,
                   T: int, dt: float, substeps: int, method: int,
@@ -255,29 +336,11 @@ def _simulate_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray, ctrl:
     (delayed by time_offset if set). Returns (status, sample index of failure). After a
     failure the remaining rows are NaN.
     """
-    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
-    s = np.empty(6)
-    a = np.zeros(N_ACT_STATES)
-    start_state(p, x0, s)
-    observe_row(p, s, out, 0)
-    shift = p[_toff] / dt
-    actuate_start(kind, p, ctrl, shift, T, a)
-    measured_wind = has_measured_wind(ctrl)  # decided once per run
-    status = OK
-    k_fail = T
-    for k in range(T - 1):
-        if measured_wind:
-            use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         1.0)
-        if status != OK:
-            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
-            break
-        observe_row(p, s, out, k + 1)
-    if status != OK:
-        for k in range(k_fail, T):
-            for i in range(6):
-                out[k, i] = np.nan
+    start = np.empty((1, 6))
+    for i in range(6):
+        start[0, i] = x0[i]
+    status, k_fail, _ = _drive(kind, p_in, start, ctrl, T, dt, substeps, method, 0, RECORD,
+                               start[0], np.empty(0, np.int64), out, start[0])
     return status, k_fail
 
 
@@ -401,36 +464,9 @@ def _trajectory_cost(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, 
     (multiple shooting). Returns (J, k_fail): k_fail < T means the run failed at that sample
     (diverged or left the model's range) and J covers only the samples before it.
     """
-    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
-    s = np.empty(6)
-    o = np.empty((1, 6))
-    a = np.zeros(N_ACT_STATES)
-    shift = p[_toff] / dt
-    actuate_start(kind, p, ctrl, shift, T, a)
-    measured_wind = has_measured_wind(ctrl)  # decided once per run
-    J = 0.0
-    for k in range(T - 1):
-        if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
-            start_state(p, meas[k], s)
-        if measured_wind:
-            use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         1.0)
-        if status != OK:
-            return J, (k if status == RPM_NOT_POSITIVE else k + 1)
-        observe_row(p, s, o, 0)
-        m = k + 1  # meas[m, i], not a row view (see observe_row)
-        e = o[0, 0] - meas[m, 0]
-        J += weights[0] * e * e
-        e = o[0, 1] - meas[m, 1]
-        J += weights[1] * e * e
-        e = wrap_pi(o[0, 2] - meas[m, 2])
-        J += weights[2] * e * e
-        if weights[3] != 0.0 or weights[4] != 0.0 or weights[5] != 0.0:
-            for i in range(3, 6):
-                e = o[0, i] - meas[m, i]
-                J += weights[i] * e * e
-    return J, T
+    _, k_fail, J = _drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every, COST,
+                          weights, np.empty(0, np.int64), meas, weights)
+    return J, k_fail
 
 
 @njit(cache=True, parallel=True)
@@ -466,36 +502,8 @@ def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatAr
     least-squares solver sees a large, not an undefined, error.
     Returns k_fail (T when the run completed).
     """
-    p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
-    s = np.empty(6)
-    o = np.empty((1, 6))
-    a = np.zeros(N_ACT_STATES)
-    nc = chans.shape[0]
-    shift = p[_toff] / dt
-    actuate_start(kind, p, ctrl, shift, T, a)
-    measured_wind = has_measured_wind(ctrl)  # decided once per run
-    k_fail = T
-    for k in range(T - 1):
-        if k == 0 or (shoot_every > 0 and k % shoot_every == 0):
-            start_state(p, meas[k], s)
-        if measured_wind:
-            use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         1.0)
-        if status != OK:
-            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
-            break
-        observe_row(p, s, o, 0)
-        m = k + 1
-        for c in range(nc):
-            i = chans[c]
-            e = o[0, i] - meas[m, i]
-            if i == 2:
-                e = wrap_pi(e)
-            out[k * nc + c] = sw[i] * e
-    if k_fail < T:
-        for j in range(max(k_fail - 1, 0) * nc, (T - 1) * nc):
-            out[j] = 1e6
+    _, k_fail, _ = _drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every,
+                          RESIDUALS, sw, chans, meas, out)
     return k_fail
 
 
