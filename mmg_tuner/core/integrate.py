@@ -246,6 +246,7 @@ def use_measured_wind(p: FloatArray, ctrl: FloatArray, k: int) -> None:
 RECORD = 0     # the driver writes the observed states (T, 6)
 COST = 1       # it sums the weighted squared errors against a measured trial
 RESIDUALS = 2  # it writes those weighted errors, one per (sample, channel)
+STEERED = 3    # it writes the observed states, the rudder set by a steering gear in the loop
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -264,6 +265,11 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
     sum_i w[i] (observed - measured)^2 (heading wrapped; velocities only when weighted);
     RESIDUALS writes w[chans[c]] (observed - measured) to res[k * len(chans) + c] (w the
     square roots of the weights; 1e6, a finite stand-in, from the failure on).
+    STEERED generates a manoeuvre (``_run_maneuver``): meas[0] is the midship state, no time
+    offset, and the rudder column w[0] of ctrl holds the rudder *order* that a steering gear
+    of rate w[3] [rad/s] (<= 0: instantaneous) turns, integration step by integration step,
+    into the angle the actuators see, written to res[k] (w[1] != 0: the order closed on
+    heading as an IMO zigzag of amplitude w[1], check angle w[2]).
     Returns (status, k_fail, J): k_fail < T when the run failed (diverged or left the model's
     range) at that sample; J covers the samples before it.
     """
@@ -272,12 +278,33 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
     o = np.empty((1, 6))
     a = np.zeros(N_ACT_STATES)
     nc = chans.shape[0]
-    shift = p[_toff] / dt
-    actuate_start(kind, p, ctrl, shift, T, a)
-    measured_wind = has_measured_wind(ctrl)  # decided once per run
-    start_state(p, meas[0], s)
-    if mode == RECORD:
+    steered = mode == STEERED
+    row = np.empty((1, ctrl.shape[1]))   # STEERED: this sample's inputs, the gear's rudder
+    rc = int(w[0]) if steered else 0
+    delta = 0.0  # STEERED: a straight approach, the rudder amidships moving at the gear's rate
+    if steered:
+        for i in range(6):
+            s[i] = meas[0, i]
+        to_water(p, s)
+        for j in range(ctrl.shape[1]):
+            row[0, j] = ctrl[0, j]
+        row[0, rc] = delta
+        res[0] = delta
+        shift = 0.0
+        actuate_start(kind, p, row, 0.0, 1, a)
+        measured_wind = False
+    else:
+        start_state(p, meas[0], s)
+        shift = p[_toff] / dt
+        actuate_start(kind, p, ctrl, shift, T, a)
+        measured_wind = has_measured_wind(ctrl)  # decided once per run
+    if mode == RECORD or steered:
         observe_row(p, s, states, 0)
+    h = dt / substeps
+    max_move = w[3] * h if steered and w[3] > 0.0 else 1e9
+    zz_started = False
+    zz_cmd = w[1] if steered else 0.0
+    psi0 = s[2]
     J = 0.0
     status = OK
     k_fail = T
@@ -286,14 +313,44 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
             start_state(p, meas[k], s)
         if measured_wind:
             use_measured_wind(p, ctrl, k)
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0, 0.0,
-                         1.0)
+        if steered:
+            for j in range(ctrl.shape[1]):
+                row[0, j] = ctrl[k, j]
+            order = ctrl[k, rc]
+            for _ in range(substeps):
+                cmd = order
+                if w[1] != 0.0:
+                    if not zz_started and order != 0.0:
+                        zz_started = True
+                        psi0 = s[2]
+                    cmd = 0.0
+                    if zz_started:
+                        if zz_cmd > 0.0 and s[2] - psi0 >= w[2]:
+                            zz_cmd = -abs(w[1])
+                        elif zz_cmd < 0.0 and s[2] - psi0 <= -w[2]:
+                            zz_cmd = abs(w[1])
+                        cmd = zz_cmd
+                # the step sees the logged angle at its start (as a zero-order-hold replay of
+                # the recorded angle does); the gear then moves toward the order
+                row[0, rc] = delta
+                status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0,
+                                 1.0)
+                if status == RPM_NOT_POSITIVE:
+                    break
+                delta += min(max_move, max(-max_move, cmd - delta))
+            if status != RPM_NOT_POSITIVE:   # a substep's other failures: judged per sample
+                status = state_status(kind, s)
+        else:
+            status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0,
+                             0.0, 1.0)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
         m = k + 1  # meas[m, i], not a row view (see observe_row)
-        if mode == RECORD:
+        if mode == RECORD or steered:
             observe_row(p, s, states, m)
+            if steered:
+                res[m] = delta
             continue
         observe_row(p, s, o, 0)
         if mode == COST:
@@ -314,8 +371,10 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
                 if i == 2:
                     e = wrap_pi(e)
                 res[k * nc + c] = w[i] * e
-    if k_fail < T and mode == RECORD:
+    if k_fail < T and (mode == RECORD or steered):
         for k in range(k_fail, T):
+            if steered:
+                res[k] = np.nan
             for i in range(6):
                 states[k, i] = np.nan
     elif k_fail < T and mode == RESIDUALS:
@@ -379,75 +438,15 @@ def _run_maneuver(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl: Fl
     see (each integration step sees the angle at its start). If zigzag_amp != 0 the order is
     instead closed on heading from the first sample whose order is not 0: it starts at
     zigzag_amp and reverses when the heading change passes +-zigzag_check (IMO zigzag).
-    Writes observed states to out and the logged rudder angle at each sample to rudder_out.
-    Returns (status, k_fail).
+    x0 is the midship state (velocities over ground). Writes observed states to out and the
+    logged rudder angle at each sample to rudder_out. Returns (status, k_fail).
     """
-    s = np.empty(6)
-    a = np.zeros(N_ACT_STATES)
-    row = np.empty((1, ctrl.shape[1]))   # this sample's inputs, the rudder the gear's angle
+    start = np.empty((1, 6))
     for i in range(6):
-        s[i] = x0[i]
-    to_water(p, s)
-    observe(p, s, out[0])
-    h = dt / substeps
-    max_move = rate * h if rate > 0.0 else 1e9
-    delta = 0.0  # straight approach: the rudder starts amidships and moves at the gear's rate
-    rudder_out[0] = delta
-    for j in range(ctrl.shape[1]):
-        row[0, j] = ctrl[0, j]
-    row[0, rudder_col] = delta
-    actuate_start(kind, p, row, 0.0, 1, a)
-    zz_started = False
-    zz_cmd = zigzag_amp
-    psi0 = s[2]
-    status = OK
-    k_fail = T
-    for k in range(T - 1):
-        for j in range(ctrl.shape[1]):
-            row[0, j] = ctrl[k, j]
-        order = ctrl[k, rudder_col]
-        for _ in range(substeps):
-            if zigzag_amp != 0.0:
-                if not zz_started and order != 0.0:
-                    zz_started = True
-                    psi0 = s[2]
-                if zz_started:
-                    dpsi = s[2] - psi0
-                    if zz_cmd > 0.0 and dpsi >= zigzag_check:
-                        zz_cmd = -abs(zigzag_amp)
-                    elif zz_cmd < 0.0 and dpsi <= -zigzag_check:
-                        zz_cmd = abs(zigzag_amp)
-                    cmd = zz_cmd
-                else:
-                    cmd = 0.0
-            else:
-                cmd = order
-            # the step sees the logged angle at its start (as a zero-order-hold replay of the
-            # recorded angle does); the gear then moves toward the order
-            row[0, rudder_col] = delta
-            status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0, 1.0)
-            if status == RPM_NOT_POSITIVE:
-                break
-            diff = cmd - delta
-            if diff > max_move:
-                diff = max_move
-            elif diff < -max_move:
-                diff = -max_move
-            delta += diff
-        if status == RPM_NOT_POSITIVE:
-            k_fail = k
-            break
-        status = state_status(kind, s)
-        if status != OK:
-            k_fail = k + 1
-            break
-        observe(p, s, out[k + 1])
-        rudder_out[k + 1] = delta
-    if status != OK:
-        for k in range(k_fail, T):
-            rudder_out[k] = np.nan
-            for i in range(6):
-                out[k, i] = np.nan
+        start[0, i] = x0[i]
+    gear = np.array([float(rudder_col), zigzag_amp, zigzag_check, rate])
+    status, k_fail, _ = _drive(kind, p, start, ctrl, T, dt, substeps, method, 0, STEERED, gear,
+                               np.empty(0, np.int64), out, rudder_out)
     return status, k_fail
 
 
