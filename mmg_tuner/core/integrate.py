@@ -32,6 +32,7 @@ from typing import Any, Callable, TYPE_CHECKING
 import warnings
 
 from mmg_tuner.core._jit import FASTMATH
+from mmg_tuner.core.correction import feature_row, N_FEATURES, window_residual
 from mmg_tuner.core.dynamics import (accelerations, act_tuple, actuate_hold, actuate_output,
                                      actuate_start, astern_surge, family_tag, N_ACT_STATES,
                                      rhs)
@@ -250,9 +251,10 @@ STEERED = 3    # it writes the observed states, the rudder set by a steering gea
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: FloatArray, T: int,
-           dt: float, substeps: int, method: int, shoot_every: int, mode: int, w: FloatArray,
-           chans: IntArray, states: FloatArray, res: FloatArray) -> tuple[int, int, float]:
+def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: FloatArray, T: int,
+          dt: float, substeps: int, method: int, shoot_every: int, mode: int, w: FloatArray,
+          chans: IntArray, states: FloatArray, res: FloatArray,
+          net: tuple[Any, ...]) -> tuple[int, int, float]:
     """
     Run one trajectory sample by sample: the one sample loop of the whole-run kernels.
 
@@ -265,14 +267,32 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
     sum_i w[i] (observed - measured)^2 (heading wrapped; velocities only when weighted);
     RESIDUALS writes w[chans[c]] (observed - measured) to res[k * len(chans) + c] (w the
     square roots of the weights; 1e6, a finite stand-in, from the failure on).
-    STEERED generates a manoeuvre (``_run_maneuver``): meas[0] is the midship state, no time
+    STEERED generates a manoeuvre (``run_maneuver``): meas[0] is the midship state, no time
     offset, and the rudder column w[0] of ctrl holds the rudder *order* that a steering gear
     of rate w[3] [rad/s] (<= 0: instantaneous) turns, integration step by integration step,
     into the angle the actuators see, written to res[k] (w[1] != 0: the order closed on
     heading as an IMO zigzag of amplitude w[1], check angle w[2]).
+    ``net``: a residual network's (window, layer sizes, flat weights, x_mean, x_std, y_scale,
+    physics weight, feature rows before the start (the last n_hist valid), n_hist, out (T, 3))
+    (``core/correction.py``; :func:`no_net` without one, window 0): its accelerations, from
+    the window of feature rows ending at the sample, are held over each sample interval and
+    written to out[k] (NaN from the failure on and at T - 1); restarts keep the window.
     Returns (status, k_fail, J): k_fail < T when the run failed (diverged or left the model's
     range) at that sample; J covers the samples before it.
     """
+    window, sizes, flat, x_mean, x_std, y_scale, physics, hist, n_hist, res3 = net
+    hybrid = window > 0
+    nf = x_mean.shape[0]
+    ring = np.empty((max(window, 1), nf))
+    frow = np.empty(nf)
+    z = np.empty(max(window, 1) * nf)
+    nb = 1
+    for i in range(sizes.shape[0]):
+        nb = max(nb, sizes[i])
+    buf_a = np.empty(nb)
+    buf_b = np.empty(nb)
+    inp = np.empty(ctrl.shape[1] - N_ENV)
+    nh = hist.shape[0]
     p = p_in.copy()  # private: measured wind overwrites its wind slots (one copy per run)
     s = np.empty(6)
     o = np.empty((1, 6))
@@ -316,6 +336,34 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
         if steered:
             for j in range(ctrl.shape[1]):
                 row[0, j] = ctrl[k, j]
+            row[0, rc] = delta
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        if hybrid:
+            if steered:
+                for j in range(inp.shape[0]):
+                    inp[j] = row[0, j]
+            else:
+                input_row(ctrl, k, shift, T, inp)
+            feature_row(p, s, inp, frow)
+            if k == 0:   # the window before the first sample: the history, else padded
+                for i in range(window - 1):
+                    back = window - 1 - i
+                    for f in range(nf):
+                        ring[i, f] = hist[nh - back, f] if back <= n_hist else frow[f]
+            else:
+                for i in range(window - 1):
+                    for f in range(nf):
+                        ring[i, f] = ring[i + 1, f]
+            for f in range(nf):
+                ring[window - 1, f] = frow[f]
+            r0, r1, r2 = window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z,
+                                         buf_a, buf_b)
+            res3[k, 0] = r0
+            res3[k, 1] = r1
+            res3[k, 2] = r2
+        if steered:
             order = ctrl[k, rc]
             for _ in range(substeps):
                 cmd = order
@@ -333,16 +381,16 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
                 # the step sees the logged angle at its start (as a zero-order-hold replay of
                 # the recorded angle does); the gear then moves toward the order
                 row[0, rc] = delta
-                status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, 0.0, 0.0, 0.0,
-                                 1.0)
+                status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, r0, r1, r2,
+                                 physics)
                 if status == RPM_NOT_POSITIVE:
                     break
                 delta += min(max_move, max(-max_move, cmd - delta))
             if status != RPM_NOT_POSITIVE:   # a substep's other failures: judged per sample
                 status = state_status(kind, s)
         else:
-            status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, 0.0, 0.0,
-                             0.0, 1.0)
+            status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, r0, r1, r2,
+                             physics)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
@@ -380,7 +428,18 @@ def _drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Floa
     elif k_fail < T and mode == RESIDUALS:
         for j in range(max(k_fail - 1, 0) * nc, (T - 1) * nc):
             res[j] = 1e6
+    if hybrid:
+        for k in range(min(k_fail, T - 1), T):
+            for i in range(3):
+                res3[k, i] = np.nan
     return status, k_fail, J
+
+
+@njit(cache=True, inline='always')
+def no_net() -> tuple[Any, ...]:
+    """Return the ``net`` argument of :func:`drive` for a run without a residual network."""
+    return (0, np.zeros(1, np.int64), np.zeros(1), np.zeros(N_FEATURES), np.ones(N_FEATURES),
+            np.ones(3), 1.0, np.zeros((1, N_FEATURES)), 0, np.zeros((1, 3)))
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -398,8 +457,8 @@ def _simulate_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray, ctrl:
     start = np.empty((1, 6))
     for i in range(6):
         start[0, i] = x0[i]
-    status, k_fail, _ = _drive(kind, p_in, start, ctrl, T, dt, substeps, method, 0, RECORD,
-                               start[0], np.empty(0, np.int64), out, start[0])
+    status, k_fail, _ = drive(kind, p_in, start, ctrl, T, dt, substeps, method, 0, RECORD,
+                              start[0], np.empty(0, np.int64), out, start[0], no_net())
     return status, k_fail
 
 
@@ -445,8 +504,8 @@ def _run_maneuver(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl: Fl
     for i in range(6):
         start[0, i] = x0[i]
     gear = np.array([float(rudder_col), zigzag_amp, zigzag_check, rate])
-    status, k_fail, _ = _drive(kind, p, start, ctrl, T, dt, substeps, method, 0, STEERED, gear,
-                               np.empty(0, np.int64), out, rudder_out)
+    status, k_fail, _ = drive(kind, p, start, ctrl, T, dt, substeps, method, 0, STEERED, gear,
+                              np.empty(0, np.int64), out, rudder_out, no_net())
     return status, k_fail
 
 
@@ -463,8 +522,8 @@ def _trajectory_cost(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, 
     (multiple shooting). Returns (J, k_fail): k_fail < T means the run failed at that sample
     (diverged or left the model's range) and J covers only the samples before it.
     """
-    _, k_fail, J = _drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every, COST,
-                          weights, np.empty(0, np.int64), meas, weights)
+    _, k_fail, J = drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every, COST,
+                         weights, np.empty(0, np.int64), meas, weights, no_net())
     return J, k_fail
 
 
@@ -501,8 +560,8 @@ def _trajectory_residuals(kind: tuple[int, ...], p_in: FloatArray, meas: FloatAr
     least-squares solver sees a large, not an undefined, error.
     Returns k_fail (T when the run completed).
     """
-    _, k_fail, _ = _drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every,
-                          RESIDUALS, sw, chans, meas, out)
+    _, k_fail, _ = drive(kind, p_in, meas, ctrl, T, dt, substeps, method, shoot_every,
+                         RESIDUALS, sw, chans, meas, out, no_net())
     return k_fail
 
 

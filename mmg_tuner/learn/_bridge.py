@@ -10,9 +10,9 @@ custom VJP (``_engine.physics_fn``). NumPy and numba only.
 """
 from __future__ import annotations
 
+from mmg_tuner.core.correction import window_residual
 from mmg_tuner.core.dynamics import act_tuple, derivative
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.learn.residual import window_residual
 from numba import njit
 import numpy as np
 

@@ -33,11 +33,12 @@ from pathlib import Path
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import json_loads, load_yaml, read_npz
 from mmg_tuner.core._jit import FASTMATH
-from mmg_tuner.core.dynamics import (actuate_start, apparent_wind, family_tag,
-                                     N_ACT_STATES)
-from mmg_tuner.core.integrate import (advance, has_measured_wind, input_row, N_ENV, observe,
-                                      start_state, use_measured_wind)
-from mmg_tuner.core.layout import OK, PARAM_INDEX, RPM_NOT_POSITIVE, STATUS_TEXT
+from mmg_tuner.core.correction import feature_row, FEATURES, N_FEATURES, window_residual
+from mmg_tuner.core.correction import mlp_forward  # noqa: F401  (re-exported: the tests')
+from mmg_tuner.core.dynamics import family_tag
+from mmg_tuner.core.integrate import (drive, has_measured_wind, input_row, N_ENV, RECORD,
+                                      start_state, STEERED, use_measured_wind)
+from mmg_tuner.core.layout import OK, PARAM_INDEX, STATUS_TEXT
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.simulate import simulate as _simulate
@@ -47,11 +48,6 @@ from mmg_tuner.errors import ConfigError, SimulationError
 from numba import njit
 import numpy as np
 
-FEATURES: tuple[str, ...] = ('u', 'v', 'r', 'rpm', 'rudder', 'bow_thruster', 'stern_thruster',
-                             'wind_u', 'wind_v')
-"""Per-sample inputs of the network (see the module docstring); wind_u/wind_v: apparent
-wind, the air's velocity relative to the ship, body axes [m/s]."""
-N_FEATURES = len(FEATURES)
 FORMAT = 'mmg_tuner.residual/1'
 FORMAT_BLEND = 'mmg_tuner.residual/2'
 """Format 2: as 1, with 'physics' a weight in (0, 1) (an ensemble of hybrid and pure nets)."""
@@ -270,60 +266,6 @@ def zero_net(window: int, dt_s: float, hidden=(16,), physics: bool = True) -> Re
 
 # ------------------------------------------------------------------------------- the kernels
 @njit(cache=True, fastmath=FASTMATH)
-def mlp_forward(sizes, flat, x, buf_a, buf_b):
-    """
-    Evaluate the MLP on x (sizes[0],): tanh hidden layers, linear output.
-
-    Returns the buffer holding the output. buf_a, buf_b: work buffers of length >=
-    max(sizes). Weights are (out, in) row-major then the biases, layer after layer, as
-    :meth:`ResidualNet.packed` lays them out.
-    """
-    n_layers = sizes.shape[0] - 1
-    src = x
-    off = 0
-    for li in range(n_layers):
-        n_in = sizes[li]
-        n_out = sizes[li + 1]
-        dst = buf_a if li % 2 == 0 else buf_b
-        boff = off + n_in * n_out
-        for j in range(n_out):
-            acc = flat[boff + j]
-            row = off + j * n_in
-            for i in range(n_in):
-                acc += flat[row + i] * src[i]
-            dst[j] = math.tanh(acc) if li < n_layers - 1 else acc
-        off = boff + n_out
-        src = dst
-    return src
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def feature_row(p, s, inp, row):
-    """Fill row (N_FEATURES,) for model state s and the command row held at this sample."""
-    row[0] = s[3]
-    row[1] = s[4]
-    row[2] = s[5]
-    row[3] = inp[0]
-    row[4] = inp[1]
-    row[5] = inp[2] if inp.shape[0] > 2 else 0.0
-    row[6] = inp[3] if inp.shape[0] > 3 else 0.0
-    wu, wv = apparent_wind(p, s[2], s[3], s[4])
-    row[7] = wu
-    row[8] = wv
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z, buf_a, buf_b):
-    """(du, dv, dr) of the network for the window ring (window, N_FEATURES), oldest first."""
-    nf = ring.shape[1]
-    for i in range(window):
-        for f in range(nf):
-            z[i * nf + f] = (ring[i, f] - x_mean[f]) / x_std[f]
-    o = mlp_forward(sizes, flat, z, buf_a, buf_b)
-    return o[0] * y_scale[0], o[1] * y_scale[1], o[2] * y_scale[2]
-
-
-@njit(cache=True, fastmath=FASTMATH)
 def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
     """
     Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
@@ -355,61 +297,36 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
     x0: first observed state; hist (>= window-1, N_FEATURES): the feature rows before it, of
     which the last n_hist are valid (the rest of the window is padded with the first sample's
     row); res_out (T, 3): the residual held over each interval. Returns (status, k_fail).
+    The core's one sample loop (``integrate.drive``) with the network attached.
     """
-    p = p_in.copy()
-    s = np.empty(6)
-    a = np.zeros(N_ACT_STATES)
-    inp = np.empty(ctrl.shape[1] - N_ENV)
-    nf = x_mean.shape[0]
-    ring = np.empty((window, nf))
-    row = np.empty(nf)
-    z = np.empty(window * nf)
-    nb = 0
-    for i in range(sizes.shape[0]):
-        nb = max(nb, sizes[i])
-    buf_a = np.empty(nb)
-    buf_b = np.empty(nb)
-    start_state(p, x0, s)
-    observe(p, s, out[0])
-    shift = p[_toff] / dt
-    actuate_start(kind, p, ctrl, shift, T, a)
-    measured_wind = has_measured_wind(ctrl)
-    status = OK
-    k_fail = T
-    nh = hist.shape[0]
-    for k in range(T - 1):
-        if measured_wind:
-            use_measured_wind(p, ctrl, k)
-        input_row(ctrl, k, shift, T, inp)
-        feature_row(p, s, inp, row)
-        if k == 0:
-            for i in range(window - 1):
-                back = window - 1 - i  # samples before the first
-                for f in range(nf):
-                    ring[i, f] = hist[nh - back, f] if back <= n_hist else row[f]
-        else:
-            for i in range(window - 1):
-                for f in range(nf):
-                    ring[i, f] = ring[i + 1, f]
-        for f in range(nf):
-            ring[window - 1, f] = row[f]
-        a0, a1, a2 = window_residual(ring, window, sizes, flat, x_mean, x_std, y_scale, z,
-                                     buf_a, buf_b)
-        res_out[k, 0] = a0
-        res_out[k, 1] = a1
-        res_out[k, 2] = a2
-        status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, a0, a1, a2,
-                         physics)
-        if status != OK:
-            k_fail = k if status == RPM_NOT_POSITIVE else k + 1
-            break
-        observe(p, s, out[k + 1])
-    for i in range(3):
-        res_out[T - 1, i] = np.nan
-    if status != OK:
-        for k in range(k_fail, T):
-            for i in range(6):
-                out[k, i] = np.nan
+    start = np.empty((1, 6))
+    for i in range(6):
+        start[0, i] = x0[i]
+    status, k_fail, _ = drive(kind, p_in, start, ctrl, T, dt, substeps, method, 0, RECORD,
+                              start[0], np.empty(0, np.int64), out, start[0],
+                              (window, sizes, flat, x_mean, x_std, y_scale, physics, hist,
+                               n_hist, res_out))
+    return status, k_fail
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def steer_hybrid_one(kind, p, x0, ctrl, gear, T, dt, substeps, method, window, sizes, flat,
+                     x_mean, x_std, y_scale, physics, out, rudder_out, res_out):
+    """
+    Run a manoeuvre of a hybrid with the steering gear in the loop (``integrate.run_maneuver``).
+
+    x0: the midship state; gear: (rudder column, zigzag amplitude, check angle, rate) as
+    ``integrate.drive`` reads them in STEERED mode; the residual is held over each sample
+    interval (res_out (T, 3)), the steering gear moves each integration step.
+    Returns (status, k_fail).
+    """
+    start = np.empty((1, 6))
+    for i in range(6):
+        start[0, i] = x0[i]
+    status, k_fail, _ = drive(kind, p, start, ctrl, T, dt, substeps, method, 0, STEERED, gear,
+                              np.empty(0, np.int64), out, rudder_out,
+                              (window, sizes, flat, x_mean, x_std, y_scale, physics,
+                               np.zeros((1, N_FEATURES)), 0, res_out))
     return status, k_fail
 
 
