@@ -250,7 +250,7 @@ RESIDUALS = 2  # it writes those weighted errors, one per (sample, channel)
 STEERED = 3    # it writes the observed states, the rudder set by a steering gear in the loop
 
 
-@njit(cache=True, fastmath=FASTMATH, inline='always')
+@njit(cache=True, fastmath=FASTMATH)
 def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: FloatArray, T: int,
           dt: float, substeps: int, method: int, shoot_every: int, mode: int, w: FloatArray,
           chans: IntArray, states: FloatArray, res: FloatArray,
@@ -262,7 +262,8 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
     and, with shoot_every > 0, restarts from meas[k] every shoot_every samples (multiple
     shooting); ctrl[k] holds the family's channels (commands, then the measured wind) held from
     sample k to k+1 (delayed by time_offset). What it does with each observed sample k+1 is
-    ``mode``, a constant in each caller (inlined, so the branches fold away):
+    ``mode`` (one compiled loop per family for every mode: inlined into each caller it
+    compiled 20 % slower; the branch costs about 2 % of a step):
     RECORD writes it to states[k+1] (NaN from the failure on); COST sums
     sum_i w[i] (observed - measured)^2 (heading wrapped; velocities only when weighted);
     RESIDUALS writes w[chans[c]] (observed - measured) to res[k * len(chans) + c] (w the
@@ -322,6 +323,13 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
         observe_row(p, s, states, 0)
     h = dt / substeps
     max_move = w[3] * h if steered and w[3] > 0.0 else 1e9
+    src = row if steered else ctrl
+    n_inner = substeps if steered else 1
+    step_shift = 0.0 if steered else shift
+    step_T = 1 if steered else T
+    step_dt = h if steered else dt
+    step_substeps = 1 if steered else substeps
+    cmd = 0.0
     zz_started = False
     zz_cmd = w[1] if steered else 0.0
     psi0 = s[2]
@@ -363,9 +371,12 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
             res3[k, 0] = r0
             res3[k, 1] = r1
             res3[k, 2] = r2
-        if steered:
-            order = ctrl[k, rc]
-            for _ in range(substeps):
+        # one call site of advance (each is a copy of the family's forces in the compiled
+        # kernel): a steered run advances one integration step at a time from ``row``,
+        # moving its gear in between; any other, one sample of ``ctrl``
+        order = ctrl[k, rc] if steered else 0.0
+        for _ in range(n_inner):
+            if steered:
                 cmd = order
                 if w[1] != 0.0:
                     if not zz_started and order != 0.0:
@@ -381,16 +392,13 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
                 # the step sees the logged angle at its start (as a zero-order-hold replay of
                 # the recorded angle does); the gear then moves toward the order
                 row[0, rc] = delta
-                status = advance(kind, p, s, a, row, 0, 0.0, 1, h, 1, method, r0, r1, r2,
-                                 physics)
-                if status == RPM_NOT_POSITIVE:
-                    break
-                delta += min(max_move, max(-max_move, cmd - delta))
-            if status != RPM_NOT_POSITIVE:   # a substep's other failures: judged per sample
-                status = state_status(kind, s)
-        else:
-            status = advance(kind, p, s, a, ctrl, k, shift, T, dt, substeps, method, r0, r1, r2,
-                             physics)
+            status = advance(kind, p, s, a, src, 0 if steered else k, step_shift, step_T,
+                             step_dt, step_substeps, method, r0, r1, r2, physics)
+            if not steered or status == RPM_NOT_POSITIVE:
+                break
+            delta += min(max_move, max(-max_move, cmd - delta))
+        if steered and status != RPM_NOT_POSITIVE:   # a substep's other failures, per sample
+            status = state_status(kind, s)
         if status != OK:
             k_fail = k if status == RPM_NOT_POSITIVE else k + 1
             break
