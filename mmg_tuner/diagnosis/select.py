@@ -850,9 +850,12 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             {c[0].effect: c for c in accepted if c[0].effect in EFFECTS})
         cand, model, theta, J_test = best
         # another significant effect whose gain is within the combined uncertainty explains
-        # these trials about as well: say so rather than pretend to know
+        # these trials about as well: say so rather than pretend to know -- unless a held-out
+        # trial tells them apart (the rival clearly worse on it, by the rule that vetoes a
+        # cause, and nowhere clearly better): one manoeuvre may be all that separates them
         rivals = [c[0].effect for c in accepted if c[0] is not cand
-                  and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)]
+                  and cand.gain - c[0].gain < np.hypot(cand.gain_se, c[0].gain_se)
+                  and not _told_apart(J_test, c[3], noise, s, objs.of(model)[1].batch.names)]
         clock('identifiability')
         se_all = standard_errors(objs.of(model)[0], model.space, theta)
         errs = {p: float(e) for p, e in zip(model.space.names, se_all) if p in cand.values}
@@ -1288,6 +1291,13 @@ def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict, s: Diagnos
     k = int(np.flatnonzero(bad)[np.argmax(ratio[bad])])
     return (f'it makes held-out trial {names[k]} clearly worse ({100 * (ratio[k] - 1):+.0f} %, '
             'more than its noise floor)')
+
+
+def _told_apart(J_best: np.ndarray, J_rival: np.ndarray, noise: dict, s: DiagnosisSettings,
+                names: Sequence[str]) -> bool:
+    """Return whether a held-out trial shows the rival clearly worse and none clearly better."""
+    return bool(_clearly_worse(J_best, J_rival, noise, s, names)) \
+        and not _clearly_worse(J_rival, J_best, noise, s, names)
 
 
 def _noise(ship: ShipConfig, params: np.ndarray, test_trials: Sequence[Trial],
