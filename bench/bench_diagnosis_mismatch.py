@@ -50,7 +50,7 @@ BARELY = ('rpm_scale', 'time_offset', 'prop_side_force', 'yaw_moment_bias')
 PAIRS = ('current+rudder_lag', 'rudder_offset+wind', 'current+rudder_offset')
 OUT_OF_LIBRARY = ('hull_scale', 'N_r_scale')
 CLASSES = ('clean',) + IDENTIFIABLE + PAIRS + OUT_OF_LIBRARY + BARELY
-# the verdict measured ('evidence', the default: diagnosis/decide.py; 'rules' the earlier one)
+# the verdict measured ('evidence': diagnosis/decide.py, as registered; 'rules' the default)
 VERDICT = ['evidence']
 
 

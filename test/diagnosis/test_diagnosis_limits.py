@@ -112,11 +112,10 @@ def test_the_measured_wind_is_named_on_the_esso_osaka_low_speed_runs():
     several m/s against ship speeds of 0.1-0.5 m/s), every second held out, as a new user
     would run them. The published coefficients already predict these runs 2-5 x better with
     the wind; on the zigzag and turning runs the wind makes them worse, which is why a
-    diagnosis of the zigzags alone named nothing. Measured here, restarting every 11 s (the
-    evidence verdict's Froude-scaled period): held-out J 77 without, 49 with (gain 37 %; in
-    free runs, the rules verdict's, 4.3e6 and 6.1e5: gain 86 %, the start's drift included);
-    the measured-wind candidate's numbers do not depend on which other effects are searched
-    (the same null and re-tune), so two keep it quick (about 30 s).
+    diagnosis of the zigzags alone named nothing. Measured here: held-out gain 85.7 % +-
+    20.7 % (J 4.3e6 without, 6.1e5 with); the measured-wind candidate's numbers do not
+    depend on which other effects are searched (the same null and re-tune), so two keep it
+    quick (about 30 s).
     """
     import mmg_tuner as mt
     from mmg_tuner.data.esso import esso_data_dir
@@ -130,7 +129,7 @@ def test_the_measured_wind_is_named_on_the_esso_osaka_low_speed_runs():
     assert dx.setting.venue == 'pond'
     assert [c.effect for c in dx.causes] == ['measured_wind']
     m = dx.measured[0]
-    assert m['named'] and m['J_test_with'] < 0.8 * m['J_test_without']
-    assert dx.causes[0].heldout_gain > 0.2 and 0 < dx.causes[0].heldout_gain_se < 0.5
+    assert m['named'] and m['J_test_with'] < 0.4 * m['J_test_without']
+    assert dx.causes[0].heldout_gain > 0.5 and 0 < dx.causes[0].heldout_gain_se < 0.5
     md = markdown(dx.to_dict(), ship)
     assert '**measured_wind** — measured wind used. Held-out gain' in md

@@ -235,10 +235,7 @@ def test_hull_forces_45_percent_larger_are_no_library_cause(suzaku):
 
 def test_wind_and_a_rudder_offset_are_both_named(suzaku):
     """
-    Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: both named by the rules verdict.
-
-    (The evidence verdict, the default, names the wind and leaves the offset unnamed: with
-    restarts every 58 s, without it the held-out trials lose x 1.06 +- 1.10 per trial.)
+    Wind 9 m/s from 45 deg and a rudder offset of +1.5 deg: two causes at once, both named.
 
     Before issue 26 the offset, second, was rejected for explaining only 3 % of the base
     error (a base error the wind made 29 x the clean case's). Then the joint fit of the wind
@@ -252,7 +249,7 @@ def test_wind_and_a_rudder_offset_are_both_named(suzaku):
     """
     tune, test = _trials(suzaku, {'wind_speed': 9.0, 'wind_dir': math.radians(45.0),
                                   'rudder_offset': math.radians(1.5)})
-    dx = _diagnose(suzaku, tune, test, verdict='rules')
+    dx = _diagnose(suzaku, tune, test)
     named = sorted(c.effect for c in dx.causes)
     assert named == ['rudder_offset', 'wind'], [c.summary for c in dx.causes]
     p = {k: v for c in dx.causes for k, v in c.parameters.items()}
@@ -267,9 +264,7 @@ def test_wind_and_a_rudder_offset_are_both_named(suzaku):
 @pytest.mark.slow
 def test_a_current_and_a_rudder_offset_are_named_in_place_of_the_wind_they_imitate(suzaku):
     """
-    Current 0.25 m/s toward 200 deg and a rudder offset of +1.5 deg: both named (rules).
-
-    (The evidence verdict, the default, names the current alone.)
+    Current 0.25 m/s toward 200 deg and a rudder offset of +1.5 deg: both named.
 
     Alone, a wind (held-out gain 78 %) and the current (74 %) explain the trials about as
     well; the wind is named, the offset fits to nothing beside it, and before the eighth
@@ -280,7 +275,7 @@ def test_a_current_and_a_rudder_offset_are_named_in_place_of_the_wind_they_imita
     """
     tune, test = _trials(suzaku, {'current_speed': 0.25, 'current_dir': math.radians(200.0),
                                   'rudder_offset': math.radians(1.5)})
-    dx = _diagnose(suzaku, tune, test, verdict='rules')
+    dx = _diagnose(suzaku, tune, test)
     named = sorted(c.effect for c in dx.causes)
     assert named == ['current', 'rudder_offset'], [c.summary for c in dx.causes]
     p = {k: v for c in dx.causes for k, v in c.parameters.items()}
@@ -327,7 +322,7 @@ def test_a_current_and_a_steering_gear_lag_name_no_false_cause(suzaku):
     """
     tune, test = _trials(suzaku, {'current_speed': 0.25, 'current_dir': math.radians(200.0),
                                   'rudder_lag_tau': 5.0})
-    dx = _diagnose(suzaku, tune, test, verdict='rules')
+    dx = _diagnose(suzaku, tune, test)
     named = [c.effect for c in dx.causes]
     assert named[:1] == ['current'] and set(named) <= {'current', 'rudder_lag'}, named
     p = dx.causes[0].parameters

@@ -85,26 +85,43 @@ AZ_OFFSET = {'azimuth_offset_port': math.radians(3.0)}
 
 def test_an_azimuth_offset_is_told_from_a_yaw_moment_bias():
     """
-    A held-out trial tells a 3 deg port offset from its rivals.
+    The held-out trials tell a 3 deg port offset from its rivals by far.
 
     The offset's side force acts at the port thruster and scales with that thruster's thrust
     (the differential-thrust run loads it 0.5-1.7 x at one speed), a yaw moment bias with U^2.
-    On the turn and the zigzag the rivals fit about as well (10 s restarts: the prediction
-    error over four tug lengths); on the differential-thrust run they leave 3.3 x (starboard
-    offset) and 3.7 x (yaw moment bias) the port offset's error, so the port offset is named
-    alone, not one of a set. (Free runs: the offset's held-out J 62, noise alone 36, the yaw
-    moment bias 5349, the starboard offset 5066, the port thrust scale 3540.)
+    Measured: the offset's held-out J 62 (noise alone: 36), the yaw moment bias 5349, the
+    starboard offset 5066, the port thrust scale 3540. (Once named as a yaw moment bias:
+    every re-tune started where the base tune had bent the coefficients, 700 x the truth's
+    held-out J, and the four tied.)
     """
     d = diagnose(AZ_OFFSET)
     assert [c.effect for c in d.causes] == ['azimuth_offset_port']
-    assert not d.undecided
-    first = {c.effect: c for c in d.candidates[0]}
-    port = 1 - np.asarray(first['azimuth_offset_port'].per_trial_gain)
+    first = {c.effect: c.J_test for c in d.candidates[0]}
     for rival in ('yaw_moment_bias', 'azimuth_offset_stbd', 'thrust_scale_port'):
         if rival in first:   # re-tuned (among the screen's top)
-            worst = np.max((1 - np.asarray(first[rival].per_trial_gain)) / port)
-            assert worst > 2, (rival, worst)
+            assert first[rival] > 10 * first['azimuth_offset_port'], (rival, first)
     assert 'yaw_moment_bias' in first
+
+
+def test_a_held_out_trial_that_tells_the_rivals_apart_names_the_offset():
+    """
+    The evidence verdict (10 s restarts) names the port offset alone, not one of a set.
+
+    Over 10 s restarts the starboard offset fits the turn and the zigzag as well as the port
+    one (held-out gains 0.89 +- 0.10 and 0.86 +- 0.13 pooled: within their combined error), and
+    the differential-thrust run tells them apart: the starboard offset leaves 3.3 x the port
+    offset's J there, a yaw moment bias 3.7 x. Before the rival rule looked at single trials the
+    port offset was left undecided against the starboard one.
+    """
+    tug = mt.load_ship('qiuxin_tug')
+    truth = tug.with_params(AZ_OFFSET)
+    d = mt.diagnose(tug, sail(truth, TUNE, 0), sail(truth, TEST, 50), budget='quick',
+                    base_evals=BASE_EVALS, verdict='evidence')
+    assert [c.effect for c in d.causes] == ['azimuth_offset_port'] and not d.undecided
+    first = {c.effect: c for c in d.candidates[0]}
+    port = 1 - np.asarray(first['azimuth_offset_port'].per_trial_gain)
+    stbd = 1 - np.asarray(first['azimuth_offset_stbd'].per_trial_gain)
+    assert np.max(stbd / port) > 2
 
 
 def test_finds_an_azimuth_offset_on_the_port_thruster():
