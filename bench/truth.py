@@ -13,7 +13,7 @@ package's own simulation as the thing compared against).
 prints and writes how far each mismatch level is from the model at the published values
 (tactical diameters, zigzag overshoots, RMS yaw-rate error of a replay).
 
-Sources (tags of ``../shared/reference/mismatch_formulations.md``, "MF" below; "SM" is
+Sources (tags of ``doc/reference/mismatch_formulations.md``, "MF" below; "SM" is
 ``suzaku_mmg_model.md``, Suyama et al. 2023 section 3):
 
 * Equations of motion: SM eq. 7 (MMG form, added masses m'_x, m'_y, J'_zz), RK4 at <= 0.1 s.

@@ -34,7 +34,7 @@ converted from data obtained from IMU sensors. The conversion formulas are selec
 where [lost] comes from the NED position from GPS data"; sec. 5.1 blames its larger r error on
 "the simplification method used in converting from the Earth fixed coordinate system to the
 BODY fixed coordinate system". It gives no noise figure and no filter. The reference
-(``../shared/reference/mbpe_logo_tug.md`` sec. 1 and 4 A) reads this as velocities from
+(``doc/reference/mbpe_logo_tug.md`` sec. 1 and 4 A) reads this as velocities from
 differenced RTK positions, with "RTK noise of 1-2 cm with 0.3 deg on heading". The bench
 prints the twin's noise beside the signal (held-out runs, seed 0): noise sd u, v 0.98, 1.00
 cm/s, r 0.20 deg/s on a signal RMS of 0.795 m/s, 0.235 m/s, 8.41 deg/s: 1.24 / 4.27 / 2.37 %,

@@ -190,7 +190,7 @@ class TwinNoise:
     """
     1-sigma white noise of a small craft's sensors, RTK class (SI units, radians).
 
-    ASSUMPTION (shared/reference/mbpe_logo_tug.md §4 A: "RTK noise of 1-2 cm with 0.3 deg on
+    ASSUMPTION (doc/reference/mbpe_logo_tug.md §4 A: "RTK noise of 1-2 cm with 0.3 deg on
     heading"): positions 1.5 cm, heading 0.3 deg; body velocities and yaw rate as a GNSS/INS
     filter gives them (1 cm/s, 0.2 deg/s); shaft tachometers 0.02 rev/s; azimuth feedback
     0.2 deg; bollard-pull load cell 0.3 N. Commands (azimuth_cmd_*) are exact.

@@ -1,7 +1,7 @@
 """
 Identification local -> global of a control-oriented model (MBPE-LOGO, arXiv 2312.05644).
 
-The whole ship, in the paper's order (shared/reference/mbpe_logo_tug.md):
+The whole ship, in the paper's order (doc/reference/mbpe_logo_tug.md):
 
 1. **Thrust** (:func:`fit_thrust`): the polynomial F(n) = p0 + p1 n + ... + p5 n^5 per
    thruster (eq. 20) fitted to a bollard-pull table (columns ``n,thrust``: rev/s, N per

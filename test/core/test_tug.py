@@ -2,7 +2,7 @@
 The twin-azimuth tug (issue 24, part A): its families, its actuator, its configs and its twin.
 
 Physics checked against numbers the test derives on its own from the published coefficients
-(shared/reference/mbpe_logo_tug.md): the steady speed where thrust meets the surge damping,
+(doc/reference/mbpe_logo_tug.md): the steady speed where thrust meets the surge damping,
 the turning direction the thruster geometry implies, the Coriolis and tau_v switches, the
 azimuth drive's lag and rate limit, a differential-thrust craft's turn.
 """

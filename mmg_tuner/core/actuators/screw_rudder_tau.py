@@ -5,7 +5,7 @@ For the control-oriented families (M nu_dot + C(nu) nu + D(nu) nu = tau): the pr
 rudder forces written as a few products of the recorded inputs and the surge speed, each with
 one coefficient, so that tau is *linear in its coefficients* and the local step of
 ``tuning/lo_go.py`` identifies them together with the hull's, in one least-squares problem.
-The form follows the MMG model's leading terms (shared/reference/esso_osaka_lowspeed_mmg.md
+The form follows the MMG model's leading terms (doc/reference/esso_osaka_lowspeed_mmg.md
 §5, §6) with everything that is not a product of a coefficient and the inputs dropped:
 
 - surge thrust: X_P = T_nn n|n| + T_absn_u |n| u, the open-water K_T(J) = k_0 + k_1 J with

@@ -7,7 +7,7 @@ optionally, the commanded angles ``azimuth_cmd_port``, ``azimuth_cmd_stbd`` [rad
 absent: not recorded). Outputs (what the family and this module's ``forces`` read): the two
 thrusts [N] and the two actual angles [rad].
 
-- Thrust per thruster (MBPE-LOGO eq. 20, shared/reference/mbpe_logo_tug.md §1): a polynomial
+- Thrust per thruster (MBPE-LOGO eq. 20, doc/reference/mbpe_logo_tug.md §1): a polynomial
   of degree <= 5 in the shaft speed, sign-aware so that it covers reverse:
   F(n) = sign(n) (p0 + p1 |n| + ... + p5 |n|^5), times ``thrust_astern_ratio`` for n < 0
   (a propeller gives less thrust astern) and ``thrust_scale_<side>`` (1: a clean propeller;

@@ -1,7 +1,7 @@
 """
 Family ``simplified6``: the 6-coefficient underactuated model of MBPE-LOGO's Remark 2.1.
 
-After Chen (2020) and Yuan (2021), as shared/reference/mbpe_logo_tug.md §1 restates it (SI
+After Chen (2020) and Yuan (2021), as doc/reference/mbpe_logo_tug.md §1 restates it (SI
 units, body axes x forward, y to starboard, r clockwise):
 
   m11 u_dot - m22 v r + d11 u = tau_u

@@ -2,7 +2,7 @@
 Family ``surge_decoupled``: the 22-coefficient control-oriented 3-DOF model (Pedersen 2019).
 
 M nu_dot + C(nu) nu + D(nu) nu = tau in SI units about the model's reference point (the
-MBPE-LOGO tug's CO; shared/reference/mbpe_logo_tug.md §1), nu = (u, v, r), body axes x
+MBPE-LOGO tug's CO; doc/reference/mbpe_logo_tug.md §1), nu = (u, v, r), body axes x
 forward, y to starboard, r clockwise:
 
 - M = [[m11, 0, 0], [0, m22, m23], [0, m32, m33]] (m23 != m32 allowed: fitted, effective

@@ -6,7 +6,7 @@ coefficient slots and the same compiled functions) for a conventional single-scr
 single-rudder ship: tau from the ``screw_rudder_tau`` actuator (thrust and rudder force linear
 in 7 coefficients) and from bow and stern tunnel thrusters (``tunnel_thrusters``: the speeds
 recorded, or 0). The thrusters' side force and moment are the low-speed MMG model's
-(``lowspeed.thruster_forces``, shared/reference/esso_osaka_lowspeed_mmg.md §7) with the
+(``lowspeed.thruster_forces``, doc/reference/esso_osaka_lowspeed_mmg.md §7) with the
 ship's pre-determined values: they are not identified (a run without thrusters carries no
 information on them; the Esso Osaka's pond runs recorded none).
 Ship: ``config/esso_osaka_3m_control.yaml``; the coefficients identified are the ship's
