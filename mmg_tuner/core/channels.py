@@ -9,7 +9,8 @@ family's :attr:`~mmg_tuner.core.models.Family.channels`, in that order: the actu
 then ``wind_n``, ``wind_e`` (NaN where the wind was not measured: the wind parameters act).
 
 Adding an actuator with new inputs: declare them in the actuator module's ``CHANNELS``
-(name -> (unit, description, default)); the actuator registry adds them to this table.
+(name -> (unit, description, default[, topic])); the actuator registry adds them to this table,
+and a topic map (``data/topics.py``) gets a section for each.
 """
 from __future__ import annotations
 
@@ -25,21 +26,25 @@ class Channel:
     name: the key in ``Trial.inputs``, CSV headers and topic maps; unit: SI unit (or rev/min,
     rev/s) of the stored values; description: sign convention and meaning; default: the value
     a trial without the channel is given (NaN: "not measured"; None: required, a trial without
-    it cannot drive a ship that needs it).
+    it cannot drive a ship that needs it); topic: the ROS topic a recording carries it on by
+    default (a topic map's section of the same name overrides it; '': read only when mapped).
     """
 
     name: str
     unit: str
     description: str
     default: float | None = None
+    topic: str = ''
 
 
 TABLE: dict[str, Channel] = {c.name: c for c in (
-    Channel('rpm', 'rev/min', 'propeller revolutions, + ahead'),
-    Channel('rudder', 'rad', 'rudder angle, + turns the ship to starboard'),
-    Channel('bow_thruster', 'rev/s', 'bow tunnel thruster, + pushes the bow to starboard', 0.0),
+    Channel('rpm', 'rev/min', 'propeller revolutions, + ahead', topic='/propeller_rpm'),
+    Channel('rudder', 'rad', 'rudder angle, + turns the ship to starboard',
+            topic='/rudder_angle'),
+    Channel('bow_thruster', 'rev/s', 'bow tunnel thruster, + pushes the bow to starboard', 0.0,
+            '/bow_thruster'),
     Channel('stern_thruster', 'rev/s', 'stern tunnel thruster, + pushes the stern to starboard',
-            0.0),
+            0.0, '/stern_thruster'),
     Channel('wind_n', 'm/s', 'measured true wind: the air velocity over ground, north',
             math.nan),
     Channel('wind_e', 'm/s', 'measured true wind: the air velocity over ground, east',

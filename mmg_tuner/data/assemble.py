@@ -32,7 +32,7 @@ from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion
                                         reset_findings, split_at, unusable_reason,
                                         UnusableRecordingError, warn)
 from mmg_tuner.data.files import brief
-from mmg_tuner.data.topics import (AZIMUTH_REQUIRED, AZIMUTH_ROLES, IMU, NAVSATFIX,
+from mmg_tuner.data.topics import (IMU, NAVSATFIX, per_channel_actuators,
                                    THRUSTER_ROLES, TopicMap)
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
@@ -44,6 +44,9 @@ LAG_MIN_R2 = 0.5  # below it the yaw model explains too little to date the comma
 MAX_WIND_MS = 100.0  # no anemometer reading beyond it is wind (the strongest gusts ~110 m/s)
 # no thruster turns faster: a model's reaches ~30 rev/s, a ship's a few; more is a unit error
 MAX_THRUSTER_RPS = 200.0
+# what no recording of another actuator's channel can show, by the channel's unit (a shaft speed,
+# an angle beyond one turn: degrees read as radians)
+PLAUSIBLE_BY_UNIT = {'rev/s': MAX_THRUSTER_RPS, 'rad': AZIMUTH_PLAUSIBLE_RAD}
 
 
 # Without a ship the readers still refuse what no ship can do (a unit error, corrupt data);
@@ -59,10 +62,10 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
     v = s.values
     none = np.zeros(len(v), dtype=bool)
     if role == 'rudder':
-        return (np.abs(v[:, 0] * tm.rudder_to_rad) > lim.rudder_plausible_rad,
+        return (np.abs(v[:, 0] * tm.factor('rudder')) > lim.rudder_plausible_rad,
                 f'|rudder| > {math.degrees(lim.rudder_plausible_rad):.0f} deg')
     if role == 'rpm':
-        return (np.abs(v[:, 0] * tm.rpm_factor) > lim.rpm_max,
+        return (np.abs(v[:, 0] * tm.factor('rpm')) > lim.rpm_max,
                 f'|rpm| > {lim.rpm_max:.0f} ({lim.rpm_basis})')
     if role == 'odom' and s.msgtype == NAVSATFIX:  # lat, lon [deg], alt [m], status
         return ((np.abs(v[:, 0]) > 90) | (np.abs(v[:, 1]) > 180) | (v[:, 3] < 0)
@@ -86,11 +89,11 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
     if role == 'wind':
         return np.hypot(v[:, 0], v[:, 1]) > MAX_WIND_MS, f'wind > {MAX_WIND_MS:g} m/s'
     if role in THRUSTER_ROLES:
-        return (np.abs(v[:, 0] * tm.thruster_factor(role)) > MAX_THRUSTER_RPS,
+        return (np.abs(v[:, 0] * tm.factor(role)) > MAX_THRUSTER_RPS,
                 f'|{role}| > {MAX_THRUSTER_RPS:g} rev/s')
-    if role in AZIMUTH_ROLES:
-        cap = MAX_THRUSTER_RPS if role.startswith('n_') else AZIMUTH_PLAUSIBLE_RAD
-        return (np.abs(v[:, 0] * tm.channel_factor(role)) > cap,
+    cap = PLAUSIBLE_BY_UNIT.get(TABLE[role].unit) if role in TABLE else None
+    if cap is not None:   # another actuator's channel: a shaft speed or an angle
+        return (np.abs(v[:, 0] * tm.factor(role)) > cap,
                 f'|{role}| > {cap:g} {TABLE[role].unit}')
     return none, ''
 
@@ -192,17 +195,21 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     resets = {r: clock_resets(s.stamps_ns * 1e-9) for r, s in rec.series.items()}
     if any(v.size for v in resets.values()):
         return _split_at_clock_resets(rec, tm, name, limits, keep_astern, resets)
-    # a craft commanded per thruster: its four channels in place of rudder and rpm
-    per_thruster = any(r in rec.series for r in AZIMUTH_REQUIRED)
-    needed = ['odom', *AZIMUTH_REQUIRED] if per_thruster else ['odom', 'rudder', 'rpm']
+    # a craft commanded channel by channel (twin azimuths, a plugin's actuator): its channels
+    # in place of rudder and rpm
+    own = per_channel_actuators(rec.series)
+    per_thruster = bool(own)
+    own_roles = [c for ins in own.values() for c in ins]
+    required = [c for c in own_roles if TABLE[c].default is None]
+    needed = ['odom', *required] if per_thruster else ['odom', 'rudder', 'rpm']
     for role in needed:
         if role not in rec.series:
-            topic = getattr(tm, f'{role}_topic') or f'(none mapped: {role}.topic)'
+            topic = tm.topic(role) or f'(none mapped: {role}.topic)'
             found = ', '.join(f'{t} ({ty}, {n} msgs)' for t, (ty, n) in sorted(
                 rec.topics_found.items())) or 'nothing'
             channel = f' for channel {role!r} ({TABLE[role].description}, ' \
-                f'{TABLE[role].unit}); a recording with thruster topics needs ' \
-                f'{", ".join(getattr(tm, r + "_topic") or r for r in AZIMUTH_REQUIRED)}' \
+                f'{TABLE[role].unit}); a recording of {" and ".join(own)} needs ' \
+                f'{", ".join(tm.topic(r) or r for r in required)}' \
                 if per_thruster else ''
             raise TrialDataError(f'{rec.path}: topic {topic} missing or empty{channel}; found: '
                                  f'{found}. Use --topics MAP.yaml to map other names.')
@@ -222,7 +229,7 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
     # the per-thruster channels (required ones cleaned above; commanded angles when mapped)
     chan = {r: cleaned[r] if r in cleaned else
             clean_series(rec.series[r], rec.path, t0_ns, r, tm, limits)
-            for r in AZIMUTH_ROLES if r in rec.series} if per_thruster else {}
+            for r in own_roles if r in rec.series} if per_thruster else {}
     check_clocks(rec.path, {**cleaned, **({'wind': wind} if wind is not None else {}), **thr,
                             **chan}, tm)
     notes = list(rec.notes) + list(rec.reading) + [n for s in series for n in s.notes] + \
@@ -230,7 +237,7 @@ def assemble_trials(rec: RawRecording, tm: TopicMap, name: str = 'trial',
         [n for r, s in chan.items() if r not in cleaned for n in s.notes]
     for r in THRUSTER_ROLES:
         if thr and r not in thr:
-            notes.append(f'{getattr(tm, r + "_topic") or r}: not recorded, {r} taken as '
+            notes.append(f'{tm.topic(r) or r}: not recorded, {r} taken as '
                          '0 rev/s')
     if series[0].base == 'header':  # a CSV has neither: its one time column
         notes.append(f'{cleaned["odom"].topic}: header stamps used (not receive time)')
@@ -328,7 +335,7 @@ def _motion(kin: 'Kinematics', rpm: Series | None, tm: TopicMap, t0_ns: int) -> 
     """
     t = kin.t_pos
     yaw = np.interp(t, kin.t_yaw, kin.yaw)
-    n = np.full(t.size, np.nan) if rpm is None else _interp(rpm, t0_ns, t, 0) * tm.rpm_factor
+    n = np.full(t.size, np.nan) if rpm is None else _interp(rpm, t0_ns, t, 0) * tm.factor('rpm')
     return Motion(t, kin.north, kin.east, frames.enu_yaw_to_psi(yaw),
                   np.interp(t, kin.t_vel, kin.u_flu), -np.interp(t, kin.t_vel, kin.v_flu),
                   -np.interp(t, kin.t_rate, kin.wz), n)
@@ -740,16 +747,16 @@ def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: Topic
         rpm_v = np.full(grid.size, np.nan)
         controls = None
     else:
-        rudder = _interp(rud, t0_ns, grid, 0) * tm.rudder_to_rad
-        rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.rpm_factor
+        rudder = _interp(rud, t0_ns, grid, 0) * tm.factor('rudder')
+        rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.factor('rpm')
         controls = np.column_stack([rpm_v, rudder])
-    channels = {ch: _interp(s, t0_ns, grid, 0) * tm.channel_factor(ch)
+    channels = {ch: _interp(s, t0_ns, grid, 0) * tm.factor(ch)
                 for ch, s in (chan or {}).items()}
     wind_ne = None if wind is None else _true_wind(wind, t0_ns, grid, psi, u, v)
     thrusters = None
     if thr:  # rev/s, + to starboard; a thruster not recorded is 0
         thrusters = np.column_stack([
-            _interp(thr[r], t0_ns, grid, 0) * tm.thruster_factor(r) if r in thr
+            _interp(thr[r], t0_ns, grid, 0) * tm.factor(r) if r in thr
             else np.zeros(grid.size) for r in THRUSTER_ROLES])
     good = np.ones(grid.size, dtype=bool) if keep_astern else (rpm_v > 0) & (u > 0)
     if keep_astern:

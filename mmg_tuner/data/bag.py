@@ -15,10 +15,11 @@ import sqlite3
 import struct
 
 from mmg_tuner.core import frames
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.data.cdr import decode_columns
 from mmg_tuner.data.files import _why, check_regular_file, display_text
-from mmg_tuner.data.topics import (AZIMUTH_ROLES, CLOCK, IMU, NAVSATFIX, POSE_TYPES,
-                                   THRUSTER_ROLES, TopicMap)
+from mmg_tuner.data.topics import (CLOCK, IMU, NAVSATFIX, per_channel_actuators,
+                                   POSE_TYPES, THRUSTER_ROLES, TopicMap)
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
 import numpy as np
@@ -100,8 +101,9 @@ def _quat_ok(q) -> float:
     return 1.0 if 0.81 <= n <= 1.21 else 0.0
 
 
-# a JointState gives these as its velocity (a shaft's speed), the rest as its position
-SPEED_ROLES = ('rpm',) + THRUSTER_ROLES + ('n_port', 'n_stbd')
+# a JointState gives a shaft's speed (a channel in these units) as its velocity, the rest as its
+# position
+SPEED_UNITS = ('rev/min', 'rev/s')
 
 
 def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
@@ -142,7 +144,7 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
         i = names.index(joint)
         # a shaft's speed (propeller, thruster) is the joint velocity, the rudder's angle
         # its position
-        speed = role in SPEED_ROLES
+        speed = role in TABLE and TABLE[role].unit in SPEED_UNITS
         arr = msg.velocity if speed else msg.position
         if len(arr) <= i:
             raise TrialDataError(f'{path}: topic {topic}: joint {joint!r} has no '
@@ -192,9 +194,10 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
     expected type, joint). One topic may serve several roles (a JointState carrying rudder and
     propeller, an Imu giving heading and yaw rate).
     """
-    roles = {'odom': (tm.odom_topic, tm.odom_type, ''),
-             'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint),
-             'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint)}
+    roles = {'odom': (tm.odom_topic, tm.odom_type, '')}
+    for role in ('rudder', 'rpm'):   # a screw and rudder's, looked for in every recording
+        c = tm.channel(role)
+        roles[role] = (c.topic, c.msgtype, c.joint)
     if tm.odom_type != 'nav_msgs/msg/Odometry' and tm.twist_topic:
         roles['twist'] = (tm.twist_topic, tm.twist_type, '')
     if tm.imu_topic:
@@ -203,10 +206,9 @@ def _roles(tm: TopicMap) -> dict[str, tuple[str, str, str]]:
         roles['heading'] = (tm.heading_topic, tm.heading_type, '')
     if tm.wind_topic:
         roles['wind'] = (tm.wind_topic, tm.wind_type, '')
-    for role in THRUSTER_ROLES + AZIMUTH_ROLES:  # optional: read when the recording has them
-        if getattr(tm, f'{role}_topic'):
-            roles[role] = (getattr(tm, f'{role}_topic'), getattr(tm, f'{role}_type'),
-                           getattr(tm, f'{role}_joint'))
+    for role, c in tm.channels.items():  # the others: read when the recording has them
+        if role not in roles and c.topic:
+            roles[role] = (c.topic, c.msgtype, c.joint)
     types: dict[str, str] = {}
     for topic, typ, _ in roles.values():
         if types.setdefault(topic, typ) != typ:
@@ -550,7 +552,7 @@ def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None]
     notes: list[str] = []
     for role, s in series.items():
         hdr = headers.get(role)
-        if getattr(tm, f'{role}_stamp', 'header') == 'header' and hdr is not None \
+        if tm.stamp(role) == 'header' and hdr is not None \
                 and np.any(hdr != 0):
             # a zero stamp among wall-clock ones was never set: its receive time stands in;
             # on a simulated clock 0 is the first instant
@@ -579,7 +581,7 @@ def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None]
     for role, s in series.items():
         if s.base == 'receive':
             s.stamps_ns = to_hdr(s.receive_ns)
-        off = getattr(tm, f'{role}_offset_s', 0.0)
+        off = tm.offset_s(role)
         if off:
             s.stamps_ns = s.stamps_ns + int(round(off * 1e9))
             s.notes.append(f'{s.topic}: {off:+g} s added to its times ({role}.offset_s)')
@@ -616,12 +618,12 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
             c_odom = w.add_connection(tm.odom_topic, Odometry.__msgtype__, typestore=ts)
             screw = 'rpm' in trial.inputs and 'rudder' in trial.inputs
             if screw:
-                c_rud = w.add_connection(tm.rudder_topic, Float64.__msgtype__, typestore=ts)
-                c_rpm = w.add_connection(tm.rpm_topic, Float64.__msgtype__, typestore=ts)
-            c_chan = [(w.add_connection(getattr(tm, f'{r}_topic'), Float64.__msgtype__,
-                                        typestore=ts), trial.inputs[r], tm.channel_factor(r))
-                      for r in AZIMUTH_ROLES
-                      if r in trial.inputs and getattr(tm, f'{r}_topic') and not screw]
+                c_rud = w.add_connection(tm.topic('rudder'), Float64.__msgtype__, typestore=ts)
+                c_rpm = w.add_connection(tm.topic('rpm'), Float64.__msgtype__, typestore=ts)
+            own = [r for ins in per_channel_actuators(trial.inputs).values() for r in ins]
+            c_chan = [(w.add_connection(tm.topic(r), Float64.__msgtype__,
+                                        typestore=ts), trial.inputs[r], tm.factor(r))
+                      for r in own if r in trial.inputs and tm.topic(r) and not screw]
             V3S = ts.types['geometry_msgs/msg/Vector3Stamped']
             c_wind = None
             if trial.wind is not None:
@@ -630,19 +632,19 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
             c_thr = []
             if trial.thrusters is not None:
                 for role in THRUSTER_ROLES:
-                    topic = getattr(tm, f'{role}_topic') or getattr(TopicMap, f'{role}_topic')
+                    topic = tm.topic(role) or TABLE[role].topic
                     c_thr.append((w.add_connection(topic, Float64.__msgtype__, typestore=ts),
-                                  tm.thruster_factor(role)))
+                                  tm.factor(role)))
             for k in range(len(trial)):
                 stamp = start_ns + int(round(trial.t[k] * 1e9))
                 w.write(c_odom, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
                                                         Odometry.__msgtype__))
                 if screw:
                     w.write(c_rud, stamp, ts.serialize_cdr(
-                        Float64(data=float(trial.controls[k, 1] / tm.rudder_to_rad)),
+                        Float64(data=float(trial.controls[k, 1] / tm.factor('rudder'))),
                         Float64.__msgtype__))
                     w.write(c_rpm, stamp, ts.serialize_cdr(
-                        Float64(data=float(trial.controls[k, 0] / tm.rpm_factor)),
+                        Float64(data=float(trial.controls[k, 0] / tm.factor('rpm'))),
                         Float64.__msgtype__))
                 for c, values, factor in c_chan:
                     w.write(c, stamp, ts.serialize_cdr(Float64(data=float(values[k] / factor)),
@@ -723,13 +725,15 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
             c_rec = w.add_connection('/odom', Odometry, typestore=ts)
             screw = 'rpm' in trial.inputs and 'rudder' in trial.inputs
             if screw:
-                c_rud = w.add_connection('/rudder_angle', Float64.__msgtype__, typestore=ts)
-                c_rpm = w.add_connection('/propeller_rpm', Float64.__msgtype__, typestore=ts)
+                c_rud = w.add_connection(TABLE['rudder'].topic, Float64.__msgtype__,
+                                         typestore=ts)
+                c_rpm = w.add_connection(TABLE['rpm'].topic, Float64.__msgtype__, typestore=ts)
             # a craft commanded per thruster: its channels on the default map's topics
             c_chan = [] if screw else [
-                (w.add_connection(getattr(TopicMap, f'{r}_topic'), Float64.__msgtype__,
-                                  typestore=ts), trial.inputs[r])
-                for r in AZIMUTH_ROLES if r in trial.inputs and getattr(TopicMap, f'{r}_topic')]
+                (w.add_connection(TABLE[r].topic, Float64.__msgtype__, typestore=ts),
+                 trial.inputs[r])
+                for ins in per_channel_actuators(trial.inputs).values() for r in ins
+                if r in trial.inputs and TABLE[r].topic]
             for k in range(len(trial)):
                 stamp = int(round((trial.t[k] - trial.t[0]) * 1e9)) + 1
                 w.write(c_rec, stamp, ts.serialize_cdr(odometry_msg(trial.states[k], stamp),
@@ -803,7 +807,7 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
             def conn(topic, key):
                 return w.add_connection(topic, names[key], typestore=TYPESTORE)
             c = {'fix': conn('/fix', 'fix'), 'imu': conn('/imu/data', 'imu'),
-                 'rud': conn('/rudder_angle', 'cmd'), 'rpm': conn('/propeller_rpm', 'cmd')}
+                 'rud': conn(TABLE['rudder'].topic, 'cmd'), 'rpm': conn(TABLE['rpm'].topic, 'cmd')}
             if twist_frame:
                 c['tw'] = conn('/vel', 'tw')
             if heading == 'quaternion':

@@ -20,7 +20,7 @@ from mmg_tuner.data.csv_io import CSV_FIELDS, csv_recording, is_channel_csv, rea
 from mmg_tuner.data.esso import cut_from_event, EVENTS, is_esso_csv, read_esso_csv
 from mmg_tuner.data.files import check_regular_file, display_text, safe_name, unique_names
 from mmg_tuner.data.marin import read_marin_dat
-from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.topics import recorded_units, TopicMap
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, TrialDataError
 import numpy as np
@@ -213,16 +213,13 @@ def drop_repeats(trials: list[Trial]) -> list[Trial]:
 
 
 # a model-frame CSV is read in its own units and names (its columns), whatever the user's map says
-_CSV_TOPICS = {
-    'odom_topic': CSV_FIELDS['odom'], 'odom_type': 'nav_msgs/msg/Odometry',
-    'rudder_topic': CSV_FIELDS['rudder'], 'rudder_type': 'std_msgs/msg/Float64',
-    'rudder_unit': 'rad', 'rudder_sign': 1.0, 'rpm_topic': CSV_FIELDS['rpm'],
-    'rpm_type': 'std_msgs/msg/Float64', 'rpm_unit': 'rpm',
-    'bow_thruster_topic': CSV_FIELDS['bow_thruster'],
-    'bow_thruster_type': 'std_msgs/msg/Float64', 'bow_thruster_unit': 'rps',
-    'bow_thruster_sign': 1.0, 'stern_thruster_topic': CSV_FIELDS['stern_thruster'],
-    'stern_thruster_type': 'std_msgs/msg/Float64', 'stern_thruster_unit': 'rps',
-    'stern_thruster_sign': 1.0}
+def _csv_topics(tm: TopicMap) -> TopicMap:
+    """Return the map a model-frame CSV is read with: its columns, in the channels' units."""
+    channels = {c: replace(d, topic=CSV_FIELDS[c], msgtype='std_msgs/msg/Float64',
+                           unit=next(iter(recorded_units(c))), sign=1.0)
+                if c in CSV_FIELDS else d for c, d in tm.channels.items()}
+    return replace(tm, odom_topic=CSV_FIELDS['odom'], odom_type='nav_msgs/msg/Odometry',
+                   channels=channels)
 
 
 def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
@@ -240,7 +237,7 @@ def load_one(p: Path, tm: TopicMap, keep_astern: bool = False,
         found = checked_parts(read_channel_csv(p),   # GNSS spikes, jumps: as a bag's
                               limits.length_m if limits is not None else 0.0)
     elif p.suffix == '.csv':
-        found = assemble_trials(csv_recording(p), replace(tm, **_CSV_TOPICS), name=name,
+        found = assemble_trials(csv_recording(p), _csv_topics(tm), name=name,
                                 limits=limits, keep_astern=keep_astern)
     else:
         found = assemble_trials(read_series(p, tm), tm, name=name, limits=limits,

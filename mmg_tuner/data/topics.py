@@ -1,14 +1,16 @@
 """Topic maps: which topics, message types, units and signs a recording uses (YAML)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, replace
 import math
 import os
 from pathlib import Path
 import stat
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from mmg_tuner._limits import yaml_loads
+from mmg_tuner.core.actuators import declared_inputs, REGISTRY as ACTUATORS
+from mmg_tuner.core.channels import ENVIRONMENT, TABLE
 from mmg_tuner.core.geodesy import Datum
 from mmg_tuner.errors import ConfigError
 
@@ -32,28 +34,82 @@ EARTH_FRAMES = ('map', 'odom', 'world', 'earth', 'enu')
 BODY_FRAMES = ('base_link', 'base_footprint', 'imu', 'imu_link', 'gps', 'gnss', 'gps_link',
                'gnss_link', 'navsat_link', 'antenna', 'gnss_antenna')
 SCALAR_TYPES = ('std_msgs/msg/Float64', 'std_msgs/msg/Float32', 'sensor_msgs/msg/JointState')
-RUDDER_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
-RPM_UNITS = {'rpm': 1.0, 'rps': 60.0, 'rad_s': 60.0 / (2.0 * math.pi)}
 WIND_TYPES = ('geometry_msgs/msg/Vector3Stamped',)
 # true_enu: the air's velocity over ground in the map frame (ENU, m/s);
 # apparent_flu: the air's velocity relative to the ship in base_link (FLU, m/s), as an
 # anemometer on the ship measures it (converted to true wind with the recorded motion)
 WIND_FRAMES = ('true_enu', 'apparent_flu')
-# thruster revolutions -> rev/s (the input channels' unit, core/channels.py)
-THRUSTER_UNITS = {'rps': 1.0, 'rpm': 1.0 / 60.0, 'rad_s': 1.0 / (2.0 * math.pi)}
-THRUSTER_ROLES = ('bow_thruster', 'stern_thruster')
-# a craft commanded per thruster (twin azimuths, core/actuators/twin_azimuth.py): its channels,
-# one Float64 topic each, named as VRX names its thruster topics (osrf/vrx,
-# vrx_urdf/wamv_gazebo/urdf/thruster_layouts/wamv_gazebo_thruster_config.xacro:
-# thrusters/<name>/thrust, thrusters/<name>/pos); the first four are what such a recording
-# needs, the commanded angles are read only when mapped
-AZIMUTH_REQUIRED = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd')
-AZIMUTH_ROLES = AZIMUTH_REQUIRED + ('azimuth_cmd_port', 'azimuth_cmd_stbd')
-ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
-SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'rudder', 'rpm', 'wind') + \
-    THRUSTER_ROLES + AZIMUTH_ROLES + ('frames', 'time', 'resample', 'replay')
-STAMPED_ROLES = ('odom', 'twist', 'heading', 'imu', 'rudder', 'rpm', 'wind') + \
-    THRUSTER_ROLES + AZIMUTH_ROLES
+# A recorded command's unit -> the factor to its channel's unit (core/channels.py), per channel
+# unit; the first is the channel's own unit (the default). A channel of another unit is read in
+# that unit only.
+RECORDED_UNITS: dict[str, dict[str, float]] = {
+    'rad': {'rad': 1.0, 'deg': math.pi / 180.0},
+    'rev/s': {'rps': 1.0, 'rpm': 1.0 / 60.0, 'rad_s': 1.0 / (2.0 * math.pi)},
+    'rev/min': {'rpm': 1.0, 'rps': 60.0, 'rad_s': 60.0 / (2.0 * math.pi)},
+}
+# a screw and rudder's channels (Trial.controls) and the tunnel thrusters' (Trial.thrusters),
+# which the readers assemble apart; every other actuator's channels (a craft commanded per
+# thruster, a water jet) go to Trial.inputs by name (per_channel_actuators)
+SCREW_ROLES = ('rudder', 'rpm')
+THRUSTER_ROLES = tuple(declared_inputs('tunnel_thrusters'))
+FLAT_SECTIONS = ('odom', 'twist', 'heading', 'imu', 'gnss', 'wind', 'frames', 'time',
+                 'resample', 'replay')
+FLAT_STAMPED = ('odom', 'twist', 'heading', 'imu', 'wind')
+CHANNEL_KEYS = ('topic', 'type', 'joint', 'unit', 'sign', 'stamp', 'offset_s')
+
+
+def command_channels() -> tuple[str, ...]:
+    """Return the channels a topic map has a section for: every channel but the environment."""
+    return tuple(c for c in TABLE if c not in ENVIRONMENT)
+
+
+def per_channel_actuators(recorded: Iterable[str]) -> dict[str, tuple[str, ...]]:
+    """
+    Return the actuators (name -> their input channels) a recording commanded channel by channel.
+
+    Those whose inputs include a recorded channel other than a screw and rudder's and the tunnel
+    thrusters' (a twin-azimuth tug's n_port ..., a plugin's). A recording of one of them needs
+    every input without a default (core/channels.py); the others are read when recorded.
+    """
+    seen = set(recorded) - set(SCREW_ROLES) - set(THRUSTER_ROLES)
+    out: dict[str, tuple[str, ...]] = {}
+    for name in ACTUATORS:
+        ins = declared_inputs(name)
+        if seen & set(ins):
+            out[name] = ins
+    return out
+
+
+def recorded_units(channel: str) -> dict[str, float]:
+    """Return the units a channel may be recorded in, with the factor to the channel's unit."""
+    unit = TABLE[channel].unit
+    return RECORDED_UNITS.get(unit, {unit: 1.0})
+
+
+@dataclass(frozen=True)
+class ChannelTopic:
+    """
+    How one command channel is recorded: a scalar topic (or a JointState's joint).
+
+    unit: one of :func:`recorded_units`; sign: +1, or -1 when the recording's sense is the
+    channel's opposite; stamp: ``header`` or ``receive``; offset_s: added to the topic's times.
+    """
+
+    topic: str
+    msgtype: str = 'std_msgs/msg/Float64'   # the section's key ``type``
+    joint: str = ''
+    unit: str = ''
+    sign: float = 1.0
+    stamp: str = 'header'
+    offset_s: float = 0.0
+
+
+def default_channels() -> dict[str, ChannelTopic]:
+    """Each command channel's defaults: its declared topic, its own unit ('': never read)."""
+    return {c: ChannelTopic(TABLE[c].topic, unit=next(iter(recorded_units(c))))
+            for c in command_channels()}
+
+
 MAX_MAP_BYTES = 1 << 20  # a topic map is a few hundred bytes
 
 
@@ -90,84 +146,14 @@ class TopicMap:
     gnss_lever_x_m: float = 0.0    # GNSS antenna in base_link (FLU: forward, left, up) [m]
     gnss_lever_y_m: float = 0.0
     gnss_lever_z_m: float = 0.0
-    rudder_topic: str = '/rudder_angle'
-    rudder_type: str = 'std_msgs/msg/Float64'
-    rudder_joint: str = ''
-    rudder_unit: str = 'rad'
-    rudder_sign: float = 1.0
-    rudder_stamp: str = 'header'
-    rudder_offset_s: float = 0.0
-    rpm_topic: str = '/propeller_rpm'
-    rpm_type: str = 'std_msgs/msg/Float64'
-    rpm_joint: str = ''
-    rpm_unit: str = 'rpm'
-    rpm_stamp: str = 'header'
-    rpm_offset_s: float = 0.0
     wind_topic: str = '/wind'   # optional: used when the recording has it; '' = never
     wind_type: str = 'geometry_msgs/msg/Vector3Stamped'
     wind_frame: str = 'true_enu'
     wind_stamp: str = 'header'
     wind_offset_s: float = 0.0
-    # optional thrusters (rev/s after unit and sign; + pushes the ship to starboard, as
-    # core/channels.py): read when the recording has them; '' = never
-    bow_thruster_topic: str = '/bow_thruster'
-    bow_thruster_type: str = 'std_msgs/msg/Float64'
-    bow_thruster_joint: str = ''
-    bow_thruster_unit: str = 'rps'
-    bow_thruster_sign: float = 1.0
-    bow_thruster_stamp: str = 'header'
-    bow_thruster_offset_s: float = 0.0
-    stern_thruster_topic: str = '/stern_thruster'
-    stern_thruster_type: str = 'std_msgs/msg/Float64'
-    stern_thruster_joint: str = ''
-    stern_thruster_unit: str = 'rps'
-    stern_thruster_sign: float = 1.0
-    stern_thruster_stamp: str = 'header'
-    stern_thruster_offset_s: float = 0.0
-    # a craft commanded per thruster (rev/s, + ahead; rad, 0 = thrust ahead, + = thrust
-    # toward starboard, after unit and sign): read when the recording has them
-    n_port_topic: str = '/thrusters/port/thrust'
-    n_port_type: str = 'std_msgs/msg/Float64'
-    n_port_joint: str = ''
-    n_port_unit: str = 'rps'
-    n_port_sign: float = 1.0
-    n_port_stamp: str = 'header'
-    n_port_offset_s: float = 0.0
-    n_stbd_topic: str = '/thrusters/stbd/thrust'
-    n_stbd_type: str = 'std_msgs/msg/Float64'
-    n_stbd_joint: str = ''
-    n_stbd_unit: str = 'rps'
-    n_stbd_sign: float = 1.0
-    n_stbd_stamp: str = 'header'
-    n_stbd_offset_s: float = 0.0
-    azimuth_port_topic: str = '/thrusters/port/pos'
-    azimuth_port_type: str = 'std_msgs/msg/Float64'
-    azimuth_port_joint: str = ''
-    azimuth_port_unit: str = 'rad'
-    azimuth_port_sign: float = 1.0
-    azimuth_port_stamp: str = 'header'
-    azimuth_port_offset_s: float = 0.0
-    azimuth_stbd_topic: str = '/thrusters/stbd/pos'
-    azimuth_stbd_type: str = 'std_msgs/msg/Float64'
-    azimuth_stbd_joint: str = ''
-    azimuth_stbd_unit: str = 'rad'
-    azimuth_stbd_sign: float = 1.0
-    azimuth_stbd_stamp: str = 'header'
-    azimuth_stbd_offset_s: float = 0.0
-    azimuth_cmd_port_topic: str = ''
-    azimuth_cmd_port_type: str = 'std_msgs/msg/Float64'
-    azimuth_cmd_port_joint: str = ''
-    azimuth_cmd_port_unit: str = 'rad'
-    azimuth_cmd_port_sign: float = 1.0
-    azimuth_cmd_port_stamp: str = 'header'
-    azimuth_cmd_port_offset_s: float = 0.0
-    azimuth_cmd_stbd_topic: str = ''
-    azimuth_cmd_stbd_type: str = 'std_msgs/msg/Float64'
-    azimuth_cmd_stbd_joint: str = ''
-    azimuth_cmd_stbd_unit: str = 'rad'
-    azimuth_cmd_stbd_sign: float = 1.0
-    azimuth_cmd_stbd_stamp: str = 'header'
-    azimuth_cmd_stbd_offset_s: float = 0.0
+    # the command channels' sections (rudder, rpm, thrusters, azimuths, ...): one per channel
+    # of the channel table (core/channels.py, which the actuators extend), generated from it
+    channels: Mapping[str, ChannelTopic] = field(default_factory=default_channels)
     frames_earth: tuple[str, ...] = EARTH_FRAMES
     frames_body: tuple[str, ...] = BODY_FRAMES
     # two streams whose header-vs-receive offsets differ by more than this are on two clocks
@@ -197,22 +183,33 @@ class TopicMap:
     def heading_to_rad(self) -> float:
         return HEADING_UNITS[self.heading_unit]
 
-    @property
-    def rudder_to_rad(self) -> float:
-        return RUDDER_UNITS[self.rudder_unit] * self.rudder_sign
+    def channel(self, name: str) -> ChannelTopic:
+        """Return how command channel ``name`` is recorded (ConfigError naming the known)."""
+        try:
+            return self.channels[name]
+        except KeyError:
+            raise ConfigError(f'topic map: no channel {name!r}; the map has '
+                              f'{", ".join(self.channels)}') from None
 
-    @property
-    def rpm_factor(self) -> float:
-        return RPM_UNITS[self.rpm_unit]
+    def factor(self, name: str) -> float:
+        """Return the factor from a recorded value of channel ``name`` to the channel's unit."""
+        c = self.channel(name)
+        return recorded_units(name)[c.unit] * c.sign
 
-    def thruster_factor(self, role: str) -> float:
-        """Return the factor from a recorded value to rev/s (+ to starboard) of a thruster."""
-        return THRUSTER_UNITS[getattr(self, f'{role}_unit')] * getattr(self, f'{role}_sign')
+    def topic(self, role: str) -> str:
+        """Return the topic of a role: a section (odom, imu, wind, ...) or a command channel."""
+        return self.channels[role].topic if role in self.channels else \
+            str(getattr(self, f'{role}_topic'))
 
-    def channel_factor(self, role: str) -> float:
-        """Return the factor from a recorded value to its channel's unit (AZIMUTH_ROLES)."""
-        units = THRUSTER_UNITS if role.startswith('n_') else ANGLE_UNITS
-        return units[getattr(self, f'{role}_unit')] * getattr(self, f'{role}_sign')
+    def stamp(self, role: str) -> str:
+        """Return a role's time source (``header`` or ``receive``); roles without one: header."""
+        return self.channels[role].stamp if role in self.channels else \
+            str(getattr(self, f'{role}_stamp', 'header'))
+
+    def offset_s(self, role: str) -> float:
+        """Return the offset added to a role's times [s] (0 for roles without one)."""
+        return self.channels[role].offset_s if role in self.channels else \
+            float(getattr(self, f'{role}_offset_s', 0.0))
 
 
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
@@ -254,55 +251,68 @@ def _typed(source: str, key: str, v: Any, default: Any) -> Any:
     return float(v)
 
 
+def _channel_section(source: str, name: str, block: Mapping[str, Any]) -> ChannelTopic:
+    """Check a command channel's section (keys, types, unit, sign, stamp) and return it."""
+    fields_ = ChannelTopic.__dataclass_fields__
+    kw: dict[str, Any] = {}
+    for k, v in block.items():
+        if k not in CHANNEL_KEYS:
+            raise ConfigError(f'{source}: unknown key {name}.{k}; known: {list(CHANNEL_KEYS)}')
+        field_ = 'msgtype' if k == 'type' else str(k)
+        kw[field_] = _typed(source, f'{name}.{k}', v, fields_[field_].default
+                            if k != 'topic' else '')
+    c = replace(default_channels()[name], **kw)
+    if c.msgtype not in SCALAR_TYPES:
+        raise ConfigError(f'{source}: {name}.type {c.msgtype!r} not one of {SCALAR_TYPES}')
+    units = recorded_units(name)
+    if c.unit not in units:
+        raise ConfigError(f'{source}: {name}.unit {c.unit!r} not one of {list(units)} (the '
+                          f'channel is in {TABLE[name].unit}, core/channels.py)')
+    if c.sign not in (1, -1):
+        raise ConfigError(f'{source}: {name}.sign must be 1 (the sense of the channel, '
+                          'core/channels.py) or -1')
+    if c.stamp not in STAMP_SOURCES:
+        raise ConfigError(f'{source}: {name}.stamp {c.stamp!r} not one of '
+                          f'{list(STAMP_SOURCES)}')
+    if abs(c.offset_s) > 1e6:
+        raise ConfigError(f'{source}: {name}.offset_s must be within +-1e6 s')
+    return c
+
+
 def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> TopicMap:
+    """Check a topic map's sections (a YAML document's mapping) and return the map."""
     if not isinstance(doc, Mapping):
         raise ConfigError(f'{source}: a topic map is a mapping of sections (odom, rudder, rpm, '
                           f'...), not {type(doc).__name__}')
-    unknown = sorted(str(k) for k in doc if k not in SECTIONS)
+    channel_names = command_channels()
+    sections = FLAT_SECTIONS + channel_names
+    unknown = sorted(str(k) for k in doc if k not in sections)
     if unknown:
-        raise ConfigError(f'{source}: unknown section(s) {unknown}; known: {list(SECTIONS)}')
+        raise ConfigError(f'{source}: unknown section(s) {unknown}; known: {list(sections)}')
     kw: dict[str, Any] = {}
-    fields = TopicMap.__dataclass_fields__
-    for sec in SECTIONS:
+    given: set[str] = set()
+    flat = {f.name: f for f in fields(TopicMap)}
+    channels = default_channels()
+    for sec in sections:
         block = doc.get(sec)
         if block is None:
             continue
         if not isinstance(block, Mapping):
             raise ConfigError(f'{source}: section {sec} must be a mapping of keys, not '
                               f'{type(block).__name__}')
+        if sec in channel_names:
+            channels[sec] = _channel_section(source, sec, block)
+            given.update(f'{sec}_{k}' for k in block)
+            continue
         for k, v in block.items():
             key = f'{sec}_{k}' if sec != 'resample' else str(k)
             if sec == 'resample' and key not in ('dt', 'max_gap_s', 'smooth_s') or \
-                    key not in fields or key == 'given':
+                    key not in flat or key in ('given', 'channels'):
                 raise ConfigError(f'{source}: unknown key {sec}.{k}')
-            kw[key] = _typed(source, f'{sec}.{k}', v, fields[key].default)
-    tm = TopicMap(**kw, given=frozenset(kw))
+            kw[key] = _typed(source, f'{sec}.{k}', v, flat[key].default)
+    tm = TopicMap(**kw, channels=channels, given=frozenset(given | set(kw)))
     if tm.odom_type not in POSE_TYPES:
         raise ConfigError(f'{source}: odom.type {tm.odom_type!r} not one of {POSE_TYPES}')
-    for name, typ in (('rudder', tm.rudder_type), ('rpm', tm.rpm_type),
-                      ('bow_thruster', tm.bow_thruster_type),
-                      ('stern_thruster', tm.stern_thruster_type),
-                      *((r, getattr(tm, f'{r}_type')) for r in AZIMUTH_ROLES)):
-        if typ not in SCALAR_TYPES:
-            raise ConfigError(f'{source}: {name}.type {typ!r} not one of {SCALAR_TYPES}')
-    if tm.rudder_unit not in RUDDER_UNITS or tm.rpm_unit not in RPM_UNITS:
-        raise ConfigError(f'{source}: units must be rudder {list(RUDDER_UNITS)}, '
-                          f'rpm {list(RPM_UNITS)}')
-    for role in THRUSTER_ROLES:
-        if getattr(tm, f'{role}_unit') not in THRUSTER_UNITS:
-            raise ConfigError(f'{source}: {role}.unit {getattr(tm, role + "_unit")!r} not one '
-                              f'of {list(THRUSTER_UNITS)}')
-        if getattr(tm, f'{role}_sign') not in (1, -1):
-            raise ConfigError(f'{source}: {role}.sign must be 1 (+ pushes the ship to '
-                              'starboard) or -1')
-    for role in AZIMUTH_ROLES:
-        units = THRUSTER_UNITS if role.startswith('n_') else ANGLE_UNITS
-        if getattr(tm, f'{role}_unit') not in units:
-            raise ConfigError(f'{source}: {role}.unit {getattr(tm, role + "_unit")!r} not one '
-                              f'of {list(units)}')
-        if getattr(tm, f'{role}_sign') not in (1, -1):
-            raise ConfigError(f'{source}: {role}.sign must be 1 (the sense of the channel, '
-                              'core/channels.py) or -1')
     if tm.wind_type not in WIND_TYPES or tm.wind_frame not in WIND_FRAMES:
         raise ConfigError(f'{source}: wind.type must be one of {WIND_TYPES} and wind.frame one '
                           f'of {WIND_FRAMES}')
@@ -313,7 +323,7 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
     if tm.heading_unit not in HEADING_UNITS or tm.heading_convention not in HEADING_CONVENTIONS:
         raise ConfigError(f'{source}: heading.unit must be one of {list(HEADING_UNITS)} and '
                           f'heading.convention one of {list(HEADING_CONVENTIONS)}')
-    for role in STAMPED_ROLES:
+    for role in FLAT_STAMPED:
         if getattr(tm, f'{role}_stamp') not in STAMP_SOURCES:
             raise ConfigError(f'{source}: {role}.stamp {getattr(tm, role + "_stamp")!r} not one '
                               f'of {list(STAMP_SOURCES)}')
@@ -339,8 +349,6 @@ def topic_map_from_dict(doc: Mapping[str, Any], source: str = '<dict>') -> Topic
             not 0 < tm.smooth_s <= 3600:
         raise ConfigError(f'{source}: time.max_offset_s, time.max_lag_s must be in (0, 1e6] s '
                           f'and resample.smooth_s in (0, 3600] s')
-    if tm.rudder_sign not in (1, -1):
-        raise ConfigError(f'{source}: rudder.sign must be 1 or -1')
     if not 1e-3 <= tm.dt <= 3600 or not 0 < tm.max_gap_s <= 1e6:
         raise ConfigError(f'{source}: resample.dt must be within [0.001, 3600] s and '
                           f'max_gap_s within (0, 1e6] s (got {tm.dt:g}, {tm.max_gap_s:g})')

@@ -20,11 +20,13 @@ from pathlib import Path
 import shutil
 import tempfile
 
+from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.bag import write_replay_bag
 from mmg_tuner.data.consistency import rpm_unit_warning
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import AZIMUTH_ROLES, load_topic_map, THRUSTER_ROLES, TopicMap
+from mmg_tuner.data.topics import (load_topic_map, per_channel_actuators, THRUSTER_ROLES,
+                                   TopicMap)
 from mmg_tuner.errors import MmgTunerError, OutputError
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import simulate_hybrid
@@ -133,19 +135,17 @@ class CommandPublisher:
     def __init__(self, node: Node, tm: TopicMap, thrusters: bool = False,
                  channels: tuple[str, ...] = ()) -> None:
         # role -> (topic, type, joint, scale from the model's unit to the map's unit and sign)
-        self.roles = {'rudder': (tm.rudder_topic, tm.rudder_type, tm.rudder_joint,
-                                 1.0 / tm.rudder_to_rad),
-                      'rpm': (tm.rpm_topic, tm.rpm_type, tm.rpm_joint, 1.0 / tm.rpm_factor)} \
-            if not channels else {}
-        for role in channels:   # a role with no topic in the map ('') is not published
-            if getattr(tm, f'{role}_topic'):
-                self.roles[role] = (getattr(tm, f'{role}_topic'), getattr(tm, f'{role}_type'),
-                                    getattr(tm, f'{role}_joint'), 1.0 / tm.channel_factor(role))
+        def role(name: str, topic: str) -> tuple[str, str, str, float]:
+            c = tm.channel(name)
+            return topic, c.msgtype, c.joint, 1.0 / tm.factor(name)
+
+        self.roles = {r: role(r, tm.topic(r)) for r in ('rudder', 'rpm')} if not channels else {}
+        for r in channels:   # a channel with no topic in the map ('') is not published
+            if tm.topic(r):
+                self.roles[r] = role(r, tm.topic(r))
         if thrusters:
-            for role in THRUSTER_ROLES:
-                topic = getattr(tm, f'{role}_topic') or getattr(TopicMap, f'{role}_topic')
-                self.roles[role] = (topic, getattr(tm, f'{role}_type'),
-                                    getattr(tm, f'{role}_joint'), 1.0 / tm.thruster_factor(role))
+            for r in THRUSTER_ROLES:
+                self.roles[r] = role(r, tm.topic(r) or TABLE[r].topic)
         types: dict[str, tuple[str, str]] = {}  # topic -> (type, the first role on it)
         for role, (topic, typ, _, _) in self.roles.items():
             if topic in types and types[topic][0] != typ:
@@ -223,7 +223,8 @@ class ReplayNode(Node):
         self.pub_odom = self.create_publisher(Odometry, tm.replay_model_odom_topic, 10)
         self.pub_rec = self.create_publisher(Odometry, tm.replay_recorded_odom_topic, 10)
         self.pub_cmd = CommandPublisher(self, tm, self.trial.thrusters is not None, tuple(
-            r for r in AZIMUTH_ROLES if r in self.trial.inputs))
+            r for ins in per_channel_actuators(self.trial.inputs).values() for r in ins
+            if r in self.trial.inputs))
         self.inputs = self.trial.inputs   # channel name -> values
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -17,8 +17,9 @@ TOY_ACTUATOR = """
 '''Toy water jet: thrust [N] and a nozzle angle behind a first-order lag.'''
 PARAMS = ('toy_x_jet', 'toy_tau_nozzle')
 INPUTS = ('jet_thrust', 'jet_angle')
-CHANNELS = {'jet_thrust': ('N', 'toy jet thrust, + ahead', None),
-            'jet_angle': ('rad', 'toy nozzle angle order, + pushes the stern to port', 0.0)}
+CHANNELS = {'jet_thrust': ('N', 'toy jet thrust, + ahead', None, '/jet/thrust'),
+            'jet_angle': ('rad', 'toy nozzle angle order, + pushes the stern to port', 0.0,
+                          '/jet/angle')}
 OUTPUTS = ('thrust', 'nozzle')
 STATES = ('nozzle',)
 DESCRIPTION = 'toy water jet (test plugin)'
@@ -135,6 +136,30 @@ res = mt.tune(ship, [trial], config=mt.TuneConfig(max_evals=1500, integrator='rk
 print(res.params)
 assert abs(res.params['toy_Xu'] / 2600.0 - 1) < 0.02, res.params
 assert abs(res.params['toy_Nr'] / 45000.0 - 1) < 0.02, res.params
+
+# the data layer from the channel table: the toy's channels have topic-map sections (the
+# angle in degrees here) and go through a rosbag2 and back
+from mmg_tuner.data.bag import write_trial_bag
+from mmg_tuner.data.load import load_trials
+from mmg_tuner.data.topics import topic_map_from_dict
+tm = topic_map_from_dict({'jet_angle': {'topic': '/nozzle_deg', 'unit': 'deg'},
+                          'resample': {'dt': 0.1}})
+assert tm.topic('jet_thrust') == '/jet/thrust'
+assert abs(tm.factor('jet_angle') - math.pi / 180) < 1e-15
+write_trial_bag(trial, 'toy_bag', tm=tm)
+(back,) = load_trials('toy_bag', tm)
+assert set(back.inputs) >= {'jet_thrust', 'jet_angle'}, back.inputs
+k = min(len(back), len(trial))
+for ch in ('jet_thrust', 'jet_angle'):
+    assert np.allclose(back.inputs[ch][:k], trial.inputs[ch][:k], atol=1e-6), ch
+assert np.allclose(back.states[:k, 3:], trial.states[:k, 3:], atol=1e-3)
+try:   # a recording without the required channel names it and its topic
+    load_trials('toy_bag', topic_map_from_dict({
+        'jet_thrust': {'topic': '/nothing'}, 'jet_angle': {'topic': '/nozzle_deg', 'unit': 'deg'},
+        'resample': {'dt': 0.1}}))
+    raise AssertionError('no error for a missing channel topic')
+except Exception as exc:
+    assert "'jet_thrust'" in str(exc) and '/nothing' in str(exc), exc
 print('TOY OK')
 """
 

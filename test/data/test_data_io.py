@@ -182,9 +182,15 @@ def test_corrupted_bytes_are_refused_by_name_or_read_as_recorded(tmp_path, zigza
 
 def test_topic_map_options():
     tm = topic_map_from_dict({'rudder': {'unit': 'deg', 'sign': -1}, 'rpm': {'unit': 'rps'}})
-    assert tm.rudder_to_rad == pytest.approx(-math.pi / 180) and tm.rpm_factor == 60.0
+    assert tm.factor('rudder') == pytest.approx(-math.pi / 180) and tm.factor('rpm') == 60.0
     with pytest.raises(ConfigError, match='unknown key rudder.units'):
         topic_map_from_dict({'rudder': {'units': 'deg'}})
+    # every channel of the table has its section, in its own units (a thruster in rpm)
+    tm = topic_map_from_dict({'n_port': {'unit': 'rpm', 'topic': '/tug/port'}})
+    assert tm.factor('n_port') == pytest.approx(1 / 60) and tm.topic('n_port') == '/tug/port'
+    assert 'n_port_topic' in tm.given and tm.topic('n_stbd') == '/thrusters/stbd/thrust'
+    with pytest.raises(ConfigError, match=r"azimuth_port.unit 'rpm' not one of \['rad', 'deg'\]"):
+        topic_map_from_dict({'azimuth_port': {'unit': 'rpm'}})
 
 
 def test_velocities_derived_from_poses():

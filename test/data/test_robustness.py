@@ -126,7 +126,7 @@ BAD_TOPIC_MAPS = [b'odom: [1, 2]', b'- a\n- b', b'resample: {dt: .nan}', b'resam
                   b'resample: {dt: 1.0e-9}', b'resample: {max_gap_s: -1}', b'rudder: {sign: 2}',
                   b'rudder: {unit: furlong}', b'odom: {topic: 5}', b'odom: {type: null}',
                   b'\xff\xfe\x00binary', b'odom: {topic: [/a]}', b'42', b'odom: {topik: /x}',
-                  b'extra: {a: 1}', b'rpm: {unit: rps, sign: 1}', b'resample: {dt: true}',
+                  b'extra: {a: 1}', b'rpm: {unit: rps, sign: 2}', b'resample: {dt: true}',
                   b'{{{']
 
 

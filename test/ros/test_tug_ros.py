@@ -11,7 +11,7 @@ from mmg_tuner.core.simulate import simulate
 from mmg_tuner.core.stepper import ShipSimulator
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.load import load_trials
-from mmg_tuner.data.topics import TopicMap
+from mmg_tuner.data.topics import topic_map_from_dict, TopicMap
 from mmg_tuner.errors import TrialDataError
 import numpy as np
 import pytest
@@ -139,7 +139,8 @@ def test_tug_bag_round_trip(tug_csv, tmp_path):
 
 def test_tug_bag_without_a_thruster_topic_names_it(tug_csv, tmp_path):
     (trial,) = load_trials(tug_csv)
-    write_trial_bag(trial, tmp_path / 'bag', tm=TopicMap(azimuth_stbd_topic=''))
+    write_trial_bag(trial, tmp_path / 'bag',
+                    tm=topic_map_from_dict({'azimuth_stbd': {'topic': ''}}))
     with pytest.raises(TrialDataError) as exc:
         load_trials(tmp_path / 'bag', TopicMap(dt=trial.dt))
     msg = str(exc.value)

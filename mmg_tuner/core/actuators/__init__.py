@@ -20,8 +20,9 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * ``PARAMS = (...)``: a literal tuple of its own parameter slots (the layout reads it
      without importing the module); effect parameters stay in ``core/effects.py``.
    * ``INPUTS``: the channels it reads, in order; ``CHANNELS``: the new ones among them,
-     name -> (unit, description, default) (default None: required; ``'nan'``: optional,
-     NaN where not recorded).
+     name -> (unit, description, default[, topic]) (default None: required; ``'nan'``:
+     optional, NaN where not recorded; topic: the ROS topic a recording carries it on by
+     default, '' or left out: read only when a topic map names one).
    * ``OUTPUTS``: names of the values it hands the family, in order; ``STATES``: names of its
      internal states (may be empty). ``DESCRIPTION``: one line with the source.
    * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
@@ -91,7 +92,12 @@ def declared_params(name: str) -> tuple[str, ...]:
     return tuple(declared(module_of(name), 'PARAMS'))
 
 
-def declared_channels(name: str) -> dict[str, tuple[str, str, Any]]:
+def declared_inputs(name: str) -> tuple[str, ...]:
+    """Return an actuator's ``INPUTS``, read from its source without importing it."""
+    return tuple(declared(module_of(name), 'INPUTS'))
+
+
+def declared_channels(name: str) -> dict[str, tuple[Any, ...]]:
     """Return an actuator's new ``CHANNELS``, read from its source without importing it."""
     return dict(declared(module_of(name), 'CHANNELS', {}))
 
@@ -114,10 +120,12 @@ def actuator(name: str) -> Actuator:
 def register_channels() -> None:
     """Add every registered actuator's new channels to the channel table."""
     for name in REGISTRY:
-        for ch, (unit, description, default) in declared_channels(name).items():
+        for ch, decl in declared_channels(name).items():
+            unit, description, default = decl[:3]
             if default == 'nan':   # NaN has no literal: 'nan' spells "not recorded"
                 default = math.nan
-            add_channel(Channel(ch, unit, description, default))
+            topic = str(decl[3]) if len(decl) > 3 else ''
+            add_channel(Channel(ch, str(unit), str(description), default, topic))
 
 
 register_channels()

@@ -38,13 +38,18 @@ PARAMS = ('thrust_p0', 'thrust_p1', 'thrust_p2', 'thrust_p3', 'thrust_p4', 'thru
 # azimuth_offset_<side>
 INPUTS = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd', 'azimuth_cmd_port',
           'azimuth_cmd_stbd')
+# default topics named as VRX names its thruster topics (osrf/vrx, vrx_urdf/wamv_gazebo/urdf/
+# thruster_layouts/wamv_gazebo_thruster_config.xacro: thrusters/<name>/thrust, .../pos); the
+# commanded angles are read only where a topic map names their topics
 CHANNELS = {
-    'n_port': ('rev/s', 'port thruster shaft speed, + thrust ahead at azimuth 0', None),
-    'n_stbd': ('rev/s', 'starboard thruster shaft speed, + thrust ahead at azimuth 0', None),
+    'n_port': ('rev/s', 'port thruster shaft speed, + thrust ahead at azimuth 0', None,
+               '/thrusters/port/thrust'),
+    'n_stbd': ('rev/s', 'starboard thruster shaft speed, + thrust ahead at azimuth 0', None,
+               '/thrusters/stbd/thrust'),
     'azimuth_port': ('rad', 'port azimuth angle (measured), 0 = thrust ahead, + = thrust '
-                     'toward starboard', None),
+                     'toward starboard', None, '/thrusters/port/pos'),
     'azimuth_stbd': ('rad', 'starboard azimuth angle (measured), 0 = thrust ahead, + = '
-                     'thrust toward starboard', None),
+                     'thrust toward starboard', None, '/thrusters/stbd/pos'),
     'azimuth_cmd_port': ('rad', 'port azimuth angle commanded (NaN: not recorded)',
                          'nan'),
     'azimuth_cmd_stbd': ('rad', 'starboard azimuth angle commanded (NaN: not recorded)',
