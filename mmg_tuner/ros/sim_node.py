@@ -27,6 +27,7 @@ import re
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from mmg_tuner.core.channels import TABLE as CHANNEL_TABLE
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
 from mmg_tuner.core.plausibility import checked
@@ -646,11 +647,13 @@ class SimNode(Node):
 
 def thruster_topics(channels, p: dict) -> dict[str, str]:
     """
-    Return channel -> command topic for a craft commanded per thruster.
+    Return channel -> command topic for a craft commanded channel by channel.
 
     ``n_<name>`` (shaft speed) on ``thrust_topic``, ``azimuth_<name>`` (angle) on
     ``azimuth_topic``, ``{name}`` replaced by the thruster's name (port, stbd); a template
-    without ``{name}`` (every thruster on one topic) or with another field is refused.
+    without ``{name}`` (every thruster on one topic) or with another field is refused. Any other
+    channel (a plugin actuator's) on the topic its declaration names (core/channels.py), made
+    relative: in the node's namespace.
     """
     out = {}
     for ch in channels:
@@ -666,10 +669,14 @@ def thruster_topics(channels, p: dict) -> dict[str, str]:
                 raise MmgTunerError(f'parameter {key} = {template!r} must contain {{name}} '
                                     '(the thruster: port, stbd) and no other field')
             out[ch] = topic
+        if ch not in out and ch in CHANNEL_TABLE and CHANNEL_TABLE[ch].topic:
+            out[ch] = CHANNEL_TABLE[ch].topic.lstrip('/')
     missing = [c for c in channels if c not in out]
     if missing:
         raise MmgTunerError(f'no topic for the command(s) {", ".join(missing)}: sim_node takes '
-                            'a screw and rudder, or n_<name> and azimuth_<name> per thruster')
+                            'a screw and rudder, n_<name> and azimuth_<name> per thruster, or '
+                            "channels whose actuator declares a topic (its CHANNELS' 4th "
+                            'element)')
     return out
 
 
