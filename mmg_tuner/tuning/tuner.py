@@ -6,6 +6,16 @@ as in cmaes' own examples), with checkpoints so a run can be interrupted and res
 
 Paper setting (Suyama et al. 2023, section 4): population 12, doubled at each restart up to
 128; the search runs in the unit box of :class:`ParameterSpace`.
+
+The restarts stop early once one of them has found nothing better: a whole run, from its own
+random start and with twice the population, that ends within ``RESTART_GAIN`` of the best J
+found before it reached the same minimum (or one the data cannot tell from it), and IPOP has
+its answer. A restart exists to escape a local minimum, and another basin differs in J by far
+more. On the paper's problem (``python -m bench run bench_tune``) the first two runs end within
+0.001 % of each other and the three larger populations then buy 0.05 % of J (no better on the
+test trials) for 84 % of the evaluations; on seeds 6-8 the early stop ends within 0.005 % of
+the full sequence's J with the same test J, at 4-7 times fewer evaluations.
+``restart_gain = 0`` runs to the largest population, as the paper does.
 """
 from __future__ import annotations
 
@@ -24,6 +34,9 @@ from mmg_tuner.errors import OutputError, TuningError
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
+
+RESTART_GAIN = 1e-3
+"""A restart that lowers the best J by less than this fraction ends the search (module doc)."""
 
 # version 2: a .npz of plain arrays and a JSON string (version 1 was a pickle, which runs code
 # when loaded: never read, see refuse_pickle)
@@ -125,7 +138,7 @@ class Tuner:
     def __init__(self, space: ParameterSpace, objective: Objective, *, popsize: int = 12,
                  max_popsize: int = 128, max_evaluations: int = 200_000, sigma0: float = 0.25,
                  seed: int = 0, checkpoint: str | Path | None = None, rtol: float = 1e-9,
-                 x0: np.ndarray | None = None):
+                 x0: np.ndarray | None = None, restart_gain: float = RESTART_GAIN):
         self.space = space
         self.objective = objective
         self.popsize0 = popsize
@@ -135,6 +148,7 @@ class Tuner:
         self.seed = seed
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.rtol = rtol
+        self.restart_gain = restart_gain
         self.x0 = None if x0 is None else np.asarray(x0, dtype=float)  # warm start (values)
         self._base = objective.ship.params
 
@@ -223,6 +237,12 @@ class Tuner:
             if state.popsize >= self.max_popsize:
                 state.done = True  # the largest population has converged too
                 return
+            if state.restart > 0 and self.restart_gain > 0:
+                before = min((b for _, r, b in state.history if r < state.restart),
+                             default=math.inf)
+                if state.best_J > before * (1.0 - self.restart_gain):
+                    state.done = True  # a whole restart found nothing better (module doc)
+                    return
             state.restart += 1
             state.popsize = min(2 * state.popsize, self.max_popsize)
             rng = np.random.default_rng(self.seed + 104729 * state.restart)

@@ -10,6 +10,7 @@ from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning import Objective, ParameterSpace, TrialBatch, Tuner
 from mmg_tuner.tuning.identifiability import standard_errors
 from mmg_tuner.tuning.parameters import moved_truth
+from mmg_tuner.tuning.tuner import RESTART_GAIN
 import numpy as np
 import pytest
 import yaml
@@ -156,6 +157,22 @@ def test_interrupt_and_resume_match_an_uninterrupted_run(suzaku, tmp_path):
     other = ParameterSpace.around(suzaku, ['R_0', 't_P'])
     with pytest.raises(TuningError, match='another problem'):
         Tuner(other, obj, seed=4, checkpoint=ck).run(resume=True)
+
+
+def test_restarts_stop_once_a_whole_restart_finds_nothing_better(suzaku):
+    """IPOP stops after a restart that ends within RESTART_GAIN of the best before it."""
+    space = ParameterSpace.around(suzaku, ['R_0', 't_P', 'gamma_Rn'])
+    truth, _, _ = moved_truth(suzaku, 3, space=space)
+    obj = Objective(suzaku, TrialBatch.from_trials(trials(truth, TUNE_SPECS[:2],
+                                                          SensorNoise(), 0)))
+    early = Tuner(space, obj, seed=4, max_evaluations=20_000, max_popsize=96).run()
+    full = Tuner(space, obj, seed=4, max_evaluations=20_000, max_popsize=96,
+                 restart_gain=0.0).run()
+    assert full.restarts == 3 and early.restarts < full.restarts   # 12, 24, 48, 96
+    best_before = min(b for _, r, b in early.history if r < early.restarts)
+    assert early.J > best_before * (1 - RESTART_GAIN)    # the last restart found nothing
+    assert early.J <= full.J * (1 + RESTART_GAIN)        # and the rest would not have either
+    assert early.evaluations < full.evaluations
 
 
 def test_parameter_space_boxes(suzaku):
