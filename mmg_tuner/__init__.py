@@ -30,7 +30,7 @@ __all__ = ['ConfigError', 'DiagnosisError', 'MmgTunerError', 'OutputError', 'Sim
 __version__ = '0.1.0'
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
     # lazy (PEP 562): core modules import mmg_tuner.errors, which runs this file first
     if name in _API:
         from mmg_tuner import api

@@ -128,7 +128,7 @@ class OutputDir:
     def __enter__(self) -> 'OutputDir':
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 

@@ -79,8 +79,8 @@ def _string_end(buf: np.ndarray, pos: int) -> tuple[int, str] | None:
     return pos + 4 + int(ln[0]), text
 
 
-def _yaw(qx, qy, qz, qw) -> np.ndarray:
-    return np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+def _yaw(qx: np.ndarray, qy: np.ndarray, qz: np.ndarray, qw: np.ndarray) -> np.ndarray:
+    return np.asarray(np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
 
 
 def decode_columns(raws: list[bytes], msgtype: str

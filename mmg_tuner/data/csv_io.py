@@ -18,6 +18,7 @@ import io
 import logging
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 import warnings
 
 from mmg_tuner._atomic import write_atomic
@@ -28,6 +29,9 @@ from mmg_tuner.data.files import brief, check_regular_file, display_text, safe_n
 from mmg_tuner.data.trial import CSV_COLUMNS, STATE_COLUMNS, Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
+
+if TYPE_CHECKING:   # the reader of bags imports this module
+    from mmg_tuner.data.bag import RawRecording
 
 
 logger = logging.getLogger(__name__)
@@ -356,7 +360,7 @@ def read_channel_csv(path: str | Path) -> Trial:
                  start_s=float(t[0]), inputs=inputs)
 
 
-def csv_recording(path: str | Path):
+def csv_recording(path: str | Path) -> RawRecording:
     """
     Return a model-frame CSV as a raw recording (ENU/FLU series).
 

@@ -10,8 +10,12 @@ import os
 from pathlib import Path
 import re
 import stat
+from typing import TYPE_CHECKING
 
 from mmg_tuner.errors import TrialDataError
+
+if TYPE_CHECKING:   # annotations only: the trial module imports this one
+    from mmg_tuner.data.trial import Trial
 
 
 def _why(exc: BaseException) -> str:
@@ -60,7 +64,7 @@ def safe_name(name: str) -> str:
     return _UNSAFE.sub('_', display_text(name)).strip() or 'trial'
 
 
-def unique_names(trials: list, sources: list[str] | None = None) -> list:
+def unique_names(trials: list[Trial], sources: list[str] | None = None) -> list[Trial]:
     """
     Give trials that share a name distinct names, deterministically.
 

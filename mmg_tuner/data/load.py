@@ -196,7 +196,7 @@ def drop_repeats(trials: list[Trial]) -> list[Trial]:
     inputs, to 1e-7), not by name or file.
     """
     kept: list[Trial] = []
-    groups: dict[tuple, list[Trial]] = {}
+    groups: dict[tuple[object, ...], list[Trial]] = {}
     for tr in trials:
         key = (tr.t.shape, round(float(tr.t[0]), 6) if len(tr.t) else None)
         first = next((k for k in groups.get(key, []) if _same_data(k, tr)), None)

@@ -240,7 +240,7 @@ def format_summary(rs: RecordingSummary) -> str:
                      f' u {ts.speed_range_ms[0]:.2f}..{ts.speed_range_ms[1]:.2f} m/s, rpm '
                      f'{ts.rpm_range[0]:.1f}..{ts.rpm_range[1]:.1f}, rudder '
                      f'{ts.rudder_range_deg[0]:+.1f}..{ts.rudder_range_deg[1]:+.1f} deg')
-        for n in ts.notes:
-            if n not in rs.reading:  # said once for the recording above
-                lines.append(f'    - {n}')
+        for note in ts.notes:
+            if note not in rs.reading:  # said once for the recording above
+                lines.append(f'    - {note}')
     return '\n'.join(lines)

@@ -169,7 +169,7 @@ class TopicMap:
     # where inspect would read it as the measurement
     replay_model_odom_topic: str = 'model/odom'
     replay_recorded_odom_topic: str = 'recorded/odom'
-    given: frozenset = frozenset()
+    given: frozenset[str] = frozenset()
 
     @property
     def datum_given(self) -> bool:

@@ -10,11 +10,13 @@ and read the data as they stand.
 """
 from __future__ import annotations
 
+import logging
 import math
 from typing import Sequence
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.data.trial import Trial
 import numpy as np
 
 G = 9.80665   # N per kgf
@@ -63,7 +65,7 @@ def azimuth_warning(column: str, values: np.ndarray, max_az: float) -> str:
     return ''
 
 
-def channel_unit_warnings(trial, ship: ShipConfig) -> list[str]:
+def channel_unit_warnings(trial: Trial, ship: ShipConfig) -> list[str]:
     """Return the unit findings of a twin-thruster trial's shaft speed and azimuth columns."""
     max_rps, max_az = _steering(ship)
     out = []
@@ -110,7 +112,7 @@ def bollard_unit_warnings(ship: ShipConfig, n: np.ndarray, thrust: np.ndarray,
     return out
 
 
-def warn_all(lines: Sequence[str], logger) -> list[str]:
+def warn_all(lines: Sequence[str], logger: logging.Logger) -> list[str]:
     """Log each finding as its ``WARNING:`` line; return them."""
     for w in lines:
         logger.warning('WARNING: %s', w)
