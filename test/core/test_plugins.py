@@ -12,7 +12,7 @@ from pathlib import Path
 import subprocess
 import sys
 
-from toy_plugin import toy_plugin_env
+from toy_plugin import toy_plugin_env, TOY_SHIP_YAML
 
 SCRIPT = """
 import math
@@ -85,6 +85,18 @@ try:   # a recording without the required channel names it and its topic
     raise AssertionError('no error for a missing channel topic')
 except Exception as exc:
     assert "'jet_thrust'" in str(exc) and '/nothing' in str(exc), exc
+
+# inspect reads the toy's recording with the same map and the ship's YAML
+import io, contextlib
+from mmg_tuner.cli.inspect import command as inspect
+open('toy.yaml', 'w').write(TOY_SHIP_YAML)
+open('toy_map.yaml', 'w').write('{jet_angle: {topic: /nozzle_deg, unit: deg}, '
+                                'resample: {dt: 0.1}}')
+buf = io.StringIO()
+with contextlib.redirect_stdout(buf):
+    rc = inspect(['toy_bag', '--topics', 'toy_map.yaml', '--ship', 'toy.yaml'])
+assert rc == 0, (rc, buf.getvalue())
+assert 'jet_thrust' in buf.getvalue() or 'toy_bag' in buf.getvalue(), buf.getvalue()
 print('TOY OK')
 """
 
@@ -94,7 +106,8 @@ def test_a_toy_family_and_actuator_from_test_code_simulate_and_tune(tmp_path):
     env = {'PATH': '/usr/bin:/bin', 'HOME': str(tmp_path),
            'NUMBA_CACHE_DIR': str(tmp_path / 'cache'), **toy_plugin_env(tmp_path)}
     env['PYTHONPATH'] += f':{repo}'
-    out = subprocess.run([sys.executable, '-c', SCRIPT], env=env, cwd=tmp_path,
+    script = f'TOY_SHIP_YAML = {TOY_SHIP_YAML!r}\n' + SCRIPT
+    out = subprocess.run([sys.executable, '-c', script], env=env, cwd=tmp_path,
                          capture_output=True, text=True, timeout=900)
     assert out.returncode == 0 and 'TOY OK' in out.stdout, out.stdout + out.stderr[-4000:]
     assert not list((repo / 'mmg_tuner' / 'core').rglob('toy_*')), 'the toy must stay outside core'
