@@ -48,6 +48,7 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import importlib
 import math
 from typing import Any, Callable
@@ -92,6 +93,7 @@ def declared_params(name: str) -> tuple[str, ...]:
     return tuple(declared(module_of(name), 'PARAMS'))
 
 
+@functools.lru_cache(maxsize=None)   # the registry is fixed at import: parse each source once
 def declared_inputs(name: str) -> tuple[str, ...]:
     """Return an actuator's ``INPUTS``, read from its source without importing it."""
     return tuple(declared(module_of(name), 'INPUTS'))
