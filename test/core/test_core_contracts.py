@@ -213,6 +213,31 @@ def test_frames_round_trips_and_conventions():
     assert np.allclose(frames.unwrap(frames.wrap_angle(psi)), psi)
 
 
+def test_the_numba_cache_folder_changes_with_any_core_source(tmp_path):
+    """
+    numba's cache folder is named by a hash of every core source, not of the kernel's file.
+
+    numba alone invalidates a kernel when its own file changes; a family's capability flag
+    read by the kernels lives in another file. The slow test below runs the stale-kernel case
+    end to end (two full compiles).
+    """
+    import numba
+
+    from mmg_tuner.core import _numba_cache
+    import mmg_tuner.core.integrate  # noqa: F401  (configures the cache before compiling)
+    assert numba.config.CACHE_DIR == str(_numba_cache.cache_dir())
+    assert _numba_cache.source_hash()[:16] in numba.config.CACHE_DIR
+    core = tmp_path / 'core'
+    shutil.copytree(_numba_cache.CORE_DIR, core,
+                    ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
+    before = _numba_cache.source_hash(core)
+    assert before == _numba_cache.source_hash()
+    fam = core / 'models' / 'container.py'
+    fam.write_text(fam.read_text().replace('ASTERN_RPM = False', 'ASTERN_RPM = True'))
+    assert _numba_cache.source_hash(core) != before
+
+
+@pytest.mark.slow
 def test_numba_cache_is_keyed_by_the_core_sources(tmp_path):
     """
     A change to a module a kernel imports must not run the stale cached kernel.
