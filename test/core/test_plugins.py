@@ -6,7 +6,9 @@ formulas) driven by a water-jet-like actuator with its own input channels, inter
 nozzle angle behind a first-order lag) and forces. Both live in a temporary folder, are
 registered through the plugin environment variables (``core/plugins.py``) and never touch
 ``mmg_tuner/core``; the subprocess then loads a ship of the family, simulates it, checks the
-physics the toy defines and tunes two of its coefficients back from a simulated trial.
+physics the toy defines, tunes two of its coefficients back from a simulated trial, writes
+its recordings to rosbag2 and reads them back, inspects them, and runs the ``tune`` and
+``diagnose`` commands on them (a hidden current is named).
 """
 from pathlib import Path
 import subprocess
@@ -16,6 +18,7 @@ from toy_plugin import toy_plugin_env, TOY_SHIP_YAML
 
 SCRIPT = """
 import math
+import os
 import numpy as np
 import mmg_tuner as mt
 from mmg_tuner.core.models import family, REGISTRY
@@ -97,6 +100,30 @@ with contextlib.redirect_stdout(buf):
     rc = inspect(['toy_bag', '--topics', 'toy_map.yaml', '--ship', 'toy.yaml'])
 assert rc == 0, (rc, buf.getvalue())
 assert 'jet_thrust' in buf.getvalue() or 'toy_bag' in buf.getvalue(), buf.getvalue()
+
+# the commands a user runs on the toy's recordings: tune, then diagnose four runs in a
+# hidden 0.3 m/s current (two held out); the current is found and named
+import json
+from mmg_tuner.cli.diagnose import command as diagnose
+from mmg_tuner.cli.tune import command as tune
+drift = truth.with_params({'current_speed': 0.3, 'current_dir': 2.0})
+for i, a in enumerate((0.2, -0.2, 0.15, -0.1)):
+    order = {'jet_thrust': np.full(T, 4000.0),
+             'jet_angle': np.where(t > 10, a, 0.0) * np.sign(np.sin(t / (12 + 4 * i)))}
+    run = simulate(drift, [0, 0, 0, 2.0, 0, 0], order, 0.1, 'rk4')
+    write_trial_bag(Trial(run.t, run.states, inputs=run.inputs, name=f'run{i}'),
+                    f'runs/run{i}', tm=tm)
+with contextlib.redirect_stdout(io.StringIO()):
+    assert tune(['runs/run0', 'runs/run1', '--topics', 'toy_map.yaml', '--ship', 'toy.yaml',
+                 '--out', 'tuned', '--no-plots']) == 0
+    assert diagnose(['runs/run0', 'runs/run1', '--test', 'runs/run2', 'runs/run3',
+                     '--topics', 'toy_map.yaml', '--ship', 'toy.yaml', '--out', 'dx',
+                     '--budget', 'quick', '--effects', 'current', 'antenna_offset',
+                     '--max-effects', '1', '--no-plots', '--quiet']) == 0
+assert os.path.isfile('tuned/params.yaml')
+dx = json.load(open('dx/diagnosis.json'))
+assert [c['effect'] for c in dx['causes']] == ['current'], dx['causes']
+assert abs(dx['causes'][0]['parameters']['current_speed'] - 0.3) < 0.06, dx['causes']
 print('TOY OK')
 """
 

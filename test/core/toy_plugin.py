@@ -89,6 +89,7 @@ model: toy_family
 particulars: {rho: 1025.0, L_pp: 10.0, B: 3.0, d: 1.0, m: 20000.0, I_zG: 150000.0,
               toy_Xu: 2000.0, toy_Yv: 8000.0, toy_Nr: 60000.0, toy_x_jet: -5.0,
               toy_tau_nozzle: 2.0}
+tuning: {targets: [toy_Xu, toy_Yv, toy_Nr]}
 """
 
 
