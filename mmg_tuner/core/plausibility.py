@@ -89,9 +89,14 @@ def tolerances() -> Mapping[str, Any]:
 
 
 def _family_rules(fam: Family) -> Mapping[str, Any]:
-    """Return a family's rules (a family the file does not list, a plugin: mass checks only)."""
+    """
+    Return a family's rules: the file's entry, else the module's own ``PLAUSIBILITY``.
+
+    A plugin family declares its rules beside its forces; one with neither gets the mass
+    checks only.
+    """
     rules = tolerances()['families'].get(fam.name)
-    return rules if isinstance(rules, Mapping) else {}
+    return rules if isinstance(rules, Mapping) else fam.plausibility
 
 
 def service_speed(ship: ShipConfig) -> float:
@@ -294,7 +299,7 @@ def _act_rules(ship: ShipConfig) -> tuple[list[int], dict[int, Any]]:
     k = 0
     for a in ship.family.actuators:
         outs = actuator(a).outputs
-        rules = acts.get(a) or {}
+        rules = acts.get(a) or actuator(a).plausibility   # the file's, else its own
         prop += [k + outs.index(o) for o in rules.get('propulsion', ()) if o in outs]
         helm.update({k + outs.index(o): v for o, v in (rules.get('helm') or {}).items()
                      if o in outs})
@@ -314,8 +319,8 @@ def _straight_run(ship: ShipConfig) -> tuple[float, tuple[float, ...]] | Finding
     prop, _ = _act_rules(ship)
     if not prop:
         return Finding('warning', 'straight run', math.nan, f'family {ship.model!r}: no '
-                       'propulsion declared in config/model_plausibility.yaml: stability and '
-                       'turn direction not checked')
+                       'propulsion declared (config/model_plausibility.yaml, or PLAUSIBILITY '
+                       'in its actuator modules): stability and turn direction not checked')
 
     def du(x: float) -> float:
         act = [0.0] * n_act

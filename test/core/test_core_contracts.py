@@ -215,7 +215,7 @@ def test_frames_round_trips_and_conventions():
 
 def test_the_numba_cache_folder_changes_with_any_core_source(tmp_path):
     """
-    numba's cache folder is named by a hash of every core source, not of the kernel's file.
+    The numba cache's folder is named by a hash of every core source, not the kernel's file.
 
     numba alone invalidates a kernel when its own file changes; a family's capability flag
     read by the kernels lives in another file. The slow test below runs the stale-kernel case

@@ -56,6 +56,16 @@ try:
 except SimulationError as exc:
     assert "'jet_thrust'" in str(exc), exc
 
+# the plausibility checks from the plugin's own PLAUSIBILITY declarations: the toy passes;
+# a negative damping is impossible, a nozzle ahead of the centre turns the wrong way
+from mmg_tuner.core.plausibility import check_model
+assert check_model(ship) == [], check_model(ship)
+bad = [f.what for f in check_model(ship.with_params({'toy_Yv': -8000.0}))]
+assert bad and all(isinstance(w, str) for w in bad), bad
+assert any('toy_Yv' in f.text for f in check_model(ship.with_params({'toy_Yv': -8000.0}))
+           if f.level == 'error')
+wrong = check_model(ship.with_params({'toy_x_jet': 5.0}))
+assert [f.what for f in wrong] == ['turn direction'], wrong
 # tuning through the plugin: two coefficients back from a simulated trial
 truth = ship.with_params({'toy_Xu': 2600.0, 'toy_Nr': 45000.0})
 rec = simulate(truth, [0, 0, 0, 2.0, 0, 0], cmd, 0.1, 'rk4')

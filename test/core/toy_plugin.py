@@ -17,6 +17,8 @@ CHANNELS = {'jet_thrust': ('N', 'toy jet thrust, + ahead', None, '/jet/thrust'),
 OUTPUTS = ('thrust', 'nozzle')
 STATES = ('nozzle',)
 DESCRIPTION = 'toy water jet (test plugin)'
+# what holds the service speed and what is starboard helm, for the plausibility checks
+PLAUSIBILITY = {'propulsion': ['thrust'], 'helm': {'nozzle': 'rudder'}}
 
 import math
 
@@ -59,6 +61,9 @@ ACTUATORS = ('toy_jet',)
 ASTERN_RPM = True
 ASTERN_SURGE = True
 DESCRIPTION = 'toy control-oriented family (test plugin)'
+# impossible below zero; the straight-ahead resistance probed with its own forces
+PLAUSIBILITY = {'positive': ['m', 'I_zG'], 'non_negative': ['toy_Xu', 'toy_Yv', 'toy_Nr'],
+                'resistance': 'probe'}
 
 from mmg_tuner.core.layout import PARAM_INDEX
 from numba import njit

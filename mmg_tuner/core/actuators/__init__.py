@@ -79,6 +79,9 @@ class Actuator:
     output: Callable[..., Any] = field(repr=False)
     forces: Callable[..., Any] | None = field(default=None, repr=False)
     commanded: dict[str, str] = field(default_factory=dict)
+    # its plausibility rules (propulsion outputs, helm) when config/model_plausibility.yaml
+    # has no entry for it: a plugin declares its own (core/plausibility.py)
+    plausibility: dict[str, Any] = field(default_factory=dict)
 
 
 def module_of(name: str) -> str:
@@ -115,7 +118,8 @@ def actuator(name: str) -> Actuator:
                                 tuple(mod.OUTPUTS), tuple(mod.STATES), mod.DESCRIPTION,
                                 mod.start, mod.hold, mod.output,
                                 getattr(mod, 'forces', None),
-                                dict(getattr(mod, 'COMMANDED', {})))
+                                dict(getattr(mod, 'COMMANDED', {})),
+                                dict(getattr(mod, 'PLAUSIBILITY', {})))
     return _CACHE[name]
 
 

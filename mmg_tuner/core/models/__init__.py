@@ -97,6 +97,9 @@ class Family:
     air_drag: bool = False
     motion: Callable[..., Any] | None = field(default=None, repr=False)  # None: MMG eq. 7
     mass_solve: Callable[..., Any] | None = field(default=None, repr=False)
+    # its plausibility rules when config/model_plausibility.yaml has no entry for it: a
+    # plugin declares its own (core/plausibility.py)
+    plausibility: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
     def inputs(self) -> tuple[str, ...]:
@@ -144,7 +147,8 @@ def family(name: str) -> Family:
                               bool(mod.ASTERN_RPM), bool(mod.ASTERN_SURGE), mod.DESCRIPTION,
                               mod.forces, getattr(mod, 'wind', None),
                               bool(getattr(mod, 'AIR_DRAG', False)),
-                              getattr(mod, 'motion', None), getattr(mod, 'mass_solve', None))
+                              getattr(mod, 'motion', None), getattr(mod, 'mass_solve', None),
+                              dict(getattr(mod, 'PLAUSIBILITY', {})))
     return _CACHE[name]
 
 
