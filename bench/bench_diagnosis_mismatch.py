@@ -52,6 +52,8 @@ OUT_OF_LIBRARY = ('hull_scale', 'N_r_scale')
 CLASSES = ('clean',) + IDENTIFIABLE + PAIRS + OUT_OF_LIBRARY + BARELY
 # the verdict measured ('evidence': diagnosis/decide.py, as registered; 'rules' the default)
 VERDICT = ['evidence']
+# the restart period of every simulation [s] (None: the verdict's default, restart_period)
+RESTART: list[float | None] = [None]
 
 
 def kind_of(cls: str) -> str:
@@ -129,7 +131,7 @@ def score(cls: str, d) -> dict:
 def diagnose(ship, tune, test, seed: int):
     t0 = time.perf_counter()
     d = mt.diagnose(ship, tune, test, budget='quick', seed=seed, residual=False,
-                    verdict=VERDICT[0])
+                    verdict=VERDICT[0], restart_every_s=RESTART[0])
     return d, time.perf_counter() - t0
 
 
@@ -212,8 +214,11 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument('--fresh', action='store_true')
     ap.add_argument('--verdict', choices=('evidence', 'rules'), default='evidence')
     ap.add_argument('--quick', action='store_true', help='one seed, realistic level')
+    ap.add_argument('--restart-every', type=float, default=None, metavar='S',
+                    help="restart period [s] (default: the verdict's own)")
     args = ap.parse_args(argv)
     VERDICT[0] = args.verdict
+    RESTART[0] = args.restart_every
     if args.quick:
         args.cases, args.levels = 1, ['realistic']
     OUT.mkdir(parents=True, exist_ok=True)

@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--restart-every', type=float, metavar='S', dest='restart_every_s',
                     help='restart every simulation of the diagnosis from the recorded state '
                     'every S seconds (0: one free run per trial). Default: 20 sqrt(L_pp/g) '
-                    '(SUZAKU 58 s) with --verdict evidence, a free run with rules')
+                    '(SUZAKU 116 s) with --verdict evidence, a free run with rules')
     # a flag, not '--residual MODE': an optional value would swallow the first trial path
     ap.add_argument('--residual', action='store_const', const='on', default='auto',
                     help='after the search, always train a residual network on the final model '

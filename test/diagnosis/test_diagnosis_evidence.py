@@ -34,7 +34,7 @@ def _diagnose(ship, trials):
 
 
 def test_the_restart_period_is_froude_scaled_and_follows_the_verdict():
-    assert restart_period(83.0) == pytest.approx(58.2, abs=0.1)
+    assert restart_period(83.0) == pytest.approx(116.4, abs=0.1)
     assert restart_period(3.0) / restart_period(83.0) == pytest.approx(math.sqrt(3 / 83))
     assert mt.DiagnoseConfig(verdict='evidence').settings(83.0).restart_every_s == \
         pytest.approx(restart_period(83.0))
