@@ -25,6 +25,7 @@ from mmg_tuner.cli.tune import (DT, load_tune_and_test, parse_or_resume, Parser,
                                 sigterm_as_interrupt, store_args, UsageError)
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.settings import BUDGETS  # noqa: F401  (re-exported for scripts)
+from mmg_tuner.diagnosis.settings import RESTART_FROUDE, restart_period
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 
 CHECKPOINT = 'checkpoint.json'   # the effect search's; the base tuning's beside it
@@ -56,8 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                     'apportioned; see doc/guides/diagnosis.md)')
     ap.add_argument('--restart-every', type=float, metavar='S', dest='restart_every_s',
                     help='restart every simulation of the diagnosis from the recorded state '
-                    'every S seconds (0: one free run per trial). Default: 20 sqrt(L_pp/g) '
-                    '(SUZAKU 116 s) with --verdict evidence, a free run with rules')
+                    'every S seconds (0: one free run per trial). Default: '
+                    f'{RESTART_FROUDE:g} sqrt(L_pp/g) (SUZAKU {restart_period(83.0):.0f} s) '
+                    'with --verdict evidence, a free run with rules')
     # a flag, not '--residual MODE': an optional value would swallow the first trial path
     ap.add_argument('--residual', action='store_const', const='on', default='auto',
                     help='after the search, always train a residual network on the final model '

@@ -298,8 +298,9 @@ def _act_rules(ship: ShipConfig) -> tuple[list[int], dict[int, Any]]:
     helm: dict[int, Any] = {}
     k = 0
     for a in ship.family.actuators:
-        outs = actuator(a).outputs
-        rules = acts.get(a) or actuator(a).plausibility   # the file's, else its own
+        model = actuator(a)
+        outs = model.outputs
+        rules = acts.get(a) or model.plausibility   # the file's, else its own
         prop += [k + outs.index(o) for o in rules.get('propulsion', ()) if o in outs]
         helm.update({k + outs.index(o): v for o, v in (rules.get('helm') or {}).items()
                      if o in outs})
