@@ -8,10 +8,14 @@ Each seed draws a twin tug of its own (this module's code, not ``data.generate``
 published Table 3 coefficients (config/qiuxin_tug.yaml) each moved by a factor uniform in
 [0.85, 1.15]; a thrust curve that is not the package's polynomial in shape (either
 F = k n|n| + k1 n or F = k |n|^p sign(n), p in [1.8, 2.2]; astern thrust a ratio in
-[0.6, 0.9] of ahead); an azimuth drive of another structure (a rate-saturated position loop
-with a first-order rate lag: alpha_dot_cmd = clip(Kp (alpha_c - alpha), +-rate_max),
-alpha'' = (alpha_dot_cmd - alpha') / tau, Kp in [1.5, 3] 1/s, tau in [0.08, 0.3] s,
-rate_max in [0.5, 1.0] rad/s), recorded as the mean angle over each sample interval (the
+[0.6, 0.9] of ahead); an azimuth drive drawn among three structures (``--drives``): a
+rate-saturated position loop with a first-order rate lag (alpha_dot_cmd =
+clip(Kp (alpha_c - alpha), +-rate_max), alpha'' = (alpha_dot_cmd - alpha') / tau, Kp in
+[1.5, 3] 1/s, tau in [0.08, 0.3] s, rate_max in [0.5, 1.0] rad/s; the structure the package's
+``twin_azimuth`` writes since the 29 November 2026 change, so no longer independent), a
+linear second order without a limit (natural frequency in [1.5, 4] rad/s, damping ratio in
+[0.6, 1.2]) and a rate-limited first order (alpha' = clip((alpha_c - alpha) / T, +-rate_max),
+T in [0.3, 1] s), recorded as the mean angle over each sample interval (the
 angle acting over it: the repository's convention, doc/guides/tug.md); sensor noise
 of the RTK/INS class (data.generate.TwinNoise: 1.5 cm, 0.3 deg heading, 1 cm/s, 0.2 deg/s,
 azimuth 0.2 deg, shaft 0.02 rev/s, load cell 0.3 N) times a factor in [0.5, 2]; a rate in
@@ -31,12 +35,13 @@ inputs, pooled relative error ||y_model - y|| / ||y|| of u, v, r on the held-out
 the noise-free truth), checked (mass matrix positive definite, no divergence on its own
 identification trials) and LO -> GO's cost set beside GO's from the ship's values.
 
-The seeds reported are pre-registered in bench/tug_random_preregistration.md (1000-1019);
-develop on others (0-9).
+The seeds reported are pre-registered in bench/tug_random_preregistration.md (1000-1019 with
+the loop drive alone; 1100-1119 with the three); develop on others (0-9).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from dataclasses import dataclass
 import math
 from pathlib import Path
@@ -58,6 +63,10 @@ HULL = ('m11', 'm22', 'm23', 'm32', 'm33', 'X_u', 'X_absu_u', 'X_uuu', 'Y_v', 'Y
         'N_r', 'N_absr_r', 'N_rrr', 'N_absv_r')
 GEOMETRY = ((-0.8, -0.163), (-0.8, 0.163))   # (x, y) of the port and starboard thrusters [m]
 H_MAX = 0.02   # the twin's integration step at most [s]
+DRIVES = ('loop', 'second-order', 'first-order')
+"""The twins' azimuth drive structures: a rate-saturated loop with the motor's lag (the form
+``twin_azimuth`` writes), a linear second order (eq. 9 without a limit) and a rate-limited
+first order (a steering gear's), which the package's drive only approximates."""
 MAX_RPS = 12.0
 MAX_AZ = math.radians(45.0)
 
@@ -78,6 +87,10 @@ class TwinTug:
     rate_max: float            # azimuth rate limit [rad/s]
     noise_factor: float
     rate_hz: float
+    drive: str = 'loop'        # 'loop', 'second-order' or 'first-order' (the azimuth drive)
+    wn: float = 0.0            # natural frequency [rad/s] (second-order)
+    zeta: float = 0.0          # damping ratio (second-order)
+    t1: float = 0.0            # time constant [s] (first-order)
 
     def thrust(self, n):
         """Thrust per thruster [N] at shaft speed n [rev/s] (either sign)."""
@@ -90,13 +103,22 @@ class TwinTug:
     def describe(self) -> str:
         shape = (f'{self.k:.3f} n|n| + {self.k1:.3f} n' if self.thrust_shape != 'power'
                  else f'{self.k:.3f} |n|^{self.power:.2f}')
+        drive = {'loop': f'Kp {self.kp:.2f} 1/s, lag {self.tau:.2f} s, rate '
+                         f'{self.rate_max:.2f} rad/s',
+                 'second-order': f'second order wn {self.wn:.2f} rad/s, zeta {self.zeta:.2f}',
+                 'first-order': f'first order T {self.t1:.2f} s, rate {self.rate_max:.2f} '
+                                'rad/s'}[self.drive]
         return (f'seed {self.seed}: thrust {shape} (astern x {self.astern_ratio:.2f}), azimuth '
-                f'Kp {self.kp:.2f} 1/s, lag {self.tau:.2f} s, rate {self.rate_max:.2f} rad/s; '
-                f'noise x {self.noise_factor:.2f}, {self.rate_hz:.1f} Hz')
+                f'{drive}; noise x {self.noise_factor:.2f}, {self.rate_hz:.1f} Hz')
 
 
-def draw_twin(seed: int, base: dict) -> TwinTug:
-    """Draw twin ``seed`` around the published coefficients ``base`` (name -> value)."""
+def draw_twin(seed: int, base: dict, drives: tuple[str, ...] = ()) -> TwinTug:
+    """
+    Draw twin ``seed`` around the published coefficients ``base`` (name -> value).
+
+    ``drives``: the azimuth drive structures to draw from (empty: the saturated loop alone,
+    as every seed before the others were added).
+    """
     rng = np.random.default_rng([43, seed])
     hull = {n: base[n] * rng.uniform(0.85, 1.15) for n in HULL}
     shape = 'quadratic+linear' if rng.uniform() < 0.5 else 'power'
@@ -108,9 +130,17 @@ def draw_twin(seed: int, base: dict) -> TwinTug:
         p = 2.0
         share = rng.uniform(0.05, 0.3)   # of the thrust at 10 rev/s from the linear term
         k, k1 = (1 - share) * f10 / 100, share * f10 / 10
-    return TwinTug(seed, hull, shape, k, k1, p, rng.uniform(0.6, 0.9), rng.uniform(1.5, 3.0),
-                   rng.uniform(0.08, 0.3), rng.uniform(0.5, 1.0), rng.uniform(0.5, 2.0),
-                   float(rng.choice([2.0, 2.5, 4.0, 5.0, 8.0, 10.0])))
+    tw = TwinTug(seed, hull, shape, k, k1, p, rng.uniform(0.6, 0.9), rng.uniform(1.5, 3.0),
+                 rng.uniform(0.08, 0.3), rng.uniform(0.5, 1.0), rng.uniform(0.5, 2.0),
+                 float(rng.choice([2.0, 2.5, 4.0, 5.0, 8.0, 10.0])))
+    if not drives:
+        return tw
+    # the azimuth drive's structure (its own stream: the draws above are those of every seed
+    # before drives were added)
+    d = np.random.default_rng([43, seed, 9])
+    kind = str(d.choice(drives))
+    return dataclasses.replace(tw, drive=kind, wn=d.uniform(1.5, 4.0), zeta=d.uniform(0.6, 1.2),
+                               t1=d.uniform(0.3, 1.0))
 
 
 # ------------------------------------------------------------------------------ manoeuvres
@@ -209,9 +239,16 @@ def _rhs(tw: TwinTug, hull: dict, x: np.ndarray, n_p, n_s, c_p, c_s) -> np.ndarr
     out[:, 2] = r
     out[:, 3], out[:, 4], out[:, 5] = du, dv, dr
     for j, (a, w, cmd) in enumerate(((ap, wp, c_p), (as_, ws, c_s))):
-        want = np.clip(tw.kp * (cmd - a), -tw.rate_max, tw.rate_max)
-        out[:, 6 + 2 * j] = w
-        out[:, 7 + 2 * j] = (want - w) / tw.tau
+        if tw.drive == 'second-order':   # linear, no rate limit
+            out[:, 6 + 2 * j] = w
+            out[:, 7 + 2 * j] = tw.wn ** 2 * (cmd - a) - 2 * tw.zeta * tw.wn * w
+        elif tw.drive == 'first-order':   # a steering gear's rate-limited first order
+            out[:, 6 + 2 * j] = np.clip((cmd - a) / tw.t1, -tw.rate_max, tw.rate_max)
+            out[:, 7 + 2 * j] = 0.0
+        else:
+            want = np.clip(tw.kp * (cmd - a), -tw.rate_max, tw.rate_max)
+            out[:, 6 + 2 * j] = w
+            out[:, 7 + 2 * j] = (want - w) / tw.tau
     return out
 
 
@@ -321,10 +358,10 @@ def write_twin(tw: TwinTug, folder: Path, trials: list[Trial], table: np.ndarray
     return paths
 
 
-def make_twin(seed: int, base: dict) -> dict:
+def make_twin(seed: int, base: dict, drives: tuple[str, ...] = ()) -> dict:
     """Return a twin's draw, its noisy identification and held-out trials and their truth."""
     for attempt in range(20):   # a draw whose truth diverges is no tug: the next one
-        tw = draw_twin(seed + 100_000 * attempt, base)
+        tw = draw_twin(seed + 100_000 * attempt, base, drives)
         try:
             ident = sail(tw, IDENTIFICATION)
             held = sail(tw, HELD_OUT)
@@ -393,10 +430,11 @@ def perturbed(tug, rng: np.random.Generator) -> dict:
     return {n: tug[n] * math.exp(rng.uniform(lo, hi)) for n in HULL}
 
 
-def one_twin(seed: int, tug, starts: int, counts: list[int], folder: Path) -> list[dict]:
+def one_twin(seed: int, tug, starts: int, counts: list[int], folder: Path,
+             drives: tuple[str, ...] = DRIVES) -> list[dict]:
     """Every row of one twin: the command per trial count, then the perturbed starts."""
     base = {n: tug[n] for n in HULL}
-    tw = make_twin(seed, base)
+    tw = make_twin(seed, base, drives)
     twin = tw['twin']
     by_name = {t.name: t for t in tw['train']}
     d = folder / f'seed{seed}'
@@ -513,11 +551,14 @@ def benchmark(quick: bool, argv: list[str]) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    ap.add_argument('--seeds', default='1000-1019', help='e.g. 1000-1019 or 0-9 or 3,5')
+    ap.add_argument('--seeds', default='1100-1119', help='e.g. 1000-1019 or 0-9 or 3,5')
     ap.add_argument('--starts', type=int, default=4,
                     help='perturbed starts per twin with 12 manoeuvres (the issue: 20)')
     ap.add_argument('--trials', default='12,6,3', help='trial counts (subsets of Table 2)')
     ap.add_argument('--data', help='keep the twins here (default: a temporary folder)')
+    ap.add_argument('--drives', default=','.join(DRIVES),
+                    help='azimuth drive structures drawn (comma-separated; empty: the '
+                         'saturated loop alone, as seeds 1000-1019 were drawn)')
     a = ap.parse_args(argv)
     tug = mt.load_ship('qiuxin_tug')
     counts = [int(x) for x in a.trials.split(',')]
@@ -528,7 +569,8 @@ def main(argv: list[str] | None = None) -> dict:
         folder = Path(a.data) if a.data else Path(tmp)
         for s in seeds:
             try:
-                rows.extend(one_twin(s, tug, a.starts, counts, folder))
+                rows.extend(one_twin(s, tug, a.starts, counts, folder,
+                                     tuple(x for x in a.drives.split(',') if x)))
             except RuntimeError as exc:
                 print(f'  seed {s}: {exc}')
     summ = summary(rows)

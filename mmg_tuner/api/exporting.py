@@ -180,6 +180,13 @@ class SymbolicTug:
         w = phi[2] * e + phi[3] * rate
         rmax = self.param('azimuth_rate_max')
         if rmax > 0.0:
+            k1, k2 = self.param('azimuth_k1'), self.param('azimuth_k2')
+            if k1 > 0.0 and k2 > 0.0:   # the loop asks the motor for more than its top rate
+                lag = ca.exp(-k2 * h)
+                s = ca.if_else(e > 0.0, -rmax, rmax)
+                sat = ca.fabs(k1 / k2 * e) > rmax
+                w = ca.if_else(sat, s + (rate - s) * lag, w)
+                new = ca.if_else(sat, angle + s * h + (rate - s) * (1.0 - lag) / k2, new)
             w = ca.if_else(w > rmax, rmax, ca.if_else(w < -rmax, -rmax, w))
             lim = rmax * h
             move = new - angle
@@ -193,7 +200,8 @@ class SymbolicTug:
         ap, wp = self._follow(x[6], x[7], u[2], phi, dt)
         ast, ws = self._follow(x[8], x[9], u[3], phi, dt)
         act = (self.thrust(u[0], 'port'), self.thrust(u[1], 'stbd'),
-               ap + self.param('azimuth_offset_port'), ast + self.param('azimuth_offset_stbd'))
+               0.5 * (x[6] + ap) + self.param('azimuth_offset_port'),
+               0.5 * (x[8] + ast) + self.param('azimuth_offset_stbd'))   # acting: the mean
         s = [x[i] for i in range(6)]
         d1 = self._rhs(s, act)
         if self.integrator == 'euler':
@@ -216,8 +224,11 @@ class SymbolicTug:
             ap, ast = x[6], x[8]
             rates = []
             for a, w, c in ((x[6], x[7], u[2]), (x[8], x[9], u[3])):
-                da = w if rmax <= 0.0 else ca.fmin(ca.fmax(w, -rmax), rmax)
-                rates += [da, k1 * (c - a) - k2 * w]
+                if rmax > 0.0 and k2 > 0.0:   # the rate asked of the motor is limited
+                    ask = ca.fmin(ca.fmax(k1 / k2 * (c - a), -rmax), rmax)
+                    rates += [w, k2 * (ask - w)]
+                else:
+                    rates += [w, k1 * (c - a) - k2 * w]
         else:   # no drive: the angle follows its command at once
             ap, ast = u[2], u[3]
             rates = [0.0, 0.0, 0.0, 0.0]

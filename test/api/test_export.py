@@ -78,7 +78,8 @@ def _simulator_run(integrator):
 @pytest.mark.parametrize('integrator', ['rk4', 'euler'])
 def test_exported_step_matches_the_simulator_without_mmg_tuner(exports, integrator, tmp_path):
     X, U, XN = _simulator_run(integrator)
-    assert np.ptp(X[:, 7]) > 0.5 and np.max(np.abs(X[:, 7])) == pytest.approx(0.8)  # rate limit
+    # the drive slews at its limit: the rate approaches 0.8 rad/s with the motor's lag
+    assert np.ptp(X[:, 7]) > 0.5 and 0.7 < np.max(np.abs(X[:, 7])) <= 0.8 + 1e-12
     np.savez(tmp_path / 'run.npz', X=X, U=U, XN=XN, dt=DT)
     (tmp_path / 'check.py').write_text(ISOLATED)
     run = subprocess.run([sys.executable, '-I', str(tmp_path / 'check.py'),

@@ -107,10 +107,20 @@ def test_the_azimuth_drive_lags_its_command_and_respects_its_rate_limit(tug):
     # alpha(t) = a (1 - e^(-zw t) (cos(wd t) + zw / wd sin(wd t)))
     free = tug.with_params({'azimuth_rate_max': 0.0})
     actuator_outputs(free.kind, free.params, ctrl, T, DT, out)
-    t = DT * np.arange(1, 11)
+    # the angle acting over each step is the mean of its start and end
+    t = DT * np.arange(0, 11)
     zw, wd = 1.8, math.sqrt(4.0 - 1.8 ** 2)
     exact = a * (1 - np.exp(-zw * t) * (np.cos(wd * t) + zw / wd * np.sin(wd * t)))
-    np.testing.assert_allclose(out[:10, 2], exact, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out[:10, 2], 0.5 * (exact[:-1] + exact[1:]), rtol=1e-9,
+                               atol=1e-12)
+    # a 45 deg order asks for (k1 / k2) 0.785 = 0.87 rad/s, above the 0.8 rad/s limit: the
+    # motor is asked for 0.8 rad/s and its rate rises with the drive's lag 1 / k2:
+    # alpha(t) = 0.8 (t - (1 - e^(-k2 t)) / k2) while the loop stays saturated (two steps)
+    big = kernel_inputs(tug.family, commands(cmd=(math.radians(45), 0.0)))
+    actuator_outputs(tug.kind, tug.params, big, T, DT, out)
+    t = DT * np.arange(3)
+    slew = 0.8 * (t - (1 - np.exp(-3.6 * t)) / 3.6)
+    np.testing.assert_allclose(out[:2, 2], 0.5 * (slew[:-1] + slew[1:]), rtol=1e-9)
     # the lag shows in the ship: slower to turn than with the angle set at once
     lag = simulate(tug, [0, 0, 0, 1.0, 0, 0], commands(cmd=(a, a)), DT, 'rk4')
     now = simulate(tug, [0, 0, 0, 1.0, 0, 0], commands(az=(a, a)), DT, 'rk4')

@@ -41,10 +41,11 @@ def _trial(ship, kind, n, a_deg, T=250, seed=0, commands=False, name=None):
     assert run.ok
     if commands:   # record the angles the actuator made (the feedback)
         from mmg_tuner.core.integrate import actuator_outputs
-        ctrl = run.input_array(ship.family.channels)
-        act = np.zeros((T, len(ship.family.outputs)))
-        actuator_outputs(ship.kind, ship.params, ctrl, T, DT, act)
-        fb = act[:, 2:4]   # the angle acting over each interval (doc/guides/tug.md)
+        fine = 20   # the mean angle over each interval, as a sensor averaging it records it
+        ctrl = np.repeat(run.input_array(ship.family.channels), fine, axis=0)
+        act = np.zeros((T * fine, len(ship.family.outputs)))
+        actuator_outputs(ship.kind, ship.params, ctrl, T * fine, DT / fine, act)
+        fb = act[:, 2:4].reshape(T, fine, 2).mean(axis=1)   # doc/guides/tug.md's convention
         ch = dict(ch, azimuth_port=fb[:, 0], azimuth_stbd=fb[:, 1])
     return Trial(run.t, run.states, inputs=ch, name=name or f'{kind}_{n:g}_{a_deg:+g}')
 
