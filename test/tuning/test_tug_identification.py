@@ -132,6 +132,23 @@ def test_bollard_table_fit_and_refusals(tmp_path):
     assert lo_go.read_bollard_table(p).n.size == len(n)
 
 
+def test_a_thrust_curve_whose_noisy_rows_dip_near_zero_is_still_a_curve():
+    # F = 0.28 |n|^2.17 with a load cell's scatter: the rows at 0 and 1 rev/s read -0.02 and
+    # -0.11 N, so every polynomial of degree >= 2 dips slightly there; refusing any dip left
+    # the straight line F = -5 + 5.1 n (wrong by 5 N at 1 rev/s and 10 N at 12 rev/s)
+    n = np.arange(0.0, 13.0)
+    F = 0.28 * n ** 2.17 + np.array([-0.02, -0.39, -0.58, 0.91, -0.24, 0.32, -0.23, 1.84,
+                                     -0.19, 0.43, 0.98, -0.07, 0.37])
+    fit = lo_go.fit_thrust(lo_go.check_bollard_table(n, F))
+    curve = np.vander(n, 6, increasing=True) @ np.array(
+        [fit.params[f'thrust_p{k}'] for k in range(6)])
+    assert fit.degree >= 2
+    np.testing.assert_allclose(curve[3:], 0.28 * n[3:] ** 2.17, atol=1.5)
+    # a real dip (a wrong row) is still refused by the table check
+    with pytest.raises(mt.TuningError, match='not monotone'):
+        lo_go.check_bollard_table(n, np.where(n == 8, 5.0, F))
+
+
 def test_identify_writes_a_params_yaml_load_ship_accepts(tug, twin, tmp_path):
     train, _ = twin
     n = np.arange(0.0, 13.0, 2.0)
