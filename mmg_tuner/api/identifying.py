@@ -11,8 +11,8 @@ from mmg_tuner.core.layout import INTEGRATORS
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
-from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, IdentifyResult, METHODS,
-                                    read_bollard_table)
+from mmg_tuner.tuning.lo_go import (BollardTable, check_bollard_table, GO_RIDGE, IdentifyResult,
+                                    METHODS, read_bollard_table)
 from mmg_tuner.tuning.lo_go import identify as _identify
 import numpy as np
 
@@ -31,7 +31,7 @@ class IdentifyConfig:
     ``BollardTable``; None: keep the ship's thrust curve); thrust_degree: the polynomial's
     degree (None: by leave-one-out error, <= 5); targets: the hull coefficients (None: the
     family's); smooth_s: Savitzky-Golay window on the velocities before LO [s] (0: none);
-    ridge: GO's pull toward LO per squared relative change; segment_s: GO simulates pieces of
+    ridge: GO's pull toward its start per squared relative change (``GO_RIDGE``); segment_s: GO simulates pieces of
     this length from the measured state (0: whole trials, single shooting); integrator,
     substeps: GO's simulation (substeps None: steps of at most 0.1 s); max_iter: GO's
     Levenberg-Marquardt iterations; grow: add the trials one by one (the paper's Algorithm
@@ -43,7 +43,7 @@ class IdentifyConfig:
     thrust_degree: int | None = None
     targets: tuple[str, ...] | None = None
     smooth_s: float = 2.0
-    ridge: float = 1e-6
+    ridge: float = GO_RIDGE
     segment_s: float = 20.0
     integrator: str = 'rk4'
     substeps: int | None = None

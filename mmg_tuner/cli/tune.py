@@ -30,7 +30,7 @@ from mmg_tuner.cli.args import (add_reading_options, add_writing_options, bounde
                                 nonneg_int, positive_float, positive_int)
 from mmg_tuner.cli.common import Parser, progress_bar, run_command, SEED, UsageError
 from mmg_tuner.errors import ConfigError, MmgTunerError
-from mmg_tuner.tuning.lo_go import METHODS
+from mmg_tuner.tuning.lo_go import GO_RIDGE, METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
 
@@ -145,8 +145,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='degree of the thrust polynomial (default: by leave-one-out error)')
     lg.add_argument('--smooth', type=nonneg_float, default=2.0, metavar='S',
                     help='LO: Savitzky-Golay window on the velocities [s] (0: none)')
-    lg.add_argument('--ridge', type=nonneg_float, default=1e-6,
-                    help='GO: pull toward the LO solution per squared relative change')
+    lg.add_argument('--ridge', type=nonneg_float, default=GO_RIDGE,
+                    help='GO: pull toward its start (LO, the ship) per squared relative change '
+                         f'(default {GO_RIDGE:g})')
     lg.add_argument('--go-segment', type=nonneg_float, default=20.0, metavar='S',
                     help='GO: simulate pieces of S s from the measured state (0: whole trials)')
     lg.add_argument('--go-iter', type=positive_int, default=40, metavar='N',
