@@ -31,11 +31,11 @@ class IdentifyConfig:
     ``BollardTable``; None: keep the ship's thrust curve); thrust_degree: the polynomial's
     degree (None: by leave-one-out error, <= 5); targets: the hull coefficients (None: the
     family's); smooth_s: Savitzky-Golay window on the velocities before LO [s] (0: none);
-    ridge: GO's pull toward its start per squared relative change (``GO_RIDGE``); segment_s: GO simulates pieces of
-    this length from the measured state (0: whole trials, single shooting); integrator,
-    substeps: GO's simulation (substeps None: steps of at most 0.1 s); max_iter: GO's
-    Levenberg-Marquardt iterations; grow: add the trials one by one (the paper's Algorithm
-    1).
+    ridge: GO's pull toward its start per squared relative change (``GO_RIDGE``);
+    segment_s: GO simulates pieces of this length from the measured state (0: whole trials,
+    single shooting); integrator, substeps: GO's simulation (substeps None: steps of at most
+    0.1 s); max_iter: GO's Levenberg-Marquardt iterations; grow: add the trials one by one
+    (the paper's Algorithm 1).
     """
 
     method: str = 'lo-go'

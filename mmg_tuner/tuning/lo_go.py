@@ -268,6 +268,8 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
 _AZ_BOUNDS = (np.log([1e-2, 1e-2, 1e-2]), np.log([1e4, 1e2, 10.0]))
 """Bounds of log(k1 [1/s^2], k2 [1/s], rate limit [rad/s]) in the azimuth fit: a drive from
 minutes to milliseconds, a slew rate from 0.6 deg/s to 570 deg/s."""
+
+
 @dataclass(frozen=True)
 class AzimuthFit:
     """alpha'' = k1 (alpha_c - alpha) - k2 alpha': k1 [1/s^2], k2 [1/s]; R^2 of the angles."""

@@ -15,12 +15,14 @@ thrusts [N] and the two actual angles [rad].
 - Azimuth angle (eq. 9 as the reference reads it, low confidence): a second-order response to
   the commanded angle, alpha'' = k1 (alpha_c - alpha) - k2 alpha', with an optional rate limit
   ``azimuth_rate_max`` [rad/s] (0: none) on the rate the position loop asks of the slewing
-  motor: alpha'' = k2 (clip((k1 / k2) (alpha_c - alpha), +-rate_max) - alpha'). Its states are each thruster's angle and rate. The
-  linear part is integrated exactly over each integration step (closed-form 2x2 matrix
-  exponential for a held command), so the step size changes nothing but the rate limit's
-  resolution. When a sample has no command (NaN), the measured angle acts directly (rate 0);
-  k1 <= 0 makes the thruster follow its command at once. ``azimuth_offset_<side>`` [rad] is
-  added to the angle that acts (a thruster whose zero is off).
+  motor: alpha'' = k2 (clip((k1 / k2) (alpha_c - alpha), +-rate_max) - alpha'). Its states
+  are each thruster's angle and rate. The linear part is integrated exactly over each
+  integration step (closed-form 2x2 matrix exponential for a held command), the saturated
+  part too (the motor's first-order lag), the regime decided at each step's start; the angle
+  acting over a step is the mean of its start and end. When a sample has no command (NaN),
+  the measured angle acts directly (rate 0); k1 <= 0 makes the thruster follow its command
+  at once. ``azimuth_offset_<side>`` [rad] is added to the angle that acts (a thruster whose
+  zero is off).
 - Forces (eq. 8): tau = T(alpha) f with the columns [cos a, sin a, l_x sin a - l_y cos a] for
   each thruster at (``thruster_x_<side>``, ``thruster_y_<side>``) [m] from the model's
   reference point (body axes: x forward, y to starboard). With the thrusters aft (l_x < 0), a
@@ -150,9 +152,11 @@ def start(p: FloatArray, cmd: tuple[float, ...], a: FloatArray, i: int) -> None:
 def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
          astern: bool) -> tuple[int, tuple[float, ...]]:
     """
-    Return (OK, held): F_port, F_stbd [N], measured and commanded angles [rad], exp(A h),
-    the rate limit [rad/s] and the step's largest move [rad], the loop gain k1 / k2 [1/s], the
-    motor's lag over the step exp(-k2 h), h [s] and (1 - exp(-k2 h)) / k2 [s].
+    Return (OK, held): the thrusts and what the drive needs over a step of h.
+
+    held: F_port, F_stbd [N], measured and commanded angles [rad], exp(A h), the rate limit
+    [rad/s] and the step's largest move [rad], the loop gain k1 / k2 [1/s], the motor's lag
+    over the step exp(-k2 h), h [s] and (1 - exp(-k2 h)) / k2 [s].
     """
     f_port = thrust(p, cmd[0]) * p[_SP]
     f_stbd = thrust(p, cmd[1]) * p[_SS]
@@ -179,11 +183,12 @@ def _follow(a: FloatArray, i: int, measured: float, cmd: float, held: tuple[floa
     Advance one thruster's (angle, rate) at a[i], a[i + 1]; return the angle acting over the step.
 
     The angle acting over a step is the mean of its start and end (the end alone led the
-    drive by half a step: a fit at 0.1 s steps read k1 15 % low). Unsaturated, the drive is eq. 9, integrated exactly. With a rate limit the position loop
-    asks the slewing motor for the rate (k1 / k2) (alpha_c - alpha); where that exceeds the
-    limit the motor is asked for the limit and its rate approaches it with the drive's lag
-    1 / k2 (exact for the step; the regime is decided at the step's start). A drive is
-    limited in the speed it can be asked for, not in a rate that jumps to the limit.
+    drive by half a step: a fit at 0.1 s steps read k1 15 % low). Unsaturated, the drive is
+    eq. 9, integrated exactly. With a rate limit the position loop asks the slewing motor for
+    the rate (k1 / k2) (alpha_c - alpha); where that exceeds the limit the motor is asked for
+    the limit and its rate approaches it with the drive's lag 1 / k2 (exact for the step; the
+    regime is decided at the step's start). A drive is limited in the speed it can be asked
+    for, not in a rate that jumps to the limit.
     """
     if cmd != cmd:   # no command recorded: the measured angle acts
         a[i] = measured
