@@ -93,10 +93,88 @@ def _family_rules(fam: Family) -> Mapping[str, Any]:
     Return a family's rules: the file's entry, else the module's own ``PLAUSIBILITY``.
 
     A plugin family declares its rules beside its forces; one with neither gets the mass
-    checks only.
+    checks only. Either is checked once (:func:`_check_family_rules`).
     """
     rules = tolerances()['families'].get(fam.name)
-    return rules if isinstance(rules, Mapping) else fam.plausibility
+    if isinstance(rules, Mapping):
+        return _check_family_rules(fam, rules, f'{_config_path()}: families: {fam.name}')
+    return _check_family_rules(fam, fam.plausibility, f'{_module(fam.name, "models")}: '
+                               'PLAUSIBILITY')
+
+
+def _module(name: str, kind: str) -> str:
+    from mmg_tuner.core import actuators, models
+    try:
+        return (models if kind == 'models' else actuators).module_of(name)
+    except KeyError:
+        return name
+
+
+_FAMILY_KEYS = {'positive': list, 'non_negative': list, 'non_positive': list,
+                'resistance': str, 'signs': Mapping}
+_ACTUATOR_KEYS = {'propulsion': list, 'helm': Mapping}
+_checked: dict[tuple[str, int], bool] = {}
+
+
+def _check_family_rules(fam: Family, rules: Mapping[str, Any], where: str
+                        ) -> Mapping[str, Any]:
+    """
+    Return ``rules`` once they name only what the family has; else a ConfigError.
+
+    A misspelt coefficient would stop a check with a KeyError deep in a command, or (an
+    output name) silently switch the check off.
+    """
+    key = (where, id(rules))
+    if key in _checked:
+        return rules
+    _check_keys(rules, _FAMILY_KEYS, where)
+    names = set(PARAM_NAMES)   # the particulars (m, I_zG, ...) and every family's slots
+    for k in ('positive', 'non_negative', 'non_positive', 'signs'):
+        for n in rules.get(k) or ():
+            if n not in names:
+                raise ConfigError(f'{where}: {k}: {n!r} is not a parameter of a ship (the '
+                                  f'family {fam.name!r} has {", ".join(fam.params[:10])}, '
+                                  '...)')
+    for n, sign in (rules.get('signs') or {}).items():
+        if sign not in (-1, 1):
+            raise ConfigError(f'{where}: signs: {n}: {sign!r}: give -1 or 1')
+    if rules.get('resistance') not in (None, 'params', 'probe'):
+        raise ConfigError(f'{where}: resistance: {rules["resistance"]!r}: give params (the '
+                          'MMG resistance coefficients) or probe (the surge force at rest)')
+    _checked[key] = True
+    return rules
+
+
+def _check_actuator_rules(name: str, outputs: tuple[str, ...], rules: Mapping[str, Any],
+                          where: str) -> Mapping[str, Any]:
+    """Return ``rules`` once they name only the actuator's outputs; else a ConfigError."""
+    key = (where, id(rules))
+    if key in _checked:
+        return rules
+    _check_keys(rules, _ACTUATOR_KEYS, where)
+    for k in ('propulsion', 'helm'):
+        for o in rules.get(k) or ():
+            if o not in outputs:
+                raise ConfigError(f'{where}: {k}: {o!r} is not an output of the actuator '
+                                  f'{name!r} (its outputs: {", ".join(outputs)})')
+    for o, v in (rules.get('helm') or {}).items():
+        if v != 'rudder' and not isinstance(v, (int, float)):
+            raise ConfigError(f'{where}: helm: {o}: {v!r}: give rudder (the largest rudder '
+                              'angle of the ship) or a number (a fraction of the propulsion)')
+    _checked[key] = True
+    return rules
+
+
+def _check_keys(rules: Mapping[str, Any], keys: Mapping[str, type], where: str) -> None:
+    if not isinstance(rules, Mapping):
+        raise ConfigError(f'{where}: expected a mapping of {", ".join(keys)}')
+    for k, v in rules.items():
+        if k in ('why',):
+            continue
+        if k not in keys:
+            raise ConfigError(f'{where}: {k!r}: unknown; the rules are {", ".join(keys)}')
+        if v is not None and not isinstance(v, keys[k]):
+            raise ConfigError(f'{where}: {k}: {v!r}: expected a {keys[k].__name__.lower()}')
 
 
 def service_speed(ship: ShipConfig) -> float:
@@ -300,7 +378,10 @@ def _act_rules(ship: ShipConfig) -> tuple[list[int], dict[int, Any]]:
     for a in ship.family.actuators:
         model = actuator(a)
         outs = model.outputs
-        rules = acts.get(a) or model.plausibility   # the file's, else its own
+        rules = (_check_actuator_rules(a, outs, acts[a], f'{_config_path()}: actuators: {a}')
+                 if acts.get(a) else _check_actuator_rules(
+                     a, outs, model.plausibility,
+                     f'{_module(a, "actuators")}: PLAUSIBILITY'))   # the file's, else its own
         prop += [k + outs.index(o) for o in rules.get('propulsion', ()) if o in outs]
         helm.update({k + outs.index(o): v for o, v in (rules.get('helm') or {}).items()
                      if o in outs})

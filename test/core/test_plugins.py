@@ -65,6 +65,21 @@ assert bad and all(isinstance(f.what, str) for f in bad), bad
 assert any('toy_Yv' in f.text for f in bad if f.level == 'error')
 wrong = check_model(ship.with_params({'toy_x_jet': 5.0}))
 assert [f.what for f in wrong] == ['turn direction'], wrong
+# a plugin author's misspelt name is an error naming the module, not a KeyError deep in a
+# command (a coefficient) or a check silently switched off (an actuator output)
+from mmg_tuner.core.actuators import actuator
+from mmg_tuner.errors import ConfigError
+for owner, typo, name in ((fam, {'signs': {'toy_Yvv': -1}}, 'toy_Yvv'),
+                          (actuator('toy_jet'), {'helm': {'nozle': 'rudder'}}, 'nozle')):
+    good = owner.plausibility
+    object.__setattr__(owner, 'plausibility', dict(good, **typo))
+    try:
+        check_model(ship)
+        raise AssertionError(f'no error for {name}')
+    except ConfigError as exc:
+        assert name in str(exc) and 'toyplug' in str(exc) and 'PLAUSIBILITY' in str(exc), exc
+    object.__setattr__(owner, 'plausibility', good)
+assert check_model(ship) == []
 # tuning through the plugin: two coefficients back from a simulated trial
 truth = ship.with_params({'toy_Xu': 2600.0, 'toy_Nr': 45000.0})
 rec = simulate(truth, [0, 0, 0, 2.0, 0, 0], cmd, 0.1, 'rk4')

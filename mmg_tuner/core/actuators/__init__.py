@@ -28,6 +28,10 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
      (``core/stepper.py``) writes its command to, when the actuator's own dynamics move the
      measured value toward a commanded one (an azimuth angle and its command).
+   * optionally ``PLAUSIBILITY``: ``{'propulsion': [outputs], 'helm': {output: 'rudder' or a
+     fraction}}``, what the stability and turn checks set (``core/plausibility.py``; the
+     entry of ``config/model_plausibility.yaml`` wins where it names the actuator; a name
+     that is not an output is a ConfigError naming this module).
    * njit functions (``inline='always'``). ``cmd`` is the tuple of this actuator's input
      values (``INPUTS`` order; the plant reads them from the kernels' input array, delayed by
      the time offset), ``a`` the float array of all actuator states, ``i`` the position of

@@ -48,6 +48,11 @@ How to add a family ``myship`` (look at ``standard.py``, the shortest, as the te
      inside), and ``mass_solve(p, X, Y, N) -> (du, dv, dr)``, M^-1 (X, Y, N) for external
      forces (wind); a control-oriented family supplies M, C(nu) and D(nu) in SI units this
      way (its ``forces`` then return -D(nu) nu, the actuators tau).
+   * optionally ``PLAUSIBILITY``: what makes a model of it impossible or implausible
+     (``positive``, ``non_negative``, ``non_positive``: parameter names; ``resistance``:
+     ``'params'`` or ``'probe'``; ``signs``: name -> -1 or 1), read by
+     ``core/plausibility.py`` where ``config/model_plausibility.yaml`` has no entry for the
+     family; a name the family does not have is a ConfigError naming this module.
 2. Append ``'myship'`` to :data:`BUILTIN` (its position is its integer code ``ship.kind``),
    or register it as a plugin from outside the package (``core/plugins.py``).
 3. A ship YAML with ``model: myship``.
