@@ -560,6 +560,10 @@ def main(argv: list[str] | None = None) -> dict:
                     help='azimuth drive structures drawn (comma-separated; empty: the '
                          'saturated loop alone, as seeds 1000-1019 were drawn)')
     a = ap.parse_args(argv)
+    drives = tuple(x for x in a.drives.split(',') if x)
+    if set(drives) - set(DRIVES):
+        ap.error(f'--drives: {",".join(sorted(set(drives) - set(DRIVES)))}: use of '
+                 f'{", ".join(DRIVES)}')
     tug = mt.load_ship('qiuxin_tug')
     counts = [int(x) for x in a.trials.split(',')]
     seeds = _seeds(a.seeds)
@@ -569,8 +573,7 @@ def main(argv: list[str] | None = None) -> dict:
         folder = Path(a.data) if a.data else Path(tmp)
         for s in seeds:
             try:
-                rows.extend(one_twin(s, tug, a.starts, counts, folder,
-                                     tuple(x for x in a.drives.split(',') if x)))
+                rows.extend(one_twin(s, tug, a.starts, counts, folder, drives))
             except RuntimeError as exc:
                 print(f'  seed {s}: {exc}')
     summ = summary(rows)

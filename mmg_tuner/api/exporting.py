@@ -186,7 +186,9 @@ class SymbolicTug:
                 s = ca.if_else(e > 0.0, -rmax, rmax)
                 sat = ca.fabs(k1 / k2 * e) > rmax
                 w = ca.if_else(sat, s + (rate - s) * lag, w)
-                new = ca.if_else(sat, angle + s * h + (rate - s) * (1.0 - lag) / k2, new)
+                slew = angle + s * h + (rate - s) * (1.0 - lag) / k2
+                slew = ca.if_else((slew - cmd) * e < 0.0, cmd, slew)   # not past the command
+                new = ca.if_else(sat, slew, new)
             w = ca.if_else(w > rmax, rmax, ca.if_else(w < -rmax, -rmax, w))
             lim = rmax * h
             move = new - angle
@@ -199,9 +201,13 @@ class SymbolicTug:
         phi = self._transition(k1, self.param('azimuth_k2'), dt) if k1 > 0.0 else (0.0,) * 4
         ap, wp = self._follow(x[6], x[7], u[2], phi, dt)
         ast, ws = self._follow(x[8], x[9], u[3], phi, dt)
+        if k1 > 0.0:   # acting over the step: the mean of its start and end
+            ap_act, ast_act = 0.5 * (x[6] + ap), 0.5 * (x[8] + ast)
+        else:   # no drive: the command acts at once
+            ap_act, ast_act = ap, ast
         act = (self.thrust(u[0], 'port'), self.thrust(u[1], 'stbd'),
-               0.5 * (x[6] + ap) + self.param('azimuth_offset_port'),
-               0.5 * (x[8] + ast) + self.param('azimuth_offset_stbd'))   # acting: the mean
+               ap_act + self.param('azimuth_offset_port'),
+               ast_act + self.param('azimuth_offset_stbd'))
         s = [x[i] for i in range(6)]
         d1 = self._rhs(s, act)
         if self.integrator == 'euler':
@@ -227,6 +233,8 @@ class SymbolicTug:
                 if rmax > 0.0 and k2 > 0.0:   # the rate asked of the motor is limited
                     ask = ca.fmin(ca.fmax(k1 / k2 * (c - a), -rmax), rmax)
                     rates += [w, k2 * (ask - w)]
+                elif rmax > 0.0:   # no motor lag: the rate itself is clipped
+                    rates += [ca.fmin(ca.fmax(w, -rmax), rmax), k1 * (c - a) - k2 * w]
                 else:
                     rates += [w, k1 * (c - a) - k2 * w]
         else:   # no drive: the angle follows its command at once

@@ -110,10 +110,12 @@ def _module(name: str, kind: str) -> str:
         return name
 
 
-_FAMILY_KEYS = {'positive': list, 'non_negative': list, 'non_positive': list,
-                'resistance': str, 'signs': Mapping}
-_ACTUATOR_KEYS = {'propulsion': list, 'helm': Mapping}
-_checked: dict[tuple[str, int], bool] = {}
+_LIST: Any = (list, tuple)
+_FAMILY_KEYS: dict[str, Any] = {'positive': _LIST, 'non_negative': _LIST,
+                                'non_positive': _LIST, 'resistance': str, 'signs': Mapping}
+_ACTUATOR_KEYS: dict[str, Any] = {'propulsion': _LIST, 'helm': Mapping}
+_checked: dict[str, Mapping[str, Any]] = {}
+"""Rules already checked, by where they come from (the object itself: a new one is checked)."""
 
 
 def _check_family_rules(fam: Family, rules: Mapping[str, Any], where: str
@@ -124,8 +126,7 @@ def _check_family_rules(fam: Family, rules: Mapping[str, Any], where: str
     A misspelt coefficient would stop a check with a KeyError deep in a command, or (an
     output name) silently switch the check off.
     """
-    key = (where, id(rules))
-    if key in _checked:
+    if _checked.get(where) is rules:
         return rules
     _check_keys(rules, _FAMILY_KEYS, where)
     names = set(PARAM_NAMES)   # the particulars (m, I_zG, ...) and every family's slots
@@ -136,20 +137,19 @@ def _check_family_rules(fam: Family, rules: Mapping[str, Any], where: str
                                   f'family {fam.name!r} has {", ".join(fam.params[:10])}, '
                                   '...)')
     for n, sign in (rules.get('signs') or {}).items():
-        if sign not in (-1, 1):
+        if type(sign) is not int or sign not in (-1, 1):
             raise ConfigError(f'{where}: signs: {n}: {sign!r}: give -1 or 1')
     if rules.get('resistance') not in (None, 'params', 'probe'):
         raise ConfigError(f'{where}: resistance: {rules["resistance"]!r}: give params (the '
                           'MMG resistance coefficients) or probe (the surge force at rest)')
-    _checked[key] = True
+    _checked[where] = rules
     return rules
 
 
 def _check_actuator_rules(name: str, outputs: tuple[str, ...], rules: Mapping[str, Any],
                           where: str) -> Mapping[str, Any]:
     """Return ``rules`` once they name only the actuator's outputs; else a ConfigError."""
-    key = (where, id(rules))
-    if key in _checked:
+    if _checked.get(where) is rules:
         return rules
     _check_keys(rules, _ACTUATOR_KEYS, where)
     for k in ('propulsion', 'helm'):
@@ -161,7 +161,7 @@ def _check_actuator_rules(name: str, outputs: tuple[str, ...], rules: Mapping[st
         if v != 'rudder' and not isinstance(v, (int, float)):
             raise ConfigError(f'{where}: helm: {o}: {v!r}: give rudder (the largest rudder '
                               'angle of the ship) or a number (a fraction of the propulsion)')
-    _checked[key] = True
+    _checked[where] = rules
     return rules
 
 
@@ -174,7 +174,8 @@ def _check_keys(rules: Mapping[str, Any], keys: Mapping[str, type], where: str) 
         if k not in keys:
             raise ConfigError(f'{where}: {k!r}: unknown; the rules are {", ".join(keys)}')
         if v is not None and not isinstance(v, keys[k]):
-            raise ConfigError(f'{where}: {k}: {v!r}: expected a {keys[k].__name__.lower()}')
+            want = 'list' if keys[k] is _LIST else keys[k].__name__.lower()
+            raise ConfigError(f'{where}: {k}: {v!r}: expected a {want}')
 
 
 def service_speed(ship: ShipConfig) -> float:

@@ -268,6 +268,10 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
 _AZ_BOUNDS = (np.log([1e-2, 1e-2, 1e-2]), np.log([1e4, 1e2, 10.0]))
 """Bounds of log(k1 [1/s^2], k2 [1/s], rate limit [rad/s]) in the azimuth fit: a drive from
 minutes to milliseconds, a slew rate from 0.6 deg/s to 570 deg/s."""
+_AZ_RESOLUTION_RAD = 1e-4
+"""An angle error no azimuth sensor resolves (0.006 deg): a drive with more constants must
+lower the angle error by more than this, per sample, to be kept (on noise-free angles 1 % of
+almost nothing is not evidence)."""
 
 
 @dataclass(frozen=True)
@@ -315,9 +319,10 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial],
     with the angle recorded at sample k (the angle acting over its interval: the repository's
     convention, doc/guides/tug.md). One step per sample instead fitted a slower drive at a
     low rate (it compared the angle at the interval's end, half a sample ahead). Three nested
-    drives are fitted: eq. 9 without a rate limit, with the ship's limit, and with a limit
-    fitted too; the last wins only where it explains the angles better by 1 % (the recorded
-    rate limit then replaces the ship's; 0: the drive outran the ship's limit).
+    drives are fitted: the ship's (with its rate limit, if any), eq. 9 without a limit, and
+    with a limit fitted too; each of the last two wins only where it explains the angles
+    better by 1 % (the fitted limit then replaces the ship's; 0: the drive outran the ship's
+    limit). Samples whose angle was not recorded (NaN) are left out.
     """
     from scipy.optimize import least_squares
 
@@ -352,7 +357,7 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial],
             a = np.zeros((T, len(fam.outputs)))
             actuator_outputs(ship.kind, p, ctrl, T, h, a)
             out.append(a[:, cols].reshape(T // sub, sub, len(cols)).mean(axis=1)[1:] - m)
-        e = np.concatenate([x.ravel() for x in out])
+        e = np.concatenate([x.ravel() for x in out])[seen]   # a sensor dropout: no residual
         return np.where(np.isfinite(e), e, 10.0)   # a diverging drive: far off, not NaN
 
     def fit(z0, limit=0.0):
@@ -362,26 +367,38 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial],
                             x_scale=1.0, diff_step=1e-4)
         return sol.x, float(sol.fun @ sol.fun)
 
-    # three drives, nested: eq. 9 without a limit, with the ship's limit, with a fitted one;
-    # the fewer constants win unless the fitted limit explains the angles better by 1 %
+    m = np.concatenate([d[2].ravel() for d in data])
+    seen = np.isfinite(m)
+    if seen.sum() < 10:
+        return None
+    # three drives, nested: the ship's (with its limit, if it declares one), eq. 9 without a
+    # limit (wins by 1 % of the angle error: data that never saturate the loop cannot show
+    # the ship's limit wrong), a fitted limit (wins by 1 %)
     k1, k2 = (ship['azimuth_k1'], ship['azimuth_k2'])
     z0 = np.log([k1 if k1 > 0 else 4.0, k2 if k2 > 0 else 3.0])
-    cands = [(fit(z0), 0.0)]
+
+    def better(new, old):   # by 1 % and by more than an angle no sensor resolves
+        return new < 0.99 * old and old - new > _AZ_RESOLUTION_RAD ** 2 * seen.sum()
+
+    (z, sse), rate = fit(z0, base[i3]), base[i3]
     if base[i3] > 0:
-        cands.append((fit(z0, base[i3]), base[i3]))
-    (z, sse), rate = min(cands, key=lambda c: c[0][1])
+        zu, sseu = fit(z0)
+        if better(sseu, sse):
+            z, sse, rate = zu, sseu, 0.0
     # the fitted limit from several starts (where the loop never saturates, a limit has no
     # gradient): the ship's limit and the fastest move recorded (interval means: a lower
-    # bound), from the best unlimited constants and from the ship's
-    fastest = max(float(np.max(np.abs(np.diff(d[2], axis=0)))) / (d[3] * d[1]) for d in data)
+    # bound), from the best constants so far and from the ship's
+    moves = [np.abs(np.diff(d[2], axis=0)) / (d[3] * d[1]) for d in data]
+    fastest = max((float(np.nanmax(x)) for x in moves if np.isfinite(x).any()), default=0.0)
     tops = {t for t in (base[i3], fastest, 0.5 * fastest) if t > 1e-3}
-    z3, sse3 = min((fit(np.append(zk, math.log(t))) for zk in (z, z0) for t in tops),
-                   key=lambda f: f[1])
-    if sse3 < 0.99 * sse:
-        z, sse, rate = z3[:2], sse3, float(math.exp(z3[2]))
+    if tops:
+        z3, sse3 = min((fit(np.append(zk, math.log(t))) for zk in (z, z0) for t in tops),
+                       key=lambda f: f[1])
+        if better(sse3, sse):
+            z, sse, rate = z3[:2], sse3, float(math.exp(z3[2]))
     e = resid(z, rate)
-    m = np.concatenate([d[2].ravel() for d in data])
-    ss = float(np.sum((m - m.mean()) ** 2))
+    mm = m[seen]
+    ss = float(np.sum((mm - mm.mean()) ** 2))
     return AzimuthFit(float(math.exp(z[0])), float(math.exp(z[1])),
                       1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0,
                       float(np.sqrt(np.mean(e ** 2))), int(e.size),

@@ -105,7 +105,17 @@ def test_azimuth_constants_from_command_and_feedback(tug):
     fit = lo_go.fit_azimuth(tug, trials)    # starts from the config's k1 = 4, k2 = 3.6
     assert fit.k1 == pytest.approx(6.0, rel=0.02) and fit.k2 == pytest.approx(4.0, rel=0.02)
     assert fit.r2 > 0.999
+    assert fit.rate_max is None or fit.rate_max == pytest.approx(0.8, rel=0.01)
     assert lo_go.fit_azimuth(tug, [_trial(tug, 'zigzag', 8, 25, T=50)]) is None
+    # gentle orders (5 deg) never saturate the loop: the data cannot show the ship's 0.8 rad/s
+    # limit wrong, so it is kept (not replaced by "no limit", which fits them as well)
+    gentle = [_trial(truth, 'zigzag', 8, 5, T=150, commands=True)]
+    assert lo_go.fit_azimuth(tug, gentle).rate_max is None
+    # a sensor dropout (NaN angles) is left out, not fitted as an angle
+    holed = trials[0]
+    holed.inputs['azimuth_port'][40:60] = np.nan
+    fit = lo_go.fit_azimuth(tug, trials)
+    assert fit.k1 == pytest.approx(6.0, rel=0.02) and math.isfinite(fit.r2)
 
 
 def test_bollard_table_fit_and_refusals(tmp_path):

@@ -156,7 +156,7 @@ def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
 
     held: F_port, F_stbd [N], measured and commanded angles [rad], exp(A h), the rate limit
     [rad/s] and the step's largest move [rad], the loop gain k1 / k2 [1/s], the motor's lag
-    over the step exp(-k2 h), h [s] and (1 - exp(-k2 h)) / k2 [s].
+    over the step exp(-k2 h), h [s], (1 - exp(-k2 h)) / k2 [s], 1 for a drive (0: none).
     """
     f_port = thrust(p, cmd[0]) * p[_SP]
     f_stbd = thrust(p, cmd[1]) * p[_SS]
@@ -174,7 +174,7 @@ def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
     else:
         lag, gain, lead = 1.0, 0.0, h
     return OK, (f_port, f_stbd, cmd[2], cmd[3], cmd[4], cmd[5], p11, p12, p21, p22, rmax,
-                rmax * h, gain, lag, h, lead)
+                rmax * h, gain, lag, h, lead, 1.0 if k1 > 0.0 else 0.0)
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -201,6 +201,8 @@ def _follow(a: FloatArray, i: int, measured: float, cmd: float, held: tuple[floa
         s = -rmax if e > 0.0 else rmax
         rate = s + (w - s) * held[13]
         new = a[i] + s * held[14] + (w - s) * held[15]
+        if (new - cmd) * e < 0.0:   # a step longer than the slew left: stop at the command
+            new = cmd
     else:
         new = cmd + held[6] * e + held[7] * w
         rate = held[8] * e + held[9] * w
@@ -217,6 +219,8 @@ def _follow(a: FloatArray, i: int, measured: float, cmd: float, held: tuple[floa
     old = a[i]
     a[i] = new
     a[i + 1] = rate
+    if held[16] == 0.0:   # no drive: the command acts at once
+        return new
     return 0.5 * (old + new)
 
 
