@@ -114,9 +114,9 @@ def thrust(p: FloatArray, n: float) -> float:
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
-def transition(k1: float, k2: float, h: float) -> tuple[float, float, float, float]:
+def transition(k1: float, k2: float, h: float) -> tuple[float, float, float, float, float]:
     """
-    exp(A h) for A = [[0, 1], [-k1, -k2]]: (phi11, phi12, phi21, phi22).
+    exp(A h) for A = [[0, 1], [-k1, -k2]]: (phi11, phi12, phi21, phi22), and exp(-k2 h).
 
     Cayley-Hamilton: exp(A h) = e^(l h) ((c - l s) I + s A) with l = -k2/2, q = l^2 - k1,
     c = cosh(sqrt(q) h), s = sinh(sqrt(q) h) / sqrt(q) (cos/sin for q < 0; 1, h for q = 0).
@@ -136,7 +136,7 @@ def transition(k1: float, k2: float, h: float) -> tuple[float, float, float, flo
         s = h
     e = math.exp(lam * h)
     d = c - lam * s
-    return e * d, e * s, -k1 * e * s, e * (d - k2 * s)
+    return e * d, e * s, -k1 * e * s, e * (d - k2 * s), e * e
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')
@@ -161,18 +161,17 @@ def hold(p: FloatArray, cmd: tuple[float, ...], h: float,
     f_port = thrust(p, cmd[0]) * p[_SP]
     f_stbd = thrust(p, cmd[1]) * p[_SS]
     k1 = p[_K1]
-    if k1 > 0.0:
-        p11, p12, p21, p22 = transition(k1, p[_K2], h)
-    else:   # no dynamics: the angle follows its command at once
-        p11, p12, p21, p22 = 0.0, 0.0, 0.0, 0.0
-    rmax = p[_RMAX]
     k2 = p[_K2]
-    if k1 > 0.0 and k2 > 0.0:   # the slewing motor's lag over the step, for a saturated loop
-        lag = math.exp(-k2 * h)
+    if k1 > 0.0:
+        p11, p12, p21, p22, lag = transition(k1, k2, h)
+    else:   # no dynamics: the angle follows its command at once
+        p11, p12, p21, p22, lag = 0.0, 0.0, 0.0, 0.0, 1.0
+    rmax = p[_RMAX]
+    if rmax > 0.0 and k1 > 0.0 and k2 > 0.0:   # the slewing motor's lag, for a saturated loop
         gain = k1 / k2
         lead = (1.0 - lag) / k2
     else:
-        lag, gain, lead = 1.0, 0.0, h
+        gain, lead = 0.0, h
     return OK, (f_port, f_stbd, cmd[2], cmd[3], cmd[4], cmd[5], p11, p12, p21, p22, rmax,
                 rmax * h, gain, lag, h, lead, 1.0 if k1 > 0.0 else 0.0)
 
