@@ -98,8 +98,8 @@ def _family_rules(fam: Family) -> Mapping[str, Any]:
     rules = tolerances()['families'].get(fam.name)
     if isinstance(rules, Mapping):
         return _check_family_rules(fam, rules, f'{_config_path()}: families: {fam.name}')
-    return _check_family_rules(fam, fam.plausibility, f'{_module(fam.name, "models")}: '
-                               'PLAUSIBILITY')
+    where = f'{_module(fam.name, "models")}: PLAUSIBILITY'
+    return _check_family_rules(fam, fam.plausibility, where)
 
 
 def _module(name: str, kind: str) -> str:
@@ -169,7 +169,7 @@ def _check_keys(rules: Mapping[str, Any], keys: Mapping[str, type], where: str) 
     if not isinstance(rules, Mapping):
         raise ConfigError(f'{where}: expected a mapping of {", ".join(keys)}')
     for k, v in rules.items():
-        if k in ('why',):
+        if k == 'why':
             continue
         if k not in keys:
             raise ConfigError(f'{where}: {k!r}: unknown; the rules are {", ".join(keys)}')
@@ -379,13 +379,14 @@ def _act_rules(ship: ShipConfig) -> tuple[list[int], dict[int, Any]]:
     for a in ship.family.actuators:
         model = actuator(a)
         outs = model.outputs
-        rules = (_check_actuator_rules(a, outs, acts[a], f'{_config_path()}: actuators: {a}')
-                 if acts.get(a) else _check_actuator_rules(
-                     a, outs, model.plausibility,
-                     f'{_module(a, "actuators")}: PLAUSIBILITY'))   # the file's, else its own
-        prop += [k + outs.index(o) for o in rules.get('propulsion', ()) if o in outs]
-        helm.update({k + outs.index(o): v for o, v in (rules.get('helm') or {}).items()
-                     if o in outs})
+        if acts.get(a):   # the file's, else its own
+            rules = _check_actuator_rules(a, outs, acts[a], f'{_config_path()}: actuators: {a}')
+        else:
+            rules = _check_actuator_rules(a, outs, model.plausibility,
+                                          f'{_module(a, "actuators")}: PLAUSIBILITY')
+        # checked: every name is one of its outputs
+        prop += [k + outs.index(o) for o in rules.get('propulsion') or ()]
+        helm.update({k + outs.index(o): v for o, v in (rules.get('helm') or {}).items()})
         k += len(outs)
     return prop, helm
 

@@ -265,6 +265,15 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
 
 
 # ------------------------------------------------------------------------------ azimuth
+GO_STEP_S = 0.1
+"""The longest integration step of GO, ``evaluate``'s scoring and the azimuth fit's replay [s]."""
+
+
+def steps_per_sample(dt: float) -> int:
+    """Return the integration steps per sample interval dt [s]: steps of at most GO_STEP_S."""
+    return max(1, math.ceil(dt / GO_STEP_S - 1e-9))
+
+
 _AZ_BOUNDS = (np.log([1e-2, 1e-2, 1e-2]), np.log([1e4, 1e2, 10.0]))
 """Bounds of log(k1 [1/s^2], k2 [1/s], rate limit [rad/s]) in the azimuth fit: a drive from
 minutes to milliseconds, a slew rate from 0.6 deg/s to 570 deg/s."""
@@ -339,7 +348,7 @@ def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial],
             base[PARAM_INDEX[k]] = 0.0
     data = []
     for tr in used:
-        sub = substeps or max(1, math.ceil(tr.dt / 0.1 - 1e-9))
+        sub = substeps or steps_per_sample(tr.dt)
         ctrl = np.repeat(np.asarray(tr.input_array(fam.channels)), sub, axis=0)
         data.append((np.ascontiguousarray(ctrl), sub,
                      np.column_stack([tr.inputs[c] for c in meas_ch])[1:], tr.dt / sub))
@@ -1176,7 +1185,7 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
         logger.info('thrust: degree %d, RMSE %.3g N over %d bollard points', thrust.degree,
                     thrust.rmse_N, thrust.points)
     if substeps is None:
-        substeps = max(1, math.ceil(max(t.dt for t in trials) / 0.1 - 1e-9))
+        substeps = steps_per_sample(max(t.dt for t in trials))
     az = (fit_azimuth(ship.with_params(params), trials, substeps)
           if 'azimuth_k1' in _actuator_params(ship) else None)
     if az is not None:
@@ -1239,6 +1248,6 @@ def _actuator_params(ship: ShipConfig) -> tuple[str, ...]:
     return tuple(q for a in ship.family.actuators for q in actuator(a).params)
 
 
-__all__ = ['AzimuthFit', 'BollardTable', 'GoResult', 'IdentifyResult', 'GO_RIDGE', 'LoResult',
-           'METHODS', 'ThrustFit', 'check_bollard_table', 'fit_azimuth', 'fit_thrust', 'go_fit',
-           'identify', 'lo_fit', 'read_bollard_table']
+__all__ = ['AzimuthFit', 'BollardTable', 'GO_RIDGE', 'GO_STEP_S', 'GoResult', 'IdentifyResult',
+           'LoResult', 'METHODS', 'ThrustFit', 'check_bollard_table', 'fit_azimuth', 'fit_thrust',
+           'go_fit', 'identify', 'lo_fit', 'read_bollard_table', 'steps_per_sample']
