@@ -212,6 +212,20 @@ def json_loads(text: str | bytes, source: str | Path, *, error: ErrorType = Conf
         raise error(f'{source}: {what} is not valid JSON ({clip(exc, 120)})') from None
 
 
+def json_default(o: Any) -> Any:
+    """
+    Return numpy scalars and arrays as plain numbers and lists: ``json.dumps``'s ``default``.
+
+    Shared by the writers of reports and network files; anything else stays a TypeError, as
+    json.dumps raises without a default.
+    """
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
+
+
 def load_json(path: str | Path, what: str, *, error: ErrorType = ConfigError,
               limit: int = MAX_JSON_BYTES) -> Any:
     """Read and parse a JSON file within the size and depth limits."""

@@ -25,36 +25,32 @@ def finite_float(s: str) -> float:
     return _number(float, s, 'a finite number')
 
 
+def _at_least(kind, s: str, what: str, lo: int, strict: bool = False):
+    """Return kind(s) if it is >= lo (> lo if strict), else raise naming the bound."""
+    v = _number(kind, s, what)
+    if v < lo or (strict and v == lo):   # finite (_number): the same as not v > lo
+        raise argparse.ArgumentTypeError(f"{s!r} must be {'>' if strict else '>='} {lo}")
+    return v
+
+
 def positive_float(s: str) -> float:
     """Return a finite number > 0."""
-    v = _number(float, s, 'a positive number')
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f'{s!r} must be > 0')
-    return v
+    return _at_least(float, s, 'a positive number', 0, strict=True)
 
 
 def nonneg_float(s: str) -> float:
     """Return a finite number >= 0."""
-    v = _number(float, s, 'a number >= 0')
-    if v < 0:
-        raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
-    return v
+    return _at_least(float, s, 'a number >= 0', 0)
 
 
 def positive_int(s: str) -> int:
     """Return a whole number >= 1."""
-    v = _number(int, s, 'a whole number')
-    if v < 1:
-        raise argparse.ArgumentTypeError(f'{s!r} must be >= 1')
-    return v
+    return _at_least(int, s, 'a whole number', 1)
 
 
 def nonneg_int(s: str) -> int:
     """Return a whole number >= 0."""
-    v = _number(int, s, 'a whole number')
-    if v < 0:
-        raise argparse.ArgumentTypeError(f'{s!r} must be >= 0')
-    return v
+    return _at_least(int, s, 'a whole number', 0)
 
 
 def bounded(kind, lo: float, hi: float, what: str = 'value'):

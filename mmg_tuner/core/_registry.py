@@ -13,6 +13,8 @@ import importlib.util
 from pathlib import Path
 from typing import Any
 
+from mmg_tuner.core import plugins
+
 
 def module_name(package: str, name: str, plugins: dict[str, str]) -> str:
     """Return the importable module of registry entry ``name`` (built-in or plugin)."""
@@ -48,3 +50,15 @@ def plugin_map(modules: tuple[str, ...], builtin: tuple[str, ...], what: str) ->
             raise ImportError(f'plugin {what} {mod!r}: the name {name!r} is already taken')
         out[name] = mod
     return out
+
+
+def registry(builtin: tuple[str, ...], group: str,
+             what: str) -> tuple[dict[str, str], tuple[str, ...]]:
+    """
+    Return (name -> module of each plugin in ``group``, the registered names).
+
+    The names are the built-ins, then the plugins: a built-in keeps its position (a family's
+    code) whatever is installed beside it.
+    """
+    plugins_of = plugin_map(plugins.modules(group), builtin, what)
+    return plugins_of, builtin + tuple(plugins_of)

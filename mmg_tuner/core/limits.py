@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.ship import ShipConfig
@@ -147,21 +147,14 @@ class InputLimits:
         '' if rudder_rad is within the hard plausibility cap, else why not (the steering gear's own
         limit, a clamp, is the caller's business).
         """
-        if not math.isfinite(rudder_rad):
-            return f'rudder {rudder_rad} is not finite'
-        if abs(rudder_rad) > self.rudder_plausible_rad:
-            return (f'rudder {rudder_rad:g} rad ({math.degrees(rudder_rad):.0f} deg) is beyond '
-                    f'the plausible {math.degrees(self.rudder_plausible_rad):.0f} deg')
-        return ''
+        return _finite_within('rudder', rudder_rad, self.rudder_plausible_rad, lambda: (
+            f'rad ({math.degrees(rudder_rad):.0f} deg) is beyond the plausible '
+            f'{math.degrees(self.rudder_plausible_rad):.0f} deg'))
 
     def check_speed(self, speed_ms: float) -> str:
         """'' if speed_ms is a plausible (initial or recorded) forward speed, else why not."""
-        if not math.isfinite(speed_ms):
-            return f'speed {speed_ms} is not finite'
-        if abs(speed_ms) > self.speed_max_ms:
-            return (f'speed {speed_ms:g} m/s exceeds the plausible {self.speed_max_ms:.1f} m/s '
-                    f'(Froude number {FN_MAX:g})')
-        return ''
+        return _finite_within('speed', speed_ms, self.speed_max_ms, lambda: (
+            f'm/s exceeds the plausible {self.speed_max_ms:.1f} m/s (Froude number {FN_MAX:g})'))
 
     def check_dt(self, dt: float) -> str:
         """'' if dt [s] is a usable integration step, else why not."""
@@ -182,6 +175,20 @@ class InputLimits:
             return (f'yaw rate {math.degrees(r):.3g} deg/s beyond the plausible '
                     f'{math.degrees(self.yaw_rate_max_rad_s):.1f} deg/s')
         return ''
+
+
+def _finite_within(name: str, value: float, cap: float, beyond: Callable[[], str]) -> str:
+    """
+    Return '' if value is finite and within +-cap, else why not.
+
+    The reason starts with ``name value``; past the cap, beyond() says the rest (built only
+    then: every command the node receives is checked).
+    """
+    if not math.isfinite(value):
+        return f'{name} {value} is not finite'
+    if abs(value) > cap:
+        return f'{name} {value:g} {beyond()}'
+    return ''
 
 
 def input_limits(ship: ShipConfig) -> InputLimits:

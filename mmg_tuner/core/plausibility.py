@@ -27,7 +27,7 @@ import functools
 import logging
 import math
 from pathlib import Path
-from typing import Any, Mapping, TYPE_CHECKING
+from typing import Any, Callable, Mapping, TYPE_CHECKING
 
 from mmg_tuner._limits import load_yaml
 from mmg_tuner.core.actuators import actuator
@@ -391,6 +391,22 @@ def _act_rules(ship: ShipConfig) -> tuple[list[int], dict[int, Any]]:
     return prop, helm
 
 
+def bisect_rising(f: Callable[[float], float], lo: float, hi: float) -> float:
+    """
+    Return where f crosses 0 upward between lo (f <= 0) and hi (f >= 0), by bisection.
+
+    100 halvings: below a float's resolution for the brackets of its callers (up to 4e12), so
+    there is no tolerance to choose.
+    """
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if f(mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
 def _straight_run(ship: ShipConfig) -> tuple[float, tuple[float, ...]] | Finding:
     """
     Return (U, the actuator tuple holding U straight ahead), or a warning why there is none.
@@ -423,15 +439,10 @@ def _straight_run(ship: ShipConfig) -> tuple[float, tuple[float, ...]] | Finding
                        f'{U:.3g} m/s (Fn {tolerances()["service_froude"]}) straight ahead: '
                        'stability and turn direction not checked; check the resistance and '
                        'thrust')
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if du(mid) > 0:
-            hi = mid
-        else:
-            lo = mid
+    x = bisect_rising(du, lo, hi)
     act = [0.0] * n_act
     for i in prop:
-        act[i] = 0.5 * (lo + hi)
+        act[i] = x
     return U, tuple(act)
 
 

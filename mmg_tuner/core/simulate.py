@@ -12,6 +12,7 @@ from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import simulate_many, simulate_one
 from mmg_tuner.core.layout import INTEGRATORS, N_PARAMS, OK, STATUS_TEXT
 from mmg_tuner.core.models import Family, family, family_of_code
+from mmg_tuner.core.plausibility import bisect_rising
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.errors import SimulationError, TrialDataError
@@ -240,10 +241,4 @@ def self_propulsion_rpm(ship: ShipConfig, speed_ms: float, lo: float = 1.0,
 
     if du(lo) > 0 or du(hi) < 0:
         raise SimulationError(f'{ship.name}: no rpm in [{lo}, {hi}] holds {speed_ms} m/s')
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if du(mid) > 0:
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)
+    return bisect_rising(du, lo, hi)

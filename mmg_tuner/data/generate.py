@@ -1,9 +1,9 @@
 """Synthetic trials: the core's manoeuvres with realistic sensor noise, as rosbag2 + CSV."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
-from typing import Mapping
+from typing import Mapping, Self
 
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import ShipConfig
@@ -13,7 +13,22 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class SensorNoise:
+class _Sigmas:
+    """1-sigma noise levels, each a finite number >= 0: the fields of a noise model below."""
+
+    def __post_init__(self) -> None:
+        for k, v in self.__dict__.items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f'sensor noise {k} = {v!r}: must be a finite number >= 0')
+
+    @classmethod
+    def none(cls) -> Self:
+        """Return the noise model with every sigma 0 (exact measurements)."""
+        return cls(*(0.0 for _ in fields(cls)))
+
+
+@dataclass(frozen=True)
+class SensorNoise(_Sigmas):
     """1-sigma white noise of the usual trial sensors (SI units, radians)."""
 
     position_m: float = 0.5          # GNSS (standalone/SBAS class)
@@ -24,15 +39,6 @@ class SensorNoise:
     rpm: float = 0.2                 # shaft tachometer
     wind_ms: float = 0.5             # anemometer, per velocity component (gusts not modelled)
     thruster_rps: float = 0.05       # thruster tachometer [rev/s]
-
-    def __post_init__(self) -> None:
-        for k, v in self.__dict__.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f'sensor noise {k} = {v!r}: must be a finite number >= 0')
-
-    @staticmethod
-    def none() -> 'SensorNoise':
-        return SensorNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def apply(self, trial: Trial, rng: np.random.Generator) -> Trial:
         st = trial.states.copy()
@@ -186,7 +192,7 @@ TWIN_ACTUATOR = 'twin_azimuth'
 
 
 @dataclass(frozen=True)
-class TwinNoise:
+class TwinNoise(_Sigmas):
     """
     1-sigma white noise of a small craft's sensors, RTK class (SI units, radians).
 
@@ -203,15 +209,6 @@ class TwinNoise:
     shaft_rps: float = 0.02
     azimuth_rad: float = math.radians(0.2)
     bollard_n: float = 0.3
-
-    def __post_init__(self) -> None:
-        for k, v in self.__dict__.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f'sensor noise {k} = {v!r}: must be a finite number >= 0')
-
-    @staticmethod
-    def none() -> 'TwinNoise':
-        return TwinNoise(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def apply(self, trial: Trial, rng: np.random.Generator) -> Trial:
         """Return the trial as its sensors record it (commands untouched)."""

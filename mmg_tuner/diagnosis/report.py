@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 import math
+from typing import Callable
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -63,34 +64,32 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     else:
         lines.append('**No effect in the library explains the errors significantly.** The '
                      'tuned base model is the best description of these trials.')
-    if doc.get('undecided'):
-        lines += ['', '**Undecided: one of a set.** Each fits the trials, and is in the fitted '
-                  'model, but a rival explains them about as well (held-out gains within their '
-                  'combined uncertainty), so neither is named. "The trial that would settle '
-                  'it" below says what would tell them apart:', '']
-        for c in doc['undecided']:
-            lines.append(f"- one of **{c['effect']}** ({c['summary']}, held-out gain "
-                         f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])}) or "
-                         f"{', '.join(c['indistinguishable_from'])}")
-    if doc.get('suspected'):
-        lines += ['', '**Suspected, not named.** The trials hint at these (a held-out gain above '
-                  'the least a cause needs, with a reduction that counts as evidence), but the '
-                  'held-out trials disagree on them (one made worse, or the gain within its '
-                  'standard error). "The trial that would settle it" below says what would:', '']
-        for x in doc['suspected']:
-            lines.append(f"- {x['effect']}: {x['summary']}, held-out gain {_pct(x['gain'])} ± "
-                         f"{_pct(x['gain_se'])} (round {x['round']}"
-                         + (f", beside {', '.join(x['beside'])}" if x.get('beside') else '')
-                         + ')')
-    fits = doc.get('would_fit_but_impossible') or []
-    if fits:
-        lines += ['', '**Would fit, but impossible here.** These effects explain the held-out '
-                  'trials significantly, yet cannot exist where they were recorded. A good fit '
-                  'by an impossible effect is evidence of a structural gap of the model (a '
-                  'force or moment it lacks, which the effect mimics), not of that effect:', '']
-        for x in fits:
-            lines.append(f"- {x['effect']}: held-out gain {_pct(x['gain'])} ± "
-                         f"{_pct(x['gain_se'])} (round {x['round']}) — {x['reason']}")
+    lines += _listed(
+        doc.get('undecided'),
+        '**Undecided: one of a set.** Each fits the trials, and is in the fitted model, but a '
+        'rival explains them about as well (held-out gains within their combined uncertainty), '
+        'so neither is named. "The trial that would settle it" below says what would tell them '
+        'apart:',
+        lambda c: (f"one of **{c['effect']}** ({c['summary']}, held-out gain "
+                   f"{_pct(c['heldout_gain'])} ± {_pct(c['heldout_gain_se'])}) or "
+                   f"{', '.join(c['indistinguishable_from'])}"))
+    lines += _listed(
+        doc.get('suspected'),
+        '**Suspected, not named.** The trials hint at these (a held-out gain above the least a '
+        'cause needs, with a reduction that counts as evidence), but the held-out trials '
+        'disagree on them (one made worse, or the gain within its standard error). "The trial '
+        'that would settle it" below says what would:',
+        lambda x: (f"{x['effect']}: {x['summary']}, held-out gain {_pct(x['gain'])} ± "
+                   f"{_pct(x['gain_se'])} (round {x['round']}"
+                   + (f", beside {', '.join(x['beside'])}" if x.get('beside') else '') + ')'))
+    lines += _listed(
+        doc.get('would_fit_but_impossible'),
+        '**Would fit, but impossible here.** These effects explain the held-out trials '
+        'significantly, yet cannot exist where they were recorded. A good fit by an impossible '
+        'effect is evidence of a structural gap of the model (a force or moment it lacks, which '
+        'the effect mimics), not of that effect:',
+        lambda x: (f"{x['effect']}: held-out gain {_pct(x['gain'])} ± {_pct(x['gain_se'])} "
+                   f"(round {x['round']}) — {x['reason']}"))
     lines += ['', '| held-out J (test trials) | value |', '|---|---|',
               f'| base model, tuned | {_J(b)} |',
               f'| final model | {_J(f)} |',
@@ -204,6 +203,18 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
                                                      for k, v in doc['timings_s'].items())
                   + f" (total {doc.get('wall_s', 0.0):.0f} s)."]
     return '\n'.join(lines) + '\n'
+
+
+def _listed(items: list[dict] | None, header: str, line: Callable[[dict], str]) -> list[str]:
+    """
+    Return a headed list of effects the diagnosis did not name, or [] when there are none.
+
+    One layout for the undecided, the suspected and the impossible ones: a blank line, the
+    header paragraph, a blank line and a ``- `` line per effect.
+    """
+    if not items:
+        return []
+    return ['', header, '', *(f'- {line(x)}' for x in items)]
 
 
 def _decision_lines(doc: dict) -> list[str]:

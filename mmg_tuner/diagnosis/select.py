@@ -701,12 +701,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 sized_on_all += on_all
                 all_fit = (model.space.names, th_all) if on_all else all_fit
                 rounds[-1].append(pcand)
-                se_all = dict(zip(model.space.names,
-                                  standard_errors(objs.of(model)[0], model.space, theta)))
-                for e, vals in members:
-                    causes.append(Cause(e, vals, {p: float(se_all[p]) for p in vals},
-                                        pcand.gain, pcand.gain_se, [],
-                                        EFFECTS[e].description))
+                causes += _causes_from_fit(pcand, model, theta, objs, members)
+                for e, _ in members:
                     remaining.remove(e)
                 log(f"   -> named (jointly): {' + '.join(e for e, _ in members)}")
                 continue
@@ -760,13 +756,10 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             if swap:
                 b = max(swap, key=lambda e: named_from.accepted[e][0].gain)
                 cb, model, theta, J_test = named_from.accepted[b]
-                se_all = dict(zip(model.space.names,
-                                  standard_errors(objs.of(model)[0], model.space, theta)))
                 old = causes.pop()
-                causes.append(Cause(b, cb.values, {p: float(se_all[p]) for p in cb.values},
-                                    cb.gain, cb.gain_se,
-                                    [last] + [e for e in old.indistinguishable_from if e != b],
-                                    EFFECTS[b].description))
+                causes += _causes_from_fit(
+                    cb, model, theta, objs, [(b, cb.values)],
+                    [last] + [e for e in old.indistinguishable_from if e != b])
                 swapped_out.add(last)
                 remaining.remove(b)
                 remaining.append(last)
@@ -780,10 +773,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 sized_on_all += on_all
                 all_fit = (model.space.names, th_all) if on_all else all_fit
                 rounds[-1].append(pcand)
-                se_all = dict(zip(model.space.names,
-                                  standard_errors(objs.of(model)[0], model.space, theta)))
-                causes.append(Cause(e, vals, {p: float(se_all[p]) for p in vals}, pcand.gain,
-                                    pcand.gain_se, [], EFFECTS[e].description))
+                causes += _causes_from_fit(pcand, model, theta, objs, [(e, vals)])
                 remaining.remove(e)
                 log(f'   -> named (jointly with {last}): {e}')
                 continue
@@ -822,12 +812,9 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 sized_on_all += on_all
                 all_fit = (model.space.names, th_all) if on_all else all_fit
                 rounds[-1].append(pcand)
-                se_all = dict(zip(model.space.names,
-                                  standard_errors(objs.of(model)[0], model.space, theta)))
                 causes.pop()
-                for e, vals in members:
-                    causes.append(Cause(e, vals, {p: float(se_all[p]) for p in vals},
-                                        pcand.gain, pcand.gain_se, [], EFFECTS[e].description))
+                causes += _causes_from_fit(pcand, model, theta, objs, members)
+                for e, _ in members:
                     remaining.remove(e)
                 swapped_out.add(last)
                 remaining.append(last)
@@ -1071,6 +1058,21 @@ def _with_measurements(objs: _Objectives, meas: dict, s2: float) -> _Objectives:
     return _Objectives((measured_mod.with_prior(objs.plain[0], pr), objs.plain[1]),
                        None if objs.wind is None
                        else (measured_mod.with_prior(objs.wind[0], pr), objs.wind[1]))
+
+
+def _causes_from_fit(cand: Candidate, model: _Model, theta: np.ndarray, objs: _Objectives,
+                     members: list[tuple[str, dict[str, float]]],
+                     rivals: Sequence[str] = ()) -> list[Cause]:
+    """
+    Return the causes a fitted model names: each member effect (with its fitted values).
+
+    Each with its standard errors in that model's fit and the candidate's held-out gain (a
+    pair's members were accepted together, so they share it); rivals: the effects the trials
+    cannot tell from them.
+    """
+    se = dict(zip(model.space.names, standard_errors(objs.of(model)[0], model.space, theta)))
+    return [Cause(e, vals, {p: float(se[p]) for p in vals}, cand.gain, cand.gain_se,
+                  list(rivals), EFFECTS[e].description) for e, vals in members]
 
 
 def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives, screened,

@@ -31,7 +31,7 @@ import math
 from pathlib import Path
 
 from mmg_tuner._atomic import write_atomic
-from mmg_tuner._limits import json_loads, load_yaml, read_npz
+from mmg_tuner._limits import json_default, json_loads, load_yaml, read_npz
 from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.correction import feature_row, FEATURES, N_FEATURES, window_residual
 from mmg_tuner.core.correction import mlp_forward  # noqa: F401  (re-exported: the tests')
@@ -117,7 +117,7 @@ class ResidualNet:
                   'seed': np.array(self.seed, np.int64), 'n_layers': np.array(len(self.weights)),
                   'x_mean': self.x_mean, 'x_std': self.x_std, 'y_scale': self.y_scale,
                   'features': np.array(FEATURES),
-                  'meta': np.array(json.dumps(self.meta, default=_json_default))}
+                  'meta': np.array(json.dumps(self.meta, default=json_default))}
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             arrays[f'W{i}'] = w
             arrays[f'b{i}'] = b
@@ -209,14 +209,6 @@ def load_residual(params_file) -> ResidualNet | None:
     except ConfigError as exc:
         raise ConfigError(f'{path}: key "residual" names {net_path}, which cannot be used: '
                           f'{exc}') from None
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o))
 
 
 def _check_net(net: ResidualNet, where: str) -> None:

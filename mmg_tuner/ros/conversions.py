@@ -8,14 +8,17 @@ message: cheaper than building one per tick in a 50 Hz loop.
 from __future__ import annotations
 
 import math
+from typing import Callable, TypeVar
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import Quaternion, TransformStamped
 from mmg_tuner.core import frames
 from mmg_tuner.core.frames import enu_yaw_to_psi, psi_to_enu_yaw
 from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
+
+_Msg = TypeVar('_Msg', Odometry, TransformStamped)
 
 G_MS2 = 9.80665  # [m/s^2] standard gravity: a level accelerometer at rest reads +G on z
 
@@ -39,15 +42,10 @@ def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'odom',
     """
     x, y, psi, u, v, r = (float(a) for a in state)
     yaw = psi_to_enu_yaw(psi)
-    if msg is None:
-        msg = Odometry()
-        msg.header.frame_id = frame_id
-        msg.child_frame_id = child_frame_id
-    _stamp(msg.header, t)
+    msg = _framed(msg, Odometry, frame_id, child_frame_id, t)
     msg.pose.pose.position.x = y
     msg.pose.pose.position.y = x
-    msg.pose.pose.orientation.z = math.sin(yaw / 2)
-    msg.pose.pose.orientation.w = math.cos(yaw / 2)
+    _set_yaw(msg.pose.pose.orientation, yaw)
     msg.twist.twist.linear.x = u
     msg.twist.twist.linear.y = -v
     msg.twist.twist.angular.z = -r
@@ -67,6 +65,27 @@ def _stamp(header, t: float) -> None:
     header.stamp.nanosec = int(round((t - sec) * 1e9)) % 1_000_000_000
 
 
+def _framed(msg: _Msg | None, new: Callable[[], _Msg], parent: str, child: str,
+            t: float) -> _Msg:
+    """
+    Return msg stamped t; None: a new() message from parent to child.
+
+    A refilled message keeps the frames it was built with: only its stamp changes per tick.
+    """
+    if msg is None:
+        msg = new()
+        msg.header.frame_id = parent
+        msg.child_frame_id = child
+    _stamp(msg.header, t)
+    return msg
+
+
+def _set_yaw(q: Quaternion, yaw: float) -> None:
+    """Set quaternion message q to a rotation by yaw [rad] about z (x = y = 0 as built)."""
+    q.z = math.sin(yaw / 2)
+    q.w = math.cos(yaw / 2)
+
+
 def transform_from_state(state: np.ndarray, t: float, parent: str = 'odom',
                          child: str = 'base_link', msg: TransformStamped | None = None
                          ) -> TransformStamped:
@@ -77,24 +96,16 @@ def transform_from_state(state: np.ndarray, t: float, parent: str = 'odom',
     """
     x, y, psi = float(state[0]), float(state[1]), float(state[2])
     yaw = psi_to_enu_yaw(psi)
-    if msg is None:
-        msg = TransformStamped()
-        msg.header.frame_id = parent
-        msg.child_frame_id = child
-    _stamp(msg.header, t)
+    msg = _framed(msg, TransformStamped, parent, child, t)
     msg.transform.translation.x = y
     msg.transform.translation.y = x
-    msg.transform.rotation.z = math.sin(yaw / 2)
-    msg.transform.rotation.w = math.cos(yaw / 2)
+    _set_yaw(msg.transform.rotation, yaw)
     return msg
 
 
 def identity_transform(t: float, parent: str, child: str) -> TransformStamped:
     """Parent -> child with no offset (TF's static map -> odom of a simulator)."""
-    msg = TransformStamped()
-    msg.header.frame_id = parent
-    msg.child_frame_id = child
-    _stamp(msg.header, t)
+    msg = _framed(None, TransformStamped, parent, child, t)
     msg.transform.rotation.w = 1.0
     return msg
 
@@ -134,8 +145,7 @@ def imu_from_state(state: np.ndarray, accel_flu: tuple[float, float] | None, t: 
         msg = Imu()
     msg.header.frame_id = frame_id
     _stamp(msg.header, t)
-    msg.orientation.z = math.sin(yaw / 2)
-    msg.orientation.w = math.cos(yaw / 2)
+    _set_yaw(msg.orientation, yaw)
     msg.angular_velocity.z = -r + gyro_noise
     s_yaw, s_gyro, s_acc = sigmas
     tiny = 1e-9  # roll and pitch are exactly level in a 3-DOF model

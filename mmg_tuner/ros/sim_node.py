@@ -94,13 +94,12 @@ PARAMS = {
                           read_only=True),
     'rpm_topic': Param('propeller_rpm', 'std_msgs/Float64 propeller command [rpm]; < 0 '
                        '(astern) only for a model covering astern', read_only=True),
-    # thruster topics as config/topics.yaml names them for recordings
-    'bow_thruster_topic': Param('bow_thruster', 'std_msgs/Float64 bow thruster command '
-                                '[rev/s, + pushes the bow to starboard]; only for a model with '
-                                'thrusters', read_only=True),
-    'stern_thruster_topic': Param('stern_thruster', 'std_msgs/Float64 stern thruster command '
-                                  '[rev/s, + pushes the stern to starboard]; only for a model '
-                                  'with thrusters', read_only=True),
+    # thruster topics as config/topics.yaml names them for recordings: one per thruster
+    # (bow_thruster_topic, stern_thruster_topic), described alike
+    **{f'{side}_thruster_topic': Param(f'{side}_thruster', f'std_msgs/Float64 {side} thruster '
+                                       f'command [rev/s, + pushes the {side} to starboard]; '
+                                       'only for a model with thrusters', read_only=True)
+       for side in THRUSTERS},
     # a craft commanded per thruster (a model without a screw and rudder: the twin-azimuth
     # tug, the Otter): VRX's topic names (osrf/vrx, vrx_urdf/wamv_gazebo/urdf/thruster_layouts/
     # wamv_gazebo_thruster_config.xacro: thrusters/<name>/thrust and thrusters/<name>/pos),

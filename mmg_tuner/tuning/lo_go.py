@@ -127,6 +127,19 @@ def read_bollard_table(path: str | Path) -> BollardTable:
     return check_bollard_table(np.array(n), np.array(F), str(path))
 
 
+def _by_speed(n: np.ndarray, F: np.ndarray, source: str,
+              astern: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Return the rows sorted by shaft speed n (astern: its magnitude); one thrust per speed."""
+    order = np.argsort(n, kind='stable')
+    n, F = n[order], F[order]
+    twice = np.diff(n) <= 0
+    if np.any(twice):
+        k = int(np.argmax(twice))
+        what = 'an astern shaft speed' if astern else f'shaft speed n = {n[k]:g} rev/s'
+        raise TuningError(f'{source}: {what} appears twice; one thrust per speed')
+    return n, F
+
+
 def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> BollardTable:
     """Return the table, or a TuningError naming what makes it unusable."""
     n = np.asarray(n, dtype=float)
@@ -155,21 +168,12 @@ def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> Bollar
             raise TuningError(f'{source}: astern row n = {-an[k]:g} rev/s has thrust '
                               f'{aF[k]:g} N: astern rows give the thrust astern (negative, or '
                               'every astern row positive as a magnitude), not a mix of signs')
-        o = np.argsort(an, kind='stable')
-        an, aF = an[o], aF[o]
-        if np.any(np.diff(an) <= 0):
-            raise TuningError(f'{source}: an astern shaft speed appears twice; one thrust per '
-                              'speed')
+        an, aF = _by_speed(an, aF, source, astern=True)
     if len(n) < MIN_BOLLARD_POINTS:
         raise TuningError(f'{source}: {len(n)} ahead rows (n >= 0); the ahead curve needs at '
                           f'least {MIN_BOLLARD_POINTS} shaft speeds (astern rows give the '
                           'astern ratio only)')
-    order = np.argsort(n, kind='stable')
-    n, F = n[order], F[order]
-    if np.any(np.diff(n) <= 0):
-        k = int(np.argmax(np.diff(n) <= 0))
-        raise TuningError(f'{source}: shaft speed n = {n[k]:g} rev/s appears twice; one '
-                          'thrust per speed')
+    n, F = _by_speed(n, F, source)
     if np.any(np.diff(F) < -tol):
         k = int(np.argmax(np.diff(F) < -tol))
         raise TuningError(f'{source}: not monotone: thrust falls from {F[k]:g} N at n = '

@@ -17,6 +17,7 @@ import re
 from typing import Mapping, Sequence
 
 from mmg_tuner._atomic import write_atomic
+from mmg_tuner._limits import json_default
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.data.trial import Trial
@@ -102,7 +103,7 @@ def json_text(doc: dict) -> str:
     JSON has no inf or NaN: a non-finite number (a diverged run's J, a gain against it) is written
     as null; the document says why beside it (e.g. per_trial's *_failed_at_s).
     """
-    return json.dumps(_finite(doc), indent=2, default=_jsonable, allow_nan=False) + '\n'
+    return json.dumps(_finite(doc), indent=2, default=json_default, allow_nan=False) + '\n'
 
 
 def _finite(o):
@@ -123,14 +124,6 @@ def write_params_yaml(path, ship: ShipConfig, values: dict[str, float], note: st
 
 def write_json(path, doc: dict) -> None:
     write_atomic(path, json_text(doc))
-
-
-def _jsonable(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o))
 
 
 def start_state(trial: Trial) -> np.ndarray:

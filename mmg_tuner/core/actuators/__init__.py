@@ -57,14 +57,12 @@ import importlib
 import math
 from typing import Any, Callable
 
-from mmg_tuner.core import plugins
-from mmg_tuner.core._registry import declared, module_name, plugin_map
+from mmg_tuner.core._registry import declared, module_name, registry
 from mmg_tuner.core.channels import add_channel, Channel
 
 BUILTIN: tuple[str, ...] = ('screw_rudder', 'tunnel_thrusters', 'twin_azimuth',
                             'screw_rudder_tau')
-_PLUGINS = plugin_map(plugins.modules('actuators'), BUILTIN, 'actuator')
-REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
+_PLUGINS, REGISTRY = registry(BUILTIN, 'actuators', 'actuator')
 """Registered actuator models, by name."""
 
 

@@ -27,14 +27,10 @@ from numba import njit  # noqa: E402
 if TYPE_CHECKING:  # annotations only: numba never evaluates them
     from mmg_tuner.core._jit import FloatArray
 
-_doff = PARAM_INDEX['rudder_offset']
-_tau = PARAM_INDEX['rudder_lag_tau']
-_nscale = PARAM_INDEX['rpm_scale']
-_CYP = PARAM_INDEX['prop_side_force']
-_rho = PARAM_INDEX['rho']
-_DP = PARAM_INDEX['D_P']
-_xR = PARAM_INDEX['x_R']
-_L = PARAM_INDEX['L_pp']
+# the slots of its effects, then of the particulars the propeller's side force reads
+_doff, _tau, _nscale, _CYP = (PARAM_INDEX[k] for k in (
+    'rudder_offset', 'rudder_lag_tau', 'rpm_scale', 'prop_side_force'))
+_rho, _DP, _xR, _L = (PARAM_INDEX[k] for k in ('rho', 'D_P', 'x_R', 'L_pp'))
 
 
 @njit(cache=True, fastmath=FASTMATH, inline='always')

@@ -71,16 +71,14 @@ from dataclasses import dataclass, field
 import importlib
 from typing import Any, Callable
 
-from mmg_tuner.core import plugins
-from mmg_tuner.core._registry import declared, module_name, plugin_map
+from mmg_tuner.core._registry import declared, module_name, registry
 from mmg_tuner.core.actuators import actuator, declared_params as actuator_params
 from mmg_tuner.core.channels import ENVIRONMENT
 
 BUILTIN: tuple[str, ...] = (
     'container', 'standard', 'lowspeed', 'surge_decoupled', 'simplified6',
     'surge_decoupled_rudder')
-_PLUGINS = plugin_map(plugins.modules('families'), BUILTIN, 'family')
-REGISTRY: tuple[str, ...] = BUILTIN + tuple(_PLUGINS)
+_PLUGINS, REGISTRY = registry(BUILTIN, 'families', 'family')
 """Registered families; the position is the family's code (built-ins first, then plugins)."""
 
 
