@@ -50,11 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_reading_options(ap, DT, 'resampling step [s]', dt_default=1.0)
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='rk4')
     ap.add_argument('--seed', type=SEED, default=0)
-    ap.add_argument('--verdict', choices=('rules', 'evidence'), default='rules',
-                    help='how causes are named after the search: rules (default; a structural '
-                    'verdict withdraws the fitted causes) or evidence (each effect by its own '
-                    'held-out contribution and consistency over the trials, the error '
-                    'apportioned; see doc/guides/diagnosis.md)')
+    ap.add_argument('--verdict', choices=('rules', 'evidence'), default='evidence',
+                    help='how causes are named after the search: evidence (default; each '
+                    'effect by its own held-out contribution and consistency over the trials, '
+                    'the error apportioned) or rules (a structural verdict withdraws the '
+                    'fitted causes); see doc/guides/diagnosis.md')
     ap.add_argument('--restart-every', type=float, metavar='S', dest='restart_every_s',
                     help='restart every simulation of the diagnosis from the recorded state '
                     'every S seconds (0: one free run per trial). Default: '

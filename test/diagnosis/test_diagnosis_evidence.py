@@ -38,7 +38,9 @@ def test_the_restart_period_is_froude_scaled_and_follows_the_verdict():
     assert restart_period(3.0) / restart_period(83.0) == pytest.approx(math.sqrt(3 / 83))
     assert mt.DiagnoseConfig(verdict='evidence').settings(83.0).restart_every_s == \
         pytest.approx(restart_period(83.0))
-    assert mt.DiagnoseConfig().settings(83.0).restart_every_s == 0.0      # rules: a free run
+    assert mt.DiagnoseConfig().settings(83.0).restart_every_s == pytest.approx(   # the default
+        restart_period(83.0))
+    assert mt.DiagnoseConfig(verdict='rules').settings(83.0).restart_every_s == 0.0   # free run
     assert mt.DiagnoseConfig(verdict='evidence', restart_every_s=0).settings(
         83.0).restart_every_s == 0.0
     for bad in (-1.0, math.inf, True, 'often'):

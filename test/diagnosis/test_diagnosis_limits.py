@@ -112,10 +112,12 @@ def test_the_measured_wind_is_named_on_the_esso_osaka_low_speed_runs():
     several m/s against ship speeds of 0.1-0.5 m/s), every second held out, as a new user
     would run them. The published coefficients already predict these runs 2-5 x better with
     the wind; on the zigzag and turning runs the wind makes them worse, which is why a
-    diagnosis of the zigzags alone named nothing. Measured here: held-out gain 85.7 % +-
-    20.7 % (J 4.3e6 without, 6.1e5 with); the measured-wind candidate's numbers do not
-    depend on which other effects are searched (the same null and re-tune), so two keep it
-    quick (about 30 s).
+    diagnosis of the zigzags alone named nothing. Measured here with free runs (the rules
+    verdict): held-out gain 85.7 % +- 20.7 % (J 4.3e6 without, 6.1e5 with); with the default
+    evidence verdict, whose simulations restart every 22 s, 41 % (J 698 without, 413 with: a
+    free run's drift is most of what the wind explains). The measured-wind candidate's numbers
+    do not depend on which other effects are searched (the same null and re-tune), so two keep
+    it quick (about 30 s).
     """
     import mmg_tuner as mt
     from mmg_tuner.data.esso import esso_data_dir
@@ -129,7 +131,7 @@ def test_the_measured_wind_is_named_on_the_esso_osaka_low_speed_runs():
     assert dx.setting.venue == 'pond'
     assert [c.effect for c in dx.causes] == ['measured_wind']
     m = dx.measured[0]
-    assert m['named'] and m['J_test_with'] < 0.4 * m['J_test_without']
-    assert dx.causes[0].heldout_gain > 0.5 and 0 < dx.causes[0].heldout_gain_se < 0.5
+    assert m['named'] and m['J_test_with'] < 0.7 * m['J_test_without']
+    assert dx.causes[0].heldout_gain > 0.3 and 0 < dx.causes[0].heldout_gain_se < 0.5
     md = markdown(dx.to_dict(), ship)
     assert '**measured_wind** — measured wind used. Held-out gain' in md

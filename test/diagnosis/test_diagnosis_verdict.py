@@ -44,6 +44,9 @@ def _trials(ship, effect: dict, seed: int = 3, **change):
 
 
 def _diagnose(ship, tune, test, **options):
+    # this module tests the rules verdict (structure.one_verdict, free runs); the default
+    # evidence verdict has its own tests (test_diagnosis_evidence.py)
+    options.setdefault('verdict', 'rules')
     return mt.diagnose(ship, tune, test, budget='quick', max_effects=2, **options)
 
 
