@@ -110,7 +110,7 @@ def check_lines(lines: str | list[str], source: str | Path, what: str, *,
 _BASE_LOADER: Any = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
-class _LimitedLoader(_BASE_LOADER):  # type: ignore[misc, valid-type]
+class _LimitedLoader(_BASE_LOADER):  # type: ignore[misc]  # libyaml's or PyYAML's: Any
     """
     Safe YAML loader that counts nodes (aliases expanded) and depth while composing.
 

@@ -105,7 +105,8 @@ def _family_rules(fam: Family) -> Mapping[str, Any]:
 def _module(name: str, kind: str) -> str:
     from mmg_tuner.core import actuators, models
     try:
-        return (models if kind == 'models' else actuators).module_of(name)
+        module_of = models.module_of if kind == 'models' else actuators.module_of
+        return module_of(name)
     except KeyError:
         return name
 

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 
-def kernel_inputs(fam: Family, controls: npt.ArrayLike | Mapping[str, npt.ArrayLike],
+def kernel_inputs(fam: Family, controls: Trial | npt.ArrayLike | Mapping[str, npt.ArrayLike],
                   what: str = 'simulation') -> np.ndarray:
     """
     Return the kernels' input array for family ``fam``: its channels, wind last.

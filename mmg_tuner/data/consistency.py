@@ -37,11 +37,15 @@ from dataclasses import dataclass
 import logging
 import math
 import sys
+from typing import TYPE_CHECKING
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.core.ship import ShipConfig
 
 logger = logging.getLogger(__name__)
 
@@ -236,7 +240,8 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
     half = _half(t)
     found: list[Finding] = []
 
-    def add(check, a, b, size, unit, detail, between=False):
+    def add(check: str, a: int, b: int, size: float, unit: str, detail: str,
+            between: bool = False) -> None:
         ta, tb = float(t[a] - t0), float(t[b] - t0)
         long = (tb - ta) > LONG_FRACTION * span
         if between:   # a jump: the track is good on both sides, cut between the two samples
@@ -257,8 +262,8 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
               'r': max(float(np.max(np.abs(sustained['r']))), SPIKE_R_FLOOR)}
     vel = {}
     for ch, unit in (('u', 'm/s'), ('v', 'm/s'), ('r', 'rad/s')):
-        a = np.asarray(getattr(m, ch), dtype=float)
-        dev = a - sustained[ch]
+        vals = np.asarray(getattr(m, ch), dtype=float)
+        dev = vals - sustained[ch]
         thr = max(K_SIGMA * _robust_sigma(dev), floors[ch])
         spike = np.zeros(n, dtype=bool)
         for a0, b0 in _runs(np.abs(dev) > thr):
@@ -267,10 +272,10 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
             spike[a0:b0 + 1] = True
             k = a0 + int(np.argmax(np.abs(dev[a0:b0 + 1])))
             add('velocity spike', a0, b0, abs(dev[k]), unit,
-                f'{b0 - a0 + 1} sample(s) of {ch} = {a[k]:.3g} {unit} against '
+                f'{b0 - a0 + 1} sample(s) of {ch} = {vals[k]:.3g} {unit} against '
                 f'{sustained[ch][k]:.3g} {unit} around them; threshold {thr:.2g} {unit}, the '
                 'most the recording sustains')
-        vel[ch] = np.where(spike, sustained[ch], a)
+        vel[ch] = np.where(spike, sustained[ch], vals)
     m = Motion(t, m.x, m.y, m.psi, vel['u'], vel['v'], vel['r'], m.rpm)
     speed = np.hypot(m.u, m.v)
     u_ref = float(np.median(speed))     # the recording's typical speed [m/s]
@@ -353,8 +358,8 @@ def check_motion(name: str, m: Motion, length_m: float = 0.0, t0: float = 0.0
         drift[half:n - half] = np.hypot(vel_x, vel_y)
         sig_d = _robust_sigma(drift[half:n - half])
         thr_d = max(K_SIGMA * sig_d, u_ref, 0.05 * math.sqrt(9.81 * length_m))
-        bad = drift > thr_d
-        for (a, b) in _runs(bad, bridge=half):
+        fast = drift > thr_d
+        for (a, b) in _runs(fast, bridge=half):
             if found and any(f.start_s <= t[b] - t0 and t[a] - t0 <= f.end_s
                              and f.check != 'astern with propeller ahead' for f in found):
                 continue   # a jump or outlier already explains it
@@ -478,7 +483,7 @@ class WarningLog(logging.Handler):
         log.addHandler(self)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         logging.getLogger('mmg_tuner').removeHandler(self)
 
 
@@ -537,7 +542,7 @@ STEADY_MIN_SAMPLES = 6
 BALANCE_SAMPLES = 25       # at most this many steady samples solved for the balance
 
 
-def _balance_rps(ship, u: float) -> float:
+def _balance_rps(ship: ShipConfig, u: float) -> float:
     """Return the shaft speed [rev/s] at which the family's surge force is 0 at u (NaN: none)."""
     fam = ship.family
     outs = fam.outputs
@@ -569,10 +574,11 @@ def _median_slope(u: np.ndarray, t: np.ndarray, half: int, idx: np.ndarray) -> n
     for c0 in range(0, need.size, 4096):   # bounded memory on long recordings
         part = need[c0:c0 + 4096]
         u_s[part] = np.median(win[part], axis=1)
-    return (u_s[hi] - u_s[lo]) / (t[hi] - t[lo])
+    slope: np.ndarray = (u_s[hi] - u_s[lo]) / (t[hi] - t[lo])
+    return slope
 
 
-def rpm_unit_warning(trial: Trial, ship) -> str:
+def rpm_unit_warning(trial: Trial, ship: ShipConfig) -> str:
     """
     Say when a trial's rpm channel looks like rev/s, from the ship's own force balance ('' if not).
 
@@ -625,7 +631,7 @@ def rpm_unit_warning(trial: Trial, ship) -> str:
             '(multiply by 60; a bag: rpm unit rps in the topic map)')
 
 
-def warn_rpm_units(trials: list[Trial], ship) -> list[str]:
+def warn_rpm_units(trials: list[Trial], ship: ShipConfig) -> list[str]:
     """Log a ``WARNING:`` line for each trial whose rpm looks like rev/s; return the lines."""
     out = []
     for tr in trials:

@@ -33,6 +33,7 @@ from __future__ import annotations
 import io
 import math
 from pathlib import Path
+from typing import TypedDict, Unpack
 import warnings
 
 from mmg_tuner._limits import check_lines, read_text
@@ -152,7 +153,8 @@ def read_esso_table(path: str | Path) -> tuple[dict[str, np.ndarray], list[str]]
     return cols, notes
 
 
-def apparent_wind(true_speed, true_from, psi, u, v):
+def apparent_wind(true_speed: np.ndarray, true_from: np.ndarray, psi: np.ndarray, u: np.ndarray,
+                  v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the apparent wind at a point moving with body velocity (u, v) on heading psi.
 
@@ -166,12 +168,13 @@ def apparent_wind(true_speed, true_from, psi, u, v):
     return np.hypot(wx, wy), np.mod(np.arctan2(-wy, -wx), 2.0 * np.pi)
 
 
-def true_wind_ne(true_speed, true_from) -> np.ndarray:
+def true_wind_ne(true_speed: np.ndarray, true_from: np.ndarray) -> np.ndarray:
     """(T, 2) the air's velocity over ground toward north (x_E) and east (y_E) [m/s]."""
     return np.column_stack([-true_speed * np.cos(true_from), -true_speed * np.sin(true_from)])
 
 
-def _wind_from_table(cols, psi, u, v, notes, name) -> np.ndarray | None:
+def _wind_from_table(cols: dict[str, np.ndarray], psi: np.ndarray, u: np.ndarray, v: np.ndarray,
+                     notes: list[str], name: str) -> np.ndarray | None:
     if all(c in cols for c in ESSO_WIND_TRUE):
         ne = true_wind_ne(cols[ESSO_WIND_TRUE[0]], cols[ESSO_WIND_TRUE[1]])
         what = 'true wind columns'
@@ -273,10 +276,10 @@ def _esso_trials(path: Path, name: str, cols: dict[str, np.ndarray], notes: list
         raise UnusableRecordingError(f'{path}: not used: {unusable_reason(findings)}')
     # segments between gaps and around the faults cut out
     gaps = np.nonzero(np.diff(t) > max_gap_s)[0]
-    for g in gaps:
-        notes.append(f'{name}: gap of {t[g + 1] - t[g]:.1f} s at t = {t[g]:.1f} s '
+    for gap in gaps:
+        notes.append(f'{name}: gap of {t[gap + 1] - t[gap]:.1f} s at t = {t[gap]:.1f} s '
                      f'(> {max_gap_s:g} s): trial split there')
-    spans = []
+    spans: list[tuple[int, int]] = []
     for sl in keep_slices(t, findings):
         edges = [sl.start] + [int(g) + 1 for g in gaps if sl.start < g + 1 < sl.stop] + [sl.stop]
         spans.extend(zip(edges[:-1], edges[1:]))
@@ -373,8 +376,8 @@ def event_time(trial: Trial, event: str = 'rudder_first_over', hold_s: float = 3
     propeller_first_astern: the first sample with rpm < 0.
     """
     if event == 'propeller_first_astern':
-        k = np.nonzero(trial.controls[:, 0] < 0)[0]
-        return float(trial.t[k[0]]) if k.size else None
+        astern = np.nonzero(trial.controls[:, 0] < 0)[0]
+        return float(trial.t[astern[0]]) if astern.size else None
     if event != 'rudder_first_over':
         raise TrialDataError(f'{trial.name}: unknown event {event!r} (one of {EVENTS})')
     d = np.degrees(trial.controls[:, 1])
@@ -398,8 +401,15 @@ def event_time(trial: Trial, event: str = 'rudder_first_over', hold_s: float = 3
     return float(trial.t[k])
 
 
+class EventOptions(TypedDict, total=False):
+    """The options of :func:`event_time` that :func:`cut_from_event` passes on."""
+
+    hold_s: float
+    min_deg: float | None
+
+
 def cut_from_event(trial: Trial, event: str = 'rudder_first_over', before_s: float = 5.0,
-                   **kw) -> Trial:
+                   **kw: Unpack[EventOptions]) -> Trial:
     """
     Return the trial from before_s seconds before the event to its end.
 
@@ -478,7 +488,9 @@ def read_run(path: str | Path, kind: str) -> Trial:
 def load_split(fold: int | None = 1, folder: str | Path | None = None
                ) -> tuple[list[Trial], list[Trial], dict[str, str]]:
     """Return (training runs, held-out runs, kind of each run by name) of a fold's split."""
-    train, test, kind_of = [], [], {}
+    train: list[Trial] = []
+    test: list[Trial] = []
+    kind_of: dict[str, str] = {}
     for kind, files in runs_by_kind(folder).items():
         a, b = split_runs(files, fold)
         for f in a + b:

@@ -3,13 +3,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 import math
-from typing import Mapping, Self
+from typing import Iterable, Mapping, Self, TYPE_CHECKING
 
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, SimulationError
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.core.models import Family
 
 
 @dataclass(frozen=True)
@@ -171,7 +174,7 @@ def generate_trial(ship: ShipConfig, maneuver: str, rudder_deg: float, check_deg
     controls, thrusters = traj.controls, traj.thrusters
     toff = ship['time_offset']
     if toff != 0.0:  # commands stamped toff seconds early: recorded(t) = actual(t + toff)
-        def shift(a):
+        def shift(a: np.ndarray) -> np.ndarray:
             return np.column_stack([np.interp(traj.t + toff, traj.t, a[:, i])
                                     for i in range(a.shape[1])])
         controls = shift(controls)
@@ -341,7 +344,8 @@ def _twin_commands(ship: ShipConfig, m: TwinManeuver, t: np.ndarray
     return n * (1.0 + diff), n * (1.0 - diff), np.column_stack([az, az])
 
 
-def _twin_inputs(ship: ShipConfig, n_p, n_s, order: np.ndarray) -> dict[str, np.ndarray]:
+def _twin_inputs(ship: ShipConfig, n_p: np.ndarray, n_s: np.ndarray, order: np.ndarray
+                 ) -> dict[str, np.ndarray]:
     """Channel arrays for the truth run: orders as commands, the first angle as measured."""
     return {'n_port': n_p, 'n_stbd': n_s,
             'azimuth_port': np.full(n_p.size, order[0, 0]),
@@ -374,7 +378,7 @@ def generate_twin_trial(ship: ShipConfig, m: TwinManeuver, rate_hz: float, noise
     order = np.clip(order, -az_max, az_max)
     x0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
-    def run():
+    def run() -> tuple[Trial, Family]:
         fam = ship.family
         trial = simulate(ship, x0, _twin_inputs(ship, n_p, n_s, order), dt, 'rk4')
         if not trial.ok:
@@ -439,7 +443,7 @@ PAPER_TEST_DEG = (-10, 20, -35, 40)
 """Rudder angles of its test turns [deg]."""
 
 
-def paper_turning_trials(truth: ShipConfig, angles_deg, duration_s: float = 800.0,
+def paper_turning_trials(truth: ShipConfig, angles_deg: Iterable[int], duration_s: float = 800.0,
                          seed: int = 0, noise: SensorNoise | None = None) -> list[Trial]:
     """
     Return turning tests at 6 kn and 106 rpm sampled at 1 s, as the paper's data.

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any, TYPE_CHECKING
 
 from mmg_tuner.core import frames
 from mmg_tuner.data.files import check_regular_file
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TrialDataError
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only: the comparison imports the simulation when it runs
+    from mmg_tuner.core.ship import ShipConfig
 
 MAX_DAT_BYTES = 256 << 20  # the SIMMAN files are ~200 kB each
 MARIN_DT_S = 0.13533  # 0.02 s model scale x sqrt(45.714)
@@ -70,8 +74,8 @@ def marin_data_dir() -> Path:
     raise TrialDataError('MARIN KVLCC2 data not found (data/kvlcc2_simman2008_marin)')
 
 
-def compare_with_marin(ship, rpm_mode: str = 'hold_speed', data_dir: Path | None = None,
-                       dt: float = 0.05) -> list[dict]:
+def compare_with_marin(ship: ShipConfig, rpm_mode: str = 'hold_speed',
+                       data_dir: Path | None = None, dt: float = 0.05) -> list[dict[str, Any]]:
     """
     Simulate each MARIN manoeuvre and put its indices beside the measured ones.
 
@@ -85,7 +89,7 @@ def compare_with_marin(ship, rpm_mode: str = 'hold_speed', data_dir: Path | None
 
     data_dir = marin_data_dir() if data_dir is None else Path(data_dir)
     L = ship.L_pp
-    rows = []
+    rows: list[dict[str, Any]] = []
     for key, fname in MARIN_FILES.items():
         trial = read_marin_dat(data_dir / fname).froude_scaled(ship.scale_ratio)
         ke = ix.execution_index(trial['rudder'])
@@ -97,8 +101,8 @@ def compare_with_marin(ship, rpm_mode: str = 'hold_speed', data_dir: Path | None
         sign = 1.0 if moved[np.argmax(np.abs(moved) > math.radians(1.0))] > 0 else -1.0
         # nominal 10, 20 or 35 deg from the first rudder order once the gear has reached it
         amp = sign * round(math.degrees(float(np.percentile(np.abs(first), 90))) / 5.0) * 5.0
-        row = {'manoeuvre': key, 'file': fname, 'approach_speed_ms': u0, 'rpm': rpm,
-               'recorded_rpm': rec_rpm}
+        row: dict[str, Any] = {'manoeuvre': key, 'file': fname, 'approach_speed_ms': u0,
+                               'rpm': rpm, 'recorded_rpm': rec_rpm}
         if key.startswith('turn'):
             meas = ix.turning_indices(trial['x'], trial['y'], trial['psi'], ke)
             spec = mv.ManeuverSpec('turning', rudder_deg=amp, rpm=rpm, speed_ms=u0,
@@ -108,14 +112,14 @@ def compare_with_marin(ship, rpm_mode: str = 'hold_speed', data_dir: Path | None
             row.update({'measured': meas.in_lengths(L), 'simulated': si.in_lengths(L)})
         else:
             check = math.radians(abs(amp))
-            meas = ix.zigzag_indices(trial['psi'], trial['rudder'], check, ke)
+            zmeas = ix.zigzag_indices(trial['psi'], trial['rudder'], check, ke)
             spec = mv.ManeuverSpec('zigzag', rudder_deg=amp, rpm=rpm, speed_ms=u0,
                                    duration_s=200.0, dt=dt)
             sim = mv.run(ship, spec)
-            si = ix.zigzag_indices(sim['psi'], sim['rudder'], check)
-            row.update({'measured': {'overshoot_1_deg': meas.first_overshoot_deg,
-                                     'overshoot_2_deg': meas.second_overshoot_deg},
-                        'simulated': {'overshoot_1_deg': si.first_overshoot_deg,
-                                      'overshoot_2_deg': si.second_overshoot_deg}})
+            zsim = ix.zigzag_indices(sim['psi'], sim['rudder'], check)
+            row.update({'measured': {'overshoot_1_deg': zmeas.first_overshoot_deg,
+                                     'overshoot_2_deg': zmeas.second_overshoot_deg},
+                        'simulated': {'overshoot_1_deg': zsim.first_overshoot_deg,
+                                      'overshoot_2_deg': zsim.second_overshoot_deg}})
         rows.append(row)
     return rows

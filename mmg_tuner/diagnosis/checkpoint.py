@@ -37,42 +37,42 @@ class SearchCheckpoint:
         self.done: dict[str, np.ndarray] = {}
         self.hits = 0
         if resume and self.path is not None and self.path.is_file():
-            self.done = self._read()
+            self.done = self._read(self.path)
         if self.path is not None and not self.done:
-            self._write()   # exists from the start: an interrupt at once still leaves one
+            self._write(self.path)   # exists from the start: an interrupt at once still leaves one
 
-    def _read(self) -> dict[str, np.ndarray]:
+    def _read(self, path: Path) -> dict[str, np.ndarray]:
         """Return the stored tunings, checked: every failure a DiagnosisError naming the file."""
         try:
-            blob = self.path.read_bytes()
+            blob = path.read_bytes()
         except OSError as exc:
-            raise DiagnosisError(f'{self.path}: unreadable checkpoint '
+            raise DiagnosisError(f'{path}: unreadable checkpoint '
                                  f'({exc.strerror or exc})') from None
-        refuse_pickle(self.path, blob[:4], DiagnosisError)
+        refuse_pickle(path, blob[:4], DiagnosisError)
         try:   # size and nesting checked before parsing (_limits.py)
-            doc = json_loads(blob, self.path, error=DiagnosisError, what='checkpoint')
+            doc = json_loads(blob, path, error=DiagnosisError, what='checkpoint')
         except DiagnosisError as exc:   # JSON and UTF-8 errors alike
             raise DiagnosisError(f'{exc}; re-run without --resume') from None
         if not isinstance(doc, dict) or doc.get('format') != self.FORMAT:
-            raise DiagnosisError(f'{self.path}: not a diagnosis checkpoint of mmg_tuner; re-run '
+            raise DiagnosisError(f'{path}: not a diagnosis checkpoint of mmg_tuner; re-run '
                                  'without --resume')
         if doc.get('version') != self.VERSION:
-            raise DiagnosisError(f"{self.path}: checkpoint version {doc.get('version')}, this "
+            raise DiagnosisError(f"{path}: checkpoint version {doc.get('version')}, this "
                                  f'mmg_tuner reads version {self.VERSION}; re-run without '
                                  '--resume')
         if doc.get('fingerprint') != self.fingerprint:
-            raise DiagnosisError(f'{self.path}: the checkpoint belongs to another diagnosis '
+            raise DiagnosisError(f'{path}: the checkpoint belongs to another diagnosis '
                                  '(ship, trials or settings differ)')
         done = doc.get('done')
         if not isinstance(done, dict):
-            raise DiagnosisError(f"{self.path}: damaged checkpoint ('done' is not a mapping)")
+            raise DiagnosisError(f"{path}: damaged checkpoint ('done' is not a mapping)")
         out = {}
         for key, theta in done.items():
             ok = (isinstance(theta, list) and len(theta) > 0
                   and all(isinstance(x, (int, float)) and not isinstance(x, bool)
                           for x in theta))
             if not ok:
-                raise DiagnosisError(f'{self.path}: damaged checkpoint (entry {key[:12]}... is '
+                raise DiagnosisError(f'{path}: damaged checkpoint (entry {key[:12]}... is '
                                      'not a list of numbers); re-run without --resume')
             out[key] = np.array(theta, dtype=float)
         return out
@@ -83,7 +83,7 @@ class SearchCheckpoint:
         return None if self.path is None else self.path.with_name(self.path.stem + '.base.npz')
 
     @staticmethod
-    def key(*parts) -> str:
+    def key(*parts: object) -> str:
         h = hashlib.sha256()
         for p in parts:
             h.update(p.tobytes() if isinstance(p, np.ndarray) else repr(p).encode())
@@ -100,16 +100,16 @@ class SearchCheckpoint:
     def put(self, key: str, theta: np.ndarray) -> None:
         self.done[key] = np.array(theta, dtype=float)
         if self.path is not None:
-            self._write()
+            self._write(self.path)
 
-    def _write(self) -> None:
+    def _write(self, path: Path) -> None:
         # json writes a float as its shortest repr: read back to the same bits
         doc = {'format': self.FORMAT, 'version': self.VERSION, 'fingerprint': self.fingerprint,
                'done': {k: v.tolist() for k, v in self.done.items()}}
         try:
-            write_atomic(self.path, json.dumps(doc) + '\n')
+            write_atomic(path, json.dumps(doc) + '\n')
         except OSError as exc:
-            raise OutputError(f'writing the diagnosis checkpoint {self.path} failed '
+            raise OutputError(f'writing the diagnosis checkpoint {path} failed '
                               f'({exc.strerror or exc})') from None
 
 

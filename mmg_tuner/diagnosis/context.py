@@ -54,7 +54,7 @@ class Setting:
             raise DiagnosisError(f"setting scale {self.scale!r}: must be 'model' or 'full'")
 
     @classmethod
-    def parse(cls, value, source: str = 'given') -> 'Setting | None':
+    def parse(cls, value: object, source: str = 'given') -> 'Setting | None':
         """
         Return a Setting from a Setting, None, a string or a mapping.
 
@@ -65,7 +65,7 @@ class Setting:
             return value
         if isinstance(value, str):
             parts = [p.strip() for p in value.split(',') if p.strip()]
-            kw: dict = {}
+            kw: dict[str, str] = {}
             for p in parts:
                 if p in VENUES:
                     kw['venue'] = p
@@ -95,7 +95,7 @@ class Setting:
         return f'{self.scale}-scale trials {where}, {pos} (declared by {self.source})'
 
 
-def _from_trials(trials: Sequence[Trial]) -> dict:
+def _from_trials(trials: Sequence[Trial]) -> dict[str, str]:
     """Return what the readers recorded about where the trials come from."""
     if trials and all(any(n.startswith('MARIN .dat') for n in t.notes) for t in trials):
         return {'venue': 'tank', 'position': 'reference'}
@@ -104,7 +104,7 @@ def _from_trials(trials: Sequence[Trial]) -> dict:
     return {}
 
 
-def resolve(ship: ShipConfig, trials: Sequence[Trial], given=None) -> Setting:
+def resolve(ship: ShipConfig, trials: Sequence[Trial], given: object = None) -> Setting:
     """
     Return the setting of a diagnosis.
 

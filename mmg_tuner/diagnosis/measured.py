@@ -45,7 +45,7 @@ class Measurement:
     source: str = ''
 
 
-def check(measured: Mapping[str, Measurement], where: str = 'measured') -> dict:
+def check(measured: Mapping[str, Measurement], where: str = 'measured') -> dict[str, Measurement]:
     """Return ``measured`` checked: known parameter names, finite values, errors > 0."""
     out = {}
     for name, m in dict(measured or {}).items():

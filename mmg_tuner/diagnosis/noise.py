@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 import math
-from typing import Sequence
+from typing import Any, Sequence
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
@@ -59,8 +59,9 @@ def sensor_noise(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict[st
 
 
 def noise_floor(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
-                sigma: dict[str, float], integrator: str = 'rk4', weights=None,
-                draws: int = DRAWS, seed: int = 0, restart_every_s: float = 0.0) -> dict:
+                sigma: dict[str, float], integrator: str = 'rk4',
+                weights: np.ndarray | None = None, draws: int = DRAWS, seed: int = 0,
+                restart_every_s: float = 0.0) -> dict[str, Any]:
     """
     Return the held-out J that noise alone leaves with this model on these trials.
 
@@ -93,7 +94,7 @@ def noise_floor(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
             'J_white': float(white), 'per_trial': J.mean(axis=0).tolist()}
 
 
-def describe(J: float, floor: dict | None) -> tuple[bool | None, str]:
+def describe(J: float, floor: dict[str, Any] | None) -> tuple[bool | None, str]:
     """
     Say whether a held-out J is noise: (is_noise, sentence); (None, ...) without a floor.
 

@@ -7,6 +7,7 @@ speed, rudder, rudder rate, time).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
@@ -23,7 +24,7 @@ def simulate_trials(ship: ShipConfig, params: np.ndarray, trials: list[Trial],
 
 def residual_series(trial: Trial, sim: np.ndarray) -> np.ndarray:
     """Return simulated - recorded, heading wrapped; (T, 6)."""
-    e = sim - trial.states
+    e: np.ndarray = sim - trial.states
     e[:, 2] = (e[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return e
 
@@ -37,27 +38,28 @@ def regressors(trial: Trial) -> dict[str, np.ndarray]:
     return out
 
 
-def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
+def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict[str, Any]:
     """
     Return the error statistics per trial and the residuals' correlations.
 
     Per trial: RMS and maximum (with its time) of each state's error; pooled correlation of the
     velocity residuals with each regressor.
     """
-    per_trial = {}
-    pooled_e, pooled_x = [], {k: [] for k in regressors(trials[0])}
+    per_trial: dict[str, dict[str, dict[str, float] | float]] = {}
+    pooled_e: list[np.ndarray] = []
+    pooled_x: dict[str, list[np.ndarray]] = {k: [] for k in regressors(trials[0])}
     for tr, label, sim in zip(trials, unique_names(trials), sims):
         e = residual_series(tr, sim)
         ok = np.all(np.isfinite(e), axis=1)
-        stats = {}
+        stats: dict[str, dict[str, float] | float] = {}
         for i, n in enumerate(STATE_NAMES):
             if not ok.any():
                 break
             ei = e[ok, i]
-            k = int(np.argmax(np.abs(ei)))
+            at = int(np.argmax(np.abs(ei)))
             scale = math.degrees(1) if n in ('psi', 'r') else 1.0
             stats[n] = {'rms': float(np.sqrt(np.mean(ei ** 2)) * scale),
-                        'max': float(ei[k] * scale), 't_max': float(tr.t[ok][k] - tr.t[0])}
+                        'max': float(ei[at] * scale), 't_max': float(tr.t[ok][at] - tr.t[0])}
         stats['position_rms_m'] = float(np.sqrt(np.mean(e[ok, 0] ** 2 + e[ok, 1] ** 2))) \
             if ok.any() else float('nan')
         per_trial[label] = stats
@@ -65,7 +67,7 @@ def summarize(trials: list[Trial], sims: list[np.ndarray]) -> dict:
         for k, v in regressors(tr).items():
             pooled_x[k].append(v[ok])
     E = np.concatenate(pooled_e)
-    corr = {}
+    corr: dict[str, dict[str, float]] = {}
     for k, parts in pooled_x.items():
         x = np.concatenate(parts)
         corr[k] = {n: _corr(x, E[:, j]) for j, n in enumerate(('u', 'v', 'r'))}

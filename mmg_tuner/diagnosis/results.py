@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 import math
+from typing import Any
 
 from mmg_tuner.core.effects import describe_values, EFFECTS
 from mmg_tuner.diagnosis.context import Setting
@@ -32,7 +33,8 @@ class Candidate:
     implausible: str = ''            # why the fit is implausible for the ship (plausible.py)
     inconsistent: str = ''           # why it is not one value for all trials, or makes a
     #                                  held-out trial clearly worse ('' if neither)
-    per_trial_estimates: list[dict] = field(default_factory=list)   # fitted on each held-out
+    # fitted on each held-out
+    per_trial_estimates: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -69,7 +71,7 @@ class Cause:
             return self.effect.replace('_', ' ') + ' used'
         return describe_values(EFFECTS[self.effect], self.parameters, self.uncertainty)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), 'summary': self.summary}
 
 
@@ -97,23 +99,24 @@ def split_undecided(causes: list[Cause]) -> tuple[list[Cause], list[Cause]]:
 @dataclass
 class Diagnosis:
     causes: list[Cause]
-    baseline: dict
-    final: dict
+    baseline: dict[str, Any]
+    final: dict[str, Any]
     rounds: list[list[Candidate]] = field(default_factory=list)
     params: dict[str, float] = field(default_factory=dict)
     base_params: dict[str, float] = field(default_factory=dict)
     wall_s: float = 0.0
-    aliased: dict[str, dict] = field(default_factory=dict)
+    aliased: dict[str, dict[str, Any]] = field(default_factory=dict)
     setting: Setting = field(default_factory=Setting)
     impossible: dict[str, str] = field(default_factory=dict)   # effect -> why, this setting
-    impossible_fits: list[dict] = field(default_factory=list)  # significant but impossible
-    measured: list[dict] = field(default_factory=list)         # measured signals: with/without
+    # significant but impossible
+    impossible_fits: list[dict[str, Any]] = field(default_factory=list)
+    measured: list[dict[str, Any]] = field(default_factory=list)  # measured signals: with/without
     timings_s: dict[str, float] = field(default_factory=dict)  # wall time per stage
     measured_wind_used: bool = False     # the final model is driven by the measured wind
-    advice: list[dict] = field(default_factory=list)           # see diagnosis/advice.py
+    advice: list[dict[str, Any]] = field(default_factory=list)  # see diagnosis/advice.py
     # the sensor noise estimated from the held-out recordings and the held-out J it alone
     # leaves with the base model (diagnosis/noise.py): {'sigma': {state: sd}, 'J', 'J_se', ...}
-    noise: dict = field(default_factory=dict)
+    noise: dict[str, Any] = field(default_factory=dict)
     # effects the last round hints at but cannot name (select._suspects): {effect, values,
     # gain, gain_se, round, summary, beside}; never causes, each with an advised trial
-    suspected: list[dict] = field(default_factory=list)
+    suspected: list[dict[str, Any]] = field(default_factory=list)

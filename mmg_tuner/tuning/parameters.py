@@ -79,10 +79,12 @@ class ParameterSpace:
         return np.array([PARAM_INDEX[n] for n in self.names])
 
     def to_unit(self, theta: np.ndarray) -> np.ndarray:
-        return (theta - self.lower) / (self.upper - self.lower)
+        z: np.ndarray = (theta - self.lower) / (self.upper - self.lower)
+        return z
 
     def from_unit(self, z: np.ndarray) -> np.ndarray:
-        return self.lower + np.clip(z, 0.0, 1.0) * (self.upper - self.lower)
+        theta: np.ndarray = self.lower + np.clip(z, 0.0, 1.0) * (self.upper - self.lower)
+        return theta
 
     def full_params(self, base: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """
