@@ -12,6 +12,8 @@ not as confidence intervals.
 """
 from __future__ import annotations
 
+from typing import Any
+
 from mmg_tuner.core.integrate import residuals_many
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
@@ -73,7 +75,8 @@ def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarr
     """Return standard error of each tuned parameter (in its own units) at theta."""
     Jac, s2 = jacobian(objective, space, theta, h)
     cov = s2 * np.linalg.pinv(Jac.T @ Jac)
-    return np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
+    se: np.ndarray = np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
+    return se
 
 
 def trial_robust_standard_errors(objective: Objective, space: ParameterSpace,
@@ -129,7 +132,7 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
 
 
 def aliasing(objective: Objective, space: ParameterSpace, theta: np.ndarray,
-             probe: list[str], h: float = 1e-3) -> dict[str, dict]:
+             probe: list[str], h: float = 1e-3) -> dict[str, dict[str, Any]]:
     """
     How well the trials separate each probe parameter from the parameters not probed.
 

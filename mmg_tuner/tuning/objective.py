@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Sequence
+from typing import Any, cast, Sequence
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import cost_many
@@ -63,7 +63,7 @@ class TrialBatch:
             n = len(tr)
             inputs = tr.input_array(channels)
             measured = [c for i, c in enumerate(channels) if not math.isnan(
-                TABLE[c].default if TABLE[c].default is not None else 0.0)]
+                cast(float, TABLE[c].default) if TABLE[c].default is not None else 0.0)]
             if not np.all(np.isfinite(tr.states)) or not all(
                     np.all(np.isfinite(tr.inputs[c])) for c in measured if c in tr.inputs):
                 raise TuningError(f'trial {tr.name}: non-finite values')
@@ -143,7 +143,8 @@ class Prior:
     def __call__(self, params: np.ndarray) -> np.ndarray:
         """Return the penalty (N,) of parameter vectors (N, N_PARAMS)."""
         z = (np.atleast_2d(params)[:, self.indices] - self.centre) / self.scale
-        return self.weight * np.sum(z * z, axis=1)
+        penalty: np.ndarray = self.weight * np.sum(z * z, axis=1)
+        return penalty
 
 
 @dataclass(frozen=True)
@@ -165,7 +166,7 @@ class TrialFailure:
             return f'diverged on trial {self.trial} (non-finite J; failure time not detected)'
         return f'diverged on trial {self.trial} at t = {self.t_s:.6g} s'
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {'trial': self.trial, 'sample': self.sample, 't_s': self.t_s}
 
 
@@ -198,7 +199,7 @@ class Evaluation:
         """Return the total for JSON (which has no inf): None when a trial failed."""
         return None if self.failures else self.total
 
-    def per_trial_json(self) -> dict[str, dict]:
+    def per_trial_json(self) -> dict[str, dict[str, Any]]:
         """{trial: {'J': float or None, 'diverged': {'sample', 't_s'} or None}}."""
         failed = {f.trial: f for f in self.failures}
         return {n: {'J': None if n in failed else float(j),
@@ -296,7 +297,8 @@ class Objective:
         """Penalised total J per candidate (N,): finite, for ranking (see the class)."""
         J, k_fail = self._raw(params)
         failed = k_fail < self.batch.lengths[None, :]
-        total = (J if self.trial_weights is None else J * self.trial_weights).sum(axis=1)
+        total: np.ndarray = (J if self.trial_weights is None
+                             else J * self.trial_weights).sum(axis=1)
         if self.prior is not None:
             total = total + self.prior(params)
         bad = failed.any(axis=1) | ~np.isfinite(total)  # (an overflow to inf counts as failed)

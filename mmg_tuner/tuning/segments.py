@@ -120,4 +120,5 @@ def segment_weights(segments: Sequence[Segment], balance: str = 'trial',
             groups.setdefault(group_of[p], []).append(p)
         share = {p: 1.0 / (len(groups) * len(ps)) for ps in groups.values() for p in ps}
     w = np.array([share[s.parent] / per_trial[s.parent] for s in segments])
-    return w * n.sum() / float(np.sum(w * n))
+    weights: np.ndarray = w * n.sum() / float(np.sum(w * n))
+    return weights
