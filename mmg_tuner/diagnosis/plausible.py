@@ -19,7 +19,7 @@ along the joint fit's direction.
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 from mmg_tuner._limits import load_yaml
 from mmg_tuner.core.effects import EFFECTS, froude_factor
@@ -37,10 +37,10 @@ PER_TRIAL_SIMS = 60      # least-squares simulations per trial (1-2 parameters f
 ON_BOUND = 0.01          # a per-trial estimate this close to its box's edge (fraction of width)
 _PERIODIC = {p for e in EFFECTS.values() for p, per in zip(e.params, e.periodic) if per}
 _KEYS = {'min', 'max', 'max_abs', 'max_abs_deg', 'max_abs_L', 'max_abs_B', 'max_floor', 'why'}
-_cache: dict[str, dict] = {}
+_cache: dict[str, dict[str, Any]] = {}
 
 
-def _table() -> dict:
+def _table() -> dict[str, Any]:
     if 'table' not in _cache:
         path = resolve_config_path(RANGES_FILE)
         doc = load_yaml(path, 'ranges file') or {}
@@ -98,7 +98,7 @@ def implausible(ship: ShipConfig, effect: str, values: Mapping[str, float],
 
 
 def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
-              params: Sequence[str], trial_objs: Sequence[Objective]) -> list[dict]:
+              params: Sequence[str], trial_objs: Sequence[Objective]) -> list[dict[str, Any]]:
     """
     Fit an effect's parameters on each trial alone, the rest of the model held at theta.
 
@@ -126,7 +126,7 @@ def per_trial(ship: ShipConfig, space: ParameterSpace, theta: np.ndarray,
     return out
 
 
-def _along(effect: str, est: list[dict], joint: Mapping[str, float]
+def _along(effect: str, est: list[dict[str, Any]], joint: Mapping[str, float]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """
     Per-trial estimates and the joint fit measured from neutral along the joint fit's sense.
@@ -151,7 +151,7 @@ def _along(effect: str, est: list[dict], joint: Mapping[str, float]
     return x, se, j, np.array([sm for _, _, sm in sized])
 
 
-def disagreement(ship: ShipConfig, effect: str, est: list[dict],
+def disagreement(ship: ShipConfig, effect: str, est: list[dict[str, Any]],
                  joint: Mapping[str, float]) -> str:
     """
     Return why per-trial estimates contradict the joint fit ('' when they do not).

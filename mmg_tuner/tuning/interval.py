@@ -18,7 +18,7 @@ whether the interval holds (a nominal 90 % interval should cover about 90 % of t
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Any, cast, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.data.trial import Trial
@@ -28,6 +28,9 @@ from mmg_tuner.learn.train import members as net_members
 from mmg_tuner.tuning.evaluate import errors, INDEX_STATES, predict
 from mmg_tuner.tuning.report import unique_names
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.learn.residual import ResidualNet
 
 TINY = 1e-12
 """A spread below this is zero (a restart sample, where every member starts from the
@@ -50,7 +53,7 @@ class Interval:
     scale: tuple[float, ...]
     level: float
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {'level': self.level, 'members': len(self.members),
                 'scale': dict(zip(INDEX_STATES, self.scale))}
 
@@ -83,7 +86,8 @@ def _centre_and_spread(model: Model, members: Sequence[Model], trial: Trial,
     return err, spread
 
 
-def _ratios(model, members, trials, restart_every_s, integrator) -> list[np.ndarray]:
+def _ratios(model: Model, members: Sequence[Model], trials: Sequence[Trial],
+            restart_every_s: float, integrator: str) -> list[np.ndarray]:
     out = []
     for tr in trials:
         err, spread = _centre_and_spread(model, members, tr, restart_every_s, integrator)
@@ -119,7 +123,7 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
 
 
 def coverage(interval: Interval, trials: Sequence[Trial], restart_every_s: float = 100.0,
-             integrator: str = 'rk4') -> dict:
+             integrator: str = 'rk4') -> dict[str, Any]:
     """
     Return the share of samples inside the interval on ``trials``.
 
@@ -144,7 +148,8 @@ def with_interval(interval: Interval) -> Model:
     simulator node the uncertainty of a model loaded from its params.yaml
     (:func:`model_interval`).
     """
-    net = interval.model.residual
+    # an interval's model is an ensemble: it has a network (ensemble_members checked)
+    net = cast('ResidualNet', interval.model.residual)
     meta = {**net.meta, 'interval': {'level': interval.level,
                                      'scale': list(interval.scale),
                                      'states': list(INDEX_STATES)}}
