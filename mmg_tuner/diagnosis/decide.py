@@ -318,14 +318,16 @@ def beside_hull(ship: ShipConfig, final: ShipConfig, effects: Sequence[str],
     ship has none free.
     """
     base = ParameterSpace.around(ship, list(base_targets))
-    hull = ParameterSpace.around(ship, [n for n in HULL_RIVAL if n not in base_targets])
-    keep = hull.upper > hull.lower   # a derivative at zero has no box (+- a_r |0|)
-    if not keep.any():
+    values = ship.as_dict()
+    # a derivative the family lacks, or at zero without bounds, has no box (+- a_r |0|)
+    free = [n for n in HULL_RIVAL if n not in base_targets and n in values
+            and (values[n] != 0.0 or n in ship.tuning_bounds)]
+    if not free:
         return {}
-    free = [n for n, k in zip(hull.names, keep) if k]
+    hull = ParameterSpace.around(ship, free)
     names = list(base.names) + free
-    lo = list(base.lower) + list(hull.lower[keep])
-    hi = list(base.upper) + list(hull.upper[keep])
+    lo = list(base.lower) + list(hull.lower)
+    hi = list(base.upper) + list(hull.upper)
     n_struct = len(names)
     for e in effects:
         for p, (a, b) in zip(EFFECTS[e].params, EFFECTS[e].bounds(ship)):
