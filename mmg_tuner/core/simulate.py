@@ -117,7 +117,7 @@ def _optional(channel: str) -> bool:
 
 
 def simulate(ship: ShipConfig, x0: npt.ArrayLike,
-             controls: npt.ArrayLike | Mapping[str, npt.ArrayLike], dt: float,
+             controls: Trial | npt.ArrayLike | Mapping[str, npt.ArrayLike], dt: float,
              integrator: str = 'euler',
              substeps: int = 1, t0: float = 0.0, params: np.ndarray | None = None,
              check: bool = True) -> Trial:

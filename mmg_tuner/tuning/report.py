@@ -13,8 +13,9 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from pathlib import Path
 import re
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence, TYPE_CHECKING
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import json_default
@@ -25,6 +26,9 @@ from mmg_tuner.tuning import plots
 from mmg_tuner.tuning.objective import TrialBatch
 import numpy as np
 import yaml
+
+if TYPE_CHECKING:   # annotations only: matplotlib is imported where a figure is drawn
+    from matplotlib.figure import Figure
 
 
 def display_name(name: str) -> str:
@@ -96,7 +100,7 @@ def params_yaml_text(ship: ShipConfig, values: dict[str, float], note: str) -> s
             + yaml.safe_dump(doc, sort_keys=False))
 
 
-def json_text(doc: dict) -> str:
+def json_text(doc: dict[str, Any]) -> str:
     """
     Strict JSON with NumPy scalars/arrays converted.
 
@@ -106,7 +110,7 @@ def json_text(doc: dict) -> str:
     return json.dumps(_finite(doc), indent=2, default=json_default, allow_nan=False) + '\n'
 
 
-def _finite(o):
+def _finite(o: object) -> object:
     if isinstance(o, dict):
         return {k: _finite(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
@@ -118,11 +122,12 @@ def _finite(o):
     return o
 
 
-def write_params_yaml(path, ship: ShipConfig, values: dict[str, float], note: str) -> None:
+def write_params_yaml(path: str | Path, ship: ShipConfig, values: dict[str, float],
+                      note: str) -> None:
     write_atomic(path, params_yaml_text(ship, values, note))
 
 
-def write_json(path, doc: dict) -> None:
+def write_json(path: str | Path, doc: dict[str, Any]) -> None:
     write_atomic(path, json_text(doc))
 
 
@@ -134,7 +139,8 @@ def start_state(trial: Trial) -> np.ndarray:
     :func:`~mmg_tuner.tuning.objective.initial_state` as TrialBatch packs it), so reports describe
     the run that was tuned.
     """
-    return TrialBatch.from_trials([trial]).meas[0, 0].copy()
+    state: np.ndarray = TrialBatch.from_trials([trial]).meas[0, 0].copy()
+    return state
 
 
 def simulate_recorded(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
@@ -157,7 +163,7 @@ def simulate_trial(ship: ShipConfig, trial: Trial, params: np.ndarray, integrato
     return simulate_recorded(ship, trial, params, integrator, substeps).states
 
 
-def png_bytes(fig) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
     """Render a Figure to PNG bytes (kept here for callers; see :mod:`mmg_tuner.tuning.plots`)."""
     return plots.png_bytes(fig)
 
@@ -207,7 +213,7 @@ def fmt_gain(a: float | None, b: float | None) -> str:
     return f'{100 * (1 - b / a):.1f} %'
 
 
-def markdown_report(doc: dict) -> str:
+def markdown_report(doc: Mapping[str, Any]) -> str:
     J = doc['J']
     lines = [f"# Tuning report: {doc['ship']}", '',
              f"{doc['evaluations']} evaluations, {doc['restarts']} restarts, "
