@@ -186,7 +186,8 @@ def _trf_least_squares(space: ParameterSpace, obj: Objective, theta0: np.ndarray
         Z = np.tile(z, (d, 1))
         Z[np.arange(d), np.arange(d)] += step
         R = res_many(Z)
-        return ((R - r0[None]) / step[:, None]).T
+        out: np.ndarray = ((R - r0[None]) / step[:, None]).T
+        return out
 
     z0 = np.clip(space.to_unit(np.asarray(theta0, float)), 0.0, 1.0)
     max_nfev = max(3, int(max_sims) // (d + 1))
