@@ -25,13 +25,13 @@ import json
 import math
 from pathlib import Path
 import time
-from typing import Callable
+from typing import Any, Callable
 
 from cmaes import CMA
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import clip, json_loads, read_npz
 from mmg_tuner.errors import OutputError, TuningError
-from mmg_tuner.tuning.objective import Objective
+from mmg_tuner.tuning.objective import Objective, Prior
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
 
@@ -107,15 +107,16 @@ class _State:
     wall_s: float
     flat_gens: int = 0
     last_best_run: float = math.inf
-    history: list = field(default_factory=list)
+    history: list[tuple[int, int, float]] = field(default_factory=list)
     done: bool = False
 
 
-def _rounded(a: np.ndarray | None) -> list | None:
+def _rounded(a: np.ndarray | None) -> list[float] | None:
     return None if a is None else np.round(np.asarray(a, dtype=float), 12).tolist()
 
 
-def _prior_key(prior) -> tuple | None:
+def _prior_key(prior: Prior | None) -> tuple[list[float] | None, list[float] | None,
+                                             list[float] | None, float] | None:
     """Return what identifies a prior in a checkpoint's fingerprint (None: no prior)."""
     if prior is None:
         return None
@@ -301,7 +302,7 @@ class Tuner:
             'fingerprint': state.fingerprint, 'done': bool(state.done), 'rng': alg,
             'cma': kinds}))
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub: a key may be allow_pickle
         return buf.getvalue()
 
     def _decode(self, blob: bytes, path: Path | None) -> _State:
@@ -341,7 +342,8 @@ class Tuner:
             raise TuningError(f'{src}: damaged checkpoint ({clip(exc)}); re-run without '
                               '--resume') from None
 
-    def _state_from(self, a: dict[str, np.ndarray], meta: dict, src) -> _State:
+    def _state_from(self, a: dict[str, np.ndarray], meta: dict[str, Any], src: Path | str
+                    ) -> _State:
         """Rebuild the state from checked arrays; shapes compared with what this run expects."""
         def bad(what: str) -> TuningError:
             return TuningError(f'{src}: damaged checkpoint ({what}); re-run without --resume')
@@ -397,7 +399,7 @@ class Tuner:
         return str(getattr(self.objective.ship, 'name', ''))
 
 
-def _kind(v) -> str:
+def _kind(v: object) -> str:
     """How an optimizer attribute is stored and rebuilt (its exact Python / numpy type)."""
     if v is None:
         return 'none'
@@ -415,7 +417,7 @@ def _kind(v) -> str:
                       '(an unsupported cmaes version)')
 
 
-def _value(v: np.ndarray, kind: str):
+def _value(v: np.ndarray, kind: str) -> object:
     """Inverse of storing with :func:`_kind`: the same type and the same bits."""
     if kind == 'array':
         return v.copy()
