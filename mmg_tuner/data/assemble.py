@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import cast, Sequence
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import TABLE
@@ -106,7 +107,7 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
     Drop non-finite, implausible (outside limits, see core/limits.py) and duplicate samples, sort
     unsorted stamps; say what was done.
     """
-    def t(ns):
+    def t(ns: int) -> float:
         return (ns - t0_ns) * 1e-9
     ok = np.all(np.isfinite(s.values), axis=1)
     if not ok.all():
@@ -119,10 +120,10 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
         if mask.any():
             bad = np.nonzero(mask)[0]
             # an odometry vector is ENU/FLU whatever was read (a CSV's x is north): say so
-            order = ' (ENU x, y, yaw; FLU u, v, r)' if s.msgtype == 'nav_msgs/msg/Odometry' \
+            axes = ' (ENU x, y, yaw; FLU u, v, r)' if s.msgtype == 'nav_msgs/msg/Odometry' \
                 else ''
             s.notes.append(f'{s.topic}: dropped {bad.size} implausible sample(s) ({what}), '
-                           f'first at t = {t(s.stamps_ns[bad[0]]):.3f} s, value{order} '
+                           f'first at t = {t(s.stamps_ns[bad[0]]):.3f} s, value{axes} '
                            f'{s.values[bad[0]].tolist()}')
             s.stamps_ns, s.values = s.stamps_ns[~mask], s.values[~mask]
     if s.stamps_ns.size and np.any(np.diff(s.stamps_ns) < 0):
@@ -144,7 +145,7 @@ def clean_series(s: Series, path: str, t0_ns: int, role: str = '', tm: TopicMap 
 
 
 def _segments(rec: RawRecording, series: list[Series], tm: TopicMap, t0_ns: int, notes: list[str],
-              faults: list[tuple[float, float]] = ()) -> list[tuple[float, float]]:
+              faults: Sequence[tuple[float, float]] = ()) -> list[tuple[float, float]]:
     """
     Time ranges [s] covered by every topic without a gap longer than max_gap_s.
 
@@ -413,7 +414,8 @@ def check_clocks(path: str, series: dict[str, Series], tm: TopicMap) -> None:
     between streams (GPS time is 18 s ahead of UTC) that would shift the commands against the
     states: an error naming topic and field.
     """
-    lags = {r: (s.lag_s if s.base == 'header' else 0.0) for r, s in series.items()
+    # a header-timed series is kept only with its lag (not None)
+    lags = {r: (cast(float, s.lag_s) if s.base == 'header' else 0.0) for r, s in series.items()
             if s.base and (s.base == 'receive' or s.lag_s is not None)}
     if len(lags) < 2:
         return
@@ -680,7 +682,9 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
             east, north = od.values[:, 0], od.values[:, 1]
             t_yaw, yaw = t_od, frames.unwrap(od.values[:, 2])
             how.append(f'pose source: {od.topic} (PoseStamped)')
-        k = Kinematics(t_od, east, north, t_yaw, yaw, t_od, None, None, None, None)
+        # the velocities and the yaw rate are filled in below, before k is returned
+        k = Kinematics(t_od, east, north, t_yaw, yaw, t_od,
+                       None, None, None, None)  # type: ignore[arg-type]
         tw = ser.get('twist')
         if imu is not None:
             k.t_rate, k.wz = _t(imu, t0_ns), imu.values[:, 1]
@@ -725,8 +729,9 @@ def _kinematics(ser: dict[str, Series], kinds: dict[str, str], tm: TopicMap, t0_
     return k, how
 
 
-def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: TopicMap, t0_ns,
-              grid, path, name, notes, wind=None, thr: dict[str, Series] | None = None,
+def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: TopicMap, t0_ns: int,
+              grid: np.ndarray, path: str, name: str, notes: list[str],
+              wind: Series | None = None, thr: dict[str, Series] | None = None,
               keep_astern: bool = False, chan: dict[str, Series] | None = None
               ) -> list[Trial]:
     """
@@ -747,7 +752,8 @@ def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: Topic
         rpm_v = np.full(grid.size, np.nan)
         controls = None
     else:
-        rudder = _interp(rud, t0_ns, grid, 0) * tm.factor('rudder')
+        # rudder and rpm are both mapped (both None only per thruster)
+        rudder = _interp(cast(Series, rud), t0_ns, grid, 0) * tm.factor('rudder')
         rpm_v = _interp(rpm, t0_ns, grid, 0) * tm.factor('rpm')
         controls = np.column_stack([rpm_v, rudder])
     channels = {ch: _interp(s, t0_ns, grid, 0) * tm.factor(ch)
@@ -801,10 +807,12 @@ def _resample(kin: Kinematics, rud: Series | None, rpm: Series | None, tm: Topic
 
 
 def _interp(s: Series, t0_ns: int, grid: np.ndarray, col: int) -> np.ndarray:
-    return np.interp(grid, (s.stamps_ns - t0_ns) * 1e-9, s.values[:, col])
+    out: np.ndarray = np.interp(grid, (s.stamps_ns - t0_ns) * 1e-9, s.values[:, col])
+    return out
 
 
-def _true_wind(wind: Series, t0_ns: int, grid, psi, u, v) -> np.ndarray:
+def _true_wind(wind: Series, t0_ns: int, grid: np.ndarray, psi: np.ndarray, u: np.ndarray,
+               v: np.ndarray) -> np.ndarray:
     """Measured wind on the grid as the true air velocity (north, east) [m/s]."""
     a = _interp(wind, t0_ns, grid, 0)
     b = _interp(wind, t0_ns, grid, 1)
@@ -818,7 +826,8 @@ def _true_wind(wind: Series, t0_ns: int, grid, psi, u, v) -> np.ndarray:
     return np.column_stack([ub * c - vb * s, ub * s + vb * c])
 
 
-def body_velocities_from_poses(t, x, y, psi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def body_velocities_from_poses(t: np.ndarray, x: np.ndarray, y: np.ndarray, psi: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Body-frame u, v and yaw rate r from earth positions and heading (central differences)."""
     dx, dy, dpsi = np.gradient(x, t), np.gradient(y, t), np.gradient(psi, t)
     c, s = np.cos(psi), np.sin(psi)
