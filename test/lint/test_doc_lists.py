@@ -5,7 +5,9 @@ The lists in the documentation that can drift from the code: families, actuators
 every actuator model and every command; ``doc/reference/commands.md`` every command. Each list
 is read from its Markdown table and compared with what the code registers, both ways: a family,
 actuator, ship config or command added without its row, or a row left for one removed, fails.
-No Sphinx build: these run in a second.
+The concept pages ``doc/concepts/families.md`` and ``doc/concepts/actuators.md`` describe each
+family and actuator in a bullet of their own, under a count written in words; both are checked
+the same way. No Sphinx build: these run in a second.
 """
 from pathlib import Path
 import re
@@ -16,6 +18,10 @@ import yaml
 ROOT = Path(__file__).resolve().parents[2]
 LAYOUT = ROOT / 'doc' / 'reference' / 'layout.md'
 COMMANDS = ROOT / 'doc' / 'reference' / 'commands.md'
+FAMILIES = ROOT / 'doc' / 'concepts' / 'families.md'
+ACTUATORS = ROOT / 'doc' / 'concepts' / 'actuators.md'
+NUMBERS = ('zero', 'one', 'two', 'three', 'four', 'five', 'six', 'seven', 'eight', 'nine', 'ten',
+           'eleven', 'twelve')
 
 
 def _console_scripts() -> dict[str, str]:
@@ -82,3 +88,33 @@ def test_layout_lists_every_command_with_its_module():
 def test_commands_page_lists_every_command():
     rows = _rows(COMMANDS.read_text(), '| command | what it does |')
     assert set(rows) == set(_console_scripts()), 'commands.md: the commands of setup.py'
+
+
+def _bullets(text: str, pattern: str) -> list[str]:
+    """Return the names of the top-level bullets that open with ``pattern``'s name, in order."""
+    return re.findall(rf'^- {pattern}', text, flags=re.M)
+
+
+def _count(text: str, phrase: str) -> int:
+    """Return the number written in words before ``phrase`` (``Six families ship``: 6)."""
+    match = re.search(r'\b(\w+)\s+' + r'\s+'.join(phrase.split()), text)
+    assert match, f'no count before {phrase!r}'
+    return NUMBERS.index(match.group(1).lower())
+
+
+def test_families_concept_describes_every_family():
+    text = FAMILIES.read_text()
+    names = _bullets(text, r'\*\*(\w+)\*\*')
+    assert len(names) == len(set(names)), 'families.md: a family described twice'
+    assert set(names) == set(models.BUILTIN), 'families.md: a bullet per family of BUILTIN'
+    assert _count(text, 'families ship with the package') == len(models.BUILTIN), \
+        'families.md: how many families ship'
+
+
+def test_actuators_concept_describes_every_actuator():
+    text = ACTUATORS.read_text()
+    names = _bullets(text, r'`(\w+)`:')
+    assert len(names) == len(set(names)), 'actuators.md: an actuator described twice'
+    assert set(names) == set(actuators.BUILTIN), 'actuators.md: a bullet per actuator of BUILTIN'
+    assert _count(text, 'ship with the package') == len(actuators.BUILTIN), \
+        'actuators.md: how many actuators ship'
