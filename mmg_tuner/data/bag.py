@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 import sqlite3
 import struct
+from typing import Any, Callable, cast, Iterator, TYPE_CHECKING
 
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import TABLE
@@ -24,11 +25,21 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import OutputError, TrialDataError
 import numpy as np
 
+if TYPE_CHECKING:   # annotations only: geodesy is imported where a sensor bag is written
+    from mmg_tuner.core.geodesy import Datum
+    from rosbags.interfaces import Connection
+    from rosbags.typesys.store import MsgType
+
 try:  # rosbags >= 0.10
     from rosbags.typesys import Stores, get_typestore
     TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 except ImportError:  # pragma: no cover
-    TYPESTORE = None
+    # an older rosbags (requirements.txt asks for >= 0.10): reading or writing a bag then fails
+    TYPESTORE = None  # type: ignore[assignment]
+
+# an item of a container's reader: ('connections', [(topic, type, message count)]),
+# ('note', text) or a message (topic, type, receive time [ns], raw CDR bytes)
+_Item = tuple[Any, ...]
 
 
 @dataclass
@@ -87,15 +98,16 @@ def check_mcap_size(path: Path, size: int) -> None:
             'anything?); record it again or remove it')
 
 
-def _stamp_ns(header) -> int:
+# a rosbags message (deserialize_cdr's object) is a dataclass generated per type: Any here
+def _stamp_ns(header: Any) -> int:
     return int(header.stamp.sec) * NS + int(header.stamp.nanosec)
 
 
-def _yaw_from_quat(q) -> float:
+def _yaw_from_quat(q: Any) -> float:
     return float(frames.yaw_from_quaternion(q.x, q.y, q.z, q.w))
 
 
-def _quat_ok(q) -> float:
+def _quat_ok(q: Any) -> float:
     """1.0 for a unit quaternion (within 10 %), 0.0 for none (all zeros) or garbage."""
     n = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w
     return 1.0 if 0.81 <= n <= 1.21 else 0.0
@@ -106,8 +118,8 @@ def _quat_ok(q) -> float:
 SPEED_UNITS = ('rev/min', 'rev/s')
 
 
-def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
-            ) -> tuple[int | None, tuple]:
+def _decode(msg: Any, msgtype: str, joint: str, role: str, topic: str, path: str
+            ) -> tuple[int | None, tuple[float, ...]]:
     """(header stamp or None, values) of one message, by type."""
     if msgtype == 'nav_msgs/msg/Odometry':
         p, tw = msg.pose.pose, msg.twist.twist
@@ -155,7 +167,8 @@ def _decode(msg, msgtype: str, joint: str, role: str, topic: str, path: str
 
 def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, role: str,
                   topic: str, path: str
-                  ) -> tuple[np.ndarray | None, np.ndarray, dict[str, dict[str, int]]]:
+                  ) -> tuple[np.ndarray | None, np.ndarray | list[tuple[float, ...]],
+                             dict[str, dict[str, int]]]:
     """
     Decode one topic's messages: header stamps, values and frame_ids.
 
@@ -164,9 +177,10 @@ def _decode_topic(raws: list[bytes], recv: list[int], msgtype: str, joint: str, 
     """
     cols = decode_columns(raws, msgtype)
     if cols is not None:
-        st, values, frames = cols
-        return st, values, {k: {v: len(raws)} for k, v in frames.items()}
-    stamps, values = [], []
+        hdr, vals, fids = cols
+        return hdr, vals, {k: {v: len(raws)} for k, v in fids.items()}
+    stamps: list[int | None] = []
+    values: list[tuple[float, ...]] = []
     frames: dict[str, dict[str, int]] = {}
     for raw, ts in zip(raws, recv):
         try:
@@ -233,9 +247,9 @@ def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
     names is never replaced.
     """
     by_type: dict[str, list[str]] = {}
-    for topic, (typ, n) in sorted(found.items()):
+    for topic, (msgtype, n) in sorted(found.items()):
         if n > 0:
-            by_type.setdefault(typ, []).append(topic)
+            by_type.setdefault(msgtype, []).append(topic)
     notes: list[str] = []
     kw: dict[str, str] = {}
 
@@ -273,7 +287,8 @@ def resolve_topic_map(tm: TopicMap, found: dict[str, tuple[str, int]], path: str
         if _is_auto(tm, 'twist_topic'):
             pick('velocity (TwistStamped)', 'twist_topic', ('geometry_msgs/msg/TwistStamped',),
                  "twist.topic (or twist.topic: '' to derive velocities from the fixes)")
-    return (replace(tm, **kw) if kw else tm), notes
+    # kw holds topic and type fields only (str), not every field's type
+    return (replace(tm, **kw) if kw else tm), notes  # type: ignore[arg-type]
 
 
 def _reader_errors() -> tuple[type[BaseException], ...]:
@@ -320,7 +335,7 @@ def _check_bag_files(bag: Path) -> list[Path]:
     return files
 
 
-def _iter_rosbag2(path: Path):
+def _iter_rosbag2(path: Path) -> Iterator[_Item]:
     """
     Items of a rosbag2 folder.
 
@@ -348,7 +363,7 @@ def _iter_rosbag2(path: Path):
             yield from _iter_mcap_stream(f)
 
 
-def _iter_bare_mcap(path: Path):
+def _iter_bare_mcap(path: Path) -> Iterator[_Item]:
     """
     Rosbags reads a bare ROS 2 MCAP fastest.
 
@@ -372,7 +387,7 @@ def _iter_bare_mcap(path: Path):
         reader.close()
 
 
-def _iter_mcap_stream(path: Path):
+def _iter_mcap_stream(path: Path) -> Iterator[_Item]:
     """
     Every intact message of an MCAP file, read front to back without its summary.
 
@@ -386,7 +401,8 @@ def _iter_mcap_stream(path: Path):
     channels: dict[int, tuple[str, str]] = {}
     counts: dict[int, int] = {}
     n = orphans = 0
-    first_ns = last_ns = None
+    first_ns: int | None = None
+    last_ns: int | None = None
     complete = False
     problem = None
     with open(path, 'rb') as f:
@@ -420,8 +436,9 @@ def _iter_mcap_stream(path: Path):
         ends = problem is None or problem.startswith('EndOfFile')
         why = ('the file ends before its footer (a recorder stopped without closing it?)'
                if ends else f'the file is corrupt ({problem})')
+        span = cast(int, last_ns) - cast(int, first_ns)   # set with the first of n > 0 messages
         yield 'note', (f'{display_text(str(path))}: {why}; recovered the {n} intact '
-                       f'message(s) before the break, up to {(last_ns - first_ns) * 1e-9:.1f} s '
+                       f'message(s) before the break, up to {span * 1e-9:.1f} s '
                        'after the first; anything after it is lost'
                        + (f'; {orphans} message(s) of unknown channels skipped' if orphans
                           else ''))
@@ -458,8 +475,8 @@ def read_series(path: str | Path, tm: TopicMap) -> RawRecording:
         raise TrialDataError(f'{path}: not a rosbag2 directory or .mcap file')
     given_types = {topic: typ for role, (topic, typ, _) in _roles(tm).items()
                    if f'{role}_topic' in tm.given}
-    recv: dict[str, list] = {}
-    raws: dict[str, list] = {}
+    recv: dict[str, list[int]] = {}
+    raws: dict[str, list[bytes]] = {}
     found: dict[str, tuple[str, int]] = {}
     first = last = None
     notes: list[str] = []
@@ -524,14 +541,15 @@ def _identity(ns: np.ndarray) -> np.ndarray:
     return ns
 
 
-def _through_clock(c_recv: np.ndarray, c_val: np.ndarray):
+def _through_clock(c_recv: np.ndarray, c_val: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """Receive time [ns] -> simulated time by the /clock messages' (receive, value) pairs."""
     def to_sim(ns: np.ndarray) -> np.ndarray:
-        return np.interp(ns.astype(float), c_recv, c_val).astype(np.int64)
+        sim: np.ndarray = np.interp(ns.astype(float), c_recv, c_val).astype(np.int64)
+        return sim
     return to_sim
 
 
-def _linear_map(r0: int, h0: int, a: float, b: float):
+def _linear_map(r0: int, h0: int, a: float, b: float) -> Callable[[np.ndarray], np.ndarray]:
     """Receive time [ns] -> header clock: h0 + a + b (t - r0), a and b in seconds."""
     def to_hdr(ns: np.ndarray) -> np.ndarray:
         return h0 + np.round((a + b * (ns - r0) * 1e-9) * 1e9).astype(np.int64)
@@ -561,7 +579,7 @@ def _time_bases(series: dict[str, Series], headers: dict[str, np.ndarray | None]
             s.base = 'header'
     hdr_series = [s for s in series.values() if s.base == 'header']
 
-    to_hdr = _identity
+    to_hdr: Callable[[np.ndarray], np.ndarray] = _identity
     if hdr_series:
         ref = max(hdr_series, key=lambda s: s.stamps_ns.size)
         sim = (np.median(ref.stamps_ns) < SIM_TIME_MAX_NS
@@ -651,19 +669,21 @@ def write_trial_bag(trial: Trial, path: str | Path, storage: str = 'mcap',
                                                        Float64.__msgtype__))
                 for j, (c, factor) in enumerate(c_thr):
                     w.write(c, stamp, ts.serialize_cdr(
-                        Float64(data=float(trial.thrusters[k, j] / factor)),
+                        # c_thr has a topic per thruster only when the trial has thrusters
+                        Float64(data=float(cast(np.ndarray, trial.thrusters)[k, j] / factor)),
                         Float64.__msgtype__))
                 if c_wind is not None:  # true wind, ENU: x east, y north
+                    wind = cast(np.ndarray, trial.wind)   # c_wind: the trial has wind
                     w.write(c_wind, stamp, ts.serialize_cdr(V3S(
                         header=_header(stamp, 'map'),
                         vector=ts.types['geometry_msgs/msg/Vector3'](
-                            x=float(trial.wind[k, 1]), y=float(trial.wind[k, 0]), z=0.0)),
+                            x=float(wind[k, 1]), y=float(wind[k, 0]), z=0.0)),
                         V3S.__msgtype__))
     except (WriterError, OSError) as exc:
         raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None
 
 
-def _header(stamp_ns: int, frame_id: str):
+def _header(stamp_ns: int, frame_id: str) -> MsgType:
     ts = TYPESTORE.types
     return ts['std_msgs/msg/Header'](
         stamp=ts['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000,
@@ -671,7 +691,7 @@ def _header(stamp_ns: int, frame_id: str):
         frame_id=frame_id)
 
 
-def odometry_msg(state: np.ndarray, stamp_ns: int):
+def odometry_msg(state: np.ndarray, stamp_ns: int) -> MsgType:
     """nav_msgs/Odometry (rosbags type) of a model-frame state: ENU pose, FLU twist."""
     ts = TYPESTORE.types
     x, y, psi, u, v, r = (float(s) for s in state)
@@ -754,7 +774,7 @@ def write_replay_bag(trial: Trial, simulated: np.ndarray, path: str | Path,
         raise OutputError(f'{path}: cannot write rosbag2 ({_why(exc)})') from None
 
 
-def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
+def write_sensor_bag(trial: Trial, path: str | Path, datum: Datum | None = None, *,
                      lever_arm_m: tuple[float, float] = (0.0, 0.0), heading: str = 'imu',
                      twist_frame: str = '', gnss_frame: str = 'gps', imu_frame: str = 'imu_link',
                      state_stamp_offset_s: float = 0.0, sim_time: bool = False,
@@ -804,7 +824,7 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
     hdr_off = int(round(state_stamp_offset_s * 1e9))
     try:
         with Writer(path, version=9, storage_plugin=plugin) as w:
-            def conn(topic, key):
+            def conn(topic: str, key: str) -> Connection:
                 return w.add_connection(topic, names[key], typestore=TYPESTORE)
             c = {'fix': conn('/fix', 'fix'), 'imu': conn('/imu/data', 'imu'),
                  'rud': conn(TABLE['rudder'].topic, 'cmd'), 'rpm': conn(TABLE['rpm'].topic, 'cmd')}
@@ -817,7 +837,7 @@ def write_sensor_bag(trial: Trial, path: str | Path, datum=None, *,
             if sim_time and write_clock:
                 c['clock'] = conn('/clock', 'clock')
 
-            def put(key, stamp, msg):
+            def put(key: str, stamp: int, msg: MsgType) -> None:
                 w.write(c[key], stamp, TYPESTORE.serialize_cdr(msg, msg.__msgtype__))
             for k in range(len(trial)):
                 t_ns = int(round(trial.t[k] * 1e9))
