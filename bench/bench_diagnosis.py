@@ -92,7 +92,8 @@ CLASSES = ('clean', 'current', 'wind', 'rudder_offset', 'rudder_lag', 'rpm_scale
            'current+rudder_offset')
 # the twin-azimuth tug's classes (issue 24): qiuxin_tug's twin, not SUZAKU (see tug_case)
 TUG_CLASSES = ('tug_clean', 'tug_current', 'azimuth_offset_port', 'thrust_scale_stbd')
-# its trials: from generate's catalogue (data/generate.py twin_catalogue), 5 tuned, 5 held out
+# its trials: from generate's catalogue (core/actuators/twin_azimuth_trials.py), 5 tuned,
+# 5 held out
 TUG_TUNE = ('zigzag_p20deg_5rps', 'turning_p20deg_7rps', 'differential_1', 'random_1',
             'zigzag_p20deg_10rps')
 TUG_TEST = ('zigzag_m20deg_7rps', 'turning_m20deg_7rps', 'differential_2', 'random_2',
@@ -225,15 +226,15 @@ def tug_case(cls: str, seed: int):
     identification passed as --params) with the effect hidden, sailing generate's catalogue
     (TUG_TUNE, TUG_TEST) at 5 Hz with its RTK-class noise.
     """
-    from mmg_tuner.data.generate import generate_twin_trial, twin_catalogue, TwinNoise
+    from mmg_tuner.core.actuators import twin_azimuth_trials as twin
     rng = np.random.default_rng(10_000 + seed)
     effect = random_effect(cls, rng)
     truth = load_ship('qiuxin_tug').with_params(effect)
-    cat = {m.name: m for m in twin_catalogue(truth)}
+    cat = {m.name: m for m in twin.catalogue(truth)}
 
     def sail(names, k0):
-        return [generate_twin_trial(truth, cat[n], 5.0, TwinNoise(),
-                                    seed * 100 + k0 + i)[1] for i, n in enumerate(names)]
+        return [twin.generate(truth, cat[n], 5.0, twin.Noise(),
+                              seed * 100 + k0 + i)[1] for i, n in enumerate(names)]
     return truth, effect, sail(TUG_TUNE, 0), sail(TUG_TEST, 50)
 
 

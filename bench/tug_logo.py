@@ -14,14 +14,15 @@ Twin (default ``--twin generate``): ``generate --ship qiuxin_tug`` written to ``
 the same with ``--no-noise``: the same commands and the same truth, since the noise is drawn
 after the run (``check_paired`` verifies the names, times and commands). Identification: the
 paper's Table 2, 12 manoeuvres, 5212 samples at 5 Hz; held out: the twin's 12 validation runs
-(``data.generate.twin_catalogue``). ``--twin builtin``: this file's smaller catalogue (4380
-identification samples, 7 held out, simulated at 0.05 s and recorded at 0.2 s).
+(``core.actuators.twin_azimuth_trials.catalogue``). ``--twin builtin``: this file's
+smaller catalogue (4380 identification samples, 7 held out, simulated at 0.05 s and
+recorded at 0.2 s).
 
-Noise ``rtk`` (ASSUMPTION, ``data.generate.TwinNoise``): white, independent per sample and per
-channel: position 1.5 cm, heading 0.3 deg, u and v 1 cm/s, r 0.2 deg/s, azimuth feedback
-0.2 deg, shaft speed 0.02 rev/s (builtin: 0.05), commands exact. The recorded u, v, r are the
-true body velocities plus noise of their own, as a GNSS/INS navigation filter gives them; they
-are not formed from the noisy positions and heading.
+Noise ``rtk`` (ASSUMPTION, ``core.actuators.twin_azimuth_trials.Noise``): white, independent
+per sample and per channel: position 1.5 cm, heading 0.3 deg, u and v 1 cm/s, r 0.2 deg/s,
+azimuth feedback 0.2 deg, shaft speed 0.02 rev/s (builtin: 0.05), commands exact. The recorded
+u, v, r are the true body velocities plus noise of their own, as a GNSS/INS navigation filter
+gives them; they are not formed from the noisy positions and heading.
 
 Is that noise the paper's? The paper (sec. 4.1): the tug "has a Global Positioning System
 (GPS) sensor with Real-time kinematic positioning (RTK), and an inertial measurement unit (IMU)

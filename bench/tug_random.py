@@ -6,25 +6,25 @@ Randomised independent twin tugs: the default tug identification on tugs it neve
 
 Each seed draws a twin tug of its own (this module's code, not ``data.generate``): the
 published Table 3 coefficients (config/qiuxin_tug.yaml) each moved by a factor uniform in
-[0.85, 1.15]; a thrust curve that is not the package's polynomial in shape (either
-F = k n|n| + k1 n or F = k |n|^p sign(n), p in [1.8, 2.2]; astern thrust a ratio in
-[0.6, 0.9] of ahead); an azimuth drive drawn among three structures (``--drives``): a
-rate-saturated position loop with a first-order rate lag (alpha_dot_cmd =
-clip(Kp (alpha_c - alpha), +-rate_max), alpha'' = (alpha_dot_cmd - alpha') / tau, Kp in
-[1.5, 3] 1/s, tau in [0.08, 0.3] s, rate_max in [0.5, 1.0] rad/s; the structure the package's
-``twin_azimuth`` writes since the 29 November 2026 change, so no longer independent), a
-linear second order without a limit (natural frequency in [1.5, 4] rad/s, damping ratio in
-[0.6, 1.2]) and a rate-limited first order (alpha' = clip((alpha_c - alpha) / T, +-rate_max),
-T in [0.3, 1] s), recorded as the mean angle over each sample interval (the
-angle acting over it: the repository's convention, doc/guides/tug.md); sensor noise
-of the RTK/INS class (data.generate.TwinNoise: 1.5 cm, 0.3 deg heading, 1 cm/s, 0.2 deg/s,
-azimuth 0.2 deg, shaft 0.02 rev/s, load cell 0.3 N) times a factor in [0.5, 2]; a rate in
-[2, 10] Hz. The hull (surge_decoupled, Pedersen's Coriolis form) is integrated by RK4 at a
-step of at most 0.02 s, all manoeuvres of a twin at once. Manoeuvres: the paper's Table 2
-(straights from rest at 3, 5, 7, 10 rev/s; +20/20 azimuth zigzags closed on heading at those
-speeds; turns of 10-30 deg at 7 rev/s), and held out: mirrored zigzags at 4 and 8 rev/s,
-turns of -15 and -25 deg at 6 rev/s, two random command sequences, one differential run.
-A bollard-pull table (-max .. max rev/s, astern rows included) goes with each twin.
+[0.85, 1.15]; a thrust curve that is not the package's polynomial in shape (either F = k n|n| +
+k1 n or F = k |n|^p sign(n), p in [1.8, 2.2]; astern thrust a ratio in [0.6, 0.9] of ahead); an
+azimuth drive drawn among three structures (``--drives``): a rate-saturated position loop with
+a first-order rate lag (alpha_dot_cmd = clip(Kp (alpha_c - alpha), +-rate_max), alpha'' =
+(alpha_dot_cmd - alpha') / tau, Kp in [1.5, 3] 1/s, tau in [0.08, 0.3] s, rate_max in [0.5,
+1.0] rad/s; the structure the package's ``twin_azimuth`` writes since the 29 November 2026
+change, so no longer independent), a linear second order without a limit (natural frequency in
+[1.5, 4] rad/s, damping ratio in [0.6, 1.2]) and a rate-limited first order (alpha' =
+clip((alpha_c - alpha) / T, +-rate_max), T in [0.3, 1] s), recorded as the mean angle over each
+sample interval (the angle acting over it: the repository's convention, doc/guides/tug.md);
+sensor noise of the RTK/INS class (core.actuators.twin_azimuth_trials.Noise: 1.5 cm, 0.3 deg
+heading, 1 cm/s, 0.2 deg/s, azimuth 0.2 deg, shaft 0.02 rev/s, load cell 0.3 N) times a factor
+in [0.5, 2]; a rate in [2, 10] Hz. The hull (surge_decoupled, Pedersen's Coriolis form) is
+integrated by RK4 at a step of at most 0.02 s, all manoeuvres of a twin at once. Manoeuvres:
+the paper's Table 2 (straights from rest at 3, 5, 7, 10 rev/s; +20/20 azimuth zigzags closed on
+heading at those speeds; turns of 10-30 deg at 7 rev/s), and held out: mirrored zigzags at 4
+and 8 rev/s, turns of -15 and -25 deg at 6 rev/s, two random command sequences, one
+differential run. A bollard-pull table (-max .. max rev/s, astern rows included) goes with each
+twin.
 
 Per twin: the default ``tune --ship qiuxin_tug --bollard-pull bollard.csv`` (the command, on the
 twin's channel CSVs) with the paper's 12 manoeuvres, 6 and 3 (``--trials``); with 12 also

@@ -14,14 +14,14 @@ it as NAME_2, NAME_3, ...
 
 Examples
 --------
-A craft driven by two thrusters (the twin_azimuth actuator: qiuxin_tug, otter_usv) sails its
-own catalogue instead (data/generate.py twin_catalogue: the MBPE-LOGO paper's 12
+A craft whose actuator declares its own catalogue (``TRIALS``, core/actuators/__init__.py)
+sails that instead, at its rate with its sensors' noise (--only picks manoeuvres by name),
+written as channel CSVs (DIR/csv/NAME.csv: t, the states, its input channels), its tables and
+DIR/trials.yaml (which trial is for identification, which for validation; the stand-ins
+used). Two thrusters (twin_azimuth: qiuxin_tug, otter_usv): the MBPE-LOGO paper's 12
 identification manoeuvres, then mirrored zigzags, turns, random command sequences and
-differential thrust; --only picks some by name) at 5 Hz with RTK-class noise, written as
-channel CSVs (DIR/csv/NAME.csv: t,x,y,psi,u,v,r,n_port,n_stbd,azimuth_port,azimuth_stbd,
-azimuth_cmd_port,azimuth_cmd_stbd), a bollard-pull table (DIR/bollard_pull.csv: n,thrust in
-rev/s and N per thruster) and DIR/trials.yaml (which trial is for identification, which for
-validation; the stand-ins used).
+differential thrust, at 5 Hz with RTK-class noise, and a bollard-pull table
+(DIR/bollard_pull.csv: n,thrust in rev/s and N per thruster).
 
 generate --ship suzaku --out trials --maneuvers turning:35 turning:-35 zigzag:20 random:30
 generate --ship esso_osaka_3m --out berth --maneuvers berthing:20 random_astern:30 \
@@ -43,6 +43,7 @@ import math
 from pathlib import Path
 import shutil
 import sys
+from types import ModuleType
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner._ship_params import load_ship_with_params
@@ -50,13 +51,13 @@ from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import check_run, check_samples, Parser, run_command, SEED, UsageError
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.limits import input_limits
+from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
 from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
-from mmg_tuner.data.generate import (bollard_pull_table, generate_trial, generate_twin_trial,
-                                     is_twin, out_of_library, parse_maneuver, SensorNoise,
-                                     twin_catalogue, TwinNoise)
+from mmg_tuner.data.generate import (generate_trial, out_of_library, parse_maneuver,
+                                     SensorNoise, trial_kit)
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 import yaml
 
@@ -110,13 +111,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--thruster-rps', type=THRUSTER_RPS, default=20.0,
                     help='thruster speed of berthing / random_astern [rev/s] (0-200)')
     ap.add_argument('--duration', type=positive_float,
-                    help='[s] per trial (default 800; a twin-thruster craft: each catalogue '
+                    help='[s] per trial (default 800; a craft with its own catalogue: each '
                     "manoeuvre's own)")
     ap.add_argument('--rate-hz', type=RATE_HZ,
-                    help='sensor/recording rate (0.001-1000 Hz; default 10, a twin-thruster '
-                    'craft 5)')
+                    help='sensor/recording rate (0.001-1000 Hz; default 10, a craft with its own '
+                    "catalogue: its actuator's, e.g. 5)")
     ap.add_argument('--only', nargs='+', metavar='NAME',
-                    help='a twin-thruster craft: only these manoeuvres of its catalogue')
+                    help='a craft with its own catalogue: only these manoeuvres of it')
     ap.add_argument('--no-noise', action='store_true', help='write the truth, no sensor noise')
     ap.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
                     type=effect_spec,
@@ -200,10 +201,11 @@ def command(argv: list[str] | None = None) -> int:
             ship = out_of_library(ship, args.hull_scale, dict(args.scale))
         except ConfigError as exc:
             raise UsageError(f'--hull-scale/--scale: {exc}') from None
-    if is_twin(ship):   # two thrusters: its own catalogue, channel CSVs, a bollard table
-        return _twin(args, ship, maneuvers_given)
+    kit = trial_kit(ship)
+    if kit is not None:   # its actuator's own catalogue, channel CSVs, tables
+        return _catalogue(args, ship, kit, maneuvers_given)
     if args.only:
-        raise UsageError(f'--only: {ship.name} is not a twin-thruster craft; use --maneuvers')
+        raise UsageError(f'--only: {ship.name} has no catalogue of its own; use --maneuvers')
     args.duration = 800.0 if args.duration is None else args.duration
     args.rate_hz = 10.0 if args.rate_hz is None else args.rate_hz
     if args.from_advice:  # the trials a diagnosis advised (diagnosis/advice.py)
@@ -299,15 +301,16 @@ def _free_file(out: Path, stem: str, suffix: str) -> str:
     return cand
 
 
-def _twin(args, ship, maneuvers_given: bool) -> int:
-    """Sail a twin-thruster craft's catalogue; write channel CSVs, bollard table, trials.yaml."""
+def _catalogue(args: argparse.Namespace, ship: ShipConfig, kit: ModuleType,
+               maneuvers_given: bool) -> int:
+    """Sail the catalogue the ship's actuator declares; write channel CSVs, tables, trials.yaml."""
     for flag, given in (('--maneuvers', maneuvers_given), ('--rpm', args.rpm),
                         ('--speed-kn', args.speed_kn), ('--from-advice', args.from_advice),
                         ('--record-wind', args.record_wind)):
         if given:
-            raise UsageError(f'{flag}: {ship.name} is a twin-thruster craft: it sails its own '
-                             'catalogue (--only NAME ... picks some)')
-    catalogue = twin_catalogue(ship)
+            raise UsageError(f"{flag}: {ship.name} sails its actuator's own catalogue "
+                             '(--only NAME ... picks some)')
+    catalogue = kit.catalogue(ship)
     if args.only:
         names = [m.name for m in catalogue]
         unknown = [n for n in args.only if n not in names]
@@ -317,40 +320,41 @@ def _twin(args, ship, maneuvers_given: bool) -> int:
         catalogue = [m for m in catalogue if m.name in args.only]
     if args.duration is not None:
         catalogue = [replace(m, duration_s=args.duration) for m in catalogue]
-    rate = 5.0 if args.rate_hz is None else args.rate_hz
+    rate = float(kit.RATE_HZ) if args.rate_hz is None else args.rate_hz
     for m in catalogue:
         n = check_samples(m.duration_s * rate + 1, f'{m.name}: duration {m.duration_s:g} s x '
                           f'--rate-hz {rate:g}', MAX_TRIAL_SAMPLES)
         if n < MIN_SAMPLES:
             raise UsageError(f'{m.name}: {n} sample(s); a usable trial needs {MIN_SAMPLES}')
-    noise = TwinNoise.none() if args.no_noise else TwinNoise()
+    noise = kit.Noise.none() if args.no_noise else kit.Noise()
     out = OutputDir.open(args.out, resume=True)
     roles: dict[str, list[str]] = {'identification': [], 'validation': []}
     taken: set[str] = set()
     try:
         for i, m in enumerate(catalogue):
             name = free_name(out.path, m.name, taken)
-            _, measured = generate_twin_trial(ship, replace(m, name=name), rate, noise,
-                                              args.seed + 100 * i)
+            _, measured = kit.generate(ship, replace(m, name=name), rate, noise,
+                                       args.seed + 100 * i)
             out.write_text(Path('csv') / f'{name}.csv', trial_csv_text(measured))
             taken.add(name)
-            roles[m.role].append(name)
+            roles.setdefault(m.role, []).append(name)
             print(f'{name}: {len(measured)} samples at {rate:g} Hz ({m.role}) -> '
                   f'{out.path / "csv" / name}.csv')
-        table = bollard_pull_table(ship, noise, args.seed)
-        bollard = _free_file(out.path, 'bollard_pull', '.csv')
-        out.write_text(f'{bollard}.csv', 'n,thrust\n' + ''.join(
-            f'{n:.10g},{f:.10g}\n' for n, f in table))
+        written: dict[str, str] = {}
+        for key, (header, rows, what) in kit.tables(ship, noise, args.seed).items():
+            stem = _free_file(out.path, key, '.csv')
+            out.write_text(f'{stem}.csv', header + '\n' + ''.join(
+                ','.join(f'{v:.10g}' for v in row) + '\n' for row in rows))
+            written[key] = f'{stem}.csv'
+            print(f'{stem}.csv: {len(rows)} rows ({what})')
         listing = _free_file(out.path, 'trials', '.yaml')
         out.write_text(f'{listing}.yaml', yaml.safe_dump({
             'ship': ship.name, 'rate_hz': rate, 'noise': 'none' if args.no_noise else
             {k: float(v) for k, v in noise.__dict__.items()}, 'seed': args.seed,
-            'bollard_pull': f'{bollard}.csv', **roles,
-            'assumptions': 'thrust curve, azimuth constants and sensor noise are stand-ins '
-                           f'(see {ship.source or ship.name} and data/generate.py TwinNoise)'},
+            **written, **roles,
+            'assumptions': f'{kit.ASSUMPTIONS}; ship file: {ship.source or ship.name}'},
             sort_keys=False))
-        print(f'{bollard}.csv: {len(table)} rows (n [rev/s], thrust [N per thruster]); '
-              f'{len(roles["identification"])} identification and '
+        print(f'{len(roles["identification"])} identification and '
               f'{len(roles["validation"])} validation trials listed in '
               f'{out.path / listing}.yaml')
     finally:

@@ -6,9 +6,10 @@ formulas) driven by a water-jet-like actuator with its own input channels, inter
 nozzle angle behind a first-order lag) and forces. Both live in a temporary folder, are
 registered through the plugin environment variables (``core/plugins.py``) and never touch
 ``mmg_tuner/core``; the subprocess then loads a ship of the family, simulates it, checks the
-physics the toy defines, tunes two of its coefficients back from a simulated trial, writes
-its recordings to rosbag2 and reads them back, inspects them, and runs the ``tune`` and
-``diagnose`` commands on them (a hidden current is named).
+physics the toy defines, tunes two of its coefficients back from a simulated trial, sails the
+catalogue its actuator declares with the ``generate`` command, writes its recordings to
+rosbag2 and reads them back, inspects them, and runs the ``tune`` and ``diagnose`` commands
+on them (a hidden current is named).
 """
 from pathlib import Path
 import subprocess
@@ -89,6 +90,21 @@ print(res.params)
 assert abs(res.params['toy_Xu'] / 2600.0 - 1) < 0.02, res.params
 assert abs(res.params['toy_Nr'] / 45000.0 - 1) < 0.02, res.params
 
+# the generate command sails the catalogue the toy actuator declares (TRIALS): channel CSVs
+# the data layer reads back, with the toy's noise, listed by role in trials.yaml
+import io, contextlib, yaml
+from mmg_tuner.cli.generate import command as generate
+open('toy.yaml', 'w').write(TOY_SHIP_YAML)
+with contextlib.redirect_stdout(io.StringIO()):
+    assert generate(['--ship', 'toy.yaml', '--out', 'gen']) == 0
+listing = yaml.safe_load(open('gen/trials.yaml'))
+assert listing['identification'] == ['step_port'] and listing['validation'] == ['step_stbd']
+assert listing['rate_hz'] == 10.0 and listing['noise']['position_m'] == 0.05, listing
+from mmg_tuner.data.load import load_trials
+(gen,) = load_trials('gen/csv/step_port.csv')
+assert len(gen) == 601 and np.ptp(gen.inputs['jet_angle']) > 0.19, gen
+assert 0.01 < np.std(gen.states[:100, 1]) < 0.2   # the toy's position noise (0.05 m) is in
+
 # the data layer from the channel table: the toy's channels have topic-map sections (the
 # angle in degrees here) and go through a rosbag2 and back
 from mmg_tuner.data.bag import write_trial_bag
@@ -114,9 +130,7 @@ except Exception as exc:
     assert "'jet_thrust'" in str(exc) and '/nothing' in str(exc), exc
 
 # inspect reads the toy's recording with the same map and the ship's YAML
-import io, contextlib
 from mmg_tuner.cli.inspect import command as inspect
-open('toy.yaml', 'w').write(TOY_SHIP_YAML)
 open('toy_map.yaml', 'w').write('{jet_angle: {topic: /nozzle_deg, unit: deg}, '
                                 'resample: {dt: 0.1}}')
 buf = io.StringIO()

@@ -222,11 +222,14 @@ def test_a_tug_trial_missing_channels_is_refused_naming_each(tmp_path, tug):
 
 
 def test_the_otter_gets_a_differential_thrust_catalogue(tmp_path):
-    from mmg_tuner.data.generate import generate_twin_trial, twin_catalogue, TwinNoise
+    from mmg_tuner.data.generate import trial_kit
     otter = mt.load_ship('otter_usv')
-    cat = {m.name: m for m in twin_catalogue(otter)}
+    kit = trial_kit(otter)   # the catalogue its actuator declares (TRIALS)
+    assert kit is not None and kit.__name__.endswith('twin_azimuth_trials')
+    assert trial_kit(mt.load_ship('suzaku')) is None
+    cat = {m.name: m for m in kit.catalogue(otter)}
     assert 'zigzag_p0_3_5rps' in cat and cat['zigzag_p0_3_5rps'].role == 'identification'
-    truth, meas = generate_twin_trial(otter, cat['zigzag_p0_3_5rps'], 5.0, TwinNoise(), 3)
+    truth, meas = kit.generate(otter, cat['zigzag_p0_3_5rps'], 5.0, kit.Noise(), 3)
     assert np.all(truth['azimuth_port'] == 0) and np.all(truth['azimuth_stbd'] == 0)
     n_p, n_s = truth['n_port'], truth['n_stbd']
     assert n_p.max() == pytest.approx(6.5) and n_s.max() == pytest.approx(6.5)

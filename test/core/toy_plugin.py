@@ -19,6 +19,8 @@ STATES = ('nozzle',)
 DESCRIPTION = 'toy water jet (test plugin)'
 # what holds the service speed and what is starboard helm, for the plausibility checks
 PLAUSIBILITY = {'propulsion': ['thrust'], 'helm': {'nozzle': 'rudder'}}
+# what `generate` sails for a craft it drives (the module beside this one)
+TRIALS = 'toy_jet_trials'
 
 import math
 
@@ -50,6 +52,58 @@ def forces(p, u, v, r, act, k):
     T = act[k]
     Y = -T * math.sin(act[k + 1])
     return T * math.cos(act[k + 1]), Y, Y * p[_X]
+"""
+
+TOY_TRIALS = """
+'''What `generate` sails for a toy-jet craft: two nozzle steps, noisy position and heading.'''
+from dataclasses import dataclass
+import math
+
+import numpy as np
+from mmg_tuner.core.noise import Sigmas
+from mmg_tuner.core.simulate import simulate
+from mmg_tuner.core.trial import Trial
+
+RATE_HZ = 10.0
+ASSUMPTIONS = 'a toy: no real craft behind it'
+
+
+@dataclass(frozen=True)
+class Noise(Sigmas):
+    position_m: float = 0.05
+    heading_rad: float = math.radians(0.1)
+
+    def apply(self, trial, rng):
+        st = trial.states.copy()
+        st[:, 0:2] += rng.normal(0, self.position_m, (len(trial), 2))
+        st[:, 2] += rng.normal(0, self.heading_rad, len(trial))
+        return Trial(trial.t, st, name=trial.name, inputs=dict(trial.inputs),
+                     notes=trial.notes + ['sensor noise added: ' + self.describe()])
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    name: str
+    nozzle_rad: float
+    role: str = 'identification'
+    duration_s: float = 60.0
+
+
+def catalogue(ship):
+    return [Maneuver('step_port', 0.2), Maneuver('step_stbd', -0.2, 'validation')]
+
+
+def generate(ship, m, rate_hz, noise, seed):
+    t = np.arange(int(round(m.duration_s * rate_hz)) + 1) / rate_hz
+    order = {'jet_thrust': np.full(t.size, 4000.0),
+             'jet_angle': np.where(t > 10.0, m.nozzle_rad, 0.0)}
+    run = simulate(ship, [0, 0, 0, 2.0, 0, 0], order, 1.0 / rate_hz, 'rk4')
+    truth = Trial(run.t, run.states, name=m.name, inputs=run.inputs)
+    return truth, noise.apply(truth, np.random.default_rng(seed + 1))
+
+
+def tables(ship, noise, seed):
+    return {}
 """
 
 TOY_FAMILY = """
@@ -105,5 +159,6 @@ def toy_plugin_env(folder: Path) -> dict:
     (pkg / '__init__.py').write_text('')
     (pkg / 'toy_jet.py').write_text(textwrap.dedent(TOY_ACTUATOR))
     (pkg / 'toy_family.py').write_text(textwrap.dedent(TOY_FAMILY))
+    (pkg / 'toy_jet_trials.py').write_text(textwrap.dedent(TOY_TRIALS))
     return {'PYTHONPATH': str(folder), 'MMG_TUNER_FAMILIES': 'toyplug.toy_family',
             'MMG_TUNER_ACTUATORS': 'toyplug.toy_jet'}

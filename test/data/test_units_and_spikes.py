@@ -14,11 +14,11 @@ import math
 from mmg_tuner.cli.common import run_command
 from mmg_tuner.cli.generate import approach
 from mmg_tuner.cli.inspect import command as inspect_command
+from mmg_tuner.core.actuators import twin_azimuth_trials as twin
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.data.consistency import rpm_unit_warning
 from mmg_tuner.data.csv_io import csv_text, trial_csv_text
-from mmg_tuner.data.generate import (generate_trial, generate_twin_trial, SensorNoise,
-                                     TwinManeuver, TwinNoise)
+from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.ros.command_watch import channel_state, zeroed_on_timeout
 import pytest
 
@@ -64,8 +64,8 @@ def test_rpm_logged_as_rev_per_s_is_named_and_strict_fails(suzaku, zigzag, tmp_p
 @pytest.fixture(scope='module')
 def tug_csv(tmp_path_factory):
     ship = load_ship('qiuxin_tug')
-    m = TwinManeuver('zz', 'zigzag', 7.0, 20.0, approach_s=10.0, duration_s=60.0)
-    _, tr = generate_twin_trial(ship, m, 5.0, TwinNoise(), 7)
+    m = twin.Maneuver('zz', 'zigzag', 7.0, 20.0, approach_s=10.0, duration_s=60.0)
+    _, tr = twin.generate(ship, m, 5.0, twin.Noise(), 7)
     p = tmp_path_factory.mktemp('tug') / 'zz.csv'
     p.write_text(trial_csv_text(tr))
     return p

@@ -11,7 +11,7 @@ Cost: three tuning and three held-out manoeuvres of 100 s at 2.5 Hz, the quick b
 import math
 
 import mmg_tuner as mt
-from mmg_tuner.data.generate import generate_twin_trial, twin_catalogue, TwinNoise
+from mmg_tuner.core.actuators import twin_azimuth_trials as twin
 import numpy as np
 import pytest
 
@@ -25,8 +25,8 @@ BAND = 3.0          # standard errors
 
 
 def sail(truth, names, seed0):
-    cat = {m.name: m for m in twin_catalogue(truth)}
-    return [generate_twin_trial(truth, cat[n], RATE_HZ, TwinNoise(), seed0 + i)[1]
+    cat = {m.name: m for m in twin.catalogue(truth)}
+    return [twin.generate(truth, cat[n], RATE_HZ, twin.Noise(), seed0 + i)[1]
             for i, n in enumerate(names)]
 
 

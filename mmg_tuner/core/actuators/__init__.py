@@ -28,6 +28,15 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
      (``core/stepper.py``) writes its command to, when the actuator's own dynamics move the
      measured value toward a commanded one (an azimuth angle and its command).
+   * optionally ``TRIALS``: the module (beside this one, or a full module path) that says what
+     the ``generate`` command sails for a craft this actuator drives, in place of the
+     screw-and-rudder manoeuvres (``twin_azimuth_trials.py`` is the example): ``RATE_HZ``
+     (default recording rate), ``ASSUMPTIONS`` (a line for trials.yaml), ``Noise`` (a
+     ``core/noise.Sigmas`` dataclass with ``apply(trial, rng)``; its defaults are the
+     craft's sensors), ``catalogue(ship)`` (dataclasses with ``name``, ``role``
+     ('identification' or 'validation') and ``duration_s``), ``generate(ship, maneuver,
+     rate_hz, noise, seed) -> (truth, measured)`` and ``tables(ship, noise, seed)`` (name ->
+     (CSV header, rows, description), written beside the trials).
    * optionally ``PLAUSIBILITY``: ``{'propulsion': [outputs], 'helm': {output: 'rudder' or a
      fraction}}``, what the stability and turn checks set (``core/plausibility.py``; the
      entry of ``config/model_plausibility.yaml`` wins where it names the actuator; a name
@@ -102,6 +111,15 @@ def declared_params(name: str) -> tuple[str, ...]:
 def declared_inputs(name: str) -> tuple[str, ...]:
     """Return an actuator's ``INPUTS``, read from its source without importing it."""
     return tuple(declared(module_of(name), 'INPUTS'))
+
+
+def trials_module(name: str) -> str | None:
+    """Return the module an actuator names as its ``generate`` catalogue (``TRIALS``), or None."""
+    mod = module_of(name)
+    decl = declared(mod, 'TRIALS', '')
+    if not decl:
+        return None
+    return str(decl) if '.' in str(decl) else f'{mod.rsplit(".", 1)[0]}.{decl}'
 
 
 def declared_channels(name: str) -> dict[str, tuple[Any, ...]]:

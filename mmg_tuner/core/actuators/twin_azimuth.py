@@ -63,6 +63,8 @@ OUTPUTS = ('thrust_port', 'thrust_stbd', 'alpha_port', 'alpha_stbd')
 # dynamics then move the thruster (core/stepper.py)
 COMMANDED = {'azimuth_port': 'azimuth_cmd_port', 'azimuth_stbd': 'azimuth_cmd_stbd'}
 STATES = ('alpha_port', 'alpha_rate_port', 'alpha_stbd', 'alpha_rate_stbd')
+# what `generate` sails for a craft it drives: its catalogue, sensor noise and bollard-pull table
+TRIALS = 'twin_azimuth_trials'
 DESCRIPTION = ('two azimuth thrusters: polynomial thrust in rev/s, second-order angle '
                'dynamics, tau = T(alpha) f (MBPE-LOGO eqs. 8, 9, 20)')
 
