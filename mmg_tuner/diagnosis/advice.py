@@ -70,7 +70,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 import math
-from typing import Callable, Sequence
+from typing import Any, Callable, cast, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
@@ -84,6 +84,9 @@ from mmg_tuner.tuning.identifiability import jacobian
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only: load_advice imports it where a file is read
+    from pathlib import Path
 
 SPEC_VERSION = 1
 MIN_SEPARATION = 1.0   # ... and by at least the unexplained error: below it the rivals'
@@ -136,13 +139,15 @@ class TrialSpec:
                                  'must be > 0 and |rudder| <= 90 deg')
         if (self.rpm_after is None) != (self.step_at_s is None):
             raise DiagnosisError('advice spec: rpm_after and step_at_s go together')
+        # (step_at_s is not None with rpm_after, as just checked)
         if self.rpm_after is not None and not (self.rpm_after > 0
-                                               and 0 < self.step_at_s < self.duration_s):
+                                               and 0 < cast(float, self.step_at_s)
+                                               < self.duration_s):
             raise DiagnosisError(f'advice spec: rpm step to {self.rpm_after} at '
                                  f'{self.step_at_s} s must be > 0 rpm inside the trial')
 
     @classmethod
-    def from_dict(cls, d: dict) -> 'TrialSpec':
+    def from_dict(cls, d: dict[str, Any]) -> 'TrialSpec':
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
@@ -152,7 +157,7 @@ class TrialSpec:
         except TypeError as exc:
             raise DiagnosisError(f'advice spec: {exc}') from None
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @property
@@ -195,8 +200,8 @@ def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float
     T = int(round(spec.duration_s / dt)) + 1
     t = np.arange(T) * dt
     rpm = np.full(T, float(spec.rpm))
-    if spec.rpm_after is not None:
-        rpm[t >= spec.step_at_s] = spec.rpm_after
+    if spec.rpm_after is not None:   # a spec has step_at_s with rpm_after
+        rpm[t >= cast(float, spec.step_at_s)] = spec.rpm_after
     orders = np.zeros(T)
     executed = t >= spec.approach_s
     amp = math.radians(spec.rudder_deg)
@@ -242,7 +247,7 @@ def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
     return tr, noise.apply(tr, np.random.default_rng(seed + 1))
 
 
-def specs_from_diagnosis(doc: dict) -> list[TrialSpec]:
+def specs_from_diagnosis(doc: dict[str, Any]) -> list[TrialSpec]:
     """
     Return the advised trials of a diagnosis.json document (its 'advice' list), each once.
 
@@ -328,8 +333,9 @@ def separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
                               sigma_psi)
 
 
-def _replay_separation(ship, params_a, params_b, states, controls, dt, sigma_pos, sigma_psi,
-                       length: int | None = None) -> float:
+def _replay_separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
+                       states: np.ndarray, controls: np.ndarray, dt: float, sigma_pos: float,
+                       sigma_psi: float, length: int | None = None) -> float:
     T = len(states) if length is None else length
     out, _, k_fail = simulate_batch(ship.kind, np.vstack([params_a, params_b]), states[None, 0],
                                     controls[None], dt, np.array([T]), 'rk4',
@@ -375,7 +381,7 @@ def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float
     return rpm, max(u, 1e-3), dur, float(trials[0].dt)
 
 
-def _rival_figures(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
+def _rival_figures(ship: ShipConfig, rivals: list[dict[str, Any]], trials: Sequence[Trial],
                    sigma: tuple[float, float], specs: Sequence[TrialSpec], dt: float
                    ) -> list[_Item]:
     """Return each rival pair's predicted separation on every spec (0: cannot be run)."""
@@ -393,8 +399,8 @@ def _rival_figures(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial]
     return out
 
 
-def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
-           sigma: tuple[float, float]) -> list[dict]:
+def advise(ship: ShipConfig, rivals: list[dict[str, Any]], trials: Sequence[Trial],
+           sigma: tuple[float, float]) -> list[dict[str, Any]]:
     """
     Return, for each rival pair, the repertoire's trial that separates them best.
 
@@ -411,7 +417,7 @@ def advise(ship: ShipConfig, rivals: list[dict], trials: Sequence[Trial],
     return [_rival_entry(it, specs) for it in items if np.any(it.figures > 0)]
 
 
-def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict:
+def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict[str, Any]:
     order = np.argsort(-it.figures, kind='stable')
     spec, best = specs[order[0]], float(it.figures[order[0]])
     return {'about': it.about, 'kind': it.kind, 'instruction': _twice(spec),
@@ -422,7 +428,7 @@ def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict:
             'version': SPEC_VERSION}
 
 
-def suspect_measurement(a: dict) -> dict:
+def suspect_measurement(a: dict[str, Any]) -> dict[str, Any]:
     """
     Turn a suspected effect's rival entry into the measurement that settles it.
 
@@ -541,7 +547,8 @@ def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     jac, s2 = jacobian(obj, space, theta, 1e-3)
     # the recorded trials' Jacobian reduced to its R factor: the same least-squares geometry
     # (information adds over trials) in as many rows as parameters
-    r_rec = np.linalg.qr(jac, mode='r')
+    # (numpy's stub says a QRResult for every mode; mode='r' returns the R array)
+    r_rec = cast(np.ndarray, np.linalg.qr(jac, mode='r'))
     sailer = replace(ship, params=space.full_params(ship.params, theta)[0])
     rpm0, u0, dur, dt = operating_point(trials)
     specs = list(repertoire(ship, rpm0, u0, dur) if specs is None else specs)
@@ -554,17 +561,18 @@ def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
         o = Objective(ship, TrialBatch.from_trials([Trial(t, states, controls, name=spec.name)]),
                       obj.weights, 0.0, integ, obj.substeps)
         jc, _ = jacobian(o, space, theta, 1e-3)
-        r_with.append(np.linalg.qr(np.vstack([r_rec, jc]), mode='r'))
+        r_with.append(cast(np.ndarray, np.linalg.qr(np.vstack([r_rec, jc]), mode='r')))
     n = base.dim
     return _Information(specs, r_rec, r_with, s2, n, {e: n + k for k, e in enumerate(effects)},
                         space.upper - space.lower, smallest, tuple(base.names))
 
 
-def _information_entry(info: _Information, it: _Item) -> dict:
+def _information_entry(info: _Information, it: _Item) -> dict[str, Any]:
     """Return the advice entry of a barely identifiable effect (degenerate ones say so)."""
     e = it.about
     k = int(np.argmax(it.figures))
-    spec, res, rec = info.specs[k], float(it.figures[k]), float(it.recorded)
+    # (an information item's recorded resolution is a number, never None)
+    spec, res, rec = info.specs[k], float(it.figures[k]), float(cast(float, it.recorded))
     out = {'about': e, 'kind': it.kind, 'instruction': _twice(spec), 'spec': spec.to_dict(),
            'pair': mirrored(spec).to_dict(), 'separation': res, 'separation_recorded': rec,
            'settles': _settles(res, rec), 'se_with': info.smallest[e] / (2 * res),
@@ -579,7 +587,7 @@ def _information_entry(info: _Information, it: _Item) -> dict:
     return out
 
 
-def _pinned(info: _Information, it: _Item, out: dict) -> str:
+def _pinned(info: _Information, it: _Item, out: dict[str, Any]) -> str:
     """
     Add what re-running with the measured coefficients held needs and gives; return its text.
 
@@ -617,7 +625,7 @@ def _pinned(info: _Information, it: _Item, out: dict) -> str:
 
 def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
                        obj: Objective, effects: Sequence[str], trials: Sequence[Trial],
-                       about: Sequence[str] | None = None) -> list[dict]:
+                       about: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """
     Return, for each barely identifiable single-parameter effect, the trial that resolves it best.
 
@@ -646,9 +654,9 @@ def advise_information(ship: ShipConfig, base: ParameterSpace, base_theta: np.nd
 
 def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
                obj: Objective, effects: Sequence[str], trials: Sequence[Trial],
-               about: Sequence[str], rivals: list[dict],
+               about: Sequence[str], rivals: list[dict[str, Any]],
                sigma: tuple[float, float] | None = None,
-               rank: Callable[[str], float] | None = None) -> list[dict]:
+               rank: Callable[[str], float] | None = None) -> list[dict[str, Any]]:
     """
     Return one trial for the whole diagnosis, then the advice per rival pair and per effect.
 
@@ -670,7 +678,9 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     if rivals and sigma is None:
         raise DiagnosisError('advise_all: rival pairs are judged against sigma = (position [m], '
                              'heading [rad]); pass residual_scale(...)')
-    pairs = _rival_figures(ship, rivals, trials, sigma, specs, dt) if rivals else []
+    # (sigma is given with rivals, as just checked)
+    pairs = _rival_figures(ship, rivals, trials, cast(tuple[float, float], sigma), specs,
+                           dt) if rivals else []
     pairs = [it for it in pairs if np.any(it.figures > 0)]   # no trial of them can be run
     out = [_rival_entry(it, specs) for it in pairs]
     # a suspected effect that no trial separates from the model without it is settled by its
@@ -699,7 +709,7 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     return out
 
 
-def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | None:
+def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict[str, Any] | None:
     """
     Return the one trial for all items (None: fewer than two).
 
@@ -719,11 +729,11 @@ def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | N
 
     best, best_key = None, None
     for k, spec in enumerate(specs):
-        figs = [float(it.figures[k]) for it in items]
-        if not any(f > 0 for f in figs):
+        at_k = [float(it.figures[k]) for it in items]
+        if not any(f > 0 for f in at_k):
             continue
-        lifts = sum(_settles(f, it.recorded) for f, it in zip(figs, items))
-        gain = sum(max(ratio(f, it.recorded), -50.0) for f, it in zip(figs, items))
+        lifts = sum(_settles(f, it.recorded) for f, it in zip(at_k, items))
+        gain = sum(max(ratio(f, it.recorded), -50.0) for f, it in zip(at_k, items))
         if best_key is None or (lifts, gain) > best_key:
             best, best_key = k, (lifts, gain)
     if best is None:
@@ -745,7 +755,7 @@ def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict | N
             'runner_up': '', 'version': SPEC_VERSION}
 
 
-def joint_text(a: dict) -> str:
+def joint_text(a: dict[str, Any]) -> str:
     """
     Say what the joint trial settles, e.g.
 
@@ -764,7 +774,7 @@ def _settles(res: float, rec: float | None) -> bool:
     return bool(res >= MIN_SEPARATION and (rec is None or res > SETTLES * rec))
 
 
-def load_advice(path) -> list[TrialSpec]:
+def load_advice(path: str | Path) -> list[TrialSpec]:
     """Return the advised trials of a diagnosis.json file (errors name the file)."""
     from pathlib import Path
 

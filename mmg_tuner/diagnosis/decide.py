@@ -59,7 +59,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from itertools import combinations
 import math
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 from mmg_tuner.core.effects import EFFECTS, froude_factor
 from mmg_tuner.core.ship import ShipConfig
@@ -91,7 +91,7 @@ class Evidence:
     share: float                   # Shapley share of J(B) explained (apportioned)
     dispersion: float | None       # D_i (None: not testable, or a measured signal)
     trials_used: int               # per-trial estimates that entered D_i
-    per_trial: list[dict] = field(default_factory=list)   # {trial, estimate components}
+    per_trial: list[dict[str, Any]] = field(default_factory=list)  # {trial, components}
     verdict: str = ''              # 'cause' | 'mimic' | 'weak' | 'hull'
     why: str = ''
     # 5.: mean per-trial log(J without it / J with it) beside a free hull, its standard error
@@ -102,7 +102,7 @@ class Evidence:
     rival_se: float | None = None
     beside_hull_size: float | None = None   # its size in F+, in smallest sizes worth finding
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
@@ -155,7 +155,8 @@ def _per_trial_J(ship: ShipConfig, trials: Sequence[Trial], params: np.ndarray,
     obj = Objective(ship, TrialBatch.from_trials(list(trials)), shoot_every_s=restart_every_s,
                     integrator=integrator)
     J, _ = obj.per_trial(params)
-    return J[0]
+    first: np.ndarray = J[0]
+    return first
 
 
 def _jackknife(num: np.ndarray, den: np.ndarray) -> float:
@@ -363,7 +364,7 @@ def beside_hull(ship: ShipConfig, final: ShipConfig, effects: Sequence[str],
 
 
 def _estimates(final: ShipConfig, effect: str, trials: Sequence[Trial], integrator: str,
-               restart_every_s: float) -> list[dict]:
+               restart_every_s: float) -> list[dict[str, Any]]:
     """Fit the effect's parameters on each trial alone, the rest of the model held."""
     e = EFFECTS[effect]
     lo, hi = (np.array(b, float) for b in zip(*e.bounds(final)))

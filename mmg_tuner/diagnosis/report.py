@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 import math
-from typing import Callable
+from typing import Any, Callable
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -21,7 +21,8 @@ from mmg_tuner.tuning.report import display_name, fmt_gain, fmt_J, unique_names
 import numpy as np
 
 
-def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
+def to_dict(d: Diagnosis, residuals_base: dict[str, Any], residuals_final: dict[str, Any]
+            ) -> dict[str, Any]:
     causes = [c.to_dict() for c in d.causes]
     return {'causes': causes, 'baseline': d.baseline, 'final': d.final,
             'candidates': [[asdict(c) for c in r] for r in d.rounds],
@@ -29,7 +30,7 @@ def to_dict(d: Diagnosis, residuals_base: dict, residuals_final: dict) -> dict:
             'barely_identifiable': d.aliased, 'params': d.params, 'wall_s': d.wall_s}
 
 
-def markdown(doc: dict, ship: ShipConfig) -> str:
+def markdown(doc: dict[str, Any], ship: ShipConfig) -> str:
     b, f = doc['baseline'], doc['final']
     lines = [f'# Diagnosis: {ship.name}', '']
     if doc.get('setting'):
@@ -205,7 +206,8 @@ def markdown(doc: dict, ship: ShipConfig) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def _listed(items: list[dict] | None, header: str, line: Callable[[dict], str]) -> list[str]:
+def _listed(items: list[dict[str, Any]] | None, header: str,
+            line: Callable[[dict[str, Any]], str]) -> list[str]:
     """
     Return a headed list of effects the diagnosis did not name, or [] when there are none.
 
@@ -217,7 +219,7 @@ def _listed(items: list[dict] | None, header: str, line: Callable[[dict], str]) 
     return ['', header, '', *(f'- {line(x)}' for x in items)]
 
 
-def _decision_lines(doc: dict) -> list[str]:
+def _decision_lines(doc: dict[str, Any]) -> list[str]:
     """Return the verdict's evidence per fitted effect (diagnosis.json's ``decision``)."""
     rows = doc.get('decision') or []
     if not rows:
@@ -253,7 +255,7 @@ def _pct(x: float | None) -> str:
     return f'{100 * x:.1f} %'
 
 
-def _J(m: dict) -> str:
+def _J(m: dict[str, Any]) -> str:
     """Return a model's held-out J, or where it diverged."""
     return m['diverged'] if m.get('diverged') else _fmt_J(m['J_test'])
 
@@ -264,7 +266,7 @@ def _fmt_J(x: float | None) -> str:
 
 
 def residuals_for(ship: ShipConfig, params: dict[str, float], trials: list[Trial],
-                  integrator: str) -> tuple[dict, list[np.ndarray]]:
+                  integrator: str) -> tuple[dict[str, Any], list[np.ndarray]]:
     p = ship.with_params(params).params
     sims = simulate_trials(ship, p, trials, integrator)
     return summarize(trials, sims), sims
