@@ -39,7 +39,7 @@ named causes leave and never withdraws a cause.
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Any, cast, Mapping, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL, STATE_NAMES
@@ -51,6 +51,9 @@ from mmg_tuner.diagnosis.settings import MEASURED
 from mmg_tuner.tuning.parameters import ParameterSpace
 from mmg_tuner.tuning.report import unique_names
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.diagnosis.results import Cause
 
 NEAR_BOUND = 0.10          # an effect estimate this close to its box's edge (fraction of width)
 REMAINING_LARGE = 0.30     # final / base held-out J at or above this: a large error remains
@@ -78,7 +81,7 @@ def side_of(trial: Trial) -> int:
     return 1 if d[k] > 0 else -1
 
 
-def asymmetry(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict | None:
+def asymmetry(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict[str, Any] | None:
     """
     Regress each trial's mean yaw-rate and sway error on its side (see the module docstring).
 
@@ -87,15 +90,15 @@ def asymmetry(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict | Non
     the yaw-rate error (fractions of the recorded mean |r|), ``a_se`` (None with two trials),
     the same for sway (``v_a``, in % of the recorded mean |v|), ``significant`` and ``text``.
     """
-    rows = []
+    rows: list[dict[str, Any]] = []
     r_scale, v_scale = [], []
     for tr, name, sim in zip(trials, unique_names(trials), sims):
-        s = side_of(tr)
-        if s == 0 or sim is None or not np.all(np.isfinite(sim)):
+        side = side_of(tr)
+        if side == 0 or sim is None or not np.all(np.isfinite(sim)):
             continue
         k0 = int(np.argmax(np.abs(tr['rudder']) >= MIN_RUDDER_RAD))
         e = sim[k0:] - tr.states[k0:]
-        rows.append({'trial': name, 'side': 'starboard' if s > 0 else 'port', 's': s,
+        rows.append({'trial': name, 'side': 'starboard' if side > 0 else 'port', 's': side,
                      'e_r': float(np.mean(e[:, _R])), 'e_v': float(np.mean(e[:, _V]))})
         r_scale.append(np.abs(tr.states[k0:, _R]))
         v_scale.append(np.abs(tr.states[k0:, _V]))
@@ -107,7 +110,7 @@ def asymmetry(trials: Sequence[Trial], sims: Sequence[np.ndarray]) -> dict | Non
     if not (r_ref > 0 and v_ref > 0):
         return None
     s = np.array([r['s'] for r in rows], float)
-    out = {'trials': rows, 'r_ref_rad_s': r_ref, 'v_ref_m_s': v_ref}
+    out: dict[str, Any] = {'trials': rows, 'r_ref_rad_s': r_ref, 'v_ref_m_s': v_ref}
     for key, ref in (('r', r_ref), ('v', v_ref)):
         y = np.array([r[f'e_{key}'] for r in rows]) / ref
         a, b, se = _side_fit(s, y)
@@ -162,7 +165,7 @@ def _near_edge(ship: ShipConfig, effect: str, values: Mapping[str, float]) -> li
     return out
 
 
-def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = None,
+def evidence(doc: Mapping[str, Any], ship: ShipConfig, targets: Sequence[str] | None = None,
              a_r: float | None = None) -> tuple[list[str], list[str]]:
     """
     Implausible effects (strong evidence) and base coefficients on their bounds (weak).
@@ -205,9 +208,10 @@ def evidence(doc: Mapping, ship: ShipConfig, targets: Sequence[str] | None = Non
     return strong, weak
 
 
-def assess(doc: Mapping, ship: ShipConfig, trials: Sequence[Trial], final_params: np.ndarray,
-           integrator: str = 'rk4', *, targets: Sequence[str] | None = None,
-           a_r: float | None = None, learnable: Mapping | None = None) -> dict:
+def assess(doc: Mapping[str, Any], ship: ShipConfig, trials: Sequence[Trial],
+           final_params: np.ndarray, integrator: str = 'rk4', *,
+           targets: Sequence[str] | None = None, a_r: float | None = None,
+           learnable: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """
     Give the structure verdict of a diagnosis (see the module docstring).
 
@@ -223,8 +227,9 @@ def assess(doc: Mapping, ship: ShipConfig, trials: Sequence[Trial], final_params
     return verdict(doc, strong, weak, asym, learnable)
 
 
-def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
-            learnable: Mapping | None = None) -> dict:
+def verdict(doc: Mapping[str, Any], strong: list[str], weak: list[str],
+            asym: dict[str, Any] | None, learnable: Mapping[str, Any] | None = None
+            ) -> dict[str, Any]:
     """Weigh the evidence: 'structure', 'unexplained' or 'none' (see the module docstring)."""
     b, f = doc.get('baseline') or {}, doc.get('final') or {}
     Jb, Jf = b.get('J_test'), f.get('J_test')
@@ -284,8 +289,8 @@ def verdict(doc: Mapping, strong: list[str], weak: list[str], asym: dict | None,
             'remaining_is_noise': is_noise}
 
 
-def one_verdict(causes: list, st: dict, J_base: float | None = None,
-                noise: Mapping | None = None) -> tuple[list, list]:
+def one_verdict(causes: list[Cause], st: dict[str, Any], J_base: float | None = None,
+                noise: dict[str, Any] | None = None) -> tuple[list[Cause], list[Cause]]:
     """
     Return (causes, mimicking): every fitted cause moves to mimicking when structure wins.
 
@@ -298,7 +303,7 @@ def one_verdict(causes: list, st: dict, J_base: float | None = None,
     """
     # a cause sized by a measurement (Cause.measured) or a measured signal driving the model
     # (the recorded wind: nothing fitted) is a fact, not a fit that could bend to mimic a gap
-    def fact(c) -> bool:
+    def fact(c: Cause) -> bool:
         return bool(getattr(c, 'measured', '')) or getattr(c, 'effect', None) in MEASURED
 
     kept = [c for c in causes if fact(c)]
@@ -312,7 +317,7 @@ def one_verdict(causes: list, st: dict, J_base: float | None = None,
     return kept, fitted
 
 
-def markdown_lines(doc: Mapping) -> list[str]:
+def markdown_lines(doc: Mapping[str, Any]) -> list[str]:
     """Return the report's structure section from diagnosis.json's ``structure`` ([] if none)."""
     st = doc.get('structure')
     if not st:
@@ -374,8 +379,8 @@ def regime_values(trial: Trial, states: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Sequence[Trial],
-              options: Mapping | None = None, integrator: str = 'rk4',
-              restart_every_s: float = 100.0) -> dict:
+              options: Mapping[str, Any] | None = None, integrator: str = 'rk4',
+              restart_every_s: float = 100.0) -> dict[str, Any]:
     """
     Train a residual network on the final model and measure what it learns on held-out trials.
 
@@ -401,9 +406,12 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
     base = evaluate(ship, test_trials, restart_every_s, 'rk4', sigma=sig)
     hyb = evaluate(hybrid, test_trials, restart_every_s, 'rk4', sigma=sig)
     names = list(base.trials)
-    J_b = np.array([np.inf if base.trials[n].index is None else base.trials[n].index * len(t)
+    # (an index is cast to float where it was just checked not None)
+    J_b = np.array([np.inf if base.trials[n].index is None
+                    else cast(float, base.trials[n].index) * len(t)
                     for n, t in zip(names, test_trials)])
-    J_h = np.array([np.inf if hyb.trials[n].index is None else hyb.trials[n].index * len(t)
+    J_h = np.array([np.inf if hyb.trials[n].index is None
+                    else cast(float, hyb.trials[n].index) * len(t)
                     for n, t in zip(names, test_trials)])
     ok = bool(np.all(np.isfinite(J_b)) and np.all(np.isfinite(J_h)))
     share = float(1 - J_h.sum() / J_b.sum()) if ok and J_b.sum() > 0 else None
@@ -411,15 +419,19 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
     significant = bool(share is not None and share > LEARNABLE_MIN and se is not None
                        and share > 2 * se)
     # where: per state, and per regime bin (tertiles over the test samples)
-    eb, eh, reg, res = [], [], {k: [] for k in REGIMES}, []
+    eb_parts: list[np.ndarray] = []
+    eh_parts: list[np.ndarray] = []
+    reg_parts: dict[str, list[np.ndarray]] = {k: [] for k in REGIMES}
+    res_parts: list[np.ndarray] = []
     for tr, n in zip(test_trials, names):
-        eb.append(errors(base.trials[n].predicted, tr.states))
-        eh.append(errors(hyb.trials[n].predicted, tr.states))
+        eb_parts.append(errors(base.trials[n].predicted, tr.states))
+        eh_parts.append(errors(hyb.trials[n].predicted, tr.states))
         for k, x in regime_values(tr, tr.states).items():
-            reg[k].append(x)
-        res.append(simulate_segments(ship, fit.net, tr, 'rk4', restart_every_s)[1])
-    eb, eh, res = np.concatenate(eb), np.concatenate(eh), np.concatenate(res)
-    reg = {k: np.concatenate(v) for k, v in reg.items()}
+            reg_parts[k].append(x)
+        res_parts.append(simulate_segments(ship, fit.net, tr, 'rk4', restart_every_s)[1])
+    eb, eh = np.concatenate(eb_parts), np.concatenate(eh_parts)
+    res = np.concatenate(res_parts)
+    reg = {k: np.concatenate(v) for k, v in reg_parts.items()}
     col = {n: STATE_NAMES.index(n) for n in INDEX_STATES}
     fin = np.all(np.isfinite(eb), axis=1) & np.all(np.isfinite(eh), axis=1)
     per_state = {}
@@ -455,7 +467,7 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
             'notes': list(fit.notes), '_plot': (reg, res, fin)}
 
 
-def _where_text(per_state: Mapping, regimes: Mapping) -> str:
+def _where_text(per_state: Mapping[str, Any], regimes: Mapping[str, Any]) -> str:
     """
     Say where the learnable structure lives, e.g.
 
@@ -479,7 +491,7 @@ def _where_text(per_state: Mapping, regimes: Mapping) -> str:
     return '; '.join(parts)
 
 
-def plot_learnable(doc: Mapping) -> dict[str, bytes]:
+def plot_learnable(doc: Mapping[str, Any]) -> dict[str, bytes]:
     """Plot the network's accelerations against each regime (learnable_structure.png)."""
     from matplotlib.figure import Figure
 
