@@ -4,7 +4,8 @@
 Writes into a new folder model.json (M, C(nu), D(nu), the thruster map, units and frames),
 dynamics.casadi (the simulator's step and the continuous-time model as one CasADi function),
 nu_dot.casadi, linear.json (A, B at an operating point) and a README saying how to load them
-without mmg_tuner. Families driven by twin azimuth thrusters (qiuxin_tug) only.
+without mmg_tuner. Families driven by one actuator with a CasADi form (api/exporting.py:
+today the twin-azimuth tugs, e.g. qiuxin_tug).
 
 Examples
 --------
@@ -26,15 +27,15 @@ DT = bounded(float, 1e-4, 60.0, 'the discrete model step dt [s]')
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='export', description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ship', required=True,
-                    help='ship config name or YAML (a twin-azimuth family, e.g. qiuxin_tug)')
+                    help='ship config name or YAML (an exportable family, e.g. qiuxin_tug)')
     ap.add_argument('--params', help='params.yaml overlay (e.g. the output of tune)')
     ap.add_argument('--out', required=True, help='new (or empty) output folder')
     ap.add_argument('--at', metavar='KEY=V,...',
                     help='operating point of the linearisation: u, v [m/s], r [rad/s], psi '
-                         '[rad] and optionally n_port, n_stbd [rev/s], azimuth_port, '
-                         'azimuth_stbd [rad]; inputs not given are trimmed to steady motion '
-                         '(default: the service speed straight ahead, both thrusters at 80 %% '
-                         'of steering.max_thruster_rps)')
+                         "[rad] and optionally the actuator's values acting (a tug: n_port, "
+                         'n_stbd [rev/s], azimuth_port, azimuth_stbd [rad]); those not given '
+                         'are trimmed to steady motion (default: the service speed straight '
+                         "ahead, at 80 %% of the actuator's largest propulsion)")
     ap.add_argument('--dt', type=DT, default=0.2,
                     help='step of the discrete model and of A, B [s]')
     ap.add_argument('--integrator', choices=('rk4', 'euler'), default='rk4',

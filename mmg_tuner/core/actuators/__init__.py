@@ -37,6 +37,11 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      ('identification' or 'validation') and ``duration_s``), ``generate(ship, maneuver,
      rate_hz, noise, seed) -> (truth, measured)`` and ``tables(ship, noise, seed)`` (name ->
      (CSV header, rows, description), written beside the trials).
+   * optionally ``SYMBOLIC``: the module (beside this one, or a full path) that gives the
+     ``export`` command the actuator as CasADi expressions (``twin_azimuth_symbolic.py``:
+     ``STATES``, ``INPUTS``, ``ACTING`` and their units, ``outputs``, ``step``, ``rates``,
+     ``limits``, ``propulsion_max``, ``ahead``, ``bounds``, ``at_rest``, ``document``); a
+     family driven by it alone whose module has ``hull_document`` can be exported.
    * optionally ``PLAUSIBILITY``: ``{'propulsion': [outputs], 'helm': {output: 'rudder' or a
      fraction}}``, what the stability and turn checks set (``core/plausibility.py``; the
      entry of ``config/model_plausibility.yaml`` wins where it names the actuator; a name
@@ -113,13 +118,22 @@ def declared_inputs(name: str) -> tuple[str, ...]:
     return tuple(declared(module_of(name), 'INPUTS'))
 
 
-def trials_module(name: str) -> str | None:
-    """Return the module an actuator names as its ``generate`` catalogue (``TRIALS``), or None."""
+def companion(name: str, key: str) -> str | None:
+    """
+    Return the module an actuator names under ``key`` (``TRIALS``, ``SYMBOLIC``), or None.
+
+    A name without a dot is a module beside the actuator's own.
+    """
     mod = module_of(name)
-    decl = declared(mod, 'TRIALS', '')
+    decl = declared(mod, key, '')
     if not decl:
         return None
     return str(decl) if '.' in str(decl) else f'{mod.rsplit(".", 1)[0]}.{decl}'
+
+
+def trials_module(name: str) -> str | None:
+    """Return the module an actuator names as its ``generate`` catalogue (``TRIALS``), or None."""
+    return companion(name, 'TRIALS')
 
 
 def declared_channels(name: str) -> dict[str, tuple[Any, ...]]:

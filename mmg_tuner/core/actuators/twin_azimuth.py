@@ -65,6 +65,8 @@ COMMANDED = {'azimuth_port': 'azimuth_cmd_port', 'azimuth_stbd': 'azimuth_cmd_st
 STATES = ('alpha_port', 'alpha_rate_port', 'alpha_stbd', 'alpha_rate_stbd')
 # what `generate` sails for a craft it drives: its catalogue, sensor noise and bollard-pull table
 TRIALS = 'twin_azimuth_trials'
+# what `export` needs: its states, inputs and step as CasADi expressions
+SYMBOLIC = 'twin_azimuth_symbolic'
 DESCRIPTION = ('two azimuth thrusters: polynomial thrust in rev/s, second-order angle '
                'dynamics, tau = T(alpha) f (MBPE-LOGO eqs. 8, 9, 20)')
 

@@ -15,7 +15,7 @@ keeps the thrusters' sway force, 0 drops it. The paper's Table 4 values are in
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Callable, TYPE_CHECKING
 
 PARAMS = ('m11', 'm22', 'm33', 'd11', 'd22', 'd33', 'tau_v')
 COEFFICIENTS = PARAMS[:6]
@@ -67,3 +67,15 @@ def motion(p: FloatArray, u: float, v: float, r: float, X: float, Y: float,
 def mass_solve(p: FloatArray, X: float, Y: float, N: float) -> tuple[float, float, float]:
     """diag(m11, m22, m33)^-1 (X, Y, N) for external forces (wind)."""
     return X / p[_m11], Y / p[_m22], N / p[_m33]
+
+
+def hull_document(g: Callable[[str], float]) -> dict[str, Any]:
+    """Return M, C(nu) and D in the form above, for ``export``'s model.json (g: a parameter)."""
+    return {
+        'equations': 'M nu_dot + C(nu) nu + D nu = tau, tau_v = 0 drops the sway thrust',
+        'M': [[g('m11'), 0.0, 0.0], [0.0, g('m22'), 0.0], [0.0, 0.0, g('m33')]],
+        'C': {'form': 'C(nu) = [[0, 0, -m22 v], [0, 0, m11 u], [m22 v, -m11 u, 0]]',
+              'coefficients': {'m11': g('m11'), 'm22': g('m22')}},
+        'D': {'form': 'D = diag(d11, d22, d33)',
+              'coefficients': {k: g(k) for k in ('d11', 'd22', 'd33')}},
+        'switches': {'tau_v': g('tau_v')}}

@@ -25,7 +25,7 @@ the ship file gives the windage) act through M^-1; a current through the kinemat
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Callable, TYPE_CHECKING
 
 PARAMS = ('m11', 'm22', 'm23', 'm32', 'm33',
           'X_u', 'X_absu_u', 'X_uuu',
@@ -101,3 +101,28 @@ def mass_solve(p: FloatArray, X: float, Y: float, N: float) -> tuple[float, floa
     m33 = p[_m33]
     det = m22 * m33 - m23 * m32
     return X / p[_m11], (m33 * Y - m23 * N) / det, (m22 * N - m32 * Y) / det
+
+
+def hull_document(g: Callable[[str], float]) -> dict[str, Any]:
+    """Return M, C(nu), D(nu) in the form above, for ``export``'s model.json (g: a parameter)."""
+    m23c = g('m23') if g('coriolis_form') == 0.0 else 0.5 * (g('m23') + g('m32'))
+    coef = ('X_u', 'X_absu_u', 'X_uuu', 'Y_v', 'Y_absv_v', 'Y_absr_v', 'Y_vvv', 'Y_r',
+            'Y_absv_r', 'Y_absr_r', 'N_v', 'N_absv_v', 'N_absr_v', 'N_r', 'N_absr_r', 'N_rrr',
+            'N_absv_r')
+    return {
+        'equations': 'M nu_dot + C(nu) nu + D(nu) nu = tau',
+        'M': [[g('m11'), 0.0, 0.0], [0.0, g('m22'), g('m23')], [0.0, g('m32'), g('m33')]],
+        'C': {'form': 'C(nu) = [[0, 0, -(m22 v + m23c r)], [0, 0, m11 u], '
+                      '[m22 v + m23c r, -m11 u, 0]]',
+              'coefficients': {'m11': g('m11'), 'm22': g('m22'), 'm23c': m23c},
+              'm23c': 'm23 (coriolis_form 0, Pedersen) or (m23 + m32)/2 (1, Fossen)',
+              'coriolis_form': g('coriolis_form')},
+        'D': {'form': 'D(nu) = [[d11, 0, 0], [0, d22, d23], [0, d32, d33]]',
+              'entries': {
+                  'd11': '-X_u - X_absu_u |u| - X_uuu u^2',
+                  'd22': '-Y_v - Y_absv_v |v| - Y_absr_v |r| - Y_vvv v^2',
+                  'd23': '-Y_r - Y_absv_r |v| - Y_absr_r |r|',
+                  'd32': '-N_v - N_absv_v |v| - N_absr_v |r|',
+                  'd33': '-N_r - N_absv_r |v| - N_absr_r |r| - N_rrr r^2'},
+              'coefficients': {k: g(k) for k in coef},
+              'naming': 'X_absu_u is X_|u|u (abs<q> for |q|)'}}
