@@ -1,5 +1,5 @@
 """
-The lists in the documentation that can drift from the code: families, actuators, commands.
+The documentation's lists that can drift from the code: families, actuators, commands, effects.
 
 ``doc/reference/layout.md`` lists every model family (with its actuators and its ship configs),
 every actuator model and every command; ``doc/reference/commands.md`` every command. Each list
@@ -7,12 +7,13 @@ is read from its Markdown table and compared with what the code registers, both 
 actuator, ship config or command added without its row, or a row left for one removed, fails.
 The concept pages ``doc/concepts/families.md`` and ``doc/concepts/actuators.md`` describe each
 family and actuator in a bullet of their own, under a count written in words; both are checked
-the same way. No Sphinx build: these run in a second.
+the same way, and ``doc/concepts/effects.md``'s table against the effects library. No Sphinx
+build: these run in a second.
 """
 from pathlib import Path
 import re
 
-from mmg_tuner.core import actuators, models
+from mmg_tuner.core import actuators, effects, models
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -20,6 +21,7 @@ LAYOUT = ROOT / 'doc' / 'reference' / 'layout.md'
 COMMANDS = ROOT / 'doc' / 'reference' / 'commands.md'
 FAMILIES = ROOT / 'doc' / 'concepts' / 'families.md'
 ACTUATORS = ROOT / 'doc' / 'concepts' / 'actuators.md'
+EFFECTS = ROOT / 'doc' / 'concepts' / 'effects.md'
 NUMBERS = ('zero', 'one', 'two', 'three', 'four', 'five', 'six', 'seven', 'eight', 'nine', 'ten',
            'eleven', 'twelve')
 
@@ -118,3 +120,17 @@ def test_actuators_concept_describes_every_actuator():
     assert set(names) == set(actuators.BUILTIN), 'actuators.md: a bullet per actuator of BUILTIN'
     assert _count(text, 'ship with the package') == len(actuators.BUILTIN), \
         'actuators.md: how many actuators ship'
+
+
+def test_effects_concept_lists_every_effect():
+    text = EFFECTS.read_text()
+    start = text.index('| effect | parameters |')
+    names: list[str] = []
+    for line in text[start:].split('\n')[2:]:
+        if not line.startswith('|'):
+            break
+        for name in re.findall(r'`(\w+)`', line.strip('|').split('|')[0]):
+            # `thrust_scale_port`, `_stbd`: a suffix replaces the previous name's last part
+            names.append(names[-1].rsplit('_', 1)[0] + name if name.startswith('_') else name)
+    assert len(names) == len(set(names)), 'effects.md: an effect listed twice'
+    assert set(names) == set(effects.EFFECTS), 'effects.md: a row per effect of core/effects.py'
