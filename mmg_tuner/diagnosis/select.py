@@ -106,7 +106,7 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Callable, NamedTuple, Sequence
+from typing import Any, Callable, cast, Mapping, NamedTuple, Sequence, TypeVar
 
 from mmg_tuner.core.effects import describe_values, Effect, EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
@@ -120,7 +120,7 @@ from mmg_tuner.diagnosis.plausible import disagreement, implausible, per_trial
 from mmg_tuner.diagnosis.residuals import simulate_trials
 from mmg_tuner.diagnosis.results import Candidate, Cause, Diagnosis
 from mmg_tuner.diagnosis.settings import DiagnosisSettings, MapFn, MEASURED, RETUNE_METHODS
-from mmg_tuner.diagnosis.stats import acceptance, jackknife_se, pinned_on_bound
+from mmg_tuner.diagnosis.stats import acceptance, jackknife_se, pinned_on_bound, Verdict
 from mmg_tuner.errors import DiagnosisError
 from mmg_tuner.tuning.identifiability import aliasing, standard_errors
 from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
@@ -146,6 +146,8 @@ PRE_SCREEN_SHARE = 0.25
 # beside a real rudder offset 10 standard errors from none (1.4e-5), the trial-robust ones a
 # real offset of -0.68 deg beside a bias within 1.2 of none (0.59 deg)
 AT_NOTHING = 0.5
+_T = TypeVar('_T')
+_R = TypeVar('_R')
 
 
 class _Model:
@@ -171,15 +173,24 @@ class _Model:
         self.space = ParameterSpace(tuple(names), np.array(pre), np.array(lo), np.array(hi))
 
 
+# a candidate as tried: (its Candidate, its model, its optimum, its per-trial held-out J)
+_Tried = tuple[Candidate, _Model, np.ndarray, np.ndarray]
+# the members of a joint fit: (effect, its fitted values)
+_Members = list[tuple[str, dict[str, float]]]
+# an accepted joint fit: (Candidate, model, theta, per-trial held-out J, members, the effects
+# sized on every trial, the parameters they were sized at)
+_Joint = tuple[Candidate, _Model, np.ndarray, np.ndarray, _Members, list[str], np.ndarray]
+
+
 class _NamedFrom(NamedTuple):
     """The round that named a cause, as a later joint fit starts from it."""
 
     model: _Model                  # the model before the cause
     theta: np.ndarray              # its optimum
-    screened: dict                 # {effect: its screened theta}
+    screened: dict[str, np.ndarray]  # {effect: its screened theta}
     ranking: list[str]             # the screen's order
     significant: list[str]         # effects significant beside the cause, not named
-    accepted: dict                 # {effect: (Candidate, model, theta, J_test)}, as good alone
+    accepted: dict[str, _Tried]    # {effect: (Candidate, model, theta, J_test)}, as good alone
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,7 +206,9 @@ class _Objectives:
     wind: tuple[Objective, Objective] | None
 
     def of(self, model: _Model) -> tuple[Objective, Objective]:
-        return self.wind if model.measured_wind else self.plain
+        # (a model the measured wind drives exists only when the trials carry one: wind set)
+        return cast(tuple[Objective, Objective], self.wind) if model.measured_wind \
+            else self.plain
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,12 +274,12 @@ def _run_fit(f: _Fit) -> np.ndarray:
     return res.theta
 
 
-def _plain_map(fn, items):
+def _plain_map(fn: Callable[[_T], _R], items: Sequence[_T]) -> list[_R]:
     return [fn(x) for x in items]
 
 
 def _tune_many(fits: Sequence[_Fit], store: SearchCheckpoint | None,
-               map_fn: MapFn | None) -> list[np.ndarray]:
+               map_fn: MapFn[_Fit, np.ndarray] | None) -> list[np.ndarray]:
     """
     Every tuning, in input order.
 
@@ -277,22 +290,23 @@ def _tune_many(fits: Sequence[_Fit], store: SearchCheckpoint | None,
     keys = [f.key() for f in fits]
     out: list[np.ndarray | None] = [store.get(k) if store is not None else None for k in keys]
     todo = [i for i, th in enumerate(out) if th is None]
+    # (each return below follows the filling of every entry: no None is left)
     if not todo:
-        return out
+        return cast(list[np.ndarray], out)
     if map_fn is None:
         for i in todo:
             out[i] = _run_fit(fits[i])
             if store is not None:
-                store.put(keys[i], out[i])
-        return out
+                store.put(keys[i], cast(np.ndarray, out[i]))
+        return cast(list[np.ndarray], out)
     got = list(map_fn(_run_fit, [fits[i] for i in todo]))
     if len(got) != len(todo):
         raise DiagnosisError(f'map_fn returned {len(got)} results for {len(todo)} tasks')
     for i, th in zip(todo, got):
         out[i] = np.asarray(th, float)
         if store is not None:
-            store.put(keys[i], out[i])
-    return out
+            store.put(keys[i], cast(np.ndarray, out[i]))
+    return cast(list[np.ndarray], out)
 
 
 def _pct_change(ref: float, new: float) -> str:
@@ -301,12 +315,15 @@ def _pct_change(ref: float, new: float) -> str:
     return f'{100 * (new / ref - 1):+.1f} %'
 
 
-def _per_trial_J(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta) -> np.ndarray:
+def _per_trial_J(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta: np.ndarray
+                 ) -> np.ndarray:
     J, _ = obj.per_trial(space.full_params(ship.params, theta))
-    return J[0]
+    first: np.ndarray = J[0]
+    return first
 
 
-def _failure_text(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta) -> str:
+def _failure_text(obj: Objective, ship: ShipConfig, space: ParameterSpace, theta: np.ndarray
+                  ) -> str:
     """'diverged on trial X at t = ... s' for the first failing trial ('' if none)."""
     ev = obj.evaluate(space.full_params(ship.params, theta)[0])
     return str(ev.failures[0]) if ev.failures else ''
@@ -324,15 +341,18 @@ def check_trial_sets(tune_trials: Sequence[Trial], test_trials: Sequence[Trial])
 
 
 def _without_wind(trials: Sequence[Trial]) -> list[Trial]:
-    return [replace(t, wind=None) if t.wind is not None else t for t in trials]
+    # (Trial's __init__ takes wind, a view of its wind channels; mypy checks only the fields)
+    return [replace(t, wind=None) if t.wind is not None else t  # type: ignore[call-arg]
+            for t in trials]
 
 
 class _Clock:
     """Wall time per stage (seconds, summed over visits)."""
 
-    def __init__(self):
-        self.t = {}
-        self._stage, self._t0 = None, 0.0
+    def __init__(self) -> None:
+        self.t: dict[str, float] = {}
+        self._stage: str | None = None
+        self._t0 = 0.0
 
     def __call__(self, stage: str | None) -> None:
         now = time.perf_counter()
@@ -342,8 +362,8 @@ class _Clock:
 
 
 def _base_tune(base: ParameterSpace, obj: Objective, s: DiagnosisSettings,
-               store: SearchCheckpoint, what: str, side: Path | None, resume: bool, log
-               ) -> np.ndarray:
+               store: SearchCheckpoint, what: str, side: Path | None, resume: bool,
+               log: Callable[[str], None]) -> np.ndarray:
     """
     Tune the base targets: CMA-ES stopped on stagnation, then a least-squares polish.
 
@@ -377,7 +397,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
              settings: DiagnosisSettings | None = None,
              log: Callable[[str], None] | None = None, *,
              checkpoint: str | Path | None = None, resume: bool = False,
-             map_fn: MapFn | None = None) -> Diagnosis:
+             map_fn: MapFn[Any, Any] | None = None) -> Diagnosis:
     """
     Tune the base model, search the effects library, name the cause(s).
 
@@ -402,7 +422,9 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     clock('setup')
     # measured coefficients: their values are the pre-determined ones, and every tuning is
     # pulled toward them by their standard errors (diagnosis/measured.py), never fixed
-    meas = measured_mod.check(s.measurements, 'the diagnosis settings (measurements)')
+    # (the settings hold Measurements, typed object there; check verifies them)
+    meas = measured_mod.check(cast(Mapping[str, measured_mod.Measurement], s.measurements),
+                              'the diagnosis settings (measurements)')
     if meas:
         ship = ship.with_params({n: m.value for n, m in meas.items()})
         log('   measured (priors, value +- standard error): ' + ', '.join(
@@ -433,9 +455,9 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             'L_OA, CD_t, rho_air)')
     setting = resolve(ship, list(tune_trials) + list(test_trials), s.setting)
     impossible = impossible_effects(setting)
-    for m, (eff, _) in MEASURED.items():
+    for sig, (eff, _) in MEASURED.items():
         if eff in impossible:
-            impossible[m] = impossible[eff]
+            impossible[sig] = impossible[eff]
     ruled_out = [f'{e} ({why})' for e, why in impossible.items() if e in effects]
     log(f'   setting: {setting.describe()}'
         + ('; impossible here: ' + ', '.join(ruled_out) if ruled_out else ''))
@@ -492,17 +514,21 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
     # model driven by it gets its own base tune by the same procedure, so that "with" and
     # "without" are compared at equal effort (a re-tune from the windless optimum may stay in
     # that optimum's basin)
-    wind_theta = _base_tune(base, objs.wind[0], s, store, 'base with the measured wind', None,
-                            False, log) if measured else None
+    # (a measured signal is a candidate only when the trials carry a wind: objs.wind is set,
+    # here and where the search reads it for one)
+    wind_theta = _base_tune(base, cast(tuple[Objective, Objective], objs.wind)[0], s, store,
+                            'base with the measured wind', None, False, log) \
+        if measured else None
     if meas:   # from here on, with the tuned base model's J per residual (its s^2)
         objs = _with_measurements(plain_objs, meas,
                                   measured_mod.s2_of(obj, ship, model.space, theta))
         obj = objs.plain[0]
     J_test = _per_trial_J(obj_test, ship, model.space, theta)
-    baseline = {'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
-                'J_test': float(J_test.sum()),
-                'J_test_per_trial': dict(zip(obj_test.batch.names, J_test.tolist())),
-                'params': dict(zip(base.names, theta.tolist()))}
+    baseline: dict[str, Any] = {
+        'J_tune': float(_per_trial_J(obj, ship, model.space, theta).sum()),
+        'J_test': float(J_test.sum()),
+        'J_test_per_trial': dict(zip(obj_test.batch.names, J_test.tolist())),
+        'params': dict(zip(base.names, theta.tolist()))}
     base_fail = _failure_text(obj_test, ship, model.space, theta) \
         if not np.all(np.isfinite(J_test)) else ''
     if base_fail:
@@ -523,13 +549,13 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
 
     log('2/3 searching the effects library')
     causes: list[Cause] = []
-    rounds = []
-    impossible_fits: list[dict] = []
-    measured_doc: list[dict] = []
-    rival_pairs: list[dict] = []
-    suspected: list[dict] = []
+    rounds: list[list[Candidate]] = []
+    impossible_fits: list[dict[str, Any]] = []
+    measured_doc: list[dict[str, Any]] = []
+    rival_pairs: list[dict[str, Any]] = []
+    suspected: list[dict[str, Any]] = []
     first_screen: dict[str, float] = {}
-    named_from = None
+    named_from: _NamedFrom | None = None
     swapped_out: set[str] = set()   # named, then replaced by a rival (never named back)
     remaining = effects + measured
     while remaining and len(causes) < s.max_effects:
@@ -578,7 +604,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             null_start = null_th
         for name in remaining:   # a measured signal has nothing to fit: its J with the base
             if name in MEASURED:
-                J_m = _per_trial_J(objs.wind[0], ship, model.space, theta).sum()
+                J_m = _per_trial_J(cast(tuple[Objective, Objective], objs.wind)[0], ship,
+                                   model.space, theta).sum()
                 drop = float(1 - J_m / J_now) if math.isfinite(J_m) and J_now > 0 \
                     else -math.inf
                 screened.append((drop, name, theta.copy()))
@@ -605,7 +632,8 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
                 m = _Model(ship, base, model.effects, True)
                 # from its own base tune (or the current optimum, whichever fits better)
                 own = np.concatenate([wind_theta, theta[base.dim:]])
-                J2 = objs.wind[0](m.space.full_params(ship.params, np.vstack([own, th0])))
+                J2 = cast(tuple[Objective, Objective], objs.wind)[0](
+                    m.space.full_params(ship.params, np.vstack([own, th0])))
                 th0 = own if J2[0] <= J2[1] or not np.isfinite(J2[1]) else th0
             else:
                 m = _Model(ship, base, model.effects + [EFFECTS[name]], model.measured_wind)
@@ -754,7 +782,9 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
             swap = [b for b in absorbed if joint is None and b not in swapped_out
                     and b in causes[-1].indistinguishable_from and b in named_from.accepted]
             if swap:
-                b = max(swap, key=lambda e: named_from.accepted[e][0].gain)
+                # (bound first: a lambda loses the narrowing of named_from, reassigned below)
+                as_good = named_from.accepted
+                b = max(swap, key=lambda e: as_good[e][0].gain)
                 cb, model, theta, J_test = named_from.accepted[b]
                 old = causes.pop()
                 causes += _causes_from_fit(
@@ -792,6 +822,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         if not accepted and rivals and last in EFFECTS and s.pairs > 1 \
                 and len(causes) + 1 <= s.max_effects and above_noise:
             clock('pairs')
+            named_from = cast(_NamedFrom, named_from)   # set: the rivals come from it
             partners = [e for e in named_from.ranking
                         if e in EFFECTS and e in remaining and e not in impossible]
             model0, theta0 = named_from.model, named_from.theta
@@ -892,18 +923,19 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
         # are not, and on the tug they were 3-6 x too small (a thrust scale 0.8545 +- 0.0014
         # for 0.85): the larger of them and the trial-robust (sandwich) ones is reported
         gn, robust = trial_robust_standard_errors(o_se, model.space, th_se)
-        se_all = dict(zip(model.space.names, np.fmax(gn, robust)))
+        se_final = dict(zip(model.space.names, np.fmax(gn, robust)))
         named = [p for c in causes for p in c.parameters]
         log('   standard errors of the named, trial-robust (Gauss-Newton): ' + ', '.join(
-            f'{p} {se_all[p]:.3g} ({gn[model.space.names.index(p)]:.3g})' for p in named))
-        for c in causes:
-            c.parameters = {p: float(final_vals[p]) for p in c.parameters}
-            c.uncertainty = {p: float(se_all[p]) for p in c.parameters}
+            f'{p} {se_final[p]:.3g} ({gn[model.space.names.index(p)]:.3g})' for p in named))
+        for cause in causes:
+            cause.parameters = {p: float(final_vals[p]) for p in cause.parameters}
+            cause.uncertainty = {p: float(se_final[p]) for p in cause.parameters}
     for e in by_measurement:
-        c, wanted = _by_measurement(ship, EFFECTS[e], meas, model, theta, plain_objs, ot_fin,
-                                    s, baseline['J_test'], J_floor, store, map_fn, log)
-        if c is not None:
-            causes.append(c)
+        by_meas, wanted = _by_measurement(ship, EFFECTS[e], meas, model, theta, plain_objs,
+                                          ot_fin, s, baseline['J_test'], J_floor, store, map_fn,
+                                          log)
+        if by_meas is not None:
+            causes.append(by_meas)
         if wanted is not None:
             impossible_fits.append({**wanted, 'round': len(rounds)})
     advice = []
@@ -935,7 +967,7 @@ def diagnose(ship: ShipConfig, tune_trials: list[Trial], test_trials: list[Trial
 def suspected_effects(ship: ShipConfig, cands: Sequence[tuple[Candidate, np.ndarray | None]],
                       s: DiagnosisSettings, baseline_J: float, J_floor: float | None,
                       round_no: int, beside: Sequence[str],
-                      params_now: np.ndarray | None) -> list[dict]:
+                      params_now: np.ndarray | None) -> list[dict[str, Any]]:
     """
     Return the effects the last round hints at but cannot name (suspected, never named).
 
@@ -952,7 +984,7 @@ def suspected_effects(ship: ShipConfig, cands: Sequence[tuple[Candidate, np.ndar
     model without it and with it, kind 'suspected', for the advice's trial that would separate
     them; the caller removes the key) when both can be simulated.
     """
-    out = []
+    out: list[dict[str, Any]] = []
     for cand, params_with in cands:
         name = cand.effect
         if cand.accepted or name not in EFFECTS or cand.impossible or cand.on_bound:
@@ -965,10 +997,10 @@ def suspected_effects(ship: ShipConfig, cands: Sequence[tuple[Candidate, np.ndar
             continue
         if EFFECTS[name].too_small(ship, cand.values) or implausible(ship, name, cand.values):
             continue
-        x = {'effect': name, 'values': dict(cand.values), 'gain': cand.gain,
-             'gain_se': cand.gain_se, 'round': round_no,
-             'summary': describe_values(EFFECTS[name], cand.values, {}),
-             'beside': list(beside)}
+        x: dict[str, Any] = {'effect': name, 'values': dict(cand.values), 'gain': cand.gain,
+                             'gain_se': cand.gain_se, 'round': round_no,
+                             'summary': describe_values(EFFECTS[name], cand.values, {}),
+                             'beside': list(beside)}
         if params_now is not None and params_with is not None:
             x['rival'] = {'about': name, 'kind': 'suspected', 'params_a': params_now,
                           'params_b': params_with}
@@ -976,11 +1008,11 @@ def suspected_effects(ship: ShipConfig, cands: Sequence[tuple[Candidate, np.ndar
     return out
 
 
-def _by_measurement(ship: ShipConfig, eff: Effect, meas: dict, model: _Model, theta,
-                    plain_objs: _Objectives, ot_fin: Objective, s: DiagnosisSettings,
-                    baseline_J: float, J_floor: float | None, store: SearchCheckpoint | None,
-                    map_fn: MapFn | None,
-                    log: Callable[[str], None]) -> tuple[Cause | None, dict | None]:
+def _by_measurement(ship: ShipConfig, eff: Effect, meas: dict[str, measured_mod.Measurement],
+                    model: _Model, theta: np.ndarray, plain_objs: _Objectives, ot_fin: Objective,
+                    s: DiagnosisSettings, baseline_J: float, J_floor: float | None,
+                    store: SearchCheckpoint | None, map_fn: MapFn[_Fit, np.ndarray] | None,
+                    log: Callable[[str], None]) -> tuple[Cause | None, dict[str, Any] | None]:
     """
     Return (the cause a measurement sizes or None, a contradicted fit or None).
 
@@ -1052,7 +1084,8 @@ def _by_measurement(ship: ShipConfig, eff: Effect, meas: dict, model: _Model, th
     return Cause(eff.name, vals, ses, gain, se, [], eff.description, src), wanted
 
 
-def _with_measurements(objs: _Objectives, meas: dict, s2: float) -> _Objectives:
+def _with_measurements(objs: _Objectives, meas: dict[str, measured_mod.Measurement], s2: float
+                       ) -> _Objectives:
     """Return the objectives with the measurements' prior on the tuning sides (s2: J/residual)."""
     pr = measured_mod.prior(meas, s2)
     return _Objectives((measured_mod.with_prior(objs.plain[0], pr), objs.plain[1]),
@@ -1075,11 +1108,13 @@ def _causes_from_fit(cand: Candidate, model: _Model, theta: np.ndarray, objs: _O
                   list(rivals), EFFECTS[e].description) for e, vals in members]
 
 
-def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives, screened,
-                J_ref: np.ndarray, baseline: dict, s: DiagnosisSettings,
-                impossible: dict[str, str], noise: dict, singles: dict,
-                store: SearchCheckpoint | None, map_fn: MapFn | None, log,
-                every: _Objectives | None = None):
+def _pair_round(ship: ShipConfig, base: ParameterSpace, model: _Model, theta: np.ndarray,
+                objs: _Objectives, screened: list[tuple[float, str, np.ndarray]],
+                J_ref: np.ndarray, baseline: dict[str, Any], s: DiagnosisSettings,
+                impossible: dict[str, str], noise: dict[str, Any],
+                singles: dict[bool, list[Objective]], store: SearchCheckpoint | None,
+                map_fn: MapFn[_Fit, np.ndarray] | None, log: Callable[[str], None],
+                every: _Objectives | None = None) -> _Joint | None:
     """
     Fit the plausible pairs of the top screened candidates jointly; return the best accepted.
 
@@ -1102,7 +1137,7 @@ def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objecti
         options.append(((a, b), m, x0))
     fits = [_Fit(ship, m.space, 0, objs.of(m)[0], x0, s.effect_evals, s.seed, False, s.retune)
             for _, m, x0 in options]
-    best = None
+    best: _Joint | None = None
     for ((a, b), m, _), th in zip(options, _tune_many(fits, store, map_fn)):
         o_m, ot_m = objs.of(m)
         Jt = _per_trial_J(ot_m, ship, m.space, th)
@@ -1122,14 +1157,14 @@ def _pair_round(ship, base: ParameterSpace, model: _Model, theta, objs: _Objecti
     return best
 
 
-def _pair_outcome(members: list, on_all: bool, why: list[str]) -> str:
+def _pair_outcome(members: _Members, on_all: list[str], why: list[str]) -> str:
     """End of a pair's log line: how it was sized and whether it was accepted."""
     return ((f'(sized on every trial: {_shown(members)}) ' if on_all else '')
             + ('significant' if not why else 'not accepted (' + '; '.join(why) + ')'))
 
 
-def _pair_candidate(a: str, b: str, Jt: np.ndarray, J_ref: np.ndarray, v, members: list,
-                    why: list[str]) -> Candidate:
+def _pair_candidate(a: str, b: str, Jt: np.ndarray, J_ref: np.ndarray, v: Verdict,
+                    members: _Members, why: list[str]) -> Candidate:
     """Return the pair a+b as a Candidate: held-out J, gains, fitted values, objections."""
     return Candidate(f'{a}+{b}', float(Jt.sum()), v.per_trial_gain.tolist(),
                      float(v.gain), v.gain_se, not why, {**members[0][1], **members[1][1]},
@@ -1137,14 +1172,15 @@ def _pair_candidate(a: str, b: str, Jt: np.ndarray, J_ref: np.ndarray, v, member
                      inconsistent='; '.join(why) if v.significant else '')
 
 
-def _shown(members: list) -> str:
+def _shown(members: _Members) -> str:
     return ', '.join(describe_values(EFFECTS[e], ev, {}) for e, ev in members)
 
 
-def _joint_objections(ship, m: _Model, th: np.ndarray, members: list, v, J_ref: np.ndarray,
-                      Jt: np.ndarray, noise: dict, s: DiagnosisSettings, ot_m: Objective,
-                      singles: dict, refit: Callable[[], np.ndarray] | None = None
-                      ) -> tuple[list[str], list, list[str]]:
+def _joint_objections(ship: ShipConfig, m: _Model, th: np.ndarray, members: _Members,
+                      v: Verdict, J_ref: np.ndarray, Jt: np.ndarray, noise: dict[str, Any],
+                      s: DiagnosisSettings, ot_m: Objective, singles: dict[bool, list[Objective]],
+                      refit: Callable[[], np.ndarray] | None = None
+                      ) -> tuple[list[str], _Members, list[str], np.ndarray]:
     """
     Return why a joint fit is not accepted ([] if it is): the rule of one effect, per member.
 
@@ -1191,9 +1227,9 @@ def _joint_objections(ship, m: _Model, th: np.ndarray, members: list, v, J_ref: 
     return why, members, on_all, th_size
 
 
-def _refit_on(every: _Objectives | None, ship, m: _Model, th: np.ndarray,
-              s: DiagnosisSettings, store: SearchCheckpoint | None, map_fn: MapFn | None
-              ) -> Callable[[], np.ndarray] | None:
+def _refit_on(every: _Objectives | None, ship: ShipConfig, m: _Model, th: np.ndarray,
+              s: DiagnosisSettings, store: SearchCheckpoint | None,
+              map_fn: MapFn[_Fit, np.ndarray] | None) -> Callable[[], np.ndarray] | None:
     """Return a call that re-tunes model ``m`` from ``th`` on every trial (None without)."""
     if every is None:
         return None
@@ -1201,11 +1237,13 @@ def _refit_on(every: _Objectives | None, ship, m: _Model, th: np.ndarray,
                                     s.seed, False, s.retune)], store, map_fn)[0]
 
 
-def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
+def _joint_round(ship: ShipConfig, base: ParameterSpace, named_from: _NamedFrom, last: str,
                  pairs: list[tuple[str, str]], objs: _Objectives, J_ref: np.ndarray,
-                 baseline: dict, s: DiagnosisSettings, noise: dict, singles: dict,
-                 store: SearchCheckpoint | None, map_fn: MapFn | None, log,
-                 every: _Objectives | None = None, before: bool = False):
+                 baseline: dict[str, Any], s: DiagnosisSettings, noise: dict[str, Any],
+                 singles: dict[bool, list[Objective]], store: SearchCheckpoint | None,
+                 map_fn: MapFn[_Fit, np.ndarray] | None, log: Callable[[str], None],
+                 every: _Objectives | None = None, before: bool = False
+                 ) -> tuple[_Joint | None, list[str]]:
     """
     Fit pairs of effects jointly, from before the last named effect was named.
 
@@ -1237,7 +1275,7 @@ def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
         options.append((a, b, m, x0))
     fits = [_Fit(ship, m.space, 0, objs.of(m)[0], x0, s.effect_evals, s.seed, False, s.retune)
             for _, _, m, x0 in options]
-    best = None
+    best: _Joint | None = None
     for (a, b, m, _), th in zip(options, _tune_many(fits, store, map_fn)):
         ot_m = objs.of(m)[1]
         Jt = _per_trial_J(ot_m, ship, m.space, th)
@@ -1265,7 +1303,7 @@ def _joint_round(ship, base: ParameterSpace, named_from: _NamedFrom, last: str,
     return best, absorbed
 
 
-def _at_nothing(ship: ShipConfig, e: Effect, values: dict) -> bool:
+def _at_nothing(ship: ShipConfig, e: Effect, values: Mapping[str, float]) -> bool:
     """
     Tell whether a fit leaves an effect at nothing: well below the smallest worth finding.
 
@@ -1283,7 +1321,8 @@ def _at_nothing(ship: ShipConfig, e: Effect, values: dict) -> bool:
     return bool(sized) and all(abs(values[p] - n) < AT_NOTHING * sm for p, n, sm in sized)
 
 
-def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict, s: DiagnosisSettings,
+def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict[str, Any],
+                   s: DiagnosisSettings,
                    names: Sequence[str]) -> str:
     """
     Return which held-out trial a candidate makes clearly worse ('' if none).
@@ -1301,7 +1340,8 @@ def _clearly_worse(J_ref: np.ndarray, J_new: np.ndarray, noise: dict, s: Diagnos
             'more than its noise floor)')
 
 
-def _told_apart(J_best: np.ndarray, J_rival: np.ndarray, noise: dict, s: DiagnosisSettings,
+def _told_apart(J_best: np.ndarray, J_rival: np.ndarray, noise: dict[str, Any],
+                s: DiagnosisSettings,
                 names: Sequence[str]) -> bool:
     """Return whether a held-out trial shows the rival clearly worse and none clearly better."""
     return bool(_clearly_worse(J_best, J_rival, noise, s, names)) \
@@ -1309,7 +1349,8 @@ def _told_apart(J_best: np.ndarray, J_rival: np.ndarray, noise: dict, s: Diagnos
 
 
 def _noise(ship: ShipConfig, params: np.ndarray, test_trials: Sequence[Trial],
-           s: DiagnosisSettings, weights: np.ndarray, log) -> dict:
+           s: DiagnosisSettings, weights: np.ndarray, log: Callable[[str], None]
+           ) -> dict[str, Any]:
     """
     Estimate the sensor noise and the held-out J it alone leaves with the base model.
 
@@ -1327,9 +1368,11 @@ def _noise(ship: ShipConfig, params: np.ndarray, test_trials: Sequence[Trial],
     return {'sigma': sigma, **floor}
 
 
-def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trials, log,
-            screen_drop: dict[str, float] | None = None,
-            effects: Sequence[str] = ()) -> list[dict]:
+def _advice(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray, obj: Objective,
+            aliased: dict[str, dict[str, Any]], impossible: dict[str, str],
+            rival_pairs: list[dict[str, Any]], trials: Sequence[Trial],
+            log: Callable[[str], None], screen_drop: dict[str, float] | None = None,
+            effects: Sequence[str] = ()) -> list[dict[str, Any]]:
     """
     Advise the trial that would settle each barely identifiable effect and rival pair.
 
@@ -1377,10 +1420,12 @@ def _advice(ship, base, base_theta, obj, aliased, impossible, rival_pairs, trial
     return out
 
 
-def _backward_pass(ship, base: ParameterSpace, model: _Model, theta, objs: _Objectives,
-                   causes: list[Cause], s: DiagnosisSettings, J_base_test: float, log,
-                   store: SearchCheckpoint | None, map_fn: MapFn | None,
-                   J_floor: float | None = None, floors: Sequence[float] | None = None):
+def _backward_pass(ship: ShipConfig, base: ParameterSpace, model: _Model, theta: np.ndarray,
+                   objs: _Objectives, causes: list[Cause], s: DiagnosisSettings,
+                   J_base_test: float, log: Callable[[str], None],
+                   store: SearchCheckpoint | None, map_fn: MapFn[_Fit, np.ndarray] | None,
+                   J_floor: float | None = None, floors: Sequence[float] | None = None
+                   ) -> tuple[_Model, np.ndarray, np.ndarray]:
     """
     Stepwise regression's backward step.
 
@@ -1441,8 +1486,8 @@ def _gain(ref: float, new: float) -> float:
     return 1 - new / ref
 
 
-def _aliased_effects(ship, base: ParameterSpace, theta, obj: Objective, effects: list[str]
-                     ) -> dict[str, dict]:
+def _aliased_effects(ship: ShipConfig, base: ParameterSpace, theta: np.ndarray, obj: Objective,
+                     effects: list[str]) -> dict[str, dict[str, Any]]:
     """
     Return the single-parameter effects the trials cannot see at a realistic magnitude.
 
