@@ -592,8 +592,9 @@ def main(argv: list[str] | None = None) -> dict:
     print('\nLO -> GO: identification time of the 12 manoeuvres (thrust, azimuth, LO, GO): '
           f'{logo.wall_s:.1f} s (LO {logo.lo.wall_s:.2f} s, GO {logo.go.wall_s:.1f} s, '
           f'{logo.go.evaluations} simulations of all pieces)')
-    if logo.azimuth is not None:
-        print(f'azimuth: k1 = {logo.azimuth.k1:.4g} (truth 4), k2 = {logo.azimuth.k2:.4g} '
+    az = logo.actuators.get('azimuth')
+    if az is not None:
+        print(f'azimuth: k1 = {az.k1:.4g} (truth 4), k2 = {az.k2:.4g} '
               f'(truth 3.6); thrust degree {logo.thrust.degree}, p2 = '
               f'{logo.thrust.coefficients[2]:.4g} (truth 0.4)')
     print('\nn-step RMSE on the held-out runs (u [m/s], v [m/s], r [deg/s], psi [deg]):')

@@ -449,9 +449,8 @@ def identify_command(args: argparse.Namespace, method: str) -> int:
                   f'{t.points} bollard points'
                   + (f'; astern {t.astern_ratio:.3g} x ahead from {t.astern_points} astern '
                      'rows' if t.astern_ratio is not None else ''))
-        if result.azimuth is not None:
-            a = result.azimuth
-            print(f'azimuth: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s (R^2 {a.r2:.5f})')
+        for fit in result.actuators.values():
+            print(fit.describe())
         if 'lo' in rep:
             lo = rep['lo']
             print(f"LO: {lo['samples']} "

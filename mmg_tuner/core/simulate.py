@@ -6,6 +6,7 @@ One trajectory (:func:`simulate`) or a batch of parameter candidates x trials in
 """
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 from mmg_tuner.core.channels import TABLE
@@ -18,6 +19,16 @@ from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.errors import SimulationError, TrialDataError
 import numpy as np
 import numpy.typing as npt
+
+
+REPLAY_STEP_S = 0.1
+"""The longest integration step of a replay of recorded trials [s]: GO's, ``evaluate``'s
+scoring and an actuator's own fit (tuning/lo_go.py)."""
+
+
+def steps_per_sample(dt: float) -> int:
+    """Return the integration steps per sample interval dt [s]: steps of at most REPLAY_STEP_S."""
+    return max(1, math.ceil(dt / REPLAY_STEP_S - 1e-9))
 
 
 def kernel_inputs(fam: Family, controls: Trial | npt.ArrayLike | Mapping[str, npt.ArrayLike],

@@ -7,10 +7,11 @@ The whole ship, in the paper's order (doc/reference/mbpe_logo_tug.md):
    thruster (eq. 20) fitted to a bollard-pull table (columns ``n,thrust``: rev/s, N per
    thruster; :func:`read_bollard_table` refuses a table that is too short or not monotone,
    saying why). Its degree is chosen by leave-one-out error among 1 ... min(5, points - 3).
-2. **Azimuth dynamics** (:func:`fit_azimuth`): alpha'' = k1 (alpha_c - alpha) - k2 alpha'
-   (eq. 9) from the commanded and the measured angles, when a trial recorded both: the core's
-   actuator kernel (``core.integrate.actuator_outputs``) replays the commands and SciPy's
-   least squares matches its angles to the measured ones.
+2. **The actuators' own fits** (:func:`actuator_fits`): what an actuator declares it can fit
+   of itself (``IDENTIFY``), e.g. the azimuth dynamics alpha'' = k1 (alpha_c - alpha) - k2
+   alpha' (eq. 9) from the commanded and the measured angles, when a trial recorded both
+   (``core/actuators/twin_azimuth_identify.py``: the core's actuator kernel replays the
+   commands and SciPy's least squares matches its angles to the measured ones).
 3. **LO** (:func:`lo_fit`): given measured accelerations, M nu_dot + C(nu) nu + D(nu) nu = tau
    is linear in the hull coefficients, so the local step is *one* linear least-squares
    problem. Its regressor is read from the family's own compiled equations (the core's
@@ -46,16 +47,16 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Sequence
+from typing import Any, Sequence
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.core.actuators import actuator
+from mmg_tuner.core.actuators import actuator, companion
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import accelerations_many, actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import module_of
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import simulate_batch
+from mmg_tuner.core.simulate import REPLAY_STEP_S, simulate_batch, steps_per_sample
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning.gate import check_before_writing, mark_note
@@ -268,154 +269,30 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
                      int(an.size))
 
 
-# ------------------------------------------------------------------------------ azimuth
-GO_STEP_S = 0.1
-"""The longest integration step of GO, ``evaluate``'s scoring and the azimuth fit's replay [s]."""
+# ------------------------------------------------------------------ the actuators' own fits
+GO_STEP_S = REPLAY_STEP_S
+"""The longest integration step of GO and ``evaluate``'s scoring [s] (core/simulate.py)."""
 
 
-def steps_per_sample(dt: float) -> int:
-    """Return the integration steps per sample interval dt [s]: steps of at most GO_STEP_S."""
-    return max(1, math.ceil(dt / GO_STEP_S - 1e-9))
-
-
-_AZ_BOUNDS = (np.log([1e-2, 1e-2, 1e-2]), np.log([1e4, 1e2, 10.0]))
-"""Bounds of log(k1 [1/s^2], k2 [1/s], rate limit [rad/s]) in the azimuth fit: a drive from
-minutes to milliseconds, a slew rate from 0.6 deg/s to 570 deg/s."""
-_AZ_RESOLUTION_RAD = 1e-4
-"""An angle error no azimuth sensor resolves (0.006 deg): a drive with more constants must
-lower the angle error by more than this, per sample, to be kept (on noise-free angles 1 % of
-almost nothing is not evidence)."""
-
-
-@dataclass(frozen=True)
-class AzimuthFit:
-    """alpha'' = k1 (alpha_c - alpha) - k2 alpha': k1 [1/s^2], k2 [1/s]; R^2 of the angles."""
-
-    k1: float
-    k2: float
-    r2: float
-    rmse_rad: float
-    samples: int
-    rate_max: float | None = None
-    """The drive's rate limit [rad/s] the data determine (None: the ship's kept; 0: none)."""
-
-    @property
-    def params(self) -> dict[str, float]:
-        out = {'azimuth_k1': self.k1, 'azimuth_k2': self.k2}
-        if self.rate_max is not None:
-            out['azimuth_rate_max'] = self.rate_max
-        return out
-
-
-def _has_commands(trial: Trial, cmd_channels: Sequence[str]) -> bool:
-    return all(c in trial.inputs and np.any(np.isfinite(trial.inputs[c]))
-               for c in cmd_channels)
-
-
-def _azimuth_channels(ship: ShipConfig) -> tuple[list[str], list[str], list[int]]:
-    """(measured angle channels, command channels, their columns in the actuator outputs)."""
-    ins = ship.family.inputs
-    cmds = [c for c in ins if c.startswith('azimuth_cmd_')]
-    meas = [c.replace('azimuth_cmd_', 'azimuth_') for c in cmds]
-    outs = [ship.family.outputs.index('alpha_' + c.split('_')[-1]) for c in cmds]
-    return meas, cmds, outs
-
-
-def fit_azimuth(ship: ShipConfig, trials: Sequence[Trial],
-                substeps: int | None = None) -> AzimuthFit | None:
+def actuator_fits(ship: ShipConfig, trials: Sequence[Trial], substeps: int | None = None
+                  ) -> dict[str, Any]:
     """
-    Fit k1, k2 to the trials that recorded commanded and measured angles (None: none did).
+    Return what the ship's actuators fit of themselves from the trials, by name.
 
-    The actuator kernel replays each command from the first measured angle in the steps the
-    simulation takes (``substeps`` per sample; None: steps of at most 0.1 s, as GO and
-    ``evaluate`` integrate); the mean of the angles acting over sample interval k is compared
-    with the angle recorded at sample k (the angle acting over its interval: the repository's
-    convention, doc/guides/tug.md). One step per sample instead fitted a slower drive at a
-    low rate (it compared the angle at the interval's end, half a sample ahead). Three nested
-    drives are fitted: the ship's (with its rate limit, if any), eq. 9 without a limit, and
-    with a limit fitted too; each of the last two wins only where it explains the angles
-    better by 1 % (the fitted limit then replaces the ship's; 0: the drive outran the ship's
-    limit). Samples whose angle was not recorded (NaN) are left out.
+    An actuator may declare a fit of its own (``IDENTIFY``, core/actuators/__init__.py: a
+    drive's constants from recorded commands and feedback); each returns an object with
+    ``params``, ``report()`` and ``describe()``, or None (nothing to fit from these trials).
     """
-    from scipy.optimize import least_squares
-
-    meas_ch, cmd_ch, cols = _azimuth_channels(ship)
-    if not cmd_ch:
-        return None
-    used = [t for t in trials if _has_commands(t, cmd_ch)]
-    if not used:
-        return None
-    fam = ship.family
-    base = ship.params.copy()
-    for k in ('azimuth_offset_port', 'azimuth_offset_stbd'):
-        if k in PARAM_INDEX:
-            base[PARAM_INDEX[k]] = 0.0
-    data = []
-    for tr in used:
-        sub = substeps or steps_per_sample(tr.dt)
-        ctrl = np.repeat(np.asarray(tr.input_array(fam.channels)), sub, axis=0)
-        data.append((np.ascontiguousarray(ctrl), sub,
-                     np.column_stack([tr.inputs[c] for c in meas_ch])[1:], tr.dt / sub))
-        # row 0 is where the replay starts: compared from row 1 on
-    i1, i2 = PARAM_INDEX['azimuth_k1'], PARAM_INDEX['azimuth_k2']
-    i3 = PARAM_INDEX['azimuth_rate_max']
-
-    def resid(z, limit):
-        p = base.copy()
-        p[i1], p[i2] = math.exp(z[0]), math.exp(z[1])
-        p[i3] = math.exp(z[2]) if len(z) > 2 else limit
-        out = []
-        for ctrl, sub, m, h in data:
-            T = len(ctrl)
-            a = np.zeros((T, len(fam.outputs)))
-            actuator_outputs(ship.kind, p, ctrl, T, h, a)
-            out.append(a[:, cols].reshape(T // sub, sub, len(cols)).mean(axis=1)[1:] - m)
-        e = np.concatenate([x.ravel() for x in out])[seen]   # a sensor dropout: no residual
-        return np.where(np.isfinite(e), e, 10.0)   # a diverging drive: far off, not NaN
-
-    def fit(z0, limit=0.0):
-        lo, hi = _AZ_BOUNDS[0][:len(z0)], _AZ_BOUNDS[1][:len(z0)]
-        z0 = np.clip(z0, lo + 1e-6, hi - 1e-6)
-        sol = least_squares(resid, z0, args=(limit,), method='trf', bounds=(lo, hi),
-                            x_scale=1.0, diff_step=1e-4)
-        return sol.x, float(sol.fun @ sol.fun)
-
-    m = np.concatenate([d[2].ravel() for d in data])
-    seen = np.isfinite(m)
-    if seen.sum() < 10:
-        return None
-    # three drives, nested: the ship's (with its limit, if it declares one), eq. 9 without a
-    # limit (wins by 1 % of the angle error: data that never saturate the loop cannot show
-    # the ship's limit wrong), a fitted limit (wins by 1 %)
-    k1, k2 = (ship['azimuth_k1'], ship['azimuth_k2'])
-    z0 = np.log([k1 if k1 > 0 else 4.0, k2 if k2 > 0 else 3.0])
-
-    def better(new, old):   # by 1 % and by more than an angle no sensor resolves
-        return new < 0.99 * old and old - new > _AZ_RESOLUTION_RAD ** 2 * seen.sum()
-
-    (z, sse), rate = fit(z0, base[i3]), base[i3]
-    if base[i3] > 0:
-        zu, sseu = fit(z0)
-        if better(sseu, sse):
-            z, sse, rate = zu, sseu, 0.0
-    # the fitted limit from several starts (where the loop never saturates, a limit has no
-    # gradient): the ship's limit and the fastest move recorded (interval means: a lower
-    # bound), from the best constants so far and from the ship's
-    moves = [np.abs(np.diff(d[2], axis=0)) / (d[3] * d[1]) for d in data]
-    fastest = max((float(np.nanmax(x)) for x in moves if np.isfinite(x).any()), default=0.0)
-    tops = {t for t in (base[i3], fastest, 0.5 * fastest) if t > 1e-3}
-    if tops:
-        z3, sse3 = min((fit(np.append(zk, math.log(t))) for zk in (z, z0) for t in tops),
-                       key=lambda f: f[1])
-        if better(sse3, sse):
-            z, sse, rate = z3[:2], sse3, float(math.exp(z3[2]))
-    e = resid(z, rate)
-    mm = m[seen]
-    ss = float(np.sum((mm - mm.mean()) ** 2))
-    return AzimuthFit(float(math.exp(z[0])), float(math.exp(z[1])),
-                      1.0 - float(np.sum(e ** 2)) / ss if ss > 0 else 1.0,
-                      float(np.sqrt(np.mean(e ** 2))), int(e.size),
-                      None if rate == base[i3] else rate)
+    out: dict[str, Any] = {}
+    for name in ship.family.actuators:
+        module = companion(name, 'IDENTIFY')
+        if module is None:
+            continue
+        kit = importlib.import_module(module)
+        fit = kit.fit(ship, trials, substeps)
+        if fit is not None:
+            out[str(kit.NAME)] = fit
+    return out
 
 
 # ----------------------------------------------------------------------------------- LO
@@ -1060,7 +937,8 @@ class IdentifyResult:
     method: str
     params: dict[str, float]
     thrust: ThrustFit | None
-    azimuth: AzimuthFit | None
+    actuators: dict[str, Any]
+    """What the actuators fitted of themselves (:func:`actuator_fits`), by name."""
     lo: LoResult | None
     go: GoResult | None
     wall_s: float
@@ -1080,10 +958,8 @@ class IdentifyResult:
             t = self.thrust
             d['thrust'] = {'coefficients': list(t.coefficients), 'degree': t.degree,
                            'rmse_N': t.rmse_N, 'r2': t.r2, 'points': t.points}
-        if self.azimuth is not None:
-            a = self.azimuth
-            d['azimuth'] = {'k1': a.k1, 'k2': a.k2, 'r2': a.r2, 'rmse_rad': a.rmse_rad,
-                            'samples': a.samples}
+        for name, fit in self.actuators.items():
+            d[name] = fit.report()
         if self.lo is not None:
             d['lo'] = {'residual_rms': list(self.lo.residual_rms),
                        'condition': self.lo.condition, 'samples': self.lo.samples,
@@ -1105,10 +981,7 @@ class IdentifyResult:
             t = self.thrust
             lines.append(f'- thrust polynomial, degree {t.degree} from {t.points} bollard '
                          f'points: RMSE {t.rmse_N:.3g} N, R^2 {t.r2:.5f}')
-        if self.azimuth is not None:
-            a = self.azimuth
-            lines.append(f'- azimuth dynamics: k1 = {a.k1:.4g} 1/s^2, k2 = {a.k2:.4g} 1/s, '
-                         f'R^2 {a.r2:.5f} over {a.samples} angles')
+        lines += [f'- {fit.describe()}' for fit in self.actuators.values()]
         if self.lo is not None:
             lo = self.lo
             lines.append(f'- LO: one least-squares problem over {lo.samples} '
@@ -1162,7 +1035,7 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
              substeps: int | None = None, max_nfev: int = 40, grow: bool = False
              ) -> IdentifyResult:
     """
-    Identify the whole ship: thrust curve, azimuth dynamics, hull coefficients (LO, GO).
+    Identify the whole ship: thrust curve, the actuators' own fits, hull coefficients (LO, GO).
 
     ``method``: 'lo', 'go' (from the ship's values) or 'lo-go' (GO from LO, pulled toward
     it; GO from the ship's values runs too and the physical one that fits the trials better
@@ -1190,11 +1063,10 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
                     thrust.rmse_N, thrust.points)
     if substeps is None:
         substeps = steps_per_sample(max(t.dt for t in trials))
-    az = (fit_azimuth(ship.with_params(params), trials, substeps)
-          if 'azimuth_k1' in _actuator_params(ship) else None)
-    if az is not None:
-        params.update(az.params)
-        logger.info('azimuth: k1 = %.4g, k2 = %.4g (R^2 %.5f)', az.k1, az.k2, az.r2)
+    fits = actuator_fits(ship.with_params(params), trials, substeps)
+    for fit in fits.values():
+        params.update(fit.params)
+        logger.info('%s', fit.describe())
     work = ship.with_params(params)
     lo = go = None
     theta = np.array([work[n] for n in names])
@@ -1215,7 +1087,7 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
         logger.info('GO: cost %.4g -> %.4g, %.1f s, from %s', go.cost_start, go.cost,
                     go.wall_s, go.start)
     params.update({n: float(v) for n, v in zip(names, theta)})
-    return IdentifyResult(ship, method, params, thrust, az, lo, go, time.perf_counter() - t0,
+    return IdentifyResult(ship, method, params, thrust, fits, lo, go, time.perf_counter() - t0,
                           unique_names(trials))
 
 
@@ -1249,9 +1121,10 @@ def _best_go(ship: ShipConfig, trials: Sequence[Trial], names: tuple[str, ...],
 
 
 def _actuator_params(ship: ShipConfig) -> tuple[str, ...]:
+    """Return the parameters of the ship's actuators (not the hull's)."""
     return tuple(q for a in ship.family.actuators for q in actuator(a).params)
 
 
-__all__ = ['AzimuthFit', 'BollardTable', 'GO_RIDGE', 'GO_STEP_S', 'GoResult', 'IdentifyResult',
-           'LoResult', 'METHODS', 'ThrustFit', 'check_bollard_table', 'fit_azimuth', 'fit_thrust',
+__all__ = ['BollardTable', 'GO_RIDGE', 'GO_STEP_S', 'GoResult', 'IdentifyResult', 'LoResult',
+           'METHODS', 'ThrustFit', 'actuator_fits', 'check_bollard_table', 'fit_thrust',
            'go_fit', 'identify', 'lo_fit', 'read_bollard_table', 'steps_per_sample']

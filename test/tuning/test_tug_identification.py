@@ -9,6 +9,7 @@ and a bollard table that is too short or not monotone is refused with the reason
 import math
 
 import mmg_tuner as mt
+from mmg_tuner.core.actuators import twin_azimuth_identify as twin_identify
 from mmg_tuner.core.simulate import simulate
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.tuning import lo_go
@@ -102,19 +103,19 @@ def test_azimuth_constants_from_command_and_feedback(tug):
     truth = tug.with_params({'azimuth_k1': 6.0, 'azimuth_k2': 4.0})
     trials = [_trial(truth, 'zigzag', 8, 25, T=150, commands=True),
               _trial(truth, 'random', 0, 0, T=150, seed=3, commands=True)]
-    fit = lo_go.fit_azimuth(tug, trials)    # starts from the config's k1 = 4, k2 = 3.6
+    fit = twin_identify.fit(tug, trials)    # starts from the config's k1 = 4, k2 = 3.6
     assert fit.k1 == pytest.approx(6.0, rel=0.02) and fit.k2 == pytest.approx(4.0, rel=0.02)
     assert fit.r2 > 0.999
     assert fit.rate_max is None or fit.rate_max == pytest.approx(0.8, rel=0.01)
-    assert lo_go.fit_azimuth(tug, [_trial(tug, 'zigzag', 8, 25, T=50)]) is None
+    assert twin_identify.fit(tug, [_trial(tug, 'zigzag', 8, 25, T=50)]) is None
     # gentle orders (5 deg) never saturate the loop: the data cannot show the ship's 0.8 rad/s
     # limit wrong, so it is kept (not replaced by "no limit", which fits them as well)
     gentle = [_trial(truth, 'zigzag', 8, 5, T=150, commands=True)]
-    assert lo_go.fit_azimuth(tug, gentle).rate_max is None
+    assert twin_identify.fit(tug, gentle).rate_max is None
     # a sensor dropout (NaN angles) is left out, not fitted as an angle
     holed = trials[0]
     holed.inputs['azimuth_port'][40:60] = np.nan
-    fit = lo_go.fit_azimuth(tug, trials)
+    fit = twin_identify.fit(tug, trials)
     assert fit.k1 == pytest.approx(6.0, rel=0.02) and math.isfinite(fit.r2)
 
 

@@ -42,6 +42,11 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      ``STATES``, ``INPUTS``, ``ACTING`` and their units, ``outputs``, ``step``, ``rates``,
      ``limits``, ``propulsion_max``, ``ahead``, ``bounds``, ``at_rest``, ``document``); a
      family driven by it alone whose module has ``hull_document`` can be exported.
+   * optionally ``IDENTIFY``: the module (beside this one, or a full path) with what the
+     local -> global identification (``tuning/lo_go.py``) fits of the actuator before the
+     hull (``twin_azimuth_identify.py``): ``NAME`` (its key in identify.json) and
+     ``fit(ship, trials, substeps) -> fit or None``, the fit having ``params``, ``report()``
+     and ``describe()``.
    * optionally ``PLAUSIBILITY``: ``{'propulsion': [outputs], 'helm': {output: 'rudder' or a
      fraction}}``, what the stability and turn checks set (``core/plausibility.py``; the
      entry of ``config/model_plausibility.yaml`` wins where it names the actuator; a name

@@ -67,6 +67,8 @@ STATES = ('alpha_port', 'alpha_rate_port', 'alpha_stbd', 'alpha_rate_stbd')
 TRIALS = 'twin_azimuth_trials'
 # what `export` needs: its states, inputs and step as CasADi expressions
 SYMBOLIC = 'twin_azimuth_symbolic'
+# what `tune --method lo-go` fits of it from commanded and measured angles: the drive's constants
+IDENTIFY = 'twin_azimuth_identify'
 DESCRIPTION = ('two azimuth thrusters: polynomial thrust in rev/s, second-order angle '
                'dynamics, tau = T(alpha) f (MBPE-LOGO eqs. 8, 9, 20)')
 
