@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Mapping, Sequence
+from typing import Any, cast, Mapping, Sequence
 
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -60,7 +60,7 @@ class Choice:
                          + f" | {'inf' if math.isinf(sc) else f'{sc:.3f}'} |")
         return '\n'.join(lines) + '\n'
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {'chosen': self.chosen, 'index_by_kind': self.by_kind,
                 'score': {k: (None if math.isinf(v) else v) for k, v in self.score.items()},
                 'validation_trials': dict(self.trials)}
@@ -79,21 +79,27 @@ def choose_model(candidates: Mapping[str, ShipConfig | Model], trials: Sequence[
     by_kind: dict[str, dict[str, float | None]] = {}
     for cname, model in candidates.items():
         res = evaluate(model, trials, restart_every_s, integrator, sigma=sig)
-        per: dict[str, list] = {}
+        per: dict[str, list[float | None]] = {}
         for n in names:
             per.setdefault(kind[n], []).append(res.trials[n].index)
-        by_kind[cname] = {k: (None if any(x is None for x in v) else float(np.mean(v)))
+        # (the mean is taken where no index is None)
+        by_kind[cname] = {k: (None if any(x is None for x in v)
+                              else float(np.mean(cast(list[float], v))))
                           for k, v in per.items()}
     kinds = sorted(set(kind.values()))
-    best = {k: min((v[k] for v in by_kind.values() if v[k] is not None), default=None)
+    # (a kind's index cast to float where it is checked not None)
+    best = {k: min((cast(float, v[k]) for v in by_kind.values() if v[k] is not None),
+                   default=None)
             for k in kinds}
     score = {}
     for cname, v in by_kind.items():
         if any(v[k] is None or best[k] is None for k in kinds):
             score[cname] = math.inf
             continue
-        score[cname] = max((v[k] / best[k]) if best[k] > 0 else
-                           (1.0 if v[k] == 0 else math.inf) for k in kinds)
+        # (no None among them, as just checked)
+        vk, bk = cast(dict[str, float], v), cast(dict[str, float], best)
+        score[cname] = max((vk[k] / bk[k]) if bk[k] > 0 else
+                           (1.0 if vk[k] == 0 else math.inf) for k in kinds)
     chosen = min(candidates, key=lambda c: score[c])   # min keeps the first of a tie
     if math.isinf(score[chosen]):
         raise TuningError('choose_model: every candidate failed on a validation trial ('

@@ -35,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import math
 from pathlib import Path
-from typing import Sequence
+from typing import Any, cast, Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.layout import STATE_NAMES
@@ -108,7 +108,7 @@ def pooled_sigma(trials: Sequence[Trial]) -> dict[str, float]:
 
 def errors(pred: np.ndarray, meas: np.ndarray) -> np.ndarray:
     """Model minus measurement (T, 6), heading wrapped to [-pi, pi]."""
-    e = pred - meas
+    e: np.ndarray = pred - meas
     k = STATE_NAMES.index('psi')
     e[:, k] = (e[:, k] + math.pi) % (2 * math.pi) - math.pi
     return e
@@ -141,8 +141,8 @@ class TrialScore:
     failure: str
     predicted: np.ndarray = field(repr=False)
 
-    def to_dict(self) -> dict:
-        d = {'index': self.index, 'rms': dict(self.rms)}
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {'index': self.index, 'rms': dict(self.rms)}
         if self.failed_at_s is not None:
             d['failed_at_s'] = self.failed_at_s
             d['failure'] = self.failure
@@ -162,7 +162,7 @@ class EvaluateResult:
     model: Model = field(repr=False)
     recorded: list[Trial] = field(repr=False, default_factory=list)
     # share of samples inside the model's prediction interval (tuning/interval.py), if any
-    coverage: dict | None = None
+    coverage: dict[str, Any] | None = None
     nstep: NStepScore | None = None          # with horizons: over all trials
     nstep_per_trial: dict[str, NStepScore] = field(default_factory=dict)
     relative: RelativeErrors | None = None   # with horizons: free-run Table 5 errors
@@ -171,7 +171,7 @@ class EvaluateResult:
     def ship(self) -> ShipConfig:
         return self.model.ship
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """evaluate.json's content."""
         return {'ship': self.ship.name, 'model': self.ship.model,
                 'simulated_as': self.model.kind,
@@ -184,15 +184,16 @@ class EvaluateResult:
                 'trials': {n: s.to_dict() for n, s in self.trials.items()},
                 **self._nstep_dict()}
 
-    def _nstep_dict(self) -> dict:
+    def _nstep_dict(self) -> dict[str, Any]:
         if self.nstep is None:
             return {}
-        d = {'n_step': {'definition': 'restart from the measured state at every sample, '
-                                      'predict n steps with the measured inputs; RMSE of '
-                                      'each state at step n [SI units, psi rad wrapped]',
-                        **self.nstep.to_dict(),
-                        'per_trial': {n: s.to_dict()['rmse']
-                                      for n, s in self.nstep_per_trial.items()}}}
+        d: dict[str, Any] = {
+            'n_step': {'definition': 'restart from the measured state at every sample, '
+                                     'predict n steps with the measured inputs; RMSE of '
+                                     'each state at step n [SI units, psi rad wrapped]',
+                       **self.nstep.to_dict(),
+                       'per_trial': {n: s.to_dict()['rmse']
+                                     for n, s in self.nstep_per_trial.items()}}}
         if self.relative is not None:
             d['relative_error'] = self.relative.to_dict()
         return d
@@ -256,7 +257,8 @@ class EvaluateResult:
         ``out``: a new or empty folder, or an open :class:`OutputDir`.
         """
         own = not isinstance(out, OutputDir)
-        od = OutputDir.open(out) if own else out
+        # (own: out is a path, else the open OutputDir; mypy does not narrow through own)
+        od = OutputDir.open(cast('str | Path', out)) if own else cast(OutputDir, out)
         try:
             paths = [od.write_text('evaluate.md', self.markdown())]
             if plots:
@@ -284,8 +286,10 @@ def nstep_markdown(score: NStepScore, rel: RelativeErrors | None) -> str:
                   '', '| trial | ' + ' | '.join(REL_STATES) + ' |',
                   '|---' + '|---' * len(REL_STATES) + '|']
         for n, v in [('all trials (pooled)', rel.pooled)] + list(rel.per_trial.items()):
+            # (an error cast to float where it is checked not None)
             lines.append(f'| {n} | ' + ' | '.join(
-                '-' if v[s] is None else f'{100 * v[s]:.3g} %' for s in REL_STATES) + ' |')
+                '-' if v[s] is None else f'{100 * cast(float, v[s]):.3g} %' for s in REL_STATES)
+                + ' |')
         for n, t in rel.failed.items():
             lines.append(f'- {n}: the free run failed at t = {t:.2f} s.')
     return '\n'.join(lines)
@@ -344,7 +348,7 @@ def evaluate(model: ShipConfig | Model, trials: Sequence[Trial], restart_every_s
 
 def compare_index(physics: ShipConfig | Model, model: ShipConfig | Model,
                   trials: Sequence[Trial],
-                  restart_every_s: float = 100.0, integrator: str = 'rk4') -> dict:
+                  restart_every_s: float = 100.0, integrator: str = 'rk4') -> dict[str, Any]:
     """
     Return the index over all ``trials`` of two models with one pooled sigma.
 

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Sequence
+from typing import Any, cast, Sequence, TYPE_CHECKING
 
+from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
@@ -38,8 +39,12 @@ from mmg_tuner.core.simulate import integrator_code, simulate_batch
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.learn.model import Model
-from mmg_tuner.learn.residual import N_FEATURES, simulate_hybrid_one, trial_rows
+from mmg_tuner.learn.residual import simulate_hybrid_one, trial_rows
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only: matplotlib is imported where a figure is drawn
+    from matplotlib.figure import Figure
+    from mmg_tuner.learn.residual import ResidualNet
 
 NSTEP_STATES = ('u', 'v', 'r', 'x', 'y', 'psi')
 """States scored by the n-step RMSE, in the order the reports list them."""
@@ -83,7 +88,7 @@ class NStepScore:
     windows: list[int]
     failed: list[int]
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {'horizons': list(self.horizons),
                 'horizons_s': [h * self.dt for h in self.horizons],
                 'rmse': {k: list(v) for k, v in self.rmse.items()},
@@ -98,12 +103,13 @@ class RelativeErrors:
     pooled: dict[str, float | None]
     failed: dict[str, float] = field(default_factory=dict)   # trial -> failure time [s]
 
-    def to_dict(self) -> dict:
-        d = {'definition': '||y_model - y||_2 / ||y||_2 over the samples of a free run from '
-                           'the first measured state (MBPE-LOGO Table 5); pooled: the sums of '
-                           'squares of all trials added before the ratio',
-             'pooled': dict(self.pooled),
-             'per_trial': {n: dict(v) for n, v in self.per_trial.items()}}
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            'definition': '||y_model - y||_2 / ||y||_2 over the samples of a free run from '
+                          'the first measured state (MBPE-LOGO Table 5); pooled: the sums of '
+                          'squares of all trials added before the ratio',
+            'pooled': dict(self.pooled),
+            'per_trial': {n: dict(v) for n, v in self.per_trial.items()}}
         if self.failed:
             d['failed_at_s'] = dict(self.failed)
         return d
@@ -126,7 +132,7 @@ def _learned_windows(model: Model, trial: Trial, x0s: np.ndarray, ctrl: np.ndarr
                      lengths: np.ndarray, first: int, integrator: str, substeps: int,
                      p: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """States (m, n_max + 1, 6) of the windows starting at samples first ... first + m - 1."""
-    net = model.residual
+    net = cast('ResidualNet', model.residual)   # called only for a model with a network
     sizes, flat = net.packed()
     w = int(net.window)
     method = integrator_code(integrator)
@@ -201,8 +207,9 @@ def nstep_errors(ship: ShipConfig | Model, trials: Sequence[Trial], horizons: Se
                 out, _, _ = simulate_batch(ship.kind, p, x0s[a:b], ctrl[a:b], dt,
                                            lengths[a:b], integrator, substeps)
             else:
+                # (rows are computed with the network)
                 out = _learned_windows(model, tr, x0s[a:b], ctrl[a:b], lengths[a:b], a,
-                                       integrator, substeps, p, rows)[None]
+                                       integrator, substeps, p, cast(np.ndarray, rows))[None]
             k = np.arange(a, b)
             target = k[:, None] + H[None, :]            # (m, nh) sample index predicted
             inside = target < len(tr)
@@ -225,7 +232,8 @@ def nstep_errors(ship: ShipConfig | Model, trials: Sequence[Trial], horizons: Se
     return _score(hs, dt, total_sq, total_n, total_f), per
 
 
-def _score(hs, dt, sq, cnt, fail) -> NStepScore:
+def _score(hs: tuple[int, ...], dt: float, sq: np.ndarray, cnt: np.ndarray, fail: np.ndarray
+           ) -> NStepScore:
     rmse = {s: [float(math.sqrt(sq[i, j] / cnt[i])) if cnt[i] else None
                 for i in range(len(hs))] for j, s in enumerate(NSTEP_STATES)}
     return NStepScore(hs, float(dt), rmse, [int(c) for c in cnt], [int(f) for f in fail])
@@ -262,7 +270,7 @@ def relative_errors(names: Sequence[str], trials: Sequence[Trial],
     return RelativeErrors(per, pooled, failed)
 
 
-def nstep_figure(scores: dict[str, NStepScore], title: str = ''):
+def nstep_figure(scores: dict[str, NStepScore], title: str = '') -> Figure:
     """
     Return a Figure of the n-step RMSE against the horizon, one panel per state.
 

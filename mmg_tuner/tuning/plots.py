@@ -17,12 +17,16 @@ import io
 import logging
 import math
 import re
-from typing import Mapping, Sequence
+from typing import Any, cast, Mapping, Sequence, TYPE_CHECKING
 import warnings
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.trial import Trial
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only: matplotlib is imported where a figure is drawn
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 DEG = 180.0 / math.pi
 logger = logging.getLogger(__name__)
@@ -48,13 +52,13 @@ INPUT_AXES: dict[str, str] = {
 SET_WORDS = {'tune': 'tuning trial', 'test': 'held-out trial (not used for tuning)'}
 """How a title names the set a trial belongs to."""
 
-MEASURED_STYLE = {'color': 'k', 'lw': 1.6}
+MEASURED_STYLE: dict[str, Any] = {'color': 'k', 'lw': 1.6}
 PALETTE = ('tab:orange', 'tab:blue', 'tab:green', 'tab:red', 'tab:purple')
 INPUT_COLORS = {'rudder': 'tab:green', 'rpm': 'tab:red', 'bow': 'tab:purple',
                 'stern': 'tab:brown', 'wind_n': 'tab:cyan', 'wind_e': 'tab:olive'}
 
 
-def png_bytes(fig) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
     """
     Render a matplotlib Figure to PNG bytes through the Agg canvas (no global backend).
 
@@ -140,7 +144,7 @@ def input_panels(trial: Trial) -> list[str]:
 
 def trial_figure(trial: Trial, runs: Mapping[str, np.ndarray], title: str = '',
                  states: Sequence[str] = ('psi', 'r', 'u', 'v'), track: bool = True,
-                 restarts_s: Sequence[float] = ()):
+                 restarts_s: Sequence[float] | np.ndarray = ()) -> Figure:
     """
     Build the figure of one trial: measured vs simulated states with the inputs beside them.
 
@@ -169,8 +173,8 @@ def trial_figure(trial: Trial, runs: Mapping[str, np.ndarray], title: str = '',
         ax = fig.add_subplot(outer[0, 0])
         ax.plot(trial['y'], trial['x'], **MEASURED_STYLE)
         for name, st in runs.items():
-            for k in segments:
-                ax.plot(st[k, 1], st[k, 0], color=colors[name], lw=1.2)
+            for seg in segments:
+                ax.plot(st[seg, 1], st[seg, 0], color=colors[name], lw=1.2)
         ax.plot(trial['y'][:1], trial['x'][:1], 'o', color='k', ms=6)
         ax.annotate('start', (trial['y'][0], trial['x'][0]), textcoords='offset points',
                     xytext=(6, -12), fontsize=8)
@@ -231,7 +235,7 @@ def trial_figure(trial: Trial, runs: Mapping[str, np.ndarray], title: str = '',
     return fig
 
 
-def _plot_input(a, trial: Trial, k: str) -> None:
+def _plot_input(a: Axes, trial: Trial, k: str) -> None:
     """Draw one input panel with a small legend when it holds several lines."""
     t = trial.t
     if k == 'rudder':
@@ -241,9 +245,10 @@ def _plot_input(a, trial: Trial, k: str) -> None:
     elif k == 'rpm':
         a.plot(t, trial['rpm'], color=INPUT_COLORS['rpm'], lw=1.0)
         _min_span(a, trial['rpm'], 0.1 * float(np.nanmax(np.abs(trial['rpm']), initial=10.0)))
-    elif k == 'thrusters':
-        a.plot(t, trial.thrusters[:, 0], color=INPUT_COLORS['bow'], lw=1.0, label='bow')
-        a.plot(t, trial.thrusters[:, 1], color=INPUT_COLORS['stern'], lw=1.0, label='stern')
+    elif k == 'thrusters':   # (a panel input_panels gives only when recorded: not None)
+        thr = cast(np.ndarray, trial.thrusters)
+        a.plot(t, thr[:, 0], color=INPUT_COLORS['bow'], lw=1.0, label='bow')
+        a.plot(t, thr[:, 1], color=INPUT_COLORS['stern'], lw=1.0, label='stern')
         a.legend(fontsize=7, loc='best')
     elif k.startswith('unit:'):
         from mmg_tuner.core.channels import TABLE
@@ -253,10 +258,11 @@ def _plot_input(a, trial: Trial, k: str) -> None:
             if c not in _KNOWN and TABLE[c].unit == unit and np.any(np.isfinite(v)):
                 a.plot(t, f * v, lw=1.0, label=c)
         a.legend(fontsize=7, loc='best')
-    elif k == 'wind':
-        a.plot(t, trial.wind[:, 0], color=INPUT_COLORS['wind_n'], lw=1.0,
+    elif k == 'wind':   # (as the thrusters: only when measured)
+        wind = cast(np.ndarray, trial.wind)
+        a.plot(t, wind[:, 0], color=INPUT_COLORS['wind_n'], lw=1.0,
                label='toward north')
-        a.plot(t, trial.wind[:, 1], color=INPUT_COLORS['wind_e'], lw=1.0, label='toward east')
+        a.plot(t, wind[:, 1], color=INPUT_COLORS['wind_e'], lw=1.0, label='toward east')
         a.legend(fontsize=7, loc='best')
 
 
@@ -265,7 +271,7 @@ def _unit_label(unit: str) -> str:
     return 'angles [deg]' if unit == 'rad' else f'inputs [{unit}]'
 
 
-def _min_span(a, y: np.ndarray, span: float) -> None:
+def _min_span(a: Axes, y: np.ndarray, span: float) -> None:
     """Widen the y range to at least ``span`` so that sensor noise does not look like a signal."""
     y = y[np.isfinite(y)]
     if y.size == 0:
