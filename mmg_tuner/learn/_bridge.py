@@ -10,11 +10,16 @@ custom VJP (``_engine.physics_fn``). NumPy and numba only.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mmg_tuner.core.correction import window_residual
 from mmg_tuner.core.dynamics import act_tuple, derivative
 from mmg_tuner.core.layout import PARAM_INDEX
 from numba import njit
 import numpy as np
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray, IntArray
 
 _Vw = PARAM_INDEX['wind_speed']
 _dirw = PARAM_INDEX['wind_dir']
@@ -23,7 +28,8 @@ FD_REL_STEP = 1e-6
 
 
 @njit(cache=True)
-def batch_derivative(kind, p_in, S, A, Wd, F, J, with_jac):
+def batch_derivative(kind: tuple[int, ...], p_in: FloatArray, S: FloatArray, A: FloatArray,
+                     Wd: FloatArray, F: FloatArray, J: FloatArray, with_jac: bool) -> None:
     """
     Fill ds/dt F (B, 6) of the family for states, actuator tuples and winds.
 
@@ -65,7 +71,9 @@ def batch_derivative(kind, p_in, S, A, Wd, F, J, with_jac):
 
 
 @njit(cache=True)
-def teacher_residuals(rows, window, sizes, flat, x_mean, x_std, y_scale, out):
+def teacher_residuals(rows: FloatArray, window: int, sizes: IntArray, flat: FloatArray,
+                      x_mean: FloatArray, x_std: FloatArray, y_scale: FloatArray,
+                      out: FloatArray) -> None:
     """
     Fill out (T, 3) with the residual on a measured history.
 

@@ -10,11 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.integrate import actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
-from mmg_tuner.learn.residual import N_FEATURES, trial_rows
+from mmg_tuner.learn.residual import trial_rows
 import numpy as np
 
 _Vw = PARAM_INDEX['wind_speed']
@@ -81,9 +82,10 @@ class Windows:
     target: np.ndarray
 
     def __len__(self) -> int:
-        return self.x0.shape[0]
+        n: int = self.x0.shape[0]
+        return n
 
-    def take(self, idx) -> 'Windows':
+    def take(self, idx: np.ndarray) -> 'Windows':
         return Windows(*(a[idx] for a in (self.x0, self.hist, self.inp, self.act, self.wind,
                                           self.target)))
 
@@ -95,7 +97,8 @@ def starts(T: int, window: int, horizon: int, stride: int) -> list[int]:
 
 def cut(arrs: list[TrialArrays], window: int, horizon: int, stride: int) -> Windows:
     """All windows of the trials, in trial order."""
-    parts = {k: [] for k in ('x0', 'hist', 'inp', 'act', 'wind', 'target')}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ('x0', 'hist', 'inp', 'act', 'wind',
+                                                          'target')}
     for a in arrs:
         for k0 in starts(a.rows.shape[0], window, horizon, stride):
             parts['x0'].append(a.model_states[k0])

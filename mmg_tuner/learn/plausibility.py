@@ -104,13 +104,15 @@ def network_findings(ship: ShipConfig, net: ResidualNet | None) -> list[Finding]
     return out
 
 
-# per network (weakly: a network no longer used is forgotten), per model values
-_CHECKED: weakref.WeakKeyDictionary[ResidualNet, dict[tuple, list[Finding]]] = \
+# per network (weakly: a network no longer used is forgotten), per model values: (family
+# kind, parameter bytes, rudder limit)
+_Key = tuple[int, bytes, float]
+_CHECKED: weakref.WeakKeyDictionary[ResidualNet, dict[_Key, list[Finding]]] = \
     weakref.WeakKeyDictionary()
-_WARNED: weakref.WeakKeyDictionary[ResidualNet, set[tuple]] = weakref.WeakKeyDictionary()
+_WARNED: weakref.WeakKeyDictionary[ResidualNet, set[_Key]] = weakref.WeakKeyDictionary()
 
 
-def _key(ship: ShipConfig) -> tuple:
+def _key(ship: ShipConfig) -> _Key:
     return (ship.kind, ship.params.tobytes(), ship.max_rudder_rad)
 
 
