@@ -9,14 +9,16 @@ network attached.
 from __future__ import annotations
 
 import math
+from typing import Any, cast
 
 from mmg_tuner.core import maneuvers as mv
+from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.core.trial import input_array, Trial
 from mmg_tuner.learn.model import Model
-from mmg_tuner.learn.residual import N_FEATURES, simulate_hybrid_one, steer_hybrid_one
+from mmg_tuner.learn.residual import ResidualNet, simulate_hybrid_one, steer_hybrid_one
 import numpy as np
 
 
@@ -30,7 +32,8 @@ def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
     as a recorded trial is replayed; a zigzag closes the loop on the hybrid's own heading,
     step by step (the residual held over each sample, the steering gear per substep).
     """
-    ship, net = model.ship, model.residual
+    # (called for a model that carries a network: its residual is set)
+    ship, net = model.ship, cast(ResidualNet, model.residual)
     phys = mv.run(ship, spec)
     if spec.maneuver == 'zigzag':
         return _hybrid_zigzag(model, spec, phys)
@@ -49,14 +52,14 @@ def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
         np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
         net.x_mean, net.x_std, net.y_scale, float(net.physics), out, res)
-    kw = {} if status == OK else {'status': STATUS_TEXT[status],
-                                  'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
+    kw: dict[str, Any] = {} if status == OK else {
+        'status': STATUS_TEXT[status], 'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
     return Trial(phys.t.copy(), out, name=spec.maneuver, inputs=phys.inputs, **kw)
 
 
 def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
     """Return the IMO zigzag of integrate.run_maneuver, closed on the hybrid's heading."""
-    ship, net = model.ship, model.residual
+    ship, net = model.ship, cast(ResidualNet, model.residual)   # (as hybrid_maneuver's)
     T = len(phys)
     amp = math.radians(spec.rudder_deg)
     check = math.radians(abs(spec.check_deg if spec.check_deg is not None
@@ -78,6 +81,6 @@ def _hybrid_zigzag(model: Model, spec: mv.ManeuverSpec, phys: Trial) -> Trial:
         T, float(spec.dt), int(spec.substeps), integrator_code(spec.integrator),
         int(net.window), sizes, flat, net.x_mean, net.x_std, net.y_scale, float(net.physics),
         out, rudder, res)
-    kw = {} if status == OK else {'status': STATUS_TEXT[status],
-                                  'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
+    kw: dict[str, Any] = {} if status == OK else {
+        'status': STATUS_TEXT[status], 'fail_time_s': float(phys.t[min(k_fail, T - 1)])}
     return Trial(phys.t.copy(), out, np.column_stack([rpm, rudder]), name=spec.maneuver, **kw)

@@ -29,6 +29,7 @@ import io
 import json
 import math
 from pathlib import Path
+from typing import Any, cast, Sequence, TYPE_CHECKING
 
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import json_default, json_loads, load_yaml, read_npz
@@ -47,6 +48,9 @@ from mmg_tuner.core.trial import fitted_first_state, Trial
 from mmg_tuner.errors import ConfigError, SimulationError
 from numba import njit
 import numpy as np
+
+if TYPE_CHECKING:  # annotations only: numba never evaluates them
+    from mmg_tuner.core._jit import FloatArray, IntArray
 
 FORMAT = 'mmg_tuner.residual/1'
 FORMAT_BLEND = 'mmg_tuner.residual/2'
@@ -83,7 +87,7 @@ class ResidualNet:
     y_scale: np.ndarray
     physics: float = 1.0
     seed: int = 0
-    meta: dict = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         """Check shapes once, so the compiled kernels never read out of bounds."""
@@ -106,7 +110,7 @@ class ResidualNet:
                                for w, b in zip(self.weights, self.biases)])
         return np.asarray(sizes, dtype=np.int64), np.ascontiguousarray(flat, dtype=float)
 
-    def save(self, path) -> None:
+    def save(self, path: str | Path) -> None:
         """Write a portable ``.npz`` (arrays and a JSON string; no pickle), atomically."""
         # a weight strictly between 0 and 1 (a blend) is written in format 2, which a reader
         # of format 1 (a bool) refuses instead of reading it as a hybrid
@@ -122,11 +126,11 @@ class ResidualNet:
             arrays[f'W{i}'] = w
             arrays[f'b{i}'] = b
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub: a key may be allow_pickle
         write_atomic(path, buf.getvalue())
 
     @classmethod
-    def load(cls, path) -> 'ResidualNet':
+    def load(cls, path: str | Path) -> 'ResidualNet':
         """Read a file written by :meth:`save`; ConfigError names the file and the bad key."""
         path = Path(path)
         if not path.is_file():
@@ -134,7 +138,7 @@ class ResidualNet:
         # only the members the format names, each checked from its header before it is read
         data = read_npz(path, path, 'residual network file', members=_is_member)
 
-        def get(key):
+        def get(key: str) -> np.ndarray:
             if key not in data:
                 raise ConfigError(f'{path}: key {key!r} missing: not a complete residual '
                                   'network file (written by mmg_tuner hybrid training)')
@@ -187,7 +191,7 @@ def model_kind(net: ResidualNet | None) -> str:
     return {1.0: 'hybrid', 0.0: 'pure network'}.get(net.physics, 'blend')
 
 
-def load_residual(params_file) -> ResidualNet | None:
+def load_residual(params_file: str | Path) -> ResidualNet | None:
     """
     Return the residual network a params.yaml names (``residual: FILE.npz``, relative to it).
 
@@ -238,15 +242,17 @@ def _check_net(net: ResidualNet, where: str) -> None:
                               f'{a.shape}')
     if not (np.all(net.x_std > 0) and np.all(net.y_scale > 0)):
         raise ConfigError(f"{where}: keys 'x_std', 'y_scale' must be positive")
-    w = net.physics
-    if isinstance(w, (bool, np.bool_)):
-        w = float(w)
-    if not (isinstance(w, (int, float, np.floating, np.integer)) and 0.0 <= float(w) <= 1.0):
+    weight = net.physics
+    if isinstance(weight, (bool, np.bool_)):
+        weight = float(weight)
+    if not (isinstance(weight, (int, float, np.floating, np.integer))
+            and 0.0 <= float(weight) <= 1.0):
         raise ConfigError(f"{where}: key 'physics' = {net.physics!r} must be a weight in "
                           '[0, 1] (1: hybrid, 0: pure network)')
 
 
-def zero_net(window: int, dt_s: float, hidden=(16,), physics: bool = True) -> ResidualNet:
+def zero_net(window: int, dt_s: float, hidden: Sequence[int] = (16,), physics: bool = True
+             ) -> ResidualNet:
     """Return a network whose output is exactly zero (the hybrid then is its physics)."""
     sizes = [window * N_FEATURES, *hidden, 3]
     rng = np.random.default_rng(0)
@@ -258,7 +264,8 @@ def zero_net(window: int, dt_s: float, hidden=(16,), physics: bool = True) -> Re
 
 # ------------------------------------------------------------------------------- the kernels
 @njit(cache=True, fastmath=FASTMATH)
-def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
+def measured_rows(kind: tuple[int, ...], p_in: FloatArray, states: FloatArray, ctrl: FloatArray,
+                  T: int, dt: float, rows: FloatArray, model_states: FloatArray) -> None:
     """
     Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
 
@@ -281,8 +288,12 @@ def measured_rows(kind, p_in, states, ctrl, T, dt, rows, model_states):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, method, window,
-                        sizes, flat, x_mean, x_std, y_scale, physics, out, res_out):
+def simulate_hybrid_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray,
+                        hist: FloatArray, n_hist: int, ctrl: FloatArray, T: int, dt: float,
+                        substeps: int, method: int, window: int, sizes: IntArray,
+                        flat: FloatArray, x_mean: FloatArray, x_std: FloatArray,
+                        y_scale: FloatArray, physics: float, out: FloatArray,
+                        res_out: FloatArray) -> tuple[int, int]:
     """
     One hybrid run over T samples (``integrate.simulate_one`` plus the residual).
 
@@ -302,8 +313,11 @@ def simulate_hybrid_one(kind, p_in, x0, hist, n_hist, ctrl, T, dt, substeps, met
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def steer_hybrid_one(kind, p, x0, ctrl, gear, T, dt, substeps, method, window, sizes, flat,
-                     x_mean, x_std, y_scale, physics, out, rudder_out, res_out):
+def steer_hybrid_one(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl: FloatArray,
+                     gear: FloatArray, T: int, dt: float, substeps: int, method: int,
+                     window: int, sizes: IntArray, flat: FloatArray, x_mean: FloatArray,
+                     x_std: FloatArray, y_scale: FloatArray, physics: float, out: FloatArray,
+                     rudder_out: FloatArray, res_out: FloatArray) -> tuple[int, int]:
     """
     Run a manoeuvre of a hybrid with the steering gear in the loop (``integrate.run_maneuver``).
 
@@ -402,8 +416,8 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
             res[a:b] = seg_res
             ok, status = st == OK, STATUS_TEXT[st]
         out[a:b] = seg
-        if not ok and fail_t is None:
-            fail_t = float(trial.t[a] - trial.t[0] + dt * min(k_fail, b - a - 1))
+        if not ok and fail_t is None:   # (k_fail is set where a run failed)
+            fail_t = float(trial.t[a] - trial.t[0] + dt * min(cast(int, k_fail), b - a - 1))
             why = status
     return out, res, fail_t, why
 
@@ -429,7 +443,7 @@ def simulate_hybrid(ship: ShipConfig, net: ResidualNet | None, trial: Trial, *,
                                                substeps)
     kind = model_kind(net)
     notes = [f'simulated by mmg_tuner ({ship.name}, {kind}, {integrator})']
-    kw = {}
+    kw: dict[str, Any] = {}
     if fail_t is not None:
         notes.append(f'the simulation stopped at t = {fail_t:.2f} s: {why}')
         kw = {'status': why, 'fail_time_s': float(trial.t[0] + fail_t)}
@@ -448,7 +462,7 @@ class ResidualStepper:
     :func:`simulate_hybrid` step by step.
     """
 
-    def __init__(self, net: ResidualNet):
+    def __init__(self, net: ResidualNet) -> None:
         self.net = net
         self._sizes, self._flat = net.packed()
         self._ring = np.empty((net.window, N_FEATURES))
@@ -460,11 +474,12 @@ class ResidualStepper:
         self._fresh = True
         self.reset(None)
 
-    def reset(self, state=None) -> None:
+    def reset(self, state: object = None) -> None:
         """Forget the history: the next call pads the window with its own sample."""
         self._fresh = True
 
-    def accelerations(self, state, act, wind_body) -> tuple[float, float, float]:
+    def accelerations(self, state: np.ndarray | Sequence[float], act: Sequence[float],
+                      wind_body: np.ndarray | Sequence[float]) -> tuple[float, float, float]:
         """
         Return the residual's (du [m/s^2], dv [m/s^2], dr [rad/s^2]) for this sample.
 
