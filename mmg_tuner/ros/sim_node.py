@@ -2,10 +2,12 @@
 ``sim_node``: the tuned ship as a ROS 2 simulator.
 
 Subscribes rudder, propeller and (for a model with them) bow and stern thruster commands
-(last value holds; astern rpm where the model covers it) -- or, for a craft commanded per
-thruster (the twin-azimuth tug, the Otter), each thruster's shaft speed and azimuth angle on
-VRX-style topics ``thrusters/<name>/thrust`` and ``thrusters/<name>/pos``, publishing the
-azimuth angles as sensor_msgs/JointState -- publishes nav_msgs/Odometry in the
+(last value holds; astern rpm where the model covers it) -- or, for a craft commanded channel
+by channel (the twin-azimuth tug, the Otter, a plugin's actuator), one topic per command
+channel, the topic its actuator declares (a tug: VRX-style ``thrusters/<name>/thrust`` and
+``thrusters/<name>/pos``; ``command_topics`` overrides any), publishing the joints its
+actuator declares (``JOINTS``: a tug's azimuth angles) as sensor_msgs/JointState --
+publishes nav_msgs/Odometry in the
 ``odom`` frame (REP-105: header ``odom``, child ``base_link``; for an ensemble model its
 covariance from the members' spread, zeros otherwise: ``ros/uncertainty.py``) and TF
 ``odom -> base_link`` whenever the state has advanced (checked at ``rate_hz``, so at most
@@ -27,6 +29,7 @@ import re
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.channels import TABLE as CHANNEL_TABLE
 from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
@@ -100,23 +103,18 @@ PARAMS = {
                                        f'command [rev/s, + pushes the {side} to starboard]; '
                                        'only for a model with thrusters', read_only=True)
        for side in THRUSTERS},
-    # a craft commanded per thruster (a model without a screw and rudder: the twin-azimuth
-    # tug, the Otter): VRX's topic names (osrf/vrx, vrx_urdf/wamv_gazebo/urdf/thruster_layouts/
-    # wamv_gazebo_thruster_config.xacro: thrusters/<name>/thrust and thrusters/<name>/pos),
-    # with this package's units and signs; <name> = the ship's thruster names (port, stbd)
-    'thrust_topic': Param('thrusters/{name}/thrust', 'std_msgs/Float64 shaft speed command of '
-                          'thruster {name} [rev/s, + thrust ahead at azimuth 0], clamped to the '
-                          "ship's steering.max_thruster_rps; only for a model commanded per "
-                          'thruster ({name}: port, stbd)', read_only=True),
-    'azimuth_topic': Param('thrusters/{name}/pos', 'std_msgs/Float64 azimuth angle command of '
-                           'thruster {name} [rad, 0 = thrust ahead, + = thrust toward '
-                           "starboard], clamped to the ship's steering.max_azimuth_deg; the "
-                           "thruster turns there with the actuator's dynamics; only for a "
-                           'model commanded per thruster', read_only=True),
-    'joint_states_topic': Param('joint_states', 'sensor_msgs/JointState of the azimuth angles '
-                                '(joints {name}_azimuth_joint: position [rad], velocity '
-                                '[rad/s], + = thrust toward starboard) with the odometry; only '
-                                'for a model with azimuth thrusters', read_only=True),
+    # a craft commanded channel by channel (a model without a screw and rudder): one
+    # std_msgs/Float64 topic per command channel, in the channel's unit and sign, clamped to
+    # the ship's limit; the topic the actuator declares for it (core/channels.py), relative
+    'command_topics': Param('', 'CHANNEL=TOPIC,... overriding the topic a command channel '
+                            "is read from (default: its actuator's declaration, e.g. a tug's "
+                            'n_port on thrusters/port/thrust, azimuth_port on '
+                            'thrusters/port/pos); only for a model commanded channel by '
+                            'channel', read_only=True),
+    'joint_states_topic': Param('joint_states', 'sensor_msgs/JointState of the joints the '
+                                "model's actuators declare (a tug: <name>_azimuth_joint, "
+                                'position [rad], velocity [rad/s], + = thrust toward '
+                                'starboard) with the odometry', read_only=True),
     'frame_id': Param('map', 'world frame (ENU), shared by all ships: not prefixed; the '
                       'parent of the static map -> odom'),
     'odom_frame_id': Param('odom', "the ship's odometry frame (ENU): Odometry.header.frame_id "
@@ -208,18 +206,19 @@ class SimNode(Node):
             pubs['imu'] = self.create_publisher(Imu, self.p['imu_topic'], 10).publish
         self.sensors = SimulatedSensors(self.p, self.sim.dt, pubs, body)
         # a craft commanded per thruster: channel -> topic (empty for a screw and rudder)
-        self.channel_topics = thruster_topics(self.sim.command_channels, self.p) \
+        self.channel_topics = command_topics(self.sim.command_channels,
+                                             self.p['command_topics']) \
             if not self.sim.screw_rudder else {}
         self.joint_pub = self._joint_msg = None
         if self.channel_topics:
             for ch, topic in self.channel_topics.items():
                 self.create_subscription(Float64, topic,
                                          lambda msg, c=ch: self._on_channel(c, msg), 10)
-            self._joints = azimuth_joints(self.sim.command_channels)
+            self._joints = declared_joints(self.sim.ship.family.actuators)
             if self._joints:
                 self.joint_pub = self.create_publisher(JointState,
                                                        self.p['joint_states_topic'], 10)
-                self._joint_msg = JointState(name=[f'{n}_azimuth_joint' for n in self._joints])
+                self._joint_msg = JointState(name=list(self._joints))
         else:
             self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
             self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
@@ -433,8 +432,8 @@ class SimNode(Node):
             act = self.sim.actuator_states()
             js = self._joint_msg
             js.header.stamp = msg.header.stamp
-            js.position = [act[f'alpha_{n}'] for n in self._joints]
-            js.velocity = [act[f'alpha_rate_{n}'] for n in self._joints]
+            js.position = [act[pos] for pos, _ in self._joints.values()]
+            js.velocity = [act[vel] for _, vel in self._joints.values()]
             self.joint_pub.publish(js)
         if self.clock_pub is not None:
             self._clock_msg.clock = msg.header.stamp
@@ -644,44 +643,40 @@ class SimNode(Node):
                                   if names & RESTART_PARAMS else ''))
 
 
-def thruster_topics(channels, p: dict) -> dict[str, str]:
+def command_topics(channels, overrides: str) -> dict[str, str]:
     """
     Return channel -> command topic for a craft commanded channel by channel.
 
-    ``n_<name>`` (shaft speed) on ``thrust_topic``, ``azimuth_<name>`` (angle) on
-    ``azimuth_topic``, ``{name}`` replaced by the thruster's name (port, stbd); a template
-    without ``{name}`` (every thruster on one topic) or with another field is refused. Any other
-    channel (a plugin actuator's) on the topic its declaration names (core/channels.py), made
-    relative: in the node's namespace.
+    Each channel on the topic its actuator declares (``CHANNELS``' 4th element,
+    core/channels.py), made relative (in the node's namespace), unless ``overrides``
+    (``CHANNEL=TOPIC,...``, the ``command_topics`` parameter) names another.
     """
+    given: dict[str, str] = {}
+    for item in overrides.split(','):
+        if not item.strip():
+            continue
+        ch, sep, topic = (x.strip() for x in item.partition('='))
+        if not sep or not topic or ch not in channels:
+            raise MmgTunerError(f'parameter command_topics: {item.strip()!r} is not '
+                                f'CHANNEL=TOPIC with CHANNEL one of {", ".join(channels)}')
+        given[ch] = topic.lstrip('/')
     out = {}
     for ch in channels:
-        for prefix, key in (('n_', 'thrust_topic'), ('azimuth_', 'azimuth_topic')):
-            if not ch.startswith(prefix):
-                continue
-            template = p[key]
-            try:
-                topic = template.format(name=ch[len(prefix):])
-            except (KeyError, IndexError, ValueError):
-                topic = template
-            if topic == template:
-                raise MmgTunerError(f'parameter {key} = {template!r} must contain {{name}} '
-                                    '(the thruster: port, stbd) and no other field')
-            out[ch] = topic
-        if ch not in out and ch in CHANNEL_TABLE and CHANNEL_TABLE[ch].topic:
+        if ch in given:
+            out[ch] = given[ch]
+        elif ch in CHANNEL_TABLE and CHANNEL_TABLE[ch].topic:
             out[ch] = CHANNEL_TABLE[ch].topic.lstrip('/')
     missing = [c for c in channels if c not in out]
     if missing:
-        raise MmgTunerError(f'no topic for the command(s) {", ".join(missing)}: sim_node takes '
-                            'a screw and rudder, n_<name> and azimuth_<name> per thruster, or '
-                            "channels whose actuator declares a topic (its CHANNELS' 4th "
-                            'element)')
+        raise MmgTunerError(f'no topic for the command(s) {", ".join(missing)}: give it in the '
+                            'parameter command_topics (CHANNEL=TOPIC), or declare it in the '
+                            "actuator's CHANNELS (4th element)")
     return out
 
 
-def azimuth_joints(channels) -> list[str]:
-    """Return the names of the thrusters with an azimuth angle command (JointState joints)."""
-    return [c[len('azimuth_'):] for c in channels if c.startswith('azimuth_')]
+def declared_joints(actuators) -> dict[str, tuple[str, str]]:
+    """Return joint -> (position state, velocity state) the actuators declare (``JOINTS``)."""
+    return {joint: states for a in actuators for joint, states in actuator(a).joints.items()}
 
 
 def main(args=None) -> None:

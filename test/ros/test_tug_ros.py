@@ -260,3 +260,23 @@ def test_replay_node_plays_a_tug_recording(ros, tug_csv, tmp_path, kind):
         _assert_same_state(state_from_odometry(m), offline.states[k])
     for ch, msgs in cmd.items():   # the recorded channels, in the map's units (rev/s, rad)
         np.testing.assert_allclose(msgs[-1].data, trial[ch][-1], atol=1e-12, err_msg=ch)
+
+
+def test_command_topics_come_from_the_actuator_and_the_parameter_overrides_them():
+    pytest.importorskip('rclpy')
+    from mmg_tuner.errors import MmgTunerError
+    from mmg_tuner.ros.sim_node import command_topics, declared_joints
+    chans = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd')
+    assert command_topics(chans, '') == {
+        'n_port': 'thrusters/port/thrust', 'n_stbd': 'thrusters/stbd/thrust',
+        'azimuth_port': 'thrusters/port/pos', 'azimuth_stbd': 'thrusters/stbd/pos'}
+    moved = command_topics(chans, 'n_port=/port/rps, azimuth_stbd=stbd/angle')
+    assert moved['n_port'] == 'port/rps' and moved['azimuth_stbd'] == 'stbd/angle'
+    assert moved['n_stbd'] == 'thrusters/stbd/thrust'
+    for bad in ('rudder=x', 'n_port', 'n_port='):
+        with pytest.raises(MmgTunerError, match='command_topics'):
+            command_topics(chans, bad)
+    assert declared_joints(('twin_azimuth',)) == {
+        'port_azimuth_joint': ('alpha_port', 'alpha_rate_port'),
+        'stbd_azimuth_joint': ('alpha_stbd', 'alpha_rate_stbd')}
+    assert declared_joints(('screw_rudder',)) == {}

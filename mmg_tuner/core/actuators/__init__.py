@@ -28,6 +28,8 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
      (``core/stepper.py``) writes its command to, when the actuator's own dynamics move the
      measured value toward a commanded one (an azimuth angle and its command).
+   * optionally ``JOINTS``: joint name -> (position state, velocity state) among ``STATES``,
+     what ``sim_node`` publishes as sensor_msgs/JointState (a tug's azimuth angles).
    * optionally ``TRIALS``: the module (beside this one, or a full module path) that says what
      the ``generate`` command sails for a craft this actuator drives, in place of the
      screw-and-rudder manoeuvres (``twin_azimuth_trials.py`` is the example): ``RATE_HZ``
@@ -103,6 +105,8 @@ class Actuator:
     # its plausibility rules (propulsion outputs, helm) when config/model_plausibility.yaml
     # has no entry for it: a plugin declares its own (core/plausibility.py)
     plausibility: dict[str, Any] = field(default_factory=dict)
+    # joint -> (position state, velocity state) a simulator publishes (sim_node's JointState)
+    joints: dict[str, tuple[str, str]] = field(default_factory=dict)
 
 
 def module_of(name: str) -> str:
@@ -158,7 +162,9 @@ def actuator(name: str) -> Actuator:
                                 mod.start, mod.hold, mod.output,
                                 getattr(mod, 'forces', None),
                                 dict(getattr(mod, 'COMMANDED', {})),
-                                dict(getattr(mod, 'PLAUSIBILITY', {})))
+                                dict(getattr(mod, 'PLAUSIBILITY', {})),
+                                {str(k): (str(v[0]), str(v[1]))
+                                 for k, v in getattr(mod, 'JOINTS', {}).items()})
     return _CACHE[name]
 
 

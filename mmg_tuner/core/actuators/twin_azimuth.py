@@ -63,6 +63,9 @@ OUTPUTS = ('thrust_port', 'thrust_stbd', 'alpha_port', 'alpha_stbd')
 # dynamics then move the thruster (core/stepper.py)
 COMMANDED = {'azimuth_port': 'azimuth_cmd_port', 'azimuth_stbd': 'azimuth_cmd_stbd'}
 STATES = ('alpha_port', 'alpha_rate_port', 'alpha_stbd', 'alpha_rate_stbd')
+# the joints a simulator publishes (sim_node: sensor_msgs/JointState), named as VRX names them
+JOINTS = {'port_azimuth_joint': ('alpha_port', 'alpha_rate_port'),
+          'stbd_azimuth_joint': ('alpha_stbd', 'alpha_rate_stbd')}
 # what `generate` sails for a craft it drives: its catalogue, sensor noise and bollard-pull table
 TRIALS = 'twin_azimuth_trials'
 # what `export` needs: its states, inputs and step as CasADi expressions
