@@ -9,24 +9,36 @@ simulation-based loss flows through every step of the simulated window.
 """
 from __future__ import annotations
 
+from typing import Any, Callable, cast, Mapping, Sequence
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.learn._bridge import batch_derivative
 import numpy as np
 import optax
 
-jax.config.update('jax_enable_x64', True)  # the physics runs in float64 (before any array)
+# the physics runs in float64 (before any array); (jax's config.update has no annotations)
+jax.config.update('jax_enable_x64', True)  # type: ignore[no-untyped-call]
 
 _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
 _ax = PARAM_INDEX['antenna_x']
 _ay = PARAM_INDEX['antenna_y']
 
+# a batch of windows simulated: (model, x0, hist, inp, act, wind) -> (observed, residual)
+Simulate = Callable[['MLP', ArrayLike, ArrayLike, ArrayLike, ArrayLike, ArrayLike],
+                    tuple[jax.Array, jax.Array]]
+# a batch's losses of a model: (model, batch, window weights) -> ...
+DataLoss = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike],
+                    tuple[jax.Array, jax.Array, jax.Array]]
+Total = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike], tuple[jax.Array, jax.Array]]
 
-def physics_fn(kind: int, p: np.ndarray):
+
+def physics_fn(kind: int, p: np.ndarray) -> Callable[..., jax.Array]:
     """
     Return ds/dt (B, 6) of the family as a differentiable JAX function of the states (B, 6).
 
@@ -36,7 +48,8 @@ def physics_fn(kind: int, p: np.ndarray):
     p = np.ascontiguousarray(p, dtype=float)
     tag = family_tag(kind)
 
-    def host(s, act, wind, with_jac):
+    def host(s: np.ndarray, act: np.ndarray, wind: np.ndarray, with_jac: bool
+             ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         s = np.ascontiguousarray(s, dtype=float)
         B = s.shape[0]
         F = np.empty((B, 6))
@@ -45,20 +58,26 @@ def physics_fn(kind: int, p: np.ndarray):
                          np.ascontiguousarray(wind, dtype=float), F, J, with_jac)
         return (F, J) if with_jac else F
 
-    def shape(s):
-        return jax.ShapeDtypeStruct(s.shape, jnp.float64)
+    # (jax's ShapeDtypeStruct.__init__ has no annotations)
+    def shape(s: jax.Array) -> jax.ShapeDtypeStruct:
+        return jax.ShapeDtypeStruct(s.shape, jnp.float64)  # type: ignore[no-untyped-call]
 
     @jax.custom_vjp
-    def f(s, act, wind):
-        return jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind)
+    def f(s: jax.Array, act: jax.Array, wind: jax.Array) -> jax.Array:
+        out: jax.Array = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s,
+                                           act, wind)
+        return out
 
-    def fwd(s, act, wind):
+    def fwd(s: jax.Array, act: jax.Array, wind: jax.Array
+            ) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
         F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True),
-                                 (shape(s), jax.ShapeDtypeStruct(s.shape + (6,), jnp.float64)),
+                                 (shape(s), jax.ShapeDtypeStruct(  # type: ignore[no-untyped-call]
+                                     s.shape + (6,), jnp.float64)),
                                  s, act, wind)
         return F, (J, act, wind)
 
-    def bwd(res, g):
+    def bwd(res: tuple[jax.Array, jax.Array, jax.Array], g: jax.Array
+            ) -> tuple[jax.Array, jax.Array, jax.Array]:
         J, act, wind = res
         return jnp.einsum('bi,bij->bj', g, J), jnp.zeros_like(act), jnp.zeros_like(wind)
 
@@ -73,18 +92,20 @@ class MLP(eqx.Module):
     The last layer starts at zero, so the hybrid starts as its physics part.
     """
 
-    layers: list
+    layers: list[eqx.nn.Linear]
 
-    def __init__(self, sizes, key):
+    def __init__(self, sizes: Sequence[int], key: jax.Array) -> None:
         keys = jax.random.split(key, len(sizes) - 1)
         layers = [eqx.nn.Linear(i, o, key=k, dtype=jnp.float64)
                   for i, o, k in zip(sizes[:-1], sizes[1:], keys)]
         last = layers[-1]
+        # (a Linear has its bias: use_bias is True by default)
         layers[-1] = eqx.tree_at(lambda m: (m.weight, m.bias), last,
-                                 (jnp.zeros_like(last.weight), jnp.zeros_like(last.bias)))
+                                 (jnp.zeros_like(last.weight),
+                                  jnp.zeros_like(cast(jax.Array, last.bias))))
         self.layers = layers
 
-    def __call__(self, x):
+    def __call__(self, x: jax.Array) -> jax.Array:
         for layer in self.layers[:-1]:
             x = jnp.tanh(layer(x))
         return self.layers[-1](x)
@@ -95,7 +116,7 @@ class MLP(eqx.Module):
 
 
 def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float,
-                   x_mean, x_std, y_scale):
+                   x_mean: np.ndarray, x_std: np.ndarray, y_scale: np.ndarray) -> Simulate:
     """
     Return simulate(model, x0, hist, inp, act, wind) -> (observed, residual).
 
@@ -108,7 +129,7 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
     std = jnp.asarray(x_std)
     yscale = jnp.asarray(y_scale)
 
-    def features(s, inp, wind):
+    def features(s: jax.Array, inp: jax.Array, wind: jax.Array) -> jax.Array:
         psi, u, v = s[:, 2], s[:, 3], s[:, 4]
         ug, vg = u, v
         if Vc != 0.0:
@@ -119,7 +140,7 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
         wv = -wind[:, 0] * jnp.sin(rel) - vg
         return jnp.concatenate([s[:, 3:6], inp, wu[:, None], wv[:, None]], axis=1)
 
-    def deriv(s, act, wind, a):
+    def deriv(s: jax.Array, act: jax.Array, wind: jax.Array, a: jax.Array) -> jax.Array:
         if physics:
             return phys(s, act, wind) + jnp.concatenate([jnp.zeros_like(s[:, :3]), a], axis=1)
         psi, u, v, r = s[:, 2], s[:, 3], s[:, 4], s[:, 5]
@@ -131,7 +152,7 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             dy = dy + Vc * np.sin(dirc)
         return jnp.concatenate([dx[:, None], dy[:, None], r[:, None], a], axis=1)
 
-    def observe(s):
+    def observe(s: jax.Array) -> jax.Array:
         psi = s[:, 2]
         c, sn = jnp.cos(psi), jnp.sin(psi)
         o = s
@@ -141,10 +162,12 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             o = o.at[:, 3].add(Vc * jnp.cos(dirc - psi)).at[:, 4].add(Vc * jnp.sin(dirc - psi))
         return o
 
-    def simulate(model, x0, hist, inp, act, wind):
+    def simulate(model: MLP, x0: ArrayLike, hist: ArrayLike, inp: ArrayLike, act: ArrayLike,
+                 wind: ArrayLike) -> tuple[jax.Array, jax.Array]:
         net = jax.vmap(model)
 
-        def step(carry, xs):
+        def step(carry: tuple[jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array, jax.Array]
+                 ) -> tuple[tuple[jax.Array, jax.Array], tuple[jax.Array, jax.Array]]:
             s, ring = carry
             inp_k, act_k, wind_k = xs
             row = features(s, inp_k, wind_k)
@@ -162,13 +185,15 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             return (s, full[:, 1:]), (observe(s), a)
 
         xs = (jnp.swapaxes(inp, 0, 1), jnp.swapaxes(act, 0, 1), jnp.swapaxes(wind, 0, 1))
-        _, (obs, res) = jax.lax.scan(step, (x0, hist), xs)
+        # (the batch's arrays are jax Arrays inside the trace)
+        _, (obs, res) = jax.lax.scan(step, cast(tuple[jax.Array, jax.Array], (x0, hist)), xs)
         return jnp.swapaxes(obs, 0, 1), jnp.swapaxes(res, 0, 1)
 
     return simulate
 
 
-def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
+def make_loss(simulate: Simulate, sigma: np.ndarray, y_scale: np.ndarray, l2: float,
+              physics: bool) -> tuple[DataLoss, Total]:
     """
     Return the batch losses data_loss(model, b, w) and total(model, b, w).
 
@@ -181,18 +206,20 @@ def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
     inv = jnp.asarray(1.0 / np.asarray(sigma))
     inv_y2 = jnp.asarray(1.0 / np.asarray(y_scale) ** 2)
 
-    def data_loss(model, b, w):
+    def data_loss(model: MLP, b: Mapping[str, ArrayLike], w: ArrayLike
+                  ) -> tuple[jax.Array, jax.Array, jax.Array]:
         obs, res = simulate(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
         e = obs - b['target']
         e = e.at[:, :, 2].set((e[:, :, 2] + jnp.pi) % (2 * jnp.pi) - jnp.pi)
         per = jnp.mean((e * inv) ** 2, axis=(1, 2))
         return jnp.sum(per * w) / jnp.sum(w), res, per
 
-    def total(model, b, w):
+    def total(model: MLP, b: Mapping[str, ArrayLike], w: ArrayLike
+              ) -> tuple[jax.Array, jax.Array]:
         d, res, _ = data_loss(model, b, w)
         if physics:   # weighted as the data loss: a window weighing more is held closer
             per = jnp.mean(res ** 2, axis=1) @ inv_y2 / 3.0
-            reg = jnp.sum(per * w) / jnp.sum(w)
+            reg: jax.Array | float = jnp.sum(per * w) / jnp.sum(w)
         else:
             leaves = [la.weight for la in model.layers]
             reg = sum(jnp.sum(x ** 2) for x in leaves) / sum(x.size for x in leaves)
@@ -201,5 +228,5 @@ def make_loss(simulate, sigma, y_scale, l2: float, physics: bool):
     return data_loss, total
 
 
-def optimiser(learning_rate: float):
+def optimiser(learning_rate: float) -> Any:   # an optax GradientTransformation (no stubs)
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate))

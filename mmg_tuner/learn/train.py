@@ -16,14 +16,18 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 import math
 import time
-from typing import Mapping, Sequence
+from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
+from mmg_tuner.core.correction import FEATURES, N_FEATURES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
-from mmg_tuner.learn._windows import cut, prepare, starts, Windows
-from mmg_tuner.learn.residual import FEATURES, N_FEATURES, ResidualNet
+from mmg_tuner.learn._windows import cut, prepare, starts, TrialArrays, Windows
+from mmg_tuner.learn.residual import ResidualNet
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only: JAX is imported when a network is trained
+    from mmg_tuner.learn._engine import MLP
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
 BALANCE = ('window', 'trial', 'group')
@@ -44,7 +48,7 @@ def require_jax() -> None:
         raise MissingDependencyError(f'{INSTALL_HINT} ({exc})') from None
 
 
-def _bad(option: str, value, what: str) -> ConfigError:
+def _bad(option: str, value: object, what: str) -> ConfigError:
     return ConfigError(f'ResidualConfig: {option} = {value!r} must be {what}')
 
 
@@ -100,10 +104,10 @@ class ResidualConfig:
     select: str = 'mean'
 
     def __post_init__(self) -> None:
-        def whole(x, lo):
+        def whole(x: object, lo: int) -> bool | np.bool_:
             return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and x >= lo
 
-        def pos(x):
+        def pos(x: object) -> bool:
             return isinstance(x, (int, float)) and not isinstance(x, bool) and \
                 math.isfinite(x) and x > 0
 
@@ -154,7 +158,7 @@ class ResidualFit:
     """
 
     net: ResidualNet
-    history: list[dict]
+    history: list[dict[str, Any]]
     train_loss: float
     val_loss: float
     share: float
@@ -204,7 +208,8 @@ def window_weights(names: Sequence[str], balance: str,
             members.setdefault(_group(n, groups), []).append(n)
         share = {n: 1.0 / (len(members) * len(ns)) for ns in members.values() for n in ns}
     w = np.array([share[n] / count[n] for n in names])
-    return w / w.mean()
+    scaled: np.ndarray = w / w.mean()
+    return scaled
 
 
 def group_losses(losses: np.ndarray, weights: np.ndarray, labels: np.ndarray,
@@ -340,7 +345,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     if cfg.balance == 'group' and groups is None:
         raise TuningError("train_residual: balance 'group' needs groups (trial name -> group)")
 
-    def names_of(ts, arrs):
+    def names_of(ts: Sequence[Trial], arrs: Sequence[TrialArrays]) -> list[str]:
         return [t.name for t, a in zip(ts, arrs)
                 for _ in starts(a.rows.shape[0], cfg.window, H, stride)]
 
@@ -382,23 +387,24 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     opt_state = opt.init(eqx.filter(model, eqx.is_array))
 
     @eqx.filter_jit
-    def train_step(model, opt_state, b, w):
+    def train_step(model: MLP, opt_state: Any, b: Mapping[str, np.ndarray], w: np.ndarray
+                   ) -> tuple[MLP, Any, jax.Array]:
         (_, d), grads = eqx.filter_value_and_grad(total, has_aux=True)(model, b, w)
         updates, opt_state = opt.update(grads, opt_state, eqx.filter(model, eqx.is_array))
         return eqx.apply_updates(model, updates), opt_state, d
 
     @eqx.filter_jit
-    def window_losses(model, b, w):
+    def window_losses(model: MLP, b: Mapping[str, np.ndarray], w: np.ndarray) -> jax.Array:
         return data_loss(model, b, w)[2]
 
     B = min(cfg.batch_size, len(w_tr))
 
-    def as_batch(w: Windows, idx):
+    def as_batch(w: Windows, idx: np.ndarray) -> dict[str, np.ndarray]:
         t = w.take(idx)
         return {'x0': t.x0, 'hist': t.hist, 'inp': t.inp, 'act': t.act, 'wind': t.wind,
                 'target': t.target}
 
-    def per_window(model, w: Windows) -> np.ndarray:
+    def per_window(model: MLP, w: Windows) -> np.ndarray:
         """Return the data loss of each window of w (fixed-size chunks: one shape)."""
         n = len(w)
         out = []
@@ -409,7 +415,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             out.append(np.asarray(window_losses(model, as_batch(w, idx), wt))[:int(wt.sum())])
         return np.concatenate(out)
 
-    def mean_loss(model, w: Windows, wt: np.ndarray) -> float:
+    def mean_loss(model: MLP, w: Windows, wt: np.ndarray) -> float:
         return float(np.mean(per_window(model, w) * wt))
 
     def by_group(losses: np.ndarray) -> np.ndarray:
@@ -440,9 +446,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         losses = []
         for a in range(0, len(perm), B):
             idx = perm[a:a + B] if a + B <= len(perm) else perm[-B:]
-            new_model, new_state, d = train_step(model, opt_state, as_batch(w_tr, idx),
-                                                 wt_tr[idx])
-            d = float(d)
+            new_model, new_state, d_arr = train_step(model, opt_state, as_batch(w_tr, idx),
+                                                     wt_tr[idx])
+            d = float(d_arr)
             if not math.isfinite(d):  # a diverging window: skip the step, keep going
                 skipped += 1
                 continue
@@ -539,13 +545,14 @@ def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
                               'same options')
     nets = [a] + [restandardised(n, a.x_mean, a.x_std, a.y_scale) for n in nets[1:]]
     k, L = len(nets), len(a.weights)
-    ws, bs = [], []
+    ws: list[np.ndarray] = []
+    bs: list[np.ndarray] = []
     for layer in range(L):
         W = [n.weights[layer] for n in nets]
         b = [n.biases[layer] for n in nets]
-        if layer == L - 1:
-            ws.append(np.hstack(W) / k if L > 1 else sum(W) / k)
-            bs.append(sum(b) / k)
+        if layer == L - 1:   # (a sum of arrays is an array)
+            ws.append(np.hstack(W) / k if L > 1 else cast(np.ndarray, sum(W)) / k)
+            bs.append(cast(np.ndarray, sum(b)) / k)
         elif layer == 0:
             ws.append(np.vstack(W))
             bs.append(np.concatenate(b))
@@ -637,8 +644,8 @@ def members(net: ResidualNet) -> list[ResidualNet]:
     return out
 
 
-def _share(net: ResidualNet, arrs, F_phys: np.ndarray, teacher_residuals
-           ) -> tuple[float, dict[str, float]]:
+def _share(net: ResidualNet, arrs: Sequence[TrialArrays], F_phys: np.ndarray,
+           teacher_residuals: Callable[..., None]) -> tuple[float, dict[str, float]]:
     """
     Return the residual's share of the total acceleration on the training histories.
 
@@ -658,7 +665,7 @@ def _share(net: ResidualNet, arrs, F_phys: np.ndarray, teacher_residuals
     r = np.concatenate(res) / net.y_scale
     tot = F_phys[:, 3:6] / net.y_scale + r
 
-    def ratio(a, b):
+    def ratio(a: np.ndarray, b: np.ndarray) -> float:
         den = math.sqrt(float(np.mean(b ** 2)))
         return min(1.0, math.sqrt(float(np.mean(a ** 2))) / den) if den > 0 else 0.0
 
