@@ -98,8 +98,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     with WarningLog() as log:
         trials: list[Trial] = _load.load_many(list(paths), tm, keep_astern=bool(keep_astern),
                                               limits=limits)
-        if ship is not None and any(t.inputs for t in trials):   # a twin-thruster craft's
-            from mmg_tuner.data.tug_units import channel_unit_warnings, warn_all
+        if ship is not None and any(t.inputs for t in trials):   # a craft's own channels
+            from mmg_tuner.data.channel_units import channel_unit_warnings, warn_all
             for t in trials:
                 warn_all(channel_unit_warnings(t, ship), logger)
         if ship is not None:   # rpm logged as rev/s, from the ship's own force balance

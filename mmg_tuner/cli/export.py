@@ -27,13 +27,13 @@ DT = bounded(float, 1e-4, 60.0, 'the discrete model step dt [s]')
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='export', description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ship', required=True,
-                    help='ship config name or YAML (an exportable family, e.g. qiuxin_tug)')
+                    help='ship config name or YAML (of an exportable family: see above)')
     ap.add_argument('--params', help='params.yaml overlay (e.g. the output of tune)')
     ap.add_argument('--out', required=True, help='new (or empty) output folder')
     ap.add_argument('--at', metavar='KEY=V,...',
                     help='operating point of the linearisation: u, v [m/s], r [rad/s], psi '
-                         "[rad] and optionally the actuator's values acting (a tug: n_port, "
-                         'n_stbd [rev/s], azimuth_port, azimuth_stbd [rad]); those not given '
+                         "[rad] and optionally the actuator's values acting (model.json's "
+                         'nu_dot_input: its channel names, SI units); those not given '
                          'are trimmed to steady motion (default: the service speed straight '
                          "ahead, at 80 %% of the actuator's largest propulsion)")
     ap.add_argument('--dt', type=DT, default=0.2,

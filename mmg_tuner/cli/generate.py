@@ -136,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--from-advice', metavar='DIAGNOSIS_JSON',
                     help='the trials a diagnosis advised (its diagnosis.json or folder), in '
                     'place of --maneuvers (each spec sets its own rpm, speed and duration); '
-                    'each with its twin to the other side: tune on one, hold the other out')
+                    'each with its mirror to the other side: tune on one, hold the other out')
     return ap
 
 

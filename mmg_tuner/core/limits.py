@@ -52,7 +52,7 @@ DT_MIN_S = 1e-3  # finer than any manoeuvring dynamics; real time then costs 100
 POSITION_MAX_M = 2.0e7  # half the Earth's circumference: no local frame reaches farther
 THRUSTER_PLAUSIBLE_FACTOR = 2.0  # beyond 2 x the thruster limit: a unit error, not a command
 THRUSTER_CHANNELS = ('bow_thruster', 'stern_thruster')
-AZIMUTH_PLAUSIBLE_RAD = 2 * math.pi  # beyond one turn: degrees read as radians, not a command
+ANGLE_PLAUSIBLE_RAD = 2 * math.pi  # beyond one turn: degrees read as radians, not a command
 
 
 @dataclass(frozen=True)
@@ -335,7 +335,7 @@ def command_limits(ship: ShipConfig, channels: Iterable[str]) -> dict[str, Comma
                                   f'{value!r} must be a number of degrees in [0, 180]')
             basis = (f'steering.max_azimuth_deg of {ship.name}' if 'max_azimuth_deg' in steering
                      else 'no steering.max_azimuth_deg: a half turn')
-            out[ch] = CommandLimit(ch, unit, math.radians(deg), AZIMUTH_PLAUSIBLE_RAD, basis)
+            out[ch] = CommandLimit(ch, unit, math.radians(deg), ANGLE_PLAUSIBLE_RAD, basis)
         else:
             out[ch] = CommandLimit(ch, unit, math.inf, math.inf, 'no limit for this unit')
     return out

@@ -33,7 +33,7 @@ IMPLAUSIBLE = -1  # status of a finite state beyond the ship's plausible speed o
 ARITHMETIC = -2   # the compiled model raised ZeroDivisionError
 MAX_SUBSTEPS = 1000
 THRUSTERS = ('bow', 'stern')  # thruster commands, in the order of the input channels
-SCREW_RUDDER = ('rpm', 'rudder')  # the first inputs of a screw-and-rudder family
+RPM_RUDDER = ('rpm', 'rudder')  # the first inputs of a family commanded by rpm and rudder
 
 
 @dataclass
@@ -174,7 +174,7 @@ class ShipSimulator:
         self.residual = residual
         self._tag = family_tag(ship.kind)
         fam = ship.family
-        self.screw_rudder = fam.inputs[:2] == SCREW_RUDDER
+        self.rpm_rudder = fam.inputs[:2] == RPM_RUDDER
         acts = [actuator(a) for a in fam.actuators]
         # measured channel -> the channel its command goes to (the actuator moves the former)
         self._commanded = {m: c for a in acts for m, c in a.commanded.items()}
@@ -188,9 +188,9 @@ class ShipSimulator:
         self._inp[0, :len(fam.inputs)] = 0.0
         self._a = np.zeros(N_ACT_STATES)
         self.limits: InputLimits = input_limits(ship)
-        self.command_limits: dict[str, CommandLimit] = {} if self.screw_rudder else \
+        self.command_limits: dict[str, CommandLimit] = {} if self.rpm_rudder else \
             command_limits(ship, self.command_channels)
-        if residual is not None and not self.screw_rudder:
+        if residual is not None and not self.rpm_rudder:
             raise SimulationError(f'{ship.name}: a residual network drives screw-and-rudder '
                                   f'ships only; the {fam.name!r} family reads '
                                   f'{", ".join(fam.inputs)}')
@@ -212,7 +212,7 @@ class ShipSimulator:
         self.substeps = int(substeps)
         self.x0 = self._check_x0(x0)
         self._cmd: dict[str, float] = dict.fromkeys(self.command_channels, 0.0)
-        if self.screw_rudder:
+        if self.rpm_rudder:
             rpm, rudder_rad = float(rpm), float(rudder_rad)
             if problem := lim.check_rpm(rpm):
                 raise SimulationError(f'{ship.name}: initial {problem}')
@@ -276,7 +276,7 @@ class ShipSimulator:
         self.t = 0.0
         self.steps = 0
         self._cmd.update(self._cmd0)
-        if self.screw_rudder:
+        if self.rpm_rudder:
             self.rpm = self.rpm0
             self.rudder = self.rudder0
         for measured in self._commanded:   # an actuator starts at rest at its command
@@ -329,7 +329,7 @@ class ShipSimulator:
     @property
     def delta_act(self) -> float:
         """Return the actual rudder angle [rad] (the screw-and-rudder actuator's state)."""
-        return float(self._a[0]) if self.screw_rudder else math.nan
+        return float(self._a[0]) if self.rpm_rudder else math.nan
 
     def check_command(self, channel: str, value: float) -> CommandCheck:
         """
@@ -344,7 +344,7 @@ class ShipSimulator:
             raise ValueError(f'{self.ship.name}: {channel!r} is no command of the '
                              f'{self.ship.family.name} family; its commands: '
                              f'{", ".join(self.command_channels)}')
-        if self.screw_rudder:
+        if self.rpm_rudder:
             if channel == 'rpm':
                 return self.check_rpm(value)
             if channel == 'rudder':
@@ -469,7 +469,7 @@ class ShipSimulator:
             last_state=tuple(float(a) for a in self._last),
             bad_state=tuple(float(a) for a in self.s), rpm=self.rpm, rudder_rad=self.rudder,
             delta_act_rad=float(delta), bow_rps=self.bow, stern_rps=self.stern,
-            commands=() if self.screw_rudder else tuple(self._cmd.items()))
+            commands=() if self.rpm_rudder else tuple(self._cmd.items()))
         self.failures += 1
         self.reset()
         self.status = reason

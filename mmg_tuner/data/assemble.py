@@ -27,7 +27,7 @@ from typing import cast, Sequence
 from mmg_tuner.core import frames
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
-from mmg_tuner.core.limits import AZIMUTH_PLAUSIBLE_RAD, InputLimits, RUDDER_HARD_CAP_RAD
+from mmg_tuner.core.limits import ANGLE_PLAUSIBLE_RAD, InputLimits, RUDDER_HARD_CAP_RAD
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion,
                                         reset_findings, split_at, unusable_reason,
@@ -47,7 +47,7 @@ MAX_WIND_MS = 100.0  # no anemometer reading beyond it is wind (the strongest gu
 MAX_THRUSTER_RPS = 200.0
 # what no recording of another actuator's channel can show, by the channel's unit (a shaft speed,
 # an angle beyond one turn: degrees read as radians)
-PLAUSIBLE_BY_UNIT = {'rev/s': MAX_THRUSTER_RPS, 'rad': AZIMUTH_PLAUSIBLE_RAD}
+PLAUSIBLE_BY_UNIT = {'rev/s': MAX_THRUSTER_RPS, 'rad': ANGLE_PLAUSIBLE_RAD}
 
 
 # Without a ship the readers still refuse what no ship can do (a unit error, corrupt data);

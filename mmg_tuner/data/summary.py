@@ -61,13 +61,18 @@ def _steer_and_speed(trial: Trial) -> tuple[np.ndarray | None, np.ndarray]:
     if 'rudder' in trial.inputs and 'rpm' in trial.inputs:
         return np.degrees(trial['rudder']), trial['rpm']
 
-    def mean_of(prefix: str) -> np.ndarray | None:
-        cols = [a for n, a in trial.inputs.items() if n.startswith(prefix)]
+    # a craft commanded channel by channel: its angles (the orders where recorded) and its
+    # shaft speeds, each the mean over the actuator's channels
+    from mmg_tuner.core.actuators import commanded_channels
+
+    def mean_of(unit: str, ordered: bool) -> np.ndarray | None:
+        cols = [a for n, a in trial.inputs.items() if n in TABLE and TABLE[n].unit == unit
+                and (n in commanded_channels()) == ordered]
         return np.mean(cols, axis=0) if cols else None
-    steer = mean_of('azimuth_cmd_')
+    steer = mean_of('rad', True)
     if steer is None or not np.all(np.isfinite(steer)):
-        steer = mean_of('azimuth_')
-    speed = mean_of('n_')
+        steer = mean_of('rad', False)
+    speed = mean_of('rev/s', False)
     return (None if steer is None else np.degrees(steer),
             np.zeros(len(trial)) if speed is None else speed)
 

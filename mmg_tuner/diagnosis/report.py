@@ -10,6 +10,8 @@ from dataclasses import asdict
 import math
 from typing import Any, Callable
 
+from mmg_tuner.core.actuators import commanded_channels
+from mmg_tuner.core.channels import TABLE as CHANNELS
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.diagnosis.advice import joint_text
@@ -280,10 +282,13 @@ def plot_residuals(trials: list[Trial], sims_base: list[np.ndarray],
     images = {}
     fig = Figure(figsize=(10, 10.5), layout='constrained')
     axes = fig.subplots(5, 1, sharex=True)
-    # the steering input beside the residuals: the rudder, or a tug's port azimuth angle
-    steer = next((c for c in ('rudder', 'azimuth_port') if c in trials[0].inputs), None)
-    steer_label = (INPUT_AXES['rudder'] if steer == 'rudder'
-                   else 'port azimuth [deg,\n+ thrust to starboard]')
+    # the steering input beside the residuals: the rudder, or a craft's first measured angle
+    # (a tug's port azimuth)
+    steer = 'rudder' if 'rudder' in trials[0].inputs else next(
+        (c for c in trials[0].inputs if c in CHANNELS and CHANNELS[c].unit == 'rad'
+         and c not in commanded_channels()), None)
+    steer_label = (INPUT_AXES['rudder'] if steer == 'rudder' else '' if steer is None else
+                   f'{steer} [deg,\n{CHANNELS[steer].description.split(", ")[-1]}]')
     for tr, label, sb in zip(trials, unique_names(trials), sims_base):
         e = residual_series(tr, sb)
         t = tr.t - tr.t[0]

@@ -179,7 +179,7 @@ class CommandPublisher:
             msg.header.stamp = stamp
             msg.name.append(joint)
             # an angle (rudder, azimuth) is the joint position, a shaft's speed its velocity
-            angle = role == 'rudder' or role.startswith('azimuth_')
+            angle = role in TABLE and TABLE[role].unit == 'rad'
             msg.position.append(v if angle else float('nan'))
             msg.velocity.append(float('nan') if angle else v)
         for topic, msg in joints.items():

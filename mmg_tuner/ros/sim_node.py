@@ -107,14 +107,11 @@ PARAMS = {
     # std_msgs/Float64 topic per command channel, in the channel's unit and sign, clamped to
     # the ship's limit; the topic the actuator declares for it (core/channels.py), relative
     'command_topics': Param('', 'CHANNEL=TOPIC,... overriding the topic a command channel '
-                            "is read from (default: its actuator's declaration, e.g. a tug's "
-                            'n_port on thrusters/port/thrust, azimuth_port on '
-                            'thrusters/port/pos); only for a model commanded channel by '
-                            'channel', read_only=True),
+                            'is read from (default: the topic its actuator declares, relative); '
+                            'only for a model commanded channel by channel', read_only=True),
     'joint_states_topic': Param('joint_states', 'sensor_msgs/JointState of the joints the '
-                                "model's actuators declare (a tug: <name>_azimuth_joint, "
-                                'position [rad], velocity [rad/s], + = thrust toward '
-                                'starboard) with the odometry', read_only=True),
+                                "model's actuators declare (position, velocity in their "
+                                "states' units and signs) with the odometry", read_only=True),
     'frame_id': Param('map', 'world frame (ENU), shared by all ships: not prefixed; the '
                       'parent of the static map -> odom'),
     'odom_frame_id': Param('odom', "the ship's odometry frame (ENU): Odometry.header.frame_id "
@@ -156,8 +153,8 @@ PARAMS = {
                              '(diagnostics WARN: the node is not being driven) [s, wall clock]',
                              (0.1, 86400.0)),
     'command_timeout_s': Param(0.0, 'after this long without a message on a channel, its '
-                               'shaft speed (rpm, thrusters) is set to zero and the rudder and '
-                               'azimuth angles held, with a WARN (rpm only where the model '
+                               'shaft speed (rpm, thrusters) is set to zero and every angle '
+                               'held, with a WARN (rpm only where the model '
                                'covers rpm 0); checked once a second [s, wall clock]; 0: off',
                                (0.0, 86400.0)),
 }
@@ -208,7 +205,7 @@ class SimNode(Node):
         # a craft commanded per thruster: channel -> topic (empty for a screw and rudder)
         self.channel_topics = command_topics(self.sim.command_channels,
                                              self.p['command_topics']) \
-            if not self.sim.screw_rudder else {}
+            if not self.sim.rpm_rudder else {}
         self.joint_pub = self._joint_msg = None
         if self.channel_topics:
             for ch, topic in self.channel_topics.items():
@@ -590,7 +587,7 @@ class SimNode(Node):
                 old, new = self.sim.command_channels, self._pending.command_channels
                 # the subscriptions are made for the commands at start (a screw-and-rudder
                 # ship's take every ship of that kind, thrusters or not)
-                if new != old and not (self.sim.screw_rudder and self._pending.screw_rudder):
+                if new != old and not (self.sim.rpm_rudder and self._pending.rpm_rudder):
                     self._pending = None
                     raise MmgTunerError(
                         f'{trial["ship"]} is commanded by {", ".join(new)}, the running ship '

@@ -82,7 +82,6 @@ MIN_BOLLARD_POINTS = 4
 """A bollard table needs this many rows (n, thrust): a curve from fewer is a guess."""
 MAX_THRUST_DEGREE = 5
 THRUST_PARAMS = tuple(f'thrust_p{k}' for k in range(MAX_THRUST_DEGREE + 1))
-AZIMUTH_PARAMS = ('azimuth_k1', 'azimuth_k2')
 LO_WINDOW_S = 4.0
 """LO fits velocity increments over windows this long [s] (0: accelerations per interval)."""
 _VEL = (3, 4, 5)   # u, v, r in the state
@@ -1053,7 +1052,7 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
     params: dict[str, float] = {}
     thrust = None
     if bollard is not None:
-        from mmg_tuner.data.tug_units import bollard_unit_warnings, warn_all
+        from mmg_tuner.data.channel_units import bollard_unit_warnings, warn_all
         warn_all(bollard_unit_warnings(ship, np.concatenate([-bollard.astern_n, bollard.n]),
                                        np.concatenate([bollard.astern_thrust, bollard.thrust]),
                                        bollard.source or 'bollard-pull table'), logger)

@@ -13,7 +13,7 @@ import math
 
 from bench import tug_random as tr
 import mmg_tuner as mt
-from mmg_tuner.data.tug_units import bollard_unit_warnings, channel_unit_warnings
+from mmg_tuner.data.channel_units import bollard_unit_warnings, channel_unit_warnings
 from mmg_tuner.tuning import lo_go
 import numpy as np
 import pytest

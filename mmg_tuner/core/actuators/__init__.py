@@ -145,6 +145,14 @@ def trials_module(name: str) -> str | None:
     return companion(name, 'TRIALS')
 
 
+@functools.lru_cache(maxsize=None)   # the registry is fixed at import: parse each source once
+def commanded_channels() -> frozenset[str]:
+    """Return the channels that carry an order the actuators move toward (``COMMANDED``)."""
+    return frozenset(str(c) for name in REGISTRY
+                     for c in dict(declared(module_of(name), 'COMMANDED', {})).values()
+                     if c)
+
+
 def declared_channels(name: str) -> dict[str, tuple[Any, ...]]:
     """Return an actuator's new ``CHANNELS``, read from its source without importing it."""
     return dict(declared(module_of(name), 'CHANNELS', {}))

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import math
 from typing import Any, Sequence
 
+from mmg_tuner.core.actuators.twin_azimuth import thrust
 from mmg_tuner.core.integrate import actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
@@ -21,6 +22,12 @@ import numpy as np
 
 NAME = 'azimuth'
 """The key of the fit in identify.json."""
+
+
+def bollard_curve(p: np.ndarray, n: float) -> float:
+    """Return one thruster's thrust [N] at shaft speed n [rev/s] (a bollard table's unit check)."""
+    return float(thrust(p, n))
+
 
 _AZ_BOUNDS = (np.log([1e-2, 1e-2, 1e-2]), np.log([1e4, 1e2, 10.0]))
 """Bounds of log(k1 [1/s^2], k2 [1/s], rate limit [rad/s]) in the azimuth fit: a drive from
