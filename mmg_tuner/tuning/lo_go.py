@@ -47,7 +47,7 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Any, Sequence
+from typing import Any, Callable, cast, Sequence, TYPE_CHECKING, TypedDict
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.core.actuators import actuator, companion
@@ -65,6 +65,9 @@ from mmg_tuner.tuning.objective import TrialBatch
 from mmg_tuner.tuning.report import json_text, params_yaml_text, unique_names
 from mmg_tuner.tuning.segments import split_trials
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from numpy.typing import ArrayLike
 
 logger = logging.getLogger(__name__)
 BOLLARD_SCATTER = 0.05   # a bollard row's scatter allowed, share of the largest pull
@@ -140,7 +143,8 @@ def _by_speed(n: np.ndarray, F: np.ndarray, source: str,
     return n, F
 
 
-def check_bollard_table(n, thrust, source: str = 'bollard-pull table') -> BollardTable:
+def check_bollard_table(n: ArrayLike, thrust: ArrayLike, source: str = 'bollard-pull table'
+                        ) -> BollardTable:
     """Return the table, or a TuningError naming what makes it unusable."""
     n = np.asarray(n, dtype=float)
     F = np.asarray(thrust, dtype=float)
@@ -320,7 +324,7 @@ def _smooth(x: np.ndarray, dt: float, smooth_s: float) -> np.ndarray:
     if smooth_s <= 0 or w < 5 or len(x) < w:
         return x
     from scipy.signal import savgol_filter
-    return savgol_filter(x, w, 3, axis=0)
+    return cast(np.ndarray, savgol_filter(x, w, 3, axis=0))   # (SciPy has no annotations)
 
 
 def actuator_outputs_of(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None,
@@ -375,7 +379,9 @@ def actuator_forces(ship: ShipConfig, trial: Trial, params: np.ndarray | None = 
 
 def mass_matrix(ship: ShipConfig, p: np.ndarray) -> np.ndarray:
     """Return M (3, 3) of a control-oriented family (mass_solve's response to unit forces)^-1."""
-    return np.linalg.inv(np.column_stack([ship.family.mass_solve(p, *e) for e in np.eye(3)]))
+    # (a control-oriented family's mass_solve: _check_family refuses a family without one)
+    mass_solve = cast(Callable[..., Any], ship.family.mass_solve)
+    return np.linalg.inv(np.column_stack([mass_solve(p, *e) for e in np.eye(3)]))
 
 
 @dataclass(frozen=True)
@@ -416,7 +422,8 @@ def equation_error(ship: ShipConfig, p: np.ndarray, data: Intervals) -> np.ndarr
     act = np.ascontiguousarray(np.concatenate([data.act, data.act]))
     accelerations_many(ship.kind, p, nu, act, acc)
     n = len(data.dnu)
-    return (data.dnu - 0.5 * (acc[:n] + acc[n:])) @ mass_matrix(ship, p).T
+    e: np.ndarray = (data.dnu - 0.5 * (acc[:n] + acc[n:])) @ mass_matrix(ship, p).T
+    return e
 
 
 def regressor(ship: ShipConfig, names: Sequence[str], data: Intervals
@@ -510,7 +517,8 @@ class Physics:
     def mass(self, theta: np.ndarray) -> np.ndarray | None:
         if self.mass0 is None:
             return None
-        return self.mass0 + np.tensordot(theta, self.mass_cols, axes=1)
+        # (mass_cols are set with mass0)
+        return self.mass0 + np.tensordot(theta, cast(np.ndarray, self.mass_cols), axes=1)
 
     def mass_minors(self, theta: np.ndarray) -> np.ndarray:
         """
@@ -519,7 +527,7 @@ class Physics:
         C = D^-1/2 sym(M) D^-1/2 (D its diagonal): the minors of the normalised matrix, so
         the margin is the same whatever the units.
         """
-        S = self.mass(theta)
+        S = cast(np.ndarray, self.mass(theta))   # (called only where mass0 is set)
         S = 0.5 * (S + S.T)
         d = np.diag(S)
         if np.any(d <= 0):
@@ -586,11 +594,12 @@ def physics(ship: ShipConfig, names: Sequence[str], velocities: np.ndarray) -> P
         nu = np.ascontiguousarray(np.concatenate(sets))
         act = np.zeros((len(nu), len(ship.family.outputs)))
 
-        def pw(p):
+        def pw(p: np.ndarray) -> np.ndarray:
             acc = np.empty((len(nu), 3))
             accelerations_many(ship.kind, p, nu, act, acc)
             f = -(acc @ mass_matrix(ship, p).T)    # C nu + D nu (tau = 0)
-            return np.sum(f * nu, axis=1)
+            s: np.ndarray = np.sum(f * nu, axis=1)
+            return s
         try:
             base = pw(p0)
             cols = []
@@ -637,10 +646,13 @@ def _constrained(B: np.ndarray, y: np.ndarray, cn: np.ndarray, phys: Physics,
         cons.append({'type': 'ineq', 'fun': lambda x: (G @ x + phys.power0) / gs,
                      'jac': lambda x: G / gs[:, None]})
     if phys.mass0 is not None:
-        def minors(x):
+        def minors(x: np.ndarray) -> np.ndarray:
             m = phys.mass_minors(x / cn)
             m[3:] -= MASS_MARGIN
-            m[:3] /= np.maximum(np.abs(np.diag(phys.mass0)) + phys.diag_floor * 1e3, 1e-300)
+            # (mass0 checked not None above, diag_floor set with it; mypy does not narrow
+            # an attribute inside a nested function)
+            m[:3] /= np.maximum(np.abs(np.diag(cast(np.ndarray, phys.mass0)))
+                                + cast(np.ndarray, phys.diag_floor) * 1e3, 1e-300)
             return m
         cons.append({'type': 'ineq', 'fun': minors})
     sol = minimize(lambda x: (x @ H @ x - 2 * g @ x) / scale, x0,
@@ -720,7 +732,10 @@ def lo_fit(ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str] | Non
     s = np.linalg.svd(Aw / cn, compute_uv=False)
     A1, b1 = np.concatenate(Ai), np.concatenate(bi)
     res = (A1 @ theta) - b1
-    return LoResult(names, theta, tuple(float(x) for x in np.sqrt(np.mean(res ** 2, axis=0))),
+    # (the residuals' three columns: u, v, r)
+    rms = cast(tuple[float, float, float],
+               tuple(float(x) for x in np.sqrt(np.mean(res ** 2, axis=0))))
+    return LoResult(names, theta, rms,
                     float(s[0] / s[-1]) if s[-1] > 0 else math.inf, len(b),
                     time.perf_counter() - t0, window_s, active)
 
@@ -743,7 +758,7 @@ class GoResult:
     """The simulation error alone (no pull toward the prior): what candidates are compared on."""
     start: str = ''
     """Where the winning GO started: 'LO' or "the ship's values"."""
-    candidates: dict = field(default_factory=dict)
+    candidates: dict[str, float] = field(default_factory=dict)
     """Each start's data_cost (lo-go: GO from LO and GO from the ship's values)."""
 
 
@@ -767,8 +782,8 @@ def go_start_line(g: GoResult) -> str:
 class _Simulator:
     """u, v, r residuals of the (segmented) trials for a batch of coefficient vectors."""
 
-    def __init__(self, ship: ShipConfig, trials: Sequence[Trial], names, segment_s: float,
-                 integrator: str, substeps: int, sigma: np.ndarray):
+    def __init__(self, ship: ShipConfig, trials: Sequence[Trial], names: Sequence[str],
+                 segment_s: float, integrator: str, substeps: int, sigma: np.ndarray) -> None:
         named = [replace(t, name=n) for t, n in zip(trials, unique_names(trials))]
         segs = split_trials(named, segment_s)
         batch = TrialBatch.from_trials([s.trial for s in segs], x0_window_s=0.0)
@@ -796,7 +811,8 @@ class _Simulator:
         # a diverging candidate: bounded residuals keep the step finite and the cost comparable
         r[~np.isfinite(r)] = 10.0
         np.clip(r, -10.0, 10.0, out=r)
-        return r.reshape(len(thetas), -1) / math.sqrt(self.n)
+        rs: np.ndarray = r.reshape(len(thetas), -1) / math.sqrt(self.n)
+        return rs
 
     def diverges(self, theta: np.ndarray) -> bool:
         """Whether the model leaves the measured velocities' range tenfold or turns non-finite."""
@@ -814,11 +830,17 @@ def pooled_velocity_sigma(trials: Sequence[Trial]) -> np.ndarray:
     """Return the std of u, v, r over all samples (a floor keeps a flat one usable)."""
     st = np.concatenate([t.states[:, _VEL] for t in trials])
     s = np.std(st, axis=0)
-    return np.maximum(s, 1e-3 * max(float(np.max(s)), 1e-9))
+    floored: np.ndarray = np.maximum(s, 1e-3 * max(float(np.max(s)), 1e-9))
+    return floored
 
 
-def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 40,
-                        rtol: float = 1e-9) -> tuple[np.ndarray, float, int, int, str]:
+ResidualsAndJacobian = Callable[[np.ndarray, bool], tuple[np.ndarray, np.ndarray | None]]
+"""(z, jacobian) -> (r(z), J(z) when ``jacobian``, else None)."""
+
+
+def levenberg_marquardt(residuals_and_jacobian: ResidualsAndJacobian, z0: np.ndarray,
+                        max_iter: int = 40, rtol: float = 1e-9
+                        ) -> tuple[np.ndarray, float, int, int, str]:
     """
     Minimise ||r(z)||^2 by Levenberg-Marquardt on the normal equations (Marquardt scaling).
 
@@ -829,7 +851,8 @@ def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 
     it stopped).
     """
     z = np.asarray(z0, dtype=float).copy()
-    r, J = residuals_and_jacobian(z, True)
+    # (asked for, the Jacobian is returned)
+    r, J = cast(tuple[np.ndarray, np.ndarray], residuals_and_jacobian(z, True))
     cost = float(r @ r)
     mu, nfev, njev = 1e-3, 1, 1
     why = f'{max_iter} iterations'
@@ -854,7 +877,7 @@ def levenberg_marquardt(residuals_and_jacobian, z0: np.ndarray, max_iter: int = 
         if gain <= rtol * cost or np.linalg.norm(step) <= 1e-10 * (1 + np.linalg.norm(z)):
             why = 'converged (relative cost decrease below tolerance)'
             break
-        r, J = residuals_and_jacobian(z, True)
+        r, J = cast(tuple[np.ndarray, np.ndarray], residuals_and_jacobian(z, True))
         njev += 1
     return z, cost, nfev, njev, why
 
@@ -896,7 +919,8 @@ def go_fit(ship: ShipConfig, trials: Sequence[Trial], theta0: np.ndarray,
     for si, subset in enumerate(stages):
         sim = _Simulator(ship, subset, names, segment_s, integrator, substeps, sigma)
 
-        def rj(z, jacobian, sim=sim):
+        def rj(z: np.ndarray, jacobian: bool, sim: _Simulator = sim
+               ) -> tuple[np.ndarray, np.ndarray | None]:
             th = prior + z * scale
             cand = np.vstack([th[None], th[None] + np.diag(h * scale)]) if jacobian \
                 else th[None]
@@ -947,12 +971,13 @@ class IdentifyResult:
     def identified_ship(self) -> ShipConfig:
         return self.ship.with_params(self.params, 'identified parameters')
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """identify.json's content."""
-        d: dict = {'ship': self.ship.name, 'model': self.ship.model, 'method': self.method,
-                   'trials': list(self.trials), 'wall_s': self.wall_s,
-                   'params': {n: {'pre': float(self.ship[n]), 'identified': float(v)}
-                              for n, v in self.params.items()}}
+        d: dict[str, Any] = {
+            'ship': self.ship.name, 'model': self.ship.model, 'method': self.method,
+            'trials': list(self.trials), 'wall_s': self.wall_s,
+            'params': {n: {'pre': float(self.ship[n]), 'identified': float(v)}
+                       for n, v in self.params.items()}}
         if self.thrust is not None:
             t = self.thrust
             d['thrust'] = {'coefficients': list(t.coefficients), 'degree': t.degree,
@@ -1013,7 +1038,8 @@ class IdentifyResult:
         marks = check_before_writing(self.ship, self.params, trials, 'identified parameters',
                                      write_unphysical)
         own = not isinstance(out, OutputDir)
-        od = OutputDir.open(out) if own else out
+        # (own: out is a path, else the open OutputDir; mypy does not narrow through own)
+        od = OutputDir.open(cast('str | Path', out)) if own else cast(OutputDir, out)
         try:
             note = mark_note(f'identified by mmg_tuner ({self.method}) on '
                              + (', '.join(self.trials) or 'the trials'), marks)
@@ -1025,6 +1051,18 @@ class IdentifyResult:
             if own:
                 od.close()
         return paths
+
+
+class _GoOptions(TypedDict):
+    """The keyword arguments :func:`identify` passes to each start's :func:`go_fit`."""
+
+    ridge: float
+    segment_s: float
+    integrator: str
+    substeps: int
+    max_nfev: int
+    grow: bool
+    phys: Physics | None
 
 
 def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
@@ -1075,8 +1113,9 @@ def identify(ship: ShipConfig, trials: Sequence[Trial], method: str = 'lo-go',
         logger.info('LO: %d intervals, %.2f s', lo.samples, lo.wall_s)
     if method in ('go', 'lo-go'):
         phys = physics(work, names, _sample_velocities(trials, smooth_s))
-        opts = {'ridge': ridge, 'segment_s': segment_s, 'integrator': integrator,
-                'substeps': substeps, 'max_nfev': max_nfev, 'grow': grow, 'phys': phys}
+        opts: _GoOptions = {'ridge': ridge, 'segment_s': segment_s, 'integrator': integrator,
+                            'substeps': substeps, 'max_nfev': max_nfev, 'grow': grow,
+                            'phys': phys}
         starts = [('LO', theta)] if method == 'lo-go' else []
         starts.append(("the ship's values", np.array([work[n] for n in names])))
         runs = [(label, go_fit(work, trials, th0, names, prior=th0, **opts))
@@ -1105,7 +1144,8 @@ def _best_go(ship: ShipConfig, trials: Sequence[Trial], names: tuple[str, ...],
                       pooled_velocity_sigma(trials)) if len(runs) else None
     scored = []
     for label, g in runs:
-        ok = phys.mass_ok(g.theta) and not full.diverges(g.theta)
+        # (full exists when there are runs)
+        ok = phys.mass_ok(g.theta) and not cast(_Simulator, full).diverges(g.theta)
         scored.append((not ok, g.data_cost, label, g))
         if not ok:
             logger.warning('GO from %s: %s', label, 'mass matrix not positive definite'
