@@ -6,7 +6,8 @@ imports does (a family's forces, a parameter index in ``layout``, a flag in a re
 after an upgrade it would run stale machine code. So before any kernel is decorated, point
 ``numba.config.CACHE_DIR`` at a folder named by ``mmg_tuner.__version__``, numba's version
 and a hash of every ``.py`` file under ``mmg_tuner/core`` and of every plugin family or
-actuator module: any change there starts a fresh cache. Base folder: ``$NUMBA_CACHE_DIR`` if
+actuator module (and a plugin actuator's ``EFFECTS`` module): any change there starts a fresh
+cache. Base folder: ``$NUMBA_CACHE_DIR`` if
 set, else ``$XDG_CACHE_HOME/mmg_tuner`` (``~/.cache/mmg_tuner``) if writable, else
 ``core/__pycache__``, else the temp dir.
 
@@ -41,7 +42,27 @@ def _plugin_sources() -> list[Path]:
                 spec = None
             if spec is not None and spec.origin and spec.origin.endswith('.py'):
                 out.append(Path(spec.origin))
+                out += _effects_companion(mod, Path(spec.origin))
     return out
+
+
+def _effects_companion(mod: str, origin: Path) -> list[Path]:
+    """Return the plugin actuator's ``EFFECTS`` module (its effects add slots to the layout)."""
+    import ast
+    import importlib.util
+    for node in ast.parse(origin.read_text()).body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and getattr(node.targets[0], 'id', None) == 'EFFECTS'
+                and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)):
+            name = node.value.value
+            full = name if '.' in name else f'{mod.rsplit(".", 1)[0]}.{name}'
+            try:
+                spec = importlib.util.find_spec(full)
+            except (ImportError, ValueError):
+                return []
+            if spec is not None and spec.origin and spec.origin.endswith('.py'):
+                return [Path(spec.origin)]
+    return []
 
 
 def source_hash(core_dir: Path = CORE_DIR) -> str:

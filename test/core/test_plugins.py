@@ -50,6 +50,14 @@ fast = simulate(ship.with_params({'toy_tau_nozzle': 0.01}), [0, 0, 0, 2.0, 0, 0]
                 'rk4')
 k = int(11.0 / 0.1)
 assert 0 < turn.states[k, 5] < 0.8 * fast.states[k, 5], (turn.states[k], fast.states[k])
+# the toy jet's own effect (EFFECTS module beside it) joins the table and the layout, acts in
+# its kernel: a nozzle offset turns the craft with the nozzle ordered straight
+from mmg_tuner.core.effects import EFFECTS
+assert EFFECTS['toy_nozzle_offset'].actuator == 'toy_jet', EFFECTS['toy_nozzle_offset']
+straight = {'jet_thrust': np.full(T, 4000.0)}
+off = simulate(ship.with_params({'toy_nozzle_offset': 0.05}), [0, 0, 0, 2.0, 0, 0], straight,
+               0.1, 'rk4')
+assert off.ok and off.states[-1, 5] > 0.005 and abs(run.states[-1, 5]) < 1e-9, off.states[-1]
 # a trial without the required channel is refused, naming it
 try:
     simulate(ship, [0, 0, 0, 2.0, 0, 0], {'jet_angle': np.zeros(T)}, 0.1)

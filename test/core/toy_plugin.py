@@ -21,6 +21,8 @@ DESCRIPTION = 'toy water jet (test plugin)'
 PLAUSIBILITY = {'propulsion': ['thrust'], 'helm': {'nozzle': 'rudder'}}
 # what `generate` sails for a craft it drives (the module beside this one)
 TRIALS = 'toy_jet_trials'
+# an effect of its own: a nozzle whose zero is off (the module beside this one)
+EFFECTS = 'toy_jet_effects'
 
 import math
 
@@ -29,6 +31,7 @@ from numba import njit
 
 _X = PARAM_INDEX['toy_x_jet']
 _TAU = PARAM_INDEX['toy_tau_nozzle']
+_OFF = PARAM_INDEX['toy_nozzle_offset']
 
 
 @njit(inline='always')
@@ -44,7 +47,7 @@ def hold(p, cmd, h, astern):
 @njit(inline='always')
 def output(p, held, a, i):
     a[i] = held[1] + (a[i] - held[1]) * held[2]
-    return (held[0], a[i])
+    return (held[0], a[i] + p[_OFF])
 
 
 @njit(inline='always')
@@ -52,6 +55,21 @@ def forces(p, u, v, r, act, k):
     T = act[k]
     Y = -T * math.sin(act[k + 1])
     return T * math.cos(act[k + 1]), Y, Y * p[_X]
+"""
+
+TOY_EFFECTS = """
+'''The toy jet's effect: a nozzle angle indicator that is off.'''
+import math
+
+from mmg_tuner.core.effect import Effect, pm
+
+EFFECTS = (
+    Effect('toy_nozzle_offset', ('toy_nozzle_offset',), ('rad',),
+           'constant error of the toy nozzle angle (actual = ordered + offset)',
+           smallest=(math.radians(1.0),), neutral=(0.0,),
+           boxes=((-math.radians(5), math.radians(5)),), periodic=(False,),
+           words=lambda v, e: f"nozzle offset {pm(v, e, 'toy_nozzle_offset', 57.3, '.2f')} deg"),
+)
 """
 
 TOY_TRIALS = """
@@ -160,5 +178,6 @@ def toy_plugin_env(folder: Path) -> dict:
     (pkg / 'toy_jet.py').write_text(textwrap.dedent(TOY_ACTUATOR))
     (pkg / 'toy_family.py').write_text(textwrap.dedent(TOY_FAMILY))
     (pkg / 'toy_jet_trials.py').write_text(textwrap.dedent(TOY_TRIALS))
+    (pkg / 'toy_jet_effects.py').write_text(textwrap.dedent(TOY_EFFECTS))
     return {'PYTHONPATH': str(folder), 'MMG_TUNER_FAMILIES': 'toyplug.toy_family',
             'MMG_TUNER_ACTUATORS': 'toyplug.toy_jet'}

@@ -18,7 +18,7 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    ``core/plugins.py``) declaring at the top:
 
    * ``PARAMS = (...)``: a literal tuple of its own parameter slots (the layout reads it
-     without importing the module); effect parameters stay in ``core/effects.py``.
+     without importing the module); effect parameters belong to the effects (below).
    * ``INPUTS``: the channels it reads, in order; ``CHANNELS``: the new ones among them,
      name -> (unit, description, default[, topic]) (default None: required; ``'nan'``:
      optional, NaN where not recorded; topic: the ROS topic a recording carries it on by
@@ -28,6 +28,11 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * optionally ``COMMANDED``: measured channel -> the channel an interactive simulator
      (``core/stepper.py``) writes its command to, when the actuator's own dynamics move the
      measured value toward a commanded one (an azimuth angle and its command).
+   * optionally ``EFFECTS``: the module (beside this one, or a full path) declaring the
+     effects that act in this actuator (a tuple ``EFFECTS`` of ``core/effect.Effect``:
+     ``twin_azimuth_effects.py``); the effect table (``core/effects.py``) appends them after
+     the library's own, their parameters become slots of the layout, the diagnosis searches
+     them in any family driven by this actuator. The kernel reads their slots.
    * optionally ``JOINTS``: joint name -> (position state, velocity state) among ``STATES``,
      what ``sim_node`` publishes as sensor_msgs/JointState (a tug's azimuth angles).
    * optionally ``TRIALS``: the module (beside this one, or a full module path) that says what

@@ -37,8 +37,9 @@ from __future__ import annotations
 PARAMS = ('thrust_p0', 'thrust_p1', 'thrust_p2', 'thrust_p3', 'thrust_p4', 'thrust_p5',
           'thrust_astern_ratio', 'azimuth_k1', 'azimuth_k2', 'azimuth_rate_max',
           'thruster_x_port', 'thruster_y_port', 'thruster_x_stbd', 'thruster_y_stbd')
-# its effects (core/effects.py, actuator 'twin_azimuth'): thrust_scale_<side>,
-# azimuth_offset_<side>
+# its effects (declared in twin_azimuth_effects.py, collected by core/effects.py):
+# thrust_scale_<side>, azimuth_offset_<side>
+EFFECTS = 'twin_azimuth_effects'
 INPUTS = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd', 'azimuth_cmd_port',
           'azimuth_cmd_stbd')
 # default topics named as VRX names its thruster topics (osrf/vrx, vrx_urdf/wamv_gazebo/urdf/
