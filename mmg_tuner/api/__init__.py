@@ -28,13 +28,21 @@ are the public surface.
 
 """
 from mmg_tuner.api._common import config_fields
-from mmg_tuner.api.diagnosing import (BUDGETS, Cause, diagnose, DiagnoseConfig, DiagnosisResult,
-                                      EFFECTS, ModelFit, split_alternate)
-from mmg_tuner.api.evaluating import evaluate, EvaluateConfig, EvaluateResult, simulate
-from mmg_tuner.api.identifying import identify, IdentifyConfig, IdentifyResult
-from mmg_tuner.api.loading import load_model, load_ship, load_trials, Model, Trial
+from mmg_tuner.api.diagnosing import (diagnose, DiagnoseConfig, DiagnosisResult, ModelFit,
+                                      split_alternate)
+from mmg_tuner.api.evaluating import evaluate, EvaluateConfig, simulate
+from mmg_tuner.api.identifying import identify, IdentifyConfig
+from mmg_tuner.api.loading import load_model, load_ship, load_trials
 from mmg_tuner.api.tuning import (Fit, MODEL_CHOICES, RESIDUAL_FILE, RESIDUAL_KINDS, tune,
                                   TuneConfig, TuneResult)
+# the results and names the workflows return or take, from where they are defined
+from mmg_tuner.core.effects import EFFECTS
+from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.results import Cause
+from mmg_tuner.diagnosis.settings import BUDGETS
+from mmg_tuner.learn.model import Model
+from mmg_tuner.tuning.evaluate import EvaluateResult
+from mmg_tuner.tuning.lo_go import IdentifyResult
 
 __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'ModelFit',
            'Model', 'TuneConfig', 'TuneResult', 'diagnose', 'load_model', 'load_ship',

@@ -6,7 +6,7 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Mapping, Sequence
+from typing import Any, cast, Mapping, Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.api._common import _as_list, _check, _check_common, _config, _is_int, _write_all
@@ -70,7 +70,7 @@ class DiagnoseConfig:
     base_evals: int | None = None
     screen_evals: int | None = None
     effect_evals: int | None = None
-    setting: Setting | str | Mapping | None = None
+    setting: Setting | str | Mapping[str, Any] | None = None
     retune: str = 'lsq'
     measured_signals: bool = True
     residual: bool | str = 'auto'
@@ -98,7 +98,9 @@ class DiagnoseConfig:
         if isinstance(self.measured, (str, Path)):
             object.__setattr__(self, 'measured', _measured.load(self.measured))
         else:
-            object.__setattr__(self, 'measured', _measured.check(self.measured or {},
+            # (any mapping: check verifies each entry, or raises naming it)
+            given = cast('Mapping[str, _measured.Measurement]', self.measured or {})
+            object.__setattr__(self, 'measured', _measured.check(given,
                                                                  'DiagnoseConfig.measured'))
         _check('residual', self.residual,
                isinstance(self.residual, bool) or self.residual == 'auto',
@@ -132,15 +134,19 @@ class DiagnoseConfig:
         if restart is None:
             restart = (restart_period(L_pp_m) if self.verdict == 'evidence' and L_pp_m
                        else 0.0)
+        # (__post_init__ parsed the setting and checked the measurements)
+        setting = cast('Setting | None', self.setting)
+        measured = cast('Mapping[str, _measured.Measurement]', self.measured)
+        # (a bool and a float: mypy would join them to float)
+        evidence: dict[str, Any] = ({'held_out_test_only': True, 'min_gain_z': Z_FOR}
+                                    if self.verdict == 'evidence' else {})
         return DiagnosisSettings(
             targets=self.targets, a_r=self.a_r, effects=list(self.effects),
             integrator=self.integrator, base_evals=self.base_evals or base_e,
             screen_evals=self.screen_evals or screen_e, effect_evals=self.effect_evals or eff_e,
             max_effects=self.max_effects, seed=self.seed, retune=self.retune,
-            setting=self.setting, measured_signals=self.measured_signals,
-            measurements=dict(self.measured), restart_every_s=float(restart),
-            **({'held_out_test_only': True, 'min_gain_z': Z_FOR}
-               if self.verdict == 'evidence' else {}))
+            setting=setting, measured_signals=self.measured_signals,
+            measurements=dict(measured), restart_every_s=float(restart), **evidence)
 
 
 @dataclass
@@ -153,7 +159,7 @@ class ModelFit:
     params: dict[str, float]
     heldout_gain_total: float | None = None   # final model: 1 - J_test / base model's J_test
 
-    def __getitem__(self, key: str):  # dict-style reading, as diagnosis.json has it
+    def __getitem__(self, key: str) -> Any:  # dict-style reading, as diagnosis.json has it
         return getattr(self, key)
 
 
@@ -175,41 +181,41 @@ class DiagnosisResult:
     final: ModelFit
     params: dict[str, float]
     candidates: list[list[Candidate]]
-    barely_identifiable: dict[str, dict]
-    residuals: dict[str, dict]
+    barely_identifiable: dict[str, dict[str, Any]]
+    residuals: dict[str, dict[str, Any]]
     wall_s: float
     ship: ShipConfig = field(repr=False)
     test: list[Trial] = field(repr=False, default_factory=list)
     config: DiagnoseConfig = field(repr=False, default_factory=DiagnoseConfig)
     setting: Setting = field(default_factory=Setting)
     impossible: dict[str, str] = field(default_factory=dict)
-    impossible_fits: list[dict] = field(default_factory=list)
-    measured: list[dict] = field(default_factory=list)
+    impossible_fits: list[dict[str, Any]] = field(default_factory=list)
+    measured: list[dict[str, Any]] = field(default_factory=list)
     timings_s: dict[str, float] = field(default_factory=dict)
     # the test trials as each model sees them (without / with the measured wind)
     test_base: list[Trial] = field(repr=False, default_factory=list)
     test_final: list[Trial] = field(repr=False, default_factory=list)
     # the trial that would settle each barely identifiable effect / rival pair (advice.py)
-    advice: list[dict] = field(default_factory=list)
+    advice: list[dict[str, Any]] = field(default_factory=list)
     # whether the model structure, not the named effects, is the likely cause (structure.py)
-    structure: dict = field(default_factory=dict)
-    structure_images: dict = field(repr=False, default_factory=dict)   # {file: PNG}
+    structure: dict[str, Any] = field(default_factory=dict)
+    structure_images: dict[str, bytes] = field(repr=False, default_factory=dict)   # {file: PNG}
     # effects the search kept that the verdict does not name (diagnosis/decide.py: their value
     # follows the manoeuvre, or they add nothing beside the others): in the fitted model
     # (params), never named as causes
     mimicking: list[Cause] = field(default_factory=list)
     # the sensor noise and the held-out J it alone leaves (diagnosis/noise.py)
-    noise: dict = field(default_factory=dict)
+    noise: dict[str, Any] = field(default_factory=dict)
     # effects the trials hint at but cannot name, each with the trial that would settle it in
     # advice (kind 'suspected'): {effect, values, gain, gain_se, round, summary, beside}
-    suspected: list[dict] = field(default_factory=list)
+    suspected: list[dict[str, Any]] = field(default_factory=list)
     # fitted, in the final model, but as good as a rival: "one of them", not named
     undecided: list[Cause] = field(default_factory=list)
     # the verdict's evidence per fitted effect (diagnosis/decide.py): contribution, share,
     # per-trial estimates, dispersion, verdict and why
-    decision: list[dict] = field(default_factory=list)
+    decision: list[dict[str, Any]] = field(default_factory=list)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """diagnosis.json's content."""
         base = asdict(self.baseline)
         base.pop('heldout_gain_total')
@@ -280,7 +286,7 @@ def split_alternate(trials: Sequence[Trial]) -> tuple[list[Trial], list[Trial]]:
 def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
              test: Trial | Sequence[Trial] | None = None, config: DiagnoseConfig | None = None,
              *, checkpoint: str | Path | None = None, resume: bool = False,
-             map_fn: MapFn | None = None, **options) -> DiagnosisResult:
+             map_fn: MapFn[Any, Any] | None = None, **options: Any) -> DiagnosisResult:
     """
     Tune the base model, search the effects library and name the cause(s).
 
@@ -312,7 +318,9 @@ def diagnose(ship: ShipConfig, trials: Trial | Sequence[Trial],
     logger.info('3/3 reporting')
     t_report = time.perf_counter()
     # the base model is tuned without a measured wind when it is a candidate
-    no_wind = [replace(t, wind=None) if t.wind is not None else t for t in test]
+    # (Trial's __init__ takes wind, a view of its wind channels; mypy checks only the fields)
+    no_wind = [replace(t, wind=None)  # type: ignore[call-arg]
+               if t.wind is not None else t for t in test]
     test_base = no_wind if cfg.measured_signals else test
     test_final = test if (d.measured_wind_used or not cfg.measured_signals) else no_wind
     res_base, _ = residuals_for(ship, d.base_params, test_base, cfg.integrator)
@@ -353,9 +361,12 @@ def _decide(dx: 'DiagnosisResult', tune_trials: list[Trial]) -> None:
     t0 = time.perf_counter()
     J_base = np.array([dx.baseline.J_test_per_trial[n] for n in unique_names(dx.test)])
     wind_used = any(c.effect == 'measured_wind' for c in dx.causes)
-    no_wind = [replace(t, wind=None) if t.wind is not None else t for t in dx.test]
-    tune_final = tune_trials if wind_used else [replace(t, wind=None) if t.wind is not None
-                                                else t for t in tune_trials]
+    # (Trial's __init__ takes wind, a view of its wind channels; mypy checks only the fields)
+    no_wind = [replace(t, wind=None)  # type: ignore[call-arg]
+               if t.wind is not None else t for t in dx.test]
+    tune_final = tune_trials if wind_used else [
+        replace(t, wind=None)  # type: ignore[call-arg]
+        if t.wind is not None else t for t in tune_trials]
     evidence = decide(dx.ship, dx.params, [c.effect for c in dx.causes], tune_final,
                       dx.test_final or dx.test, J_base, dx.config.integrator,
                       test_without_wind=no_wind,
@@ -380,12 +391,15 @@ def _decide(dx: 'DiagnosisResult', tune_trials: list[Trial]) -> None:
     dx.timings_s['decide'] = round(time.perf_counter() - t0, 3)
 
 
-def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bool) -> dict:
+def _structure_of(dx: 'DiagnosisResult', tune_trials: list[Trial], wind_used: bool
+                  ) -> dict[str, Any]:
     """Return the structure verdict (diagnosis/structure.py) of a finished diagnosis."""
     t0 = time.perf_counter()
     cfg = dx.config
-    tune_final = tune_trials if wind_used else [replace(t, wind=None) if t.wind is not None
-                                                else t for t in tune_trials]
+    # (Trial's __init__ takes wind, a view of its wind channels; mypy checks only the fields)
+    tune_final = tune_trials if wind_used else [
+        replace(t, wind=None)  # type: ignore[call-arg]
+        if t.wind is not None else t for t in tune_trials]
     final = dx.ship.with_params(dx.params)
     test_final = list(dx.test_final or dx.test)
     learn = None

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import logging
-from typing import Sequence
+from typing import Any, Sequence
 
 from mmg_tuner.api._common import _as_list, _check, _config, _finite, _is_int
 from mmg_tuner.core.layout import INTEGRATORS
@@ -107,7 +107,7 @@ class EvaluateConfig:
 
 
 def evaluate(ship: ShipConfig | Model, trials: Trial | Sequence[Trial],
-             config: EvaluateConfig | None = None, **options) -> 'EvaluateResult':
+             config: EvaluateConfig | None = None, **options: Any) -> 'EvaluateResult':
     """
     How good ``ship``'s model is on recorded ``trials``.
 

@@ -40,7 +40,7 @@ import math
 from pathlib import Path
 import tempfile
 import types
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, cast, Mapping, Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner._ship_params import load_ship_with_params
@@ -146,7 +146,9 @@ class SymbolicModel:
         self._forces = _symbolic(fam.forces, ca)
         self._motion = _symbolic(fam.motion if fam.motion is not None else mmg_motion, ca)
         self._effects = _symbolic(effect_forces, ca)
-        self._act_forces = _symbolic(actuator(fam.actuators[0]).forces, ca)
+        # (an exportable actuator, one with a SYMBOLIC form, has forces of its own)
+        self._act_forces = _symbolic(cast(Callable[..., Any], actuator(fam.actuators[0]).forces),
+                                     ca)
 
     # ------------------------------------------------------------------ pieces
     def param(self, name: str) -> float:
@@ -168,7 +170,8 @@ class SymbolicModel:
         X, Y, N = self._forces(p, u, v, r, act)
         X, Y, N = self._effects(p, u, v, X, Y, N)
         aX, aY, aN = self._act_forces(p, u, v, r, act, 0)
-        return self._motion(p, u, v, r, X + aX, Y + aY, N + aN)
+        # (the motion's three accelerations; _symbolic's functions return Any)
+        return cast('tuple[Any, Any, Any]', self._motion(p, u, v, r, X + aX, Y + aY, N + aN))
 
     def _rhs(self, s: Sequence[Any], act: tuple[Any, ...]) -> tuple[Any, ...]:
         """dynamics.rhs in calm water: (dx, dy, dpsi, du, dv, dr)."""

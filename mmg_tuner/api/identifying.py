@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import logging
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 from mmg_tuner.api._common import _as_list, _check, _config, _finite, _is_int
 from mmg_tuner.core.layout import INTEGRATORS
@@ -73,7 +73,7 @@ class IdentifyConfig:
 
 
 def identify(ship: ShipConfig, trials: Trial | Sequence[Trial],
-             config: IdentifyConfig | None = None, **options) -> IdentifyResult:
+             config: IdentifyConfig | None = None, **options: Any) -> IdentifyResult:
     """
     Identify a control-oriented model local -> global (MBPE-LOGO, ``tuning/lo_go.py``).
 

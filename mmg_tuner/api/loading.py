@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import replace
 import logging
 from pathlib import Path
-from typing import Sequence
+from typing import cast, Sequence
 
 from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.api._common import _check, _finite
@@ -77,7 +77,8 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
     if keep_astern is None:
         keep_astern = covers
     elif keep_astern and fam is not None and not covers:
-        raise ConfigError(f'keep_astern=True: the {fam.name} family of {ship.name} cannot '
+        name = cast(ShipConfig, ship).name   # (fam is the ship's)
+        raise ConfigError(f'keep_astern=True: the {fam.name} family of {name} cannot '
                           'simulate astern propeller or u <= 0 (they are left out with a note '
                           'by default); use a ship of a family that covers them, e.g. lowspeed')
     cut = None
@@ -111,8 +112,10 @@ def load_trials(paths: str | Path | Sequence[str | Path], ship: ShipConfig | Non
         for t in trials:
             if t.notes and t.notes[-1].startswith('not cut:'):
                 logger.warning('%s: %s', t.name, t.notes[-1])
-    if trial_scale == 'full' and ship.scale_ratio != 1.0:
-        trials = [t.froude_scaled(ship.scale_ratio) for t in trials]
+    if trial_scale == 'full' and cast(ShipConfig, ship).scale_ratio != 1.0:
+        # (ship given: 'full' without it was refused above)
+        ratio = cast(ShipConfig, ship).scale_ratio
+        trials = [t.froude_scaled(ratio) for t in trials]
     if dt:
         trials = [t if abs(t.dt - dt) < 1e-9 else t.resampled(dt) for t in trials]
     return trials

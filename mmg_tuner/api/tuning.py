@@ -6,7 +6,7 @@ import logging
 import math
 from pathlib import Path
 import time
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, cast, Mapping, Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.api._common import (_as_list, _check, _check_common, _config, _finite, _is_int,
@@ -14,7 +14,7 @@ from mmg_tuner.api._common import (_as_list, _check, _check_common, _config, _fi
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MissingDependencyError, MmgTunerError, TuningError
-from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, train_residual
+from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, ResidualNet, train_residual
 from mmg_tuner.learn.model import Model
 from mmg_tuner.learn.train import members, split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
@@ -164,7 +164,7 @@ class Fit:
     @property
     def tune(self) -> float:
         """Return J summed over the tuning trials."""
-        return self._sum('tune')
+        return cast(float, self._sum('tune'))   # (a fit always has tuning trials)
 
     @property
     def test(self) -> float | None:
@@ -225,7 +225,7 @@ class TuneResult:
         """Return the tuned model: the tuned ship and the trained residual network, if any."""
         return Model(self.tuned_ship, None if self.residual is None else self.residual.net)
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """report.json's content."""
         c = self.config
         per_trial = {n: {'set': self.J.sets[n], 'J_pre': self.J_pre.per_trial[n],
@@ -297,12 +297,13 @@ class TuneResult:
         return _write_all(out, docs, images, ('report.json', json_text(self.report())))
 
 
-def _write_with_residual(res: TuneResult, out, params_text: str, md: str, plots: bool
-                         ) -> list[Path]:
+def _write_with_residual(res: TuneResult, out: str | Path | OutputDir, params_text: str,
+                         md: str, plots: bool) -> list[Path]:
     """TuneResult.write with a residual: the weights first, then params.yaml naming them."""
-    r = res.residual
+    r = cast(ResidualResult, res.residual)   # (called only with a residual)
     own = not isinstance(out, OutputDir)
-    od = OutputDir.open(out) if own else out
+    # (own: out is a path, else the open OutputDir; mypy does not narrow through own)
+    od = OutputDir.open(cast('str | Path', out)) if own else cast(OutputDir, out)
     try:
         paths = [od.write_bytes(RESIDUAL_FILE, r.npz_bytes())]
         text = params_text + (f'# the {r.kind} network beside this file (mmg_tuner tune '
@@ -327,7 +328,7 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
          test: Trial | Sequence[Trial] | None = None, config: TuneConfig | None = None, *,
          checkpoint: str | Path | None = None, resume: bool = False,
          progress: Callable[[Progress], None] | None = None,
-         groups: Mapping[str, str] | None = None, **options) -> TuneResult:
+         groups: Mapping[str, str] | None = None, **options: Any) -> TuneResult:
     """
     Tune ``ship``'s targets on ``trials`` with IPOP-CMA-ES (the paper's formulation).
 
@@ -439,13 +440,16 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         r = trained[choice.chosen]
         if r.seeds >= 2:
             try:
-                iv = calibrate_interval(cands[choice.chosen], val, 0.9, integrator=rc.integrator)
+                # (the chosen is not the physics: a Model with its network)
+                iv = calibrate_interval(cast(Model, cands[choice.chosen]), val, 0.9,
+                                        integrator=rc.integrator)
             except TuningError as exc:   # e.g. a member diverges where their mean does not
                 notes.append(f'no prediction interval: {exc}')
                 logger.warning('--model auto: the recommended %s is written without a '
                                'prediction interval: %s', choice.chosen, exc)
             else:
-                r.net = with_interval(iv).residual
+                # (the interval's model is the chosen network's, which it keeps)
+                r.net = cast(ResidualNet, with_interval(iv).residual)
                 notes.append('prediction interval: nominal 90 %, factors '
                              f'{iv.to_dict()["scale"]} (calibrated on the validation part)')
         result.residual = r
@@ -477,7 +481,7 @@ RESIDUAL_KINDS = ('hybrid', 'network')
 MODEL_CHOICES = ('physics', 'auto')
 
 
-def _check_residual(cfg: TuneConfig, error) -> None:
+def _check_residual(cfg: TuneConfig, error: type[Exception]) -> None:
     """TuneConfig.residual and residual_options, checked like the other options."""
     _check('residual', cfg.residual, cfg.residual is None or cfg.residual in RESIDUAL_KINDS,
            f'None or one of {list(RESIDUAL_KINDS)}', error)
@@ -492,7 +496,7 @@ def _check_residual(cfg: TuneConfig, error) -> None:
            'be < 2**31)', error)
 
 
-def _check_residual_options(options, error) -> None:
+def _check_residual_options(options: Mapping[str, Any], error: type[Exception]) -> None:
     opts = dict(options)
     unknown = sorted(set(opts) - set(config_fields(ResidualConfig)))
     _check('residual_options', opts, not unknown and 'physics' not in opts,
@@ -502,9 +506,10 @@ def _check_residual_options(options, error) -> None:
 
 def _residual_config(cfg: TuneConfig) -> ResidualConfig:
     # RK4, as evaluate and mt.simulate run the hybrid by default (Euler: residual_options)
-    return ResidualConfig(**{'seed': cfg.seed, 'integrator': 'rk4',
-                             **dict(cfg.residual_options),
-                             'physics': cfg.residual != 'network'})
+    options: dict[str, Any] = {'seed': cfg.seed, 'integrator': 'rk4',
+                               **dict(cfg.residual_options),
+                               'physics': cfg.residual != 'network'}
+    return ResidualConfig(**options)
 
 
 @dataclass
@@ -518,16 +523,16 @@ class ResidualResult:
     test trials, None without any).
     """
 
-    net: object = field(repr=False)
+    net: ResidualNet = field(repr=False)
     kind: str
     share: float
     val_gain: float | None
-    index: dict
+    index: dict[str, dict[str, Any]]
     heldout_gain: float | None
     seconds: float
     epochs: int
     seed: int
-    config: dict
+    config: dict[str, Any]
     seeds: int = 1   # residuals averaged (seeds seed .. seed + seeds - 1; 1: one network)
 
     def npz_bytes(self) -> bytes:
@@ -538,7 +543,7 @@ class ResidualResult:
             self.net.save(path)
             return path.read_bytes()
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         d = asdict(self)
         d.pop('net')
         d['file'] = RESIDUAL_FILE
@@ -567,11 +572,11 @@ class ResidualResult:
         return '\n'.join(lines) + '\n'
 
 
-def _fmt_idx(x) -> str:
+def _fmt_idx(x: float | None) -> str:
     return 'failed' if x is None else f'{x:.4g}'
 
 
-def _fmt_gain_frac(g) -> str:
+def _fmt_gain_frac(g: float | None) -> str:
     return '—' if g is None else f'{100 * g:+.1f} %'
 
 
