@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Callable, TypeVar
+
+N = TypeVar('N', int, float)
+"""The kind of number an option takes."""
 
 
-def _number(kind, s: str, what: str):
+def _number(kind: Callable[[str], N], s: str, what: str) -> N:
     try:
         v = kind(s)
     except (TypeError, ValueError):
@@ -25,7 +29,7 @@ def finite_float(s: str) -> float:
     return _number(float, s, 'a finite number')
 
 
-def _at_least(kind, s: str, what: str, lo: int, strict: bool = False):
+def _at_least(kind: Callable[[str], N], s: str, what: str, lo: int, strict: bool = False) -> N:
     """Return kind(s) if it is >= lo (> lo if strict), else raise naming the bound."""
     v = _number(kind, s, what)
     if v < lo or (strict and v == lo):   # finite (_number): the same as not v > lo
@@ -53,13 +57,14 @@ def nonneg_int(s: str) -> int:
     return _at_least(int, s, 'a whole number', 0)
 
 
-def bounded(kind, lo: float, hi: float, what: str = 'value'):
+def bounded(kind: Callable[[str], N], lo: float, hi: float, what: str = 'value'
+            ) -> Callable[[str], N]:
     """
     Return a type accepting kind(s) within [lo, hi], e.g.
 
     ``bounded(float, 1e-4, 3600, 'dt [s]')``.
     """
-    def parse(s: str):
+    def parse(s: str) -> N:
         v = _number(kind, s, f'a {what}')
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f'{what} {s!r} is outside [{lo:g}, {hi:g}]')
@@ -94,7 +99,7 @@ TOPICS_HELP = ('topic map YAML for bags (default: conventions.md topics; a topic
                'found by type when unambiguous)')
 
 
-def add_reading_options(ap: argparse.ArgumentParser, dt: object, dt_help: str,
+def add_reading_options(ap: argparse.ArgumentParser, dt: Callable[[str], float], dt_help: str,
                         dt_default: float | None = None, scale: bool = True) -> None:
     """
     Add the options of how recordings are read, the same in every command that reads them.

@@ -13,12 +13,13 @@ import os
 from pathlib import Path
 import sys
 import tempfile
-from typing import Any, Callable
+from typing import Any, Callable, cast, NoReturn, Protocol
 
 from mmg_tuner._atomic import file_mode
 from mmg_tuner._limits import one_line
 from mmg_tuner.cli.args import bounded
 from mmg_tuner.core.limits import FN_TOP, input_limits
+from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.errors import MmgTunerError, OutputError
 
 # the most samples one simulated or generated run may hold: 1e7 x 9 float64 columns is 720 MB
@@ -39,7 +40,7 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     flag's False (``--help`` used to print both, e.g. "(default: the ship's) (default: None)").
     """
 
-    def _get_help_string(self, action: argparse.Action) -> str:
+    def _get_help_string(self, action: argparse.Action) -> str | None:
         text = action.help or ''
         d = action.default
         if 'default' in text or d is None or d is argparse.SUPPRESS or d == [] or d is False:
@@ -50,11 +51,11 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 class Parser(argparse.ArgumentParser):
     """Argparse whose errors become one ``ERROR: ...`` line with exit status 2 (run_command)."""
 
-    def __init__(self, *args, **kwargs) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault('formatter_class', HelpFormatter)
         super().__init__(*args, **kwargs)
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         raise UsageError(f'{self.prog}: {message} (see {self.prog} --help)')
 
 
@@ -71,8 +72,16 @@ def run_command(command: Callable[[list[str] | None], int], argv: list[str] | No
         return 130
 
 
+class ProgressCallback(Protocol):
+    """A progress callback (one progress item per call) and its bar's ``close()``."""
+
+    def __call__(self, item: Any) -> None: ...
+
+    def close(self) -> None: ...
+
+
 def progress_bar(total: int, unit: str, show: Callable[[Any, Any], None],
-                 **tqdm_options: Any) -> Callable[[Any], None]:
+                 **tqdm_options: Any) -> ProgressCallback:
     """
     Return a progress callback drawing a tqdm bar on stderr; call its ``close()`` at the end.
 
@@ -85,7 +94,7 @@ def progress_bar(total: int, unit: str, show: Callable[[Any, Any], None],
         show(bar, item)
 
     update.close = bar.close  # type: ignore[attr-defined]
-    return update
+    return cast(ProgressCallback, update)   # (its close attached above)
 
 
 def _never_fail_printing() -> None:
@@ -97,7 +106,8 @@ def _never_fail_printing() -> None:
     """
     for stream in (sys.stdout, sys.stderr):
         try:
-            stream.reconfigure(errors='backslashreplace')
+            # (a TextIOWrapper's; another stream raises AttributeError, caught below)
+            stream.reconfigure(errors='backslashreplace')  # type: ignore[union-attr]
         except (AttributeError, ValueError, OSError):  # not a TextIOWrapper (e.g. replaced)
             pass
 
@@ -167,7 +177,7 @@ def write_new_file(path: str | Path, data: str | bytes, option: str) -> Path:
     return path
 
 
-def check_run(ship, rpm: float, speed_ms: float, speed_opt: str,
+def check_run(ship: ShipConfig, rpm: float, speed_ms: float, speed_opt: str,
               rudders: list[tuple[str, float]]) -> None:
     """
     Refuse, before any work, what the ship cannot plausibly do (core/limits.py).

@@ -16,13 +16,14 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from typing import cast
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import add_reading_options, add_writing_options, bounded, positive_float
-from mmg_tuner.cli.common import run_command
-from mmg_tuner.cli.tune import (DT, load_tune_and_test, parse_or_resume, Parser, SEED, show_log,
-                                sigterm_as_interrupt, store_args, UsageError)
+from mmg_tuner.cli.common import Parser, run_command, SEED, UsageError
+from mmg_tuner.cli.tune import (DT, load_tune_and_test, parse_or_resume, show_log,
+                                sigterm_as_interrupt, store_args)
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.diagnosis.settings import BUDGETS  # noqa: F401  (re-exported for scripts)
 from mmg_tuner.diagnosis.settings import RESTART_FROUDE, restart_period
@@ -88,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # --residual's values as DiagnoseConfig.residual (True / False: a run stored before 'auto')
-_RESIDUAL = {'auto': 'auto', 'on': True, 'off': False, True: True, False: False}
+_RESIDUAL: dict[str | bool, str | bool] = {'auto': 'auto', 'on': True, 'off': False,
+                                           True: True, False: False}
 
 
 def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
@@ -103,7 +105,7 @@ def diagnose_config(args: argparse.Namespace) -> api.DiagnoseConfig:
                               restart_every_s=getattr(args, 'restart_every_s', None))
 
 
-def verdict_lines(dx) -> list[str]:
+def verdict_lines(dx: api.DiagnosisResult) -> list[str]:
     """
     Return the lines the command prints about the causes, in order.
 
@@ -115,10 +117,12 @@ def verdict_lines(dx) -> list[str]:
     """
     out: list[str] = []
     for c in dx.causes:
+        # (a share cast to float where it is checked not None)
         out.append(f'CAUSE: {c.summary}'
                    + (f' (measured: {c.measured}, not fitted)' if c.measured else '')
-                   + (f' -- {100 * c.share:.0f} % of the held-out error (held-out gain '
-                      f'{100 * c.heldout_gain:.1f} %)' if getattr(c, 'share', None) is not None
+                   + (f' -- {100 * cast(float, c.share):.0f} % of the held-out error '
+                      f'(held-out gain {100 * c.heldout_gain:.1f} %)'
+                      if getattr(c, 'share', None) is not None
                       else f' -- held-out gain {100 * c.heldout_gain:.1f} %'))
     if not dx.causes:
         by_evidence = bool(getattr(dx, 'decision', None))   # verdict='evidence'

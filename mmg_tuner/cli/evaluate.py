@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import cast, TYPE_CHECKING
 
 from mmg_tuner import api
 from mmg_tuner._outdir import OutputDir
@@ -23,6 +24,9 @@ from mmg_tuner.cli.args import add_reading_options, bounded, nonneg_float
 from mmg_tuner.cli.common import Parser, run_command, UsageError
 from mmg_tuner.cli.tune import show_log
 from mmg_tuner.tuning.evaluate import UNITS
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.tuning.nstep import NStepScore
 
 DT = bounded(float, 1e-3, 600.0, 'resampling step dt [s]')
 SUBSTEPS = bounded(int, 1, 1000, 'number of substeps')
@@ -83,7 +87,7 @@ def command(argv: list[str] | None = None) -> int:
 
 def nstep_text(result: api.EvaluateResult) -> str:
     """Return the n-step RMSE per horizon and the free-run relative errors as lines."""
-    sc = result.nstep
+    sc = cast('NStepScore', result.nstep)   # (called only with n-step scores)
     states = ('u', 'v', 'r', 'x', 'y', 'psi')
     lines = ['n-step RMSE (restart from the measured state at every sample):',
              f'{"n":>5} {"t [s]":>7} ' + ' '.join(f'{s + " [" + UNITS[s] + "]":>11}'
@@ -95,7 +99,9 @@ def nstep_text(result: api.EvaluateResult) -> str:
     rel = result.relative
     if rel is not None:
         lines.append('free-run relative error ||y_model - y|| / ||y|| (pooled): ' + ', '.join(
-            f'{s} {"-" if rel.pooled[s] is None else format(100 * rel.pooled[s], ".3g")} %'
+            # (an error cast to float where it is checked not None)
+            f'{s} ' + ('-' if rel.pooled[s] is None
+                       else format(100 * cast(float, rel.pooled[s]), '.3g')) + ' %'
             for s in ('u', 'v', 'r')))
     return '\n'.join(lines)
 

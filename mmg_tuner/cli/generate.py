@@ -58,6 +58,7 @@ from mmg_tuner.data.bag import write_trial_bag
 from mmg_tuner.data.csv_io import trial_csv_text
 from mmg_tuner.data.generate import (generate_trial, out_of_library, parse_maneuver,
                                      SensorNoise, trial_kit)
+from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, MmgTunerError, OutputError, SimulationError
 import yaml
 
@@ -156,7 +157,8 @@ def free_name(out: Path, name: str, taken: set[str]) -> str:
     return cand
 
 
-def approach(ship, rpm: float | None, speed_kn: float | None) -> tuple[float, float, str]:
+def approach(ship: ShipConfig, rpm: float | None, speed_kn: float | None
+             ) -> tuple[float, float, str]:
     """
     Return (rpm, speed [m/s], note) of the approach.
 
@@ -254,7 +256,7 @@ def command(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _write(out: OutputDir, trial, name: str, storage: str) -> None:
+def _write(out: OutputDir, trial: Trial, name: str, storage: str) -> None:
     """
     Write the bag, then the CSV.
 
@@ -272,7 +274,7 @@ def _write(out: OutputDir, trial, name: str, storage: str) -> None:
     out.write_text(Path('csv') / f'{name}.csv', trial_csv_text(trial))
 
 
-def _from_advice(args, ship) -> int:
+def _from_advice(args: argparse.Namespace, ship: ShipConfig) -> int:
     from mmg_tuner.diagnosis.advice import load_advice, trial_from_spec
     specs = load_advice(args.from_advice)
     noise = SensorNoise.none() if args.no_noise else SensorNoise()

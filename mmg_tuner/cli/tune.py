@@ -22,6 +22,8 @@ import math
 from pathlib import Path
 import signal
 import sys
+from types import FrameType
+from typing import Any, cast, Iterator, NoReturn, Sequence, TYPE_CHECKING
 
 from mmg_tuner import api
 from mmg_tuner._limits import load_json
@@ -29,10 +31,16 @@ from mmg_tuner._outdir import OutputDir
 from mmg_tuner.cli.args import (add_reading_options, add_writing_options, bounded, nonneg_float,
                                 nonneg_int, positive_float, positive_int)
 from mmg_tuner.cli.common import Parser, progress_bar, run_command, SEED, UsageError
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import ConfigError, MmgTunerError
 from mmg_tuner.tuning.lo_go import GO_RIDGE, METHODS
 from mmg_tuner.tuning.report import fmt_gain, fmt_J
 from mmg_tuner.tuning.tuner import Progress
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.api.tuning import ResidualResult
+    from mmg_tuner.tuning.nstep import RelativeErrors
 
 ARGS_FILE = 'args.json'
 CHECKPOINT = 'checkpoint.npz'
@@ -158,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def trial_kinds(trials) -> dict[str, str] | None:
+def trial_kinds(trials: Sequence[Trial]) -> dict[str, str] | None:
     """
     Return trial name -> kind of run: the name of the folder each trial was read from.
 
@@ -173,7 +181,7 @@ PATH_LISTS = ('trials', 'test')
 PATH_OPTS = ('params', 'topics', 'out')
 
 
-def absolute_paths(opts: dict) -> dict:
+def absolute_paths(opts: dict[str, Any]) -> dict[str, Any]:
     """
     Option values with every path made absolute (a resume may run from another folder).
 
@@ -192,24 +200,26 @@ def absolute_paths(opts: dict) -> dict:
     return o
 
 
-def explicit_options(parser: argparse.ArgumentParser, argv: list[str] | None) -> dict:
+def explicit_options(parser: argparse.ArgumentParser, argv: list[str] | None) -> dict[str, Any]:
     """Return the options actually given on the command line (not defaults)."""
     quiet = Parser(prog=parser.prog, add_help=False)
     for a in parser._actions:
         if a.dest == 'help':
             continue
-        kw = {'dest': a.dest, 'default': argparse.SUPPRESS}
+        kw: dict[str, Any] = {'dest': a.dest, 'default': argparse.SUPPRESS}
+        # (argparse takes type=None, no conversion, which typeshed's add_argument does not)
+        conv: Any = a.type
         if isinstance(a, argparse._StoreTrueAction):
             quiet.add_argument(*a.option_strings, action='store_true', **kw)
         elif isinstance(a, argparse._StoreConstAction):   # diagnose --residual/--no-residual
             quiet.add_argument(*a.option_strings, action='store_const', const=a.const, **kw)
         elif isinstance(a, argparse._AppendAction):
-            quiet.add_argument(*a.option_strings, action='append', type=a.type, **kw)
+            quiet.add_argument(*a.option_strings, action='append', type=conv, **kw)
         elif a.option_strings:
-            quiet.add_argument(*a.option_strings, nargs=a.nargs, type=a.type,
+            quiet.add_argument(*a.option_strings, nargs=a.nargs, type=conv,
                                choices=a.choices, **kw)
         else:
-            quiet.add_argument(a.dest, nargs=a.nargs, type=a.type, default=argparse.SUPPRESS)
+            quiet.add_argument(a.dest, nargs=a.nargs, type=conv, default=argparse.SUPPRESS)
     given = vars(quiet.parse_args(argv))
     return {k: v for k, v in given.items() if not (k in PATH_LISTS and v == [])}
 
@@ -305,9 +315,9 @@ def store_args(out: OutputDir, command: str, args: argparse.Namespace) -> None:
 
 
 @contextlib.contextmanager
-def sigterm_as_interrupt():
+def sigterm_as_interrupt() -> Iterator[None]:
     """Make a kill (SIGTERM) stop like Ctrl-C: what is done is kept, the run is resumable."""
-    def interrupt(signum, frame):
+    def interrupt(signum: int, frame: FrameType | None) -> NoReturn:
         raise KeyboardInterrupt
     try:
         old = signal.signal(signal.SIGTERM, interrupt)
@@ -321,7 +331,7 @@ def sigterm_as_interrupt():
 
 
 @contextlib.contextmanager
-def show_log(quiet: bool = False):
+def show_log(quiet: bool = False) -> Iterator[None]:
     """Print the library's progress messages (the ``mmg_tuner`` loggers) on stderr."""
     root = logging.getLogger('mmg_tuner')
     handler = logging.StreamHandler(sys.stderr)
@@ -375,7 +385,7 @@ RECIPE_KEYS = ('targets', 'segment', 'balance', 'prior', 'max_evals', 'polish', 
 """What a ship config's ``tuning.recipe`` may set (the dests of this command's options)."""
 
 
-def apply_recipe(args: argparse.Namespace, given: dict, ship) -> list[str]:
+def apply_recipe(args: argparse.Namespace, given: dict[str, Any], ship: ShipConfig) -> list[str]:
     """
     Fill the options not given on the command line from the ship config's ``tuning.recipe``.
 
@@ -398,17 +408,19 @@ def apply_recipe(args: argparse.Namespace, given: dict, ship) -> list[str]:
     return applied
 
 
-def identify_method(args: argparse.Namespace, ship) -> str | None:
+def identify_method(args: argparse.Namespace, ship: ShipConfig | None) -> str | None:
     """Return the local -> global method to run (None: the CMA-ES tuning)."""
     method = getattr(args, 'method', None)
     if method == 'cmaes':
         return None
     if method is None and getattr(args, 'bollard_pull', None) is None:
-        return 'lo-go' if ship.family.motion is not None else None
+        # (None is passed only with --method or --bollard-pull: the ship is given here)
+        return 'lo-go' if cast(ShipConfig, ship).family.motion is not None else None
     return method or 'lo-go'
 
 
-def load_tune_and_test(args: argparse.Namespace, ship) -> tuple[list, list]:
+def load_tune_and_test(args: argparse.Namespace, ship: ShipConfig
+                       ) -> tuple[list[Trial], list[Trial]]:
     """
     Read the command's trials and its --test trials (none: []) with its reading options.
 
@@ -465,7 +477,8 @@ def identify_command(args: argparse.Namespace, method: str) -> int:
                   + (f"; start {g['start_line']}" if g.get('start_line') else ''))
         if test:
             ev = api.evaluate(result.identified_ship, test, horizons=(1, 10, 50))
-            rel = ev.relative.pooled
+            # (evaluate computes the free-run errors with horizons)
+            rel = cast('RelativeErrors', ev.relative).pooled
             print('held-out free-run relative error: ' + ', '.join(
                 f'{k} {"-" if v is None else format(100 * v, ".3g")} %' for k, v in rel.items()))
         print(f'identified {len(result.params)} parameters ({method}) in {result.wall_s:.1f} s; '
@@ -478,7 +491,8 @@ def command(argv: list[str] | None = None) -> int:
     args, notes, resume = parse_or_resume(parser, argv, 'tune', 'tuning trials')
     if getattr(args, 'method', None) not in (None, 'cmaes') or getattr(args, 'bollard_pull',
                                                                        None):
-        return identify_command(args, identify_method(args, None))
+        # (with --method or --bollard-pull the method is named: lo, go or lo-go)
+        return identify_command(args, cast(str, identify_method(args, None)))
     given = explicit_options(parser, argv)
     recipe = [] if resume else apply_recipe(   # a resumed run keeps its stored options
         args, given, api.load_ship(args.ship, args.params))
@@ -548,7 +562,7 @@ NOTHING_CHANGED = 3
 """Exit status of a tune that ran but left every value as it was (doc/reference/commands.md)."""
 
 
-def refuse_cancelling(args: argparse.Namespace, given: dict) -> None:
+def refuse_cancelling(args: argparse.Namespace, given: dict[str, Any]) -> None:
     """
     Refuse options that cancel each other, naming both and where each came from.
 
@@ -570,7 +584,7 @@ def refuse_cancelling(args: argparse.Namespace, given: dict) -> None:
                      'or give --max-evals N')
 
 
-def _residual_line(r) -> str:
+def _residual_line(r: ResidualResult) -> str:
     """One line on the trained network: share, held-out gain, time, seed."""
     held = ('' if r.heldout_gain is None else
             f'; held-out index (eq. 26) {r.index["test"]["physics"]:.4g} -> '
@@ -585,7 +599,7 @@ def _residual_line(r) -> str:
             f'epochs, {seeds}); weights in {api.RESIDUAL_FILE}')
 
 
-def _show_generation(bar, p: Progress) -> None:
+def _show_generation(bar: Any, p: Progress) -> None:   # bar: tqdm's (no annotations)
     bar.set_postfix_str(f'gen {p.generation} restart {p.restart} pop {p.popsize} '
                         f'best J {p.best_J:.4g}', refresh=False)
     bar.update(min(p.evaluations, bar.total) - bar.n)  # tqdm throttles the redraw
