@@ -44,7 +44,7 @@ from typing import Any, Callable, cast, Mapping, Sequence
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner._ship_params import load_ship_with_params
-from mmg_tuner.core.actuators import actuator, companion
+from mmg_tuner.core.actuators import actuator, load_companion
 from mmg_tuner.core.dynamics import effect_forces, mmg_motion
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import family, module_of, REGISTRY
@@ -68,11 +68,11 @@ def _kit(name: str) -> tuple[types.ModuleType, types.ModuleType] | None:
     fam = family(name)
     if len(fam.actuators) != 1:
         return None
-    symbolic = companion(fam.actuators[0], 'SYMBOLIC')
+    symbolic = load_companion(fam.actuators[0], 'SYMBOLIC')
     hull = importlib.import_module(module_of(name))
     if symbolic is None or not hasattr(hull, 'hull_document'):
         return None
-    return hull, importlib.import_module(symbolic)
+    return hull, symbolic
 
 
 def supported_families() -> tuple[str, ...]:
@@ -253,7 +253,7 @@ def model_document(sym: SymbolicModel, M: np.ndarray, limits: Mapping[str, float
         'frames': {
             'earth': 'x north, y east [m]; psi heading from north, clockwise + [rad]',
             'body': 'x forward, y to starboard; r clockwise + [rad/s]; about the model '
-                    'reference point, velocities through the water',
+                    f'reference point ({kit.REFERENCE_POINT}), velocities through the water',
             'environment': 'calm water: no wind, no current'},
         'state': [{'name': n, 'unit': un} for n, un in zip(sym.states, sym.state_units)],
         'input': [{'name': n, 'unit': un} for n, un in zip(sym.inputs, kit.INPUT_UNITS)],
@@ -346,8 +346,11 @@ def operating_point(sym: SymbolicModel, nd: Any, given: Mapping[str, float],
         a.update(zip(free, z))
         return np.array(nd(nu, [a[k] for k in acting_names])).ravel()
 
+    bound = kit.bounds(limits)
+    for k in [k for k in free if bound[k] == 0.0]:   # a fixed thruster: its angle stays 0
+        inputs[k] = start[k] = 0.0
+        free.remove(k)
     if free:
-        bound = kit.bounds(limits)
         hi = np.array([bound[k] for k in free])
         z0 = np.clip([start[k] for k in free], -0.999 * hi, 0.999 * hi)
         sol = least_squares(resid, z0, bounds=(-hi, hi), xtol=1e-15, ftol=1e-15, gtol=1e-15,
@@ -405,7 +408,7 @@ A, B = np.array(lin['discrete']['A']), np.array(lin['discrete']['B'])
 
 x = ({states}); u = ({inputs}); SI units, rad. x_next is one {integrator} step of the package's
 simulator (call it twice with dt/2 for two substeps). model.json holds M, C(nu), D(nu), the
-actuator's map and the limits.
+thruster map and the limits.
 
 do-mpc: `model.set_rhs('x', dyn(x, u, {dt})[0])` (a discrete model) or `dyn(x, u, 0)[1]`
 (continuous).

@@ -354,7 +354,7 @@ def _catalogue(args: argparse.Namespace, ship: ShipConfig, kit: ModuleType,
             'ship': ship.name, 'rate_hz': rate, 'noise': 'none' if args.no_noise else
             {k: float(v) for k, v in noise.__dict__.items()}, 'seed': args.seed,
             **written, **roles,
-            'assumptions': f'{kit.ASSUMPTIONS}; ship file: {ship.source or ship.name}'},
+            'assumptions': str(kit.ASSUMPTIONS).format(source=ship.source or ship.name)},
             sort_keys=False))
         print(f'{len(roles["identification"])} identification and '
               f'{len(roles["validation"])} validation trials listed in '

@@ -26,7 +26,6 @@ this module free of kernel imports: ``layout`` reads it.
 from __future__ import annotations
 
 from dataclasses import replace
-import importlib
 import math
 
 from mmg_tuner.core.effect import Box, direction, Effect, froude_factor, pm
@@ -41,14 +40,22 @@ def _declared_by_actuators() -> list[Effect]:
     After the library's own in registry order: a new one appends slots to the layout, the
     existing slots keep their places.
     """
-    from mmg_tuner.core.actuators import companion, REGISTRY   # no kernel: the registry only
+    from mmg_tuner.core.actuators import load_companion, REGISTRY   # the registry, no kernel
 
-    out = []
+    out: list[Effect] = []
+    taken = {p: e.name for e in EFFECTS.values() for p in e.params}
     for name in REGISTRY:
-        module = companion(name, 'EFFECTS')
-        if module is not None:
-            out += [replace(e, actuator=name)
-                    for e in importlib.import_module(module).EFFECTS]
+        module = load_companion(name, 'EFFECTS')
+        if module is None:
+            continue
+        for e in module.EFFECTS:
+            clash = ([e.name] if e.name in EFFECTS or e.name in {o.name for o in out} else []) \
+                + [f'parameter {p} (of {taken[p]})' for p in e.params if p in taken]
+            if clash:   # a second declaration would silently replace the first one's slots
+                raise ImportError(f'actuator {name!r}: its effect {e.name!r} ({module.__name__}) '
+                                  f'takes a name already taken: {", ".join(clash)}')
+            taken.update(dict.fromkeys(e.params, e.name))
+            out.append(replace(e, actuator=name))
     return out
 
 

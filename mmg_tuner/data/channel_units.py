@@ -12,12 +12,11 @@ checks (``data/consistency.py``, ``core/limits.InputLimits``).
 """
 from __future__ import annotations
 
-import importlib
 import logging
 import math
 from typing import Callable, Sequence
 
-from mmg_tuner.core.actuators import companion
+from mmg_tuner.core.actuators import load_companion
 from mmg_tuner.core.channels import CONTROL_NAMES, TABLE
 from mmg_tuner.core.limits import command_limits, CommandLimit
 from mmg_tuner.core.ship import ShipConfig
@@ -125,9 +124,9 @@ def bollard_unit_warnings(ship: ShipConfig, n: np.ndarray, thrust: np.ndarray,
 def _bollard_curve(ship: ShipConfig) -> Callable[[np.ndarray, float], float] | None:
     """Return the thrust curve F(params, n) [N] an actuator of the ship declares, or None."""
     for name in ship.family.actuators:
-        module = companion(name, 'IDENTIFY')
+        module = load_companion(name, 'IDENTIFY')
         if module is not None:
-            curve = getattr(importlib.import_module(module), 'bollard_curve', None)
+            curve = getattr(module, 'bollard_curve', None)
             if curve is not None:
                 return curve   # type: ignore[no-any-return]  # a module attribute
     return None

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-import importlib
 import math
 from types import ModuleType
 from typing import Iterable, Mapping
@@ -183,12 +182,12 @@ def trial_kit(ship: ShipConfig) -> ModuleType | None:
     catalogue, sensor noise, tables; ``core/actuators/__init__.py``); the first of the family's
     actuators that does wins.
     """
-    from mmg_tuner.core.actuators import trials_module
+    from mmg_tuner.core.actuators import load_companion
 
     for name in ship.family.actuators:
-        module = trials_module(name)
+        module = load_companion(name, 'TRIALS')
         if module is not None:
-            return importlib.import_module(module)
+            return module
     return None
 
 

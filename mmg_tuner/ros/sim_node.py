@@ -35,14 +35,14 @@ from mmg_tuner.core.frames import enu_yaw_to_psi
 from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
 from mmg_tuner.core.plausibility import checked
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
-from mmg_tuner.errors import MmgTunerError
+from mmg_tuner.errors import ConfigError, MmgTunerError
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.plausibility import network_checked
 from mmg_tuner.ros.command_watch import channel_state, zeroed_on_timeout
 from mmg_tuner.ros.conversions import (identity_transform, odometry_from_state, seconds_from_stamp,
                                        stamp_from_seconds, transform_from_state)
 from mmg_tuner.ros.health import CommandHealth, Health, plausibility_status
-from mmg_tuner.ros.run import declare_parameters, Param, spin_node
+from mmg_tuner.ros.run import declare_parameters, Param, spin_node, unknown_overrides
 from mmg_tuner.ros.sensors import datum_from_params, SimulatedSensors
 from mmg_tuner.ros.uncertainty import EnsembleSpread, fill_covariance
 from nav_msgs.msg import Odometry
@@ -158,6 +158,10 @@ PARAMS = {
                                'covers rpm 0); checked once a second [s, wall clock]; 0: off',
                                (0.0, 86400.0)),
 }
+RETIRED = dict.fromkeys(('thrust_topic', 'azimuth_topic'),
+                        'no longer read: each command channel is on the topic its actuator '
+                        'declares; move any with command_topics (CHANNEL=TOPIC,...)')
+"""Parameters of earlier versions a params file may still set, and what replaces them."""
 FRAME_PARAMS = {'frame_id', 'odom_frame_id', 'child_frame_id', 'frame_prefix'}
 DATUM_PARAMS = {'datum_lat_deg', 'datum_lon_deg', 'datum_alt_m'}
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -176,6 +180,9 @@ class SimNode(Node):
         specs['frame_prefix'] = replace(PARAMS['frame_prefix'],
                                         default=self.get_namespace().strip('/'))
         self.p = declare_parameters(self, specs)
+        retired = [n for n in RETIRED if n in unknown_overrides(self)]
+        if retired:   # else the node would listen on the declared topics without a word
+            raise ConfigError('; '.join(f'parameter {n}: {RETIRED[n]}' for n in retired))
         self._check_frames(self.p)
         datum_from_params(self.p)  # a bad datum is refused at start (ConfigError)
         self.sim = self._build(self.p)

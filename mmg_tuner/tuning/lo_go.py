@@ -50,7 +50,7 @@ import time
 from typing import Any, Callable, cast, Sequence, TYPE_CHECKING, TypedDict
 
 from mmg_tuner._outdir import OutputDir
-from mmg_tuner.core.actuators import actuator, companion
+from mmg_tuner.core.actuators import actuator, load_companion
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import accelerations_many, actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
@@ -288,10 +288,9 @@ def actuator_fits(ship: ShipConfig, trials: Sequence[Trial], substeps: int | Non
     """
     out: dict[str, Any] = {}
     for name in ship.family.actuators:
-        module = companion(name, 'IDENTIFY')
-        if module is None:
+        kit = load_companion(name, 'IDENTIFY')
+        if kit is None:
             continue
-        kit = importlib.import_module(module)
         fit = kit.fit(ship, trials, substeps)
         if fit is not None:
             out[str(kit.NAME)] = fit

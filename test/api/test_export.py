@@ -170,3 +170,13 @@ def test_command_exports_a_params_overlay(tmp_path, capsys):
     a = sim.actuator_states()
     assert np.max(np.abs(x_next - np.concatenate([sim.observed(), [
         a['alpha_port'], a['alpha_rate_port'], a['alpha_stbd'], a['alpha_rate_stbd']]]))) < 1e-12
+
+
+def test_a_craft_with_fixed_thrusters_exports_with_its_angles_held_at_zero(tmp_path):
+    # the Otter's steering.max_azimuth_deg is 0: the trim leaves its angles out (a zero box
+    # is no box to SciPy) and solves the shaft speeds alone
+    res = export_model('otter_usv', tmp_path / 'otter')
+    op = res.operating_point
+    assert op.inputs['azimuth_port'] == 0.0 and op.inputs['azimuth_stbd'] == 0.0
+    assert op.residual < 1e-6 and op.state['u'] > 0
+    assert op.trimmed == ['n_port', 'n_stbd']   # the angles are not trimmed: they are fixed

@@ -16,10 +16,12 @@ from mmg_tuner.cli.generate import approach
 from mmg_tuner.cli.inspect import command as inspect_command
 from mmg_tuner.core.actuators import twin_azimuth_trials as twin
 from mmg_tuner.core.ship import load_ship
+from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.consistency import rpm_unit_warning
 from mmg_tuner.data.csv_io import csv_text, trial_csv_text
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.ros.command_watch import channel_state, zeroed_on_timeout
+import numpy as np
 import pytest
 
 
@@ -117,3 +119,16 @@ def test_a_timeout_zeroes_shaft_speeds_and_holds_angles():
         assert zeroed_on_timeout(ch), ch
     for ch in ('rudder', 'azimuth_port', 'azimuth_stbd'):
         assert not zeroed_on_timeout(ch), ch
+
+
+def test_a_tug_trial_without_recorded_orders_is_summarised_from_its_measured_angles():
+    # the order columns present but never recorded (NaN): the steering is the measured angles
+    # (this crashed detect_maneuver with an IndexError before)
+    from mmg_tuner.data.summary import detect_maneuver
+    ship = load_ship('qiuxin_tug')
+    m = twin.Maneuver('zz', 'zigzag', 7.0, 20.0, approach_s=10.0, duration_s=60.0)
+    _, tr = twin.generate(ship, m, 5.0, twin.Noise(), 7)
+    blind = Trial(tr.t, tr.states, name='blind', inputs={
+        **tr.inputs, 'azimuth_cmd_port': np.full(len(tr), np.nan),
+        'azimuth_cmd_stbd': np.full(len(tr), np.nan)})
+    assert detect_maneuver(blind) == detect_maneuver(tr) == 'zigzag'

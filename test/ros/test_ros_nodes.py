@@ -156,6 +156,8 @@ def test_bad_start_parameters_exit_2_with_one_error_line(ros, tmp_path):
     (keep / 'recording.mcap').write_text('precious')
     runs = {f'{n}:={v}': start('sim_node', env, f'{n}:={v}') for n, v in BAD_PARAMS}
     runs['--params-file'] = start('sim_node', env, ros_args=('--params-file', str(tuned)))
+    # a parameter earlier versions read: refused naming what replaces it, not ignored
+    runs['thrust_topic:=x'] = start('sim_node', env, 'thrust_topic:=thrusters/{name}/thrust')
     # replay_node with output_mcap at an existing folder deleted it
     runs['output_mcap'] = start('replay_node', env, f'trial:={tmp_path / "none"}',
                                 f'output_mcap:={keep}')

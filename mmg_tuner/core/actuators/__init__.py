@@ -38,22 +38,24 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
    * optionally ``TRIALS``: the module (beside this one, or a full module path) that says what
      the ``generate`` command sails for a craft this actuator drives, in place of the
      screw-and-rudder manoeuvres (``twin_azimuth_trials.py`` is the example): ``RATE_HZ``
-     (default recording rate), ``ASSUMPTIONS`` (a line for trials.yaml), ``Noise`` (a
-     ``core/noise.Sigmas`` dataclass with ``apply(trial, rng)``; its defaults are the
-     craft's sensors), ``catalogue(ship)`` (dataclasses with ``name``, ``role``
-     ('identification' or 'validation') and ``duration_s``), ``generate(ship, maneuver,
+     (default recording rate), ``ASSUMPTIONS`` (a line for trials.yaml; ``{source}``: the
+     ship file), ``Noise`` (a ``core/noise.Sigmas`` dataclass with ``apply(trial, rng)``;
+     its defaults are the craft's sensors), ``catalogue(ship)`` (dataclasses with ``name``,
+     ``role`` ('identification' or 'validation') and ``duration_s``), ``generate(ship, maneuver,
      rate_hz, noise, seed) -> (truth, measured)`` and ``tables(ship, noise, seed)`` (name ->
      (CSV header, rows, description), written beside the trials).
    * optionally ``SYMBOLIC``: the module (beside this one, or a full path) that gives the
      ``export`` command the actuator as CasADi expressions (``twin_azimuth_symbolic.py``:
-     ``STATES``, ``INPUTS``, ``ACTING`` and their units, ``outputs``, ``step``, ``rates``,
+     ``STATES``, ``INPUTS``, ``ACTING`` and their units, ``REFERENCE_POINT``, ``outputs``,
+     ``step``, ``rates``,
      ``limits``, ``propulsion_max``, ``ahead``, ``bounds``, ``at_rest``, ``document``); a
      family driven by it alone whose module has ``hull_document`` can be exported.
    * optionally ``IDENTIFY``: the module (beside this one, or a full path) with what the
      local -> global identification (``tuning/lo_go.py``) fits of the actuator before the
      hull (``twin_azimuth_identify.py``): ``NAME`` (its key in identify.json) and
      ``fit(ship, trials, substeps) -> fit or None``, the fit having ``params``, ``report()``
-     and ``describe()``.
+     and ``describe()``; optionally ``bollard_curve(params, n)``, the thrust [N] a bollard
+     table is checked against (``data/channel_units.py``).
    * optionally ``PLAUSIBILITY``: ``{'propulsion': [outputs], 'helm': {output: 'rudder' or a
      fraction}}``, what the stability and turn checks set (``core/plausibility.py``; the
      entry of ``config/model_plausibility.yaml`` wins where it names the actuator; a name
@@ -81,6 +83,7 @@ from dataclasses import dataclass, field
 import functools
 import importlib
 import math
+from types import ModuleType
 from typing import Any, Callable
 
 from mmg_tuner.core._registry import declared, module_name, registry
@@ -143,6 +146,23 @@ def companion(name: str, key: str) -> str | None:
     if not decl:
         return None
     return str(decl) if '.' in str(decl) else f'{mod.rsplit(".", 1)[0]}.{decl}'
+
+
+def load_companion(name: str, key: str) -> ModuleType | None:
+    """
+    Import the module an actuator names under ``key`` (None: it names none).
+
+    A module that cannot be imported is an ImportError naming the actuator's module and the
+    declaration, not a bare ModuleNotFoundError from deep in a command.
+    """
+    module = companion(name, key)
+    if module is None:
+        return None
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ImportError(f'actuator {name!r} ({module_of(name)}): {key} = {module!r} cannot '
+                          f'be imported: {exc}') from exc
 
 
 def trials_module(name: str) -> str | None:

@@ -28,6 +28,8 @@ ACTING = ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd')
 """What ``nu_dot`` takes: the values acting (no drive)."""
 ACTING_UNITS = ('rev/s', 'rev/s', 'rad', 'rad')
 ACTING_MEANING = 'shaft speeds and the azimuth angles acting (no drive)'
+REFERENCE_POINT = "the tug's CO"
+"""Where the model's body axes sit (model.json's frames)."""
 
 
 def thrust(sym: Any, n: Any, side: str) -> Any:

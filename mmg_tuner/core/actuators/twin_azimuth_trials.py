@@ -28,9 +28,9 @@ if TYPE_CHECKING:   # annotations only
 
 RATE_HZ = 5.0
 """Default recording rate [Hz] (the paper's)."""
-ASSUMPTIONS = ('thrust curve, azimuth constants and sensor noise are stand-ins (the ship file; '
-               'the Noise of core/actuators/twin_azimuth_trials.py)')
-"""What trials.yaml says of the generated data."""
+ASSUMPTIONS = ('thrust curve, azimuth constants and sensor noise are stand-ins (see {source} and '
+               'core/actuators/twin_azimuth_trials.py Noise)')
+"""What trials.yaml says of the generated data ({source}: the ship file)."""
 
 
 @dataclass(frozen=True)
