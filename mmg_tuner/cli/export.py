@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='export', description=__doc__.strip().split('\n')[0])
     ap.add_argument('--ship', required=True,
                     help='ship config name or YAML (a family driven by one actuator with a CasADi '
-                         'form, e.g. the tugs; others are refused naming those that are)')
+                         'form; others are refused naming those that are)')
     ap.add_argument('--params', help='params.yaml overlay (e.g. the output of tune)')
     ap.add_argument('--out', required=True, help='new (or empty) output folder')
     ap.add_argument('--at', metavar='KEY=V,...',
