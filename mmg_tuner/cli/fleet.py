@@ -15,9 +15,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any, cast, TYPE_CHECKING
 
 from mmg_tuner.cli.args import positive_int
 from mmg_tuner.cli.common import Parser, progress_bar, run_command, UsageError
+
+if TYPE_CHECKING:   # annotations only: Dask and the fleet load when the command runs
+    from distributed import Client
+
+    from mmg_tuner.fleet.graph import ShipOutcome
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -89,7 +95,8 @@ def command(argv: list[str] | None = None) -> int:
     for name, o in res.ships.items():
         rec = o.record
         if o.status == 'failed':
-            print(f"{name}: FAILED at {rec.failure['stage']}: {rec.failure['reason']}")
+            failure = cast('dict[str, str]', rec.failure)   # (a failed record has its failure)
+            print(f"{name}: FAILED at {failure['stage']}: {failure['reason']}")
             continue
         dg = (rec.summary or {}).get('diagnose')
         causes = '; '.join(c['summary'] for c in dg['causes']) if dg else '-'
@@ -101,14 +108,14 @@ def command(argv: list[str] | None = None) -> int:
     return 1 if res.failed else 0
 
 
-def _dashboard(client, info: dict) -> str:
+def _dashboard(client: Client, info: dict[str, Any]) -> str:
     """Return the scheduler's dashboard address, when it serves one (it needs bokeh)."""
     if 'dashboard' not in info.get('services', {}):
         return 'not served by this scheduler (it needs bokeh)'
-    return client.dashboard_link
+    return cast(str, client.dashboard_link)   # (distributed's property has no annotation)
 
 
-def _show_outcome(bar, outcome) -> None:
+def _show_outcome(bar: Any, outcome: ShipOutcome) -> None:   # bar: tqdm's (no annotations)
     bar.set_postfix_str(f'{outcome.name} {outcome.status}', refresh=False)
     bar.update(1)
 

@@ -17,26 +17,32 @@ import logging
 from pathlib import Path
 import sys
 import types
-from typing import Any, Callable
+from typing import Any, Callable, TYPE_CHECKING
 
 from mmg_tuner.errors import ConfigError
+
+if TYPE_CHECKING:   # annotations only: Dask and the fleet's modules load when a fleet runs
+    from distributed import Client, LocalCluster
+
+    from mmg_tuner.fleet.graph import FleetResult, ShipOutcome
+    from mmg_tuner.fleet.manifest import Manifest
 
 __all__ = ['fleet', 'load_manifest', 'manifest_from_dict', 'local_cluster']
 
 logger = logging.getLogger(__name__)
 
 
-def load_manifest(path):
+def load_manifest(path: str | Path) -> Manifest:
     from mmg_tuner.fleet.manifest import load_manifest as _load
     return _load(path)
 
 
-def manifest_from_dict(doc, path=None):
+def manifest_from_dict(doc: Any, path: str | Path | None = None) -> Manifest:
     from mmg_tuner.fleet.manifest import manifest_from_dict as _from
     return _from(doc, path)
 
 
-def _require_dask():
+def _require_dask() -> None:
     try:
         import distributed  # noqa: F401
     except ImportError:
@@ -44,7 +50,7 @@ def _require_dask():
                           'requirements.txt)') from None
 
 
-def local_cluster(n_workers: int | None = None, dashboard: bool = True):
+def local_cluster(n_workers: int | None = None, dashboard: bool = True) -> LocalCluster:
     """
     Return a LocalCluster on 127.0.0.1 that does not oversubscribe the cores.
 
@@ -68,8 +74,9 @@ def local_cluster(n_workers: int | None = None, dashboard: bool = True):
                         silence_logs=logging.WARNING)
 
 
-def fleet(manifest: Any, out: str | Path, client=None, *, n_workers: int | None = None,
-          fan_out: bool = True, progress: Callable | None = None):
+def fleet(manifest: Any, out: str | Path, client: Client | None = None, *,
+          n_workers: int | None = None, fan_out: bool = True,
+          progress: Callable[[ShipOutcome], None] | None = None) -> FleetResult:
     """
     Run a fleet: every ship of ``manifest`` (a YAML path, a dict, or a.
 
@@ -118,7 +125,8 @@ class _CallableModule(types.ModuleType):
     way.
     """
 
-    def __call__(self, manifest: Any, out: str | Path, client=None, **kw):
+    def __call__(self, manifest: Any, out: str | Path, client: Client | None = None,
+                 **kw: Any) -> FleetResult:
         return fleet(manifest, out, client, **kw)
 
 

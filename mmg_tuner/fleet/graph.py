@@ -23,22 +23,27 @@ import datetime as _dt
 import logging
 from pathlib import Path
 import time
-from typing import Callable
+from typing import Any, Callable, cast, Sequence, TYPE_CHECKING
 from urllib.parse import urlparse
 import uuid
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.fleet import jobs
-from mmg_tuner.fleet.manifest import Manifest
+from mmg_tuner.fleet.manifest import Manifest, ShipJob
 from mmg_tuner.fleet.resume import (FLEET_MARK, input_digest, read_record, RECORD, ShipRecord,
                                     up_to_date)
+
+if TYPE_CHECKING:   # annotations only: Dask is imported when a fleet runs
+    from dask.typing import Key
+    from distributed import Client, Worker
 
 logger = logging.getLogger(__name__)
 
 try:  # an optional dependency of the package: only the fleet needs it
     from distributed.diagnostics.plugin import WorkerPlugin
 except ImportError:  # pragma: no cover - the fleet refuses to start without it
-    WorkerPlugin = object
+    # (the base when distributed is missing: mypy types the name as distributed's class)
+    WorkerPlugin = object  # type: ignore[misc,assignment]
 
 
 class NumbaThreads(WorkerPlugin):
@@ -55,13 +60,13 @@ class NumbaThreads(WorkerPlugin):
     def __init__(self, host_threads: dict[str, int]):
         self.host_threads = dict(host_threads)
 
-    def setup(self, worker) -> None:
+    def setup(self, worker: Worker) -> None:
         host = urlparse(worker.address).hostname or ''
         total = max(self.host_threads.get(host, 0), worker.state.nthreads, 1)
         jobs.NUMBA_THREADS = max(1, jobs.cpu_count() // total)
 
 
-def host_threads(client) -> dict[str, int]:
+def host_threads(client: Client) -> dict[str, int]:
     out: dict[str, int] = {}
     for addr, w in client.scheduler_info(n_workers=-1)['workers'].items():
         host = urlparse(addr).hostname or ''
@@ -82,7 +87,7 @@ class FleetResult:
 
     out: Path
     ships: dict[str, ShipOutcome] = field(default_factory=dict)
-    summary: dict = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
     wall_s: float = 0.0
 
     def names(self, status: str) -> list[str]:
@@ -101,7 +106,7 @@ class FleetResult:
         return self.names('done')
 
 
-def run(manifest: Manifest, out: str | Path, client, *, fan_out: bool = True,
+def run(manifest: Manifest, out: str | Path, client: Client, *, fan_out: bool = True,
         progress: Callable[[ShipOutcome], None] | None = None, resumed: bool = False
         ) -> FleetResult:
     """
@@ -119,7 +124,8 @@ def run(manifest: Manifest, out: str | Path, client, *, fan_out: bool = True,
     run_id = uuid.uuid4().hex[:8]
     with OutputDir.open(out, resume=True) as od:
         od.write_text(FLEET_MARK, 'mmg_tuner fleet output\n')
-        meta: dict = {}
+        # future key -> (kind, job, digest, the ship's (tune, diagnose, evaluate) futures)
+        meta: dict[Key, tuple[str, ShipJob, Any, tuple[Any, ...]]] = {}
         ac = as_completed()
         for job in manifest.ships:
             f = client.submit(input_digest, job, key=f'digest-{job.name}-{run_id}', pure=False,
@@ -170,8 +176,10 @@ def _reason(exc: BaseException) -> str:
     return f'{type(exc).__name__}: {exc}'
 
 
-def _finish(od: OutputDir, result: FleetResult, name: str, digest: str, final, steps,
-            progress) -> None:
+def _finish(od: OutputDir, result: FleetResult, name: str, digest: str,
+            final: jobs.StepOutput | jobs.Failure,
+            steps: Sequence[jobs.StepOutput | None] | None,
+            progress: Callable[[ShipOutcome], None] | None) -> None:
     """Write a ship's files (when it succeeded) and its record, last."""
     ship_dir = od.path / name
     old = read_record(ship_dir)
@@ -180,7 +188,10 @@ def _finish(od: OutputDir, result: FleetResult, name: str, digest: str, final, s
     written: list[str] = []
     failure = final if isinstance(final, jobs.Failure) else None
     if failure is None:
-        for sub, step in (('tune', steps[0]), ('diagnose', steps[1]), ('', final)):
+        # (no failure: the steps are given, the evaluate step's and the others' outputs)
+        outputs = cast('Sequence[jobs.StepOutput | None]', steps)
+        for sub, step in (('tune', outputs[0]), ('diagnose', outputs[1]),
+                          ('', cast(jobs.StepOutput, final))):
             if step is None:
                 continue
             for rel, data in step.files.items():
@@ -195,7 +206,7 @@ def _finish(od: OutputDir, result: FleetResult, name: str, digest: str, final, s
                                            [*(steps or (None, None)), final])
                if s is not None and not isinstance(s, jobs.Failure)}
     rec = ShipRecord(name, digest, 'failed' if failure else 'ok', written,
-                     summary=None if failure else final.summary,
+                     summary=None if failure else cast(jobs.StepOutput, final).summary,
                      failure=None if failure is None else {
                          'stage': failure.stage, 'reason': failure.reason,
                          'detail': failure.detail},

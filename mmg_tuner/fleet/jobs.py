@@ -25,13 +25,14 @@ import shutil
 import tempfile
 import time
 import traceback
-from typing import Callable
+from typing import Any, Callable, cast, Iterable, TypeVar
 
 from mmg_tuner import api
 from mmg_tuner._outdir import LOCK_NAME
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.summary import summarize_trial
 from mmg_tuner.data.trial import Trial
+from mmg_tuner.diagnosis.settings import MapFn
 from mmg_tuner.errors import MmgTunerError, TrialDataError
 from mmg_tuner.fleet.manifest import ShipJob
 from mmg_tuner.tuning.report import json_text
@@ -43,6 +44,8 @@ logger = logging.getLogger(__name__)
 NUMBA_THREADS: int | None = None
 # the diagnosis fans its independent re-tunes out as tasks when it offers this hook
 _DIAGNOSE_HOOK = 'map_fn'
+T = TypeVar('T')
+R = TypeVar('R')
 
 
 @dataclass
@@ -62,7 +65,7 @@ class Loaded:
     tune: list[Trial]
     test: list[Trial]
     dates: dict[int, str | None]          # index in tune + test -> ISO date (or None)
-    inspect: dict
+    inspect: dict[str, Any]
 
 
 @dataclass
@@ -73,7 +76,7 @@ class StepOutput:
     The file whose presence means the set is complete comes last (report.json, diagnosis.json).
     """
 
-    summary: dict
+    summary: dict[str, Any]
     files: dict[str, bytes] = field(default_factory=dict)
     wall_s: float = 0.0
 
@@ -81,10 +84,12 @@ class StepOutput:
 def _numba_threads() -> None:
     if NUMBA_THREADS:
         import numba
-        numba.set_num_threads(min(NUMBA_THREADS, numba.config.NUMBA_NUM_THREADS))
+        # (numba.config sets its attributes at run time: none is declared)
+        limit = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+        numba.set_num_threads(min(NUMBA_THREADS, limit))
 
 
-def _guard(stage: str, fn: Callable, *args):
+def _guard(stage: str, fn: Callable[..., R], *args: Any) -> R | Failure:
     """Run one stage; a ship's own problem becomes a Failure (passed on, never raised)."""
     for a in args:
         if isinstance(a, Failure):
@@ -112,8 +117,9 @@ def load(job: ShipJob) -> Loaded | Failure:
 def _load(job: ShipJob) -> Loaded:
     t0 = time.perf_counter()
     ship = api.load_ship(job.ship, job.params)
-    kw = {'ship': ship, 'dt': job.dt, 'topics': job.topics, 'trial_scale': job.trial_scale}
-    sets = {'tune': [], 'test': []}
+    kw: dict[str, Any] = {'ship': ship, 'dt': job.dt, 'topics': job.topics,
+                          'trial_scale': job.trial_scale}
+    sets: dict[str, list[Trial]] = {'tune': [], 'test': []}
     dates: dict[int, str | None] = {}
     for which, sources in (('tune', job.tune), ('test', job.test)):
         for src in sources:
@@ -166,7 +172,9 @@ def _diagnose(job: ShipJob, ld: Loaded, fan_out: bool) -> StepOutput:
     if hook is not None:
         with hook as map_fn:
             dx = api.diagnose(ld.ship, ld.tune, ld.test or None, job.diagnose_config,
-                              **{_DIAGNOSE_HOOK: map_fn})
+                              # (the hook by name: a dict[str, Any], as mypy would check a
+                              # typed value against every keyword of diagnose)
+                              **cast('dict[str, Any]', {_DIAGNOSE_HOOK: map_fn}))
     else:
         dx = api.diagnose(ld.ship, ld.tune, ld.test or None, job.diagnose_config)
     files = _capture(lambda d: dx.write(d, plots=job.plots))
@@ -198,20 +206,24 @@ def evaluate(job: ShipJob, loaded: Loaded | Failure, tuned: StepOutput | Failure
     return _guard('evaluate', _evaluate, job, loaded, tuned, diagnosed)
 
 
-def _evaluate(job: ShipJob, ld: Loaded, tuned, diagnosed) -> StepOutput:
+def _evaluate(job: ShipJob, ld: Loaded, tuned: StepOutput | None, diagnosed: StepOutput | None
+              ) -> StepOutput:
     t0 = time.perf_counter()
-    doc = {'name': job.name, 'ship': ld.ship.name, 'inspect': ld.inspect,
-           'tune': tuned.summary if tuned else None,
-           'diagnose': diagnosed.summary if diagnosed else None, 'trend': None}
+    doc: dict[str, Any] = {'name': job.name, 'ship': ld.ship.name, 'inspect': ld.inspect,
+                           'tune': tuned.summary if tuned else None,
+                           'diagnose': diagnosed.summary if diagnosed else None,
+                           'trend': None}
     if job.dated:
-        params = (diagnosed or tuned).summary['params'] if (diagnosed or tuned) else {}
+        # (one of them is there where it is checked)
+        params = (cast(StepOutput, diagnosed or tuned).summary['params'] if (diagnosed or tuned)
+                  else {})
         doc['trend'] = trend(job, ld, params)
     return StepOutput(doc, {'evaluation.json': json_text(doc).encode()},
                       time.perf_counter() - t0)
 
 
 def trend(job: ShipJob, ld: Loaded, params: dict[str, float], threshold: float = 0.05
-          ) -> dict:
+          ) -> dict[str, Any]:
     """
     ``job.trend_parameter`` fitted alone on each dated group of trials.
 
@@ -228,7 +240,7 @@ def trend(job: ShipJob, ld: Loaded, params: dict[str, float], threshold: float =
             groups.setdefault(d, []).append(t)
     cfg = api.TuneConfig(targets=(name,), max_evals=600, seed=job.tune_config.seed,
                          integrator=job.diagnose_config.integrator)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for d in sorted(groups):
         fit = api.tune(ship, groups[d], None, cfg)
         rows.append({'date': d, 'value': fit.params[name], 'J': fit.J.tune,
@@ -246,7 +258,7 @@ def trend(job: ShipJob, ld: Loaded, params: dict[str, float], threshold: float =
 
 
 # ----------------------------------------------------------------------------- helpers
-def _gain(before, after) -> float | None:
+def _gain(before: float | None, after: float | None) -> float | None:
     if before is None or after is None or not math.isfinite(before) or before <= 0:
         return None
     return float(1 - after / before)
@@ -275,31 +287,32 @@ class _FanOut:
     while it waits, so the worker's slot runs one of them instead of idling).
     """
 
-    def __enter__(self):
+    def __enter__(self) -> MapFn[Any, Any]:
         from distributed import worker_client
         self._ctx = worker_client()
         client = self._ctx.__enter__()
 
-        def map_fn(fn, items):
+        def map_fn(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
             items = list(items)
             if len(items) <= 1:
                 return [fn(x) for x in items]
             futs = client.map(_threads_then(fn), items, pure=False)
-            return client.gather(futs)
+            # (distributed's gather has no annotations: a list for a list of futures)
+            return cast(list[Any], client.gather(futs))
         return map_fn
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> bool | None:
         return self._ctx.__exit__(*exc)
 
 
-def _threads_then(fn):
-    def run(x):
+def _threads_then(fn: Callable[[T], R]) -> Callable[[T], R]:
+    def run(x: T) -> R:
         _numba_threads()
         return fn(x)
     return run
 
 
-def _fan_out_hook():
+def _fan_out_hook() -> _FanOut | None:
     """Return the fan-out context when the diagnosis accepts the hook and this runs on a worker."""
     if _DIAGNOSE_HOOK not in inspect.signature(api.diagnose).parameters:
         return None

@@ -36,7 +36,7 @@ import math
 import os
 from pathlib import Path
 import re
-from typing import Any, Mapping
+from typing import Any, cast, Iterable, Mapping, Sequence
 
 from mmg_tuner import api
 from mmg_tuner._limits import load_yaml
@@ -66,7 +66,7 @@ class TrialSource:
     path: Path
     date: _dt.date | None = None
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {'path': str(self.path), 'date': self.date.isoformat() if self.date else None}
 
 
@@ -88,9 +88,9 @@ class ShipJob:
     plots: bool = True
     trend_parameter: str = 'R_0'
 
-    def options_doc(self) -> dict:
+    def options_doc(self) -> dict[str, Any]:
         """Every option as plain JSON data (the resume hash covers it)."""
-        def conf(c):
+        def conf(c: api.TuneConfig | api.DiagnoseConfig) -> dict[str, Any]:
             return {f.name: _plain(getattr(c, f.name)) for f in fields(c)}
         return {'name': self.name, 'ship': self.ship,
                 'tune': [s.to_dict() for s in self.tune],
@@ -116,7 +116,7 @@ class Manifest:
         return len(self.ships)
 
 
-def _plain(v):
+def _plain(v: Any) -> Any:
     if isinstance(v, (tuple, list)):
         return [_plain(x) for x in v]
     if isinstance(v, Mapping):
@@ -155,7 +155,8 @@ def manifest_from_dict(doc: Any, path: str | Path | None = None) -> Manifest:
     ships = doc.get('ships')
     if not isinstance(ships, list) or not ships:
         raise ConfigError(f'{where}: "ships" must be a non-empty list')
-    jobs, seen = [], {}
+    jobs: list[ShipJob] = []
+    seen: dict[str, int] = {}
     for i, entry in enumerate(ships):
         if not isinstance(entry, Mapping):
             raise ConfigError(f'{where}: ships[{i}] must be a mapping, got '
@@ -174,7 +175,7 @@ def manifest_from_dict(doc: Any, path: str | Path | None = None) -> Manifest:
     return Manifest(Path(path) if path else None, tuple(jobs))
 
 
-def _unknown(keys, known, label: str) -> None:
+def _unknown(keys: Iterable[Any], known: Sequence[str], label: str) -> None:
     for k in keys:
         if k not in known:
             close = difflib.get_close_matches(str(k), known, n=1)
@@ -183,14 +184,14 @@ def _unknown(keys, known, label: str) -> None:
                                f'; known: {", ".join(known)}'))
 
 
-def _path(v, label: str, key: str, base: Path) -> Path:
+def _path(v: Any, label: str, key: str, base: Path) -> Path:
     if not isinstance(v, (str, Path)) or not str(v).strip():
         raise ConfigError(f'{label}: {key} must be a path, got {v!r}')
     p = Path(str(v)).expanduser()
     return Path(os.path.normpath(p if p.is_absolute() else base / p))
 
 
-def _date(v, label: str, key: str) -> _dt.date:
+def _date(v: Any, label: str, key: str) -> _dt.date:
     if isinstance(v, _dt.datetime):
         return v.date()
     if isinstance(v, _dt.date):
@@ -201,7 +202,8 @@ def _date(v, label: str, key: str) -> _dt.date:
         raise ConfigError(f'{label}: {key} {v!r} is not a date (YYYY-MM-DD)') from None
 
 
-def _sources(v, label: str, key: str, base: Path, required: bool) -> tuple[TrialSource, ...]:
+def _sources(v: Any, label: str, key: str, base: Path, required: bool
+             ) -> tuple[TrialSource, ...]:
     if v is None:
         if required:
             raise ConfigError(f'{label}: "{key}" is required: a list of trial files or folders')
@@ -225,7 +227,7 @@ def _sources(v, label: str, key: str, base: Path, required: bool) -> tuple[Trial
     return tuple(out)
 
 
-def _config_kwargs(src: Mapping, names: tuple[str, ...]) -> dict:
+def _config_kwargs(src: Mapping[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
     kw = {}
     for k in names:
         if k in src:
@@ -238,7 +240,7 @@ def _config_kwargs(src: Mapping, names: tuple[str, ...]) -> dict:
     return kw
 
 
-def _ship_job(e: Mapping, label: str, base: Path) -> ShipJob:
+def _ship_job(e: Mapping[str, Any], label: str, base: Path) -> ShipJob:
     _unknown(e, KNOWN_KEYS, label)
     name = e.get('name')
     if not isinstance(name, str) or not _NAME.match(name) or name in RESERVED:
@@ -286,7 +288,9 @@ def _ship_job(e: Mapping, label: str, base: Path) -> ShipJob:
             raise ConfigError(f'{label}: {exc}') from None
         except TypeError as exc:
             raise ConfigError(f'{label}: {step} options: {exc}') from None
-    return ShipJob(name, ship, tune, test, configs['tune'], configs['diagnose'],
+    # (each step's config of its own class, made above)
+    return ShipJob(name, ship, tune, test, cast(api.TuneConfig, configs['tune']),
+                   cast(api.DiagnoseConfig, configs['diagnose']),
                    _path(e['params'], label, 'params', base) if e.get('params') else None,
                    _path(e['topics'], label, 'topics', base) if e.get('topics') else None,
                    float(dt), scale, tuple(dict.fromkeys(steps)), plots, trend)

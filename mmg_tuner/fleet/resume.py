@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import hashlib
 import json
 from pathlib import Path
+from typing import Any, TYPE_CHECKING
 
 import mmg_tuner
 from mmg_tuner._limits import load_json
@@ -25,12 +26,15 @@ from mmg_tuner.core.ship import resolve_config_path
 from mmg_tuner.errors import ConfigError, OutputError
 from mmg_tuner.fleet.manifest import ShipJob
 
+if TYPE_CHECKING:   # annotations only
+    from hashlib import _Hash
+
 RECORD = 'fleet_ship.json'
 FLEET_MARK = '.mmg_fleet'        # marks a folder as a fleet's output (resume allowed)
 _CHUNK = 1 << 20
 
 
-def _file_digest(h, path: Path) -> None:
+def _file_digest(h: _Hash, path: Path) -> None:
     with open(path, 'rb') as f:
         while chunk := f.read(_CHUNK):
             h.update(chunk)
@@ -78,17 +82,17 @@ class ShipRecord:
     digest: str
     status: str                   # 'ok' | 'failed'
     files: list[str]
-    summary: dict | None = None
-    failure: dict | None = None
+    summary: dict[str, Any] | None = None
+    failure: dict[str, str] | None = None
     wall_s: float = 0.0            # compute time of the ship's tasks (summed)
-    stage_s: dict | None = None    # per stage: tune, diagnose, evaluate [s]
+    stage_s: dict[str, float] | None = None    # per stage: tune, diagnose, evaluate [s]
     finished: str = ''
 
     def to_json(self) -> str:
         return json.dumps(self.__dict__, indent=1, default=_jsonable) + '\n'
 
 
-def _jsonable(o):
+def _jsonable(o: object) -> object:
     import numpy as np
     if isinstance(o, (np.floating, np.integer)):
         return o.item()

@@ -9,18 +9,25 @@ as up to date are summarised from their records, so the summary always covers th
 from __future__ import annotations
 
 import math
+from typing import Any, cast, TYPE_CHECKING
 
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.fleet.manifest import Manifest
 from mmg_tuner.tuning.report import json_text, png_bytes
 
+if TYPE_CHECKING:   # annotations only: graph imports this module when it writes
+    from mmg_tuner.fleet.graph import FleetResult
 
-def _pct(x) -> str:
+
+def _pct(x: float | None) -> str:
     return '—' if x is None or not math.isfinite(x) else f'{100 * x:.1f} %'
 
 
-def fleet_doc(manifest: Manifest, result) -> dict:
-    ships, causes, drifting, failed = {}, {}, [], {}
+def fleet_doc(manifest: Manifest, result: FleetResult) -> dict[str, Any]:
+    ships: dict[str, dict[str, Any]] = {}
+    causes: dict[str, list[str]] = {}
+    drifting: list[str] = []
+    failed: dict[str, str] = {}
     for job in manifest.ships:
         o = result.ships.get(job.name)
         if o is None:
@@ -29,8 +36,9 @@ def fleet_doc(manifest: Manifest, result) -> dict:
         entry = {'status': o.status, 'ship': job.ship, 'finished': rec.finished,
                  'wall_s': rec.wall_s}
         if rec.status == 'failed':
-            entry['failure'] = {k: rec.failure[k] for k in ('stage', 'reason')}
-            failed[job.name] = f"{rec.failure['stage']}: {rec.failure['reason']}"
+            failure = cast('dict[str, str]', rec.failure)   # (a failed record has its failure)
+            entry['failure'] = {k: failure[k] for k in ('stage', 'reason')}
+            failed[job.name] = f"{failure['stage']}: {failure['reason']}"
         else:
             s = rec.summary or {}
             tu, dg, tr = s.get('tune'), s.get('diagnose'), s.get('trend')
@@ -52,7 +60,7 @@ def fleet_doc(manifest: Manifest, result) -> dict:
             'counts': counts, 'wall_s': result.wall_s}
 
 
-def markdown(doc: dict) -> str:
+def markdown(doc: dict[str, Any]) -> str:
     c = doc['counts']
     lines = ['# Fleet summary', '',
              f"{len(doc['ships'])} ship(s): {c['done']} run, {c['skipped']} up to date "
@@ -91,7 +99,7 @@ def markdown(doc: dict) -> str:
     return '\n'.join(lines)
 
 
-def figure(doc: dict) -> bytes:
+def figure(doc: dict[str, Any]) -> bytes:
     """
     Draw the fleet figure: causes, held-out gains and drift per date.
 
@@ -121,7 +129,7 @@ def figure(doc: dict) -> bytes:
     ax.set_title('named causes (a square: named for that ship)')
     ax = fig.add_subplot(1, ncol, 2)
     for k, (key, label) in enumerate((('tune', 'tuned'), ('diagnose', 'diagnosed'))):
-        vals = [(doc['ships'][n].get('heldout_gain') or {}).get(key) for n in names]
+        vals: list[Any] = [(doc['ships'][n].get('heldout_gain') or {}).get(key) for n in names]
         vals = [100 * v if v is not None and math.isfinite(v) else 0.0 for v in vals]
         ax.barh([i + 0.2 * (2 * k - 1) for i in y], vals, height=0.4, label=label)
     ax.set_yticks(list(y), names)
@@ -135,7 +143,8 @@ def figure(doc: dict) -> bytes:
         ax = fig.add_subplot(1, ncol, 3)
         for n, tr in trends.items():
             d = [_dt.date.fromisoformat(g['date']) for g in tr['groups']]
-            ax.plot(d, [g['value'] for g in tr['groups']], 'o-',
+            # (matplotlib plots dates through its units registry; its stubs take numbers)
+            ax.plot(d, [g['value'] for g in tr['groups']], 'o-',  # type: ignore[arg-type]
                     label=n + (' (drifts)' if tr['drifts'] else ''))
         ax.set_ylabel(', '.join(sorted({tr['parameter'] for tr in trends.values()}))
                       + ' (fitted, model units)')
@@ -146,7 +155,7 @@ def figure(doc: dict) -> bytes:
     return png_bytes(fig)
 
 
-def write_summary(od: OutputDir, manifest: Manifest, result) -> dict:
+def write_summary(od: OutputDir, manifest: Manifest, result: FleetResult) -> dict[str, Any]:
     """fleet.md, fleet.png, and fleet.json last."""
     doc = fleet_doc(manifest, result)
     od.write_text('fleet.md', markdown(doc))
