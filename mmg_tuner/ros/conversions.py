@@ -8,7 +8,7 @@ message: cheaper than building one per tick in a 50 Hz loop.
 from __future__ import annotations
 
 import math
-from typing import Callable, TypeVar
+from typing import Any, Callable, TypeVar
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion, TransformStamped
@@ -28,8 +28,9 @@ def stamp_from_seconds(t: float) -> Time:
     return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
 
 
-def seconds_from_stamp(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+def seconds_from_stamp(stamp: Time) -> float:
+    t: float = stamp.sec + stamp.nanosec * 1e-9   # (a message is Any: no annotations)
+    return t
 
 
 def odometry_from_state(state: np.ndarray, t: float, frame_id: str = 'odom',
@@ -59,7 +60,7 @@ def state_from_odometry(msg: Odometry) -> np.ndarray:
     return np.array([p.y, p.x, enu_yaw_to_psi(yaw), tw.linear.x, -tw.linear.y, -tw.angular.z])
 
 
-def _stamp(header, t: float) -> None:
+def _stamp(header: Any, t: float) -> None:   # a std_msgs Header
     sec = math.floor(t)
     header.stamp.sec = int(sec)
     header.stamp.nanosec = int(round((t - sec) * 1e9)) % 1_000_000_000
@@ -167,6 +168,6 @@ def imu_from_state(state: np.ndarray, accel_flu: tuple[float, float] | None, t: 
     return msg
 
 
-def yaw_from_quaternion(q) -> float:
+def yaw_from_quaternion(q: Any) -> float:
     """ENU yaw [rad] of a quaternion message (x, y, z, w attributes)."""
     return float(frames.yaw_from_quaternion(q.x, q.y, q.z, q.w))

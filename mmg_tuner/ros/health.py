@@ -19,9 +19,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
+from typing import Any, Mapping, Sequence, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mmg_tuner.ros.command_watch import channel_state
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.core.plausibility import Finding
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 HOLD_S = 5.0  # [s, wall] a clamped/rejected command or a reset keeps its level this long
@@ -100,14 +104,15 @@ class Health:
         self.last_reset = now
         self.last_failure = failure
 
-    def array(self, now: float, stamp, sim_time_s: float, limit_s: float) -> DiagnosticArray:
+    def array(self, now: float, stamp: Any, sim_time_s: float, limit_s: float) -> DiagnosticArray:
         msg = DiagnosticArray()
         msg.header.stamp = stamp
         msg.status = [self._real_time(), self._commands(now, limit_s),
                       self._model(now, sim_time_s)]
         return msg
 
-    def _status(self, part: str, level: int, message: str, values: dict) -> DiagnosticStatus:
+    def _status(self, part: str, level: int, message: str, values: Mapping[str, object]
+                ) -> DiagnosticStatus:
         return DiagnosticStatus(level=level, name=f'{self.node_name}: {part}', message=message,
                                 hardware_id=self.hardware_id,
                                 values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
@@ -124,6 +129,7 @@ class Health:
         return self._status('real time', OK, 'on time' if req > 0 else 'free running', values)
 
     def _commands(self, now: float, limit_s: float) -> DiagnosticStatus:
+        values: dict[str, object]   # strings and counts
         level, problems, values = OK, [], {'stale after [s]': f'{limit_s:g}'}
         for which, c in self.commands.items():
             if not c.supported:
@@ -166,7 +172,8 @@ class Health:
         return self._status('model', OK, 'ok', values)
 
 
-def plausibility_status(node_name: str, hardware_id: str, findings) -> DiagnosticStatus:
+def plausibility_status(node_name: str, hardware_id: str, findings: Sequence[Finding]
+                        ) -> DiagnosticStatus:
     """
     Return the ``model plausibility`` status of the simulated model (core/plausibility.py).
 

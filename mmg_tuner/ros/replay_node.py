@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 import shutil
 import tempfile
+from typing import Any, Mapping
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.simulate import simulate
@@ -27,6 +28,7 @@ from mmg_tuner.data.consistency import rpm_unit_warning
 from mmg_tuner.data.load import load_trials
 from mmg_tuner.data.topics import (load_topic_map, per_channel_actuators, THRUSTER_ROLES,
                                    TopicMap)
+from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MmgTunerError, OutputError
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import simulate_hybrid
@@ -34,7 +36,9 @@ from mmg_tuner.ros.conversions import odometry_from_state, stamp_from_seconds
 from mmg_tuner.ros.run import declare_parameters, Param, spin_node
 from nav_msgs.msg import Odometry
 import numpy as np
-from rclpy.clock import Clock, ClockType
+# (ClockType is rclpy.clock_type's in this rclpy, imported by rclpy.clock without re-export;
+# an older rclpy defines it in rclpy.clock)
+from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -94,7 +98,8 @@ def check_new_output(path: str) -> Path:
     return out
 
 
-def write_new_bag(trial, sim_states: np.ndarray, out: Path, tm: TopicMap | None = None) -> None:
+def write_new_bag(trial: Trial, sim_states: np.ndarray, out: Path, tm: TopicMap | None = None
+                  ) -> None:
     """
     Write the replay bag beside ``out`` and move it into place when complete.
 
@@ -147,12 +152,12 @@ class CommandPublisher:
             for r in THRUSTER_ROLES:
                 self.roles[r] = role(r, tm.topic(r) or TABLE[r].topic)
         types: dict[str, tuple[str, str]] = {}  # topic -> (type, the first role on it)
-        for role, (topic, typ, _, _) in self.roles.items():
+        for which, (topic, typ, _, _) in self.roles.items():
             if topic in types and types[topic][0] != typ:
                 other, first = types[topic]
-                raise MmgTunerError(f'topic map: {first} and {role} share topic {topic} with '
+                raise MmgTunerError(f'topic map: {first} and {which} share topic {topic} with '
                                     f'different types {other} and {typ}')
-            types.setdefault(topic, (typ, role))
+            types.setdefault(topic, (typ, which))
         self.pubs = {topic: node.create_publisher(
             JointState if typ == self.JOINT else self.SCALARS[typ], topic, 10)
             for topic, (typ, _) in types.items()}
@@ -161,7 +166,7 @@ class CommandPublisher:
         """Whether every command topic has at least one matched subscription."""
         return all(pub.get_subscription_count() > 0 for pub in self.pubs.values())
 
-    def publish(self, inputs, stamp) -> None:
+    def publish(self, inputs: Mapping[str, float], stamp: Any) -> None:   # stamp: a Time
         """
         Publish one sample.
 
@@ -272,7 +277,7 @@ class ReplayNode(Node):
                 raise SystemExit(0)
 
 
-def main(args=None) -> None:
+def main(args: list[str] | None = None) -> None:
     spin_node(ReplayNode, args)
 
 

@@ -12,7 +12,8 @@ import os
 import signal
 import sys
 import threading
-from typing import Any, Callable, Mapping
+from types import FrameType
+from typing import Any, Callable, Mapping, NoReturn
 
 from mmg_tuner._limits import one_line
 from mmg_tuner.errors import ConfigError, MmgTunerError
@@ -104,7 +105,7 @@ def _unknown_message(node: Node, name: str, specs: Mapping[str, Param]) -> str:
             f'ignored: {hint}')
 
 
-def _fmt_bound(x) -> str:
+def _fmt_bound(x: Any) -> str:   # x: a bound as the range holds it, an int or a float
     """Return a range bound as written: integers in full (2147483647, not 2.14748e+09)."""
     whole = isinstance(x, int) or (isinstance(x, float) and x.is_integer() and abs(x) < 1e15)
     return str(int(x)) if whole else f'{x:g}'
@@ -115,7 +116,7 @@ def _override(node: Node, name: str) -> Any:
     return p.value if p is not None else '?'
 
 
-def spin_node(make_node: Callable[[], Node], args=None) -> None:
+def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
     """
     Create and spin a node until shutdown.
 
@@ -128,7 +129,7 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
     # shut down, so remember the interrupt to tell it from a real failure.
     interrupted = threading.Event()
 
-    def on_sigint(signum, frame):
+    def on_sigint(signum: int, frame: FrameType | None) -> NoReturn:
         interrupted.set()
         raise KeyboardInterrupt
 
@@ -164,14 +165,15 @@ def spin_node(make_node: Callable[[], Node], args=None) -> None:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:  # rclpy taking a message while Ctrl-C shuts the context down
-        if rclpy.ok() and not interrupted.is_set():
+        # (rclpy imports ok from rclpy.utilities and exports it without an __all__)
+        if rclpy.ok() and not interrupted.is_set():  # type: ignore[attr-defined]
             raise
     finally:
         # a shutdown that hangs must not keep the process: after SHUTDOWN_TIMEOUT_S print
         # every thread's stack and exit 1
         faulthandler.dump_traceback_later(SHUTDOWN_TIMEOUT_S, exit=True)
         node.destroy_node()
-        if rclpy.ok():
+        if rclpy.ok():  # type: ignore[attr-defined]   # (as above)
             rclpy.shutdown()
     if code:
         # a failed start has nothing left to save: leave without the interpreter's finalization

@@ -8,11 +8,14 @@ reproducible. Nothing here runs when both rates are 0 (the default).
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable, Mapping, TYPE_CHECKING
 
 from mmg_tuner.core.geodesy import Datum, enu_to_geodetic
 from mmg_tuner.ros.conversions import imu_from_state, navsat_fix
 import numpy as np
+
+if TYPE_CHECKING:   # annotations only
+    from mmg_tuner.core.stepper import ShipSimulator
 
 _NEVER = 1 << 62
 
@@ -25,7 +28,7 @@ class _Channel:
     average); at most one sample per step.
     """
 
-    def __init__(self, rate_hz: float, dt: float, publish: Callable) -> None:
+    def __init__(self, rate_hz: float, dt: float, publish: Callable[[Any], None]) -> None:
         self.rate_hz = rate_hz
         self.publish = publish
         self.restart(0, dt)
@@ -50,8 +53,8 @@ class SimulatedSensors:
     to the next sample); publishers: 'gnss' and 'imu' -> publish callables or None (off).
     """
 
-    def __init__(self, params: dict, dt: float, publishers: dict[str, Callable | None],
-                 frame_id: str) -> None:
+    def __init__(self, params: dict[str, Any], dt: float,
+                 publishers: Mapping[str, Callable[[Any], None] | None], frame_id: str) -> None:
         self.p = params
         self.frame_id = frame_id
         self.rng = np.random.default_rng(params['noise_seed'])
@@ -80,7 +83,7 @@ class SimulatedSensors:
         nxt = min((ch.next_step for ch in self.channels.values()), default=_NEVER)
         return max(1, nxt - step)
 
-    def sample_due(self, sim, stamp0: float) -> None:
+    def sample_due(self, sim: ShipSimulator, stamp0: float) -> None:
         """
         Publish every sample due at the simulator's current step.
 
@@ -96,7 +99,7 @@ class SimulatedSensors:
                 ch.publish(self._gnss(state, t) if name == 'gnss' else self._imu_msg(state, t))
                 ch.advance()
 
-    def _gnss(self, state: np.ndarray, t: float):
+    def _gnss(self, state: np.ndarray, t: float) -> Any:   # a NavSatFix (messages are Any)
         p = self.p
         sh, sv = p['gnss_noise_m'], p['gnss_alt_noise_m']
         dn, de, du = self.rng.standard_normal(3)
@@ -107,7 +110,7 @@ class SimulatedSensors:
                                self._fix)
         return self._fix
 
-    def _imu_msg(self, state: np.ndarray, t: float):
+    def _imu_msg(self, state: np.ndarray, t: float) -> Any:   # an Imu
         p = self.p
         s_yaw, s_gyro, s_acc = p['imu_yaw_noise_rad'], p['imu_gyro_noise_rad_s'], \
             p['imu_accel_noise_m_s2']
@@ -130,6 +133,6 @@ class SimulatedSensors:
         return self._imu
 
 
-def datum_from_params(p: dict) -> Datum:
+def datum_from_params(p: Mapping[str, Any]) -> Datum:
     """Return the GNSS datum of the node's parameters (a ConfigError names the bad one)."""
     return Datum(p['datum_lat_deg'], p['datum_lon_deg'], p['datum_alt_m'])

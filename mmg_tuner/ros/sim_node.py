@@ -27,6 +27,7 @@ from dataclasses import replace
 import math
 import re
 import time
+from typing import Any, cast, Iterable, Mapping, Sequence, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from mmg_tuner.core.actuators import actuator
@@ -47,13 +48,19 @@ from mmg_tuner.ros.sensors import datum_from_params, SimulatedSensors
 from mmg_tuner.ros.uncertainty import EnsembleSpread, fill_covariance
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.clock import Clock, ClockType
+# (ClockType is rclpy.clock_type's in this rclpy, imported by rclpy.clock without re-export;
+# an older rclpy defines it in rclpy.clock)
+from rclpy.clock import Clock, ClockType  # type: ignore[attr-defined]
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
+
+if TYPE_CHECKING:   # annotations only
+    from rclpy.parameter import Parameter
+    from rclpy.publisher import Publisher
 
 try:  # no wheel on PyPI: scripts/build_tf2_msgs.py builds it; a ROS install has it
     from tf2_msgs.msg import TFMessage
@@ -215,9 +222,12 @@ class SimNode(Node):
             if not self.sim.rpm_rudder else {}
         self.joint_pub = self._joint_msg = None
         if self.channel_topics:
+            # (a lambda binding its channel as a default: mypy cannot infer it against the
+            # one-argument callback; below too)
             for ch, topic in self.channel_topics.items():
-                self.create_subscription(Float64, topic,
-                                         lambda msg, c=ch: self._on_channel(c, msg), 10)
+                self.create_subscription(
+                    Float64, topic,
+                    lambda msg, c=ch: self._on_channel(c, msg), 10)  # type: ignore[misc]
             self._joints = declared_joints(self.sim.ship.family.actuators)
             if self._joints:
                 self.joint_pub = self.create_publisher(JointState,
@@ -227,8 +237,9 @@ class SimNode(Node):
             self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
             self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
             for which in THRUSTERS:  # always subscribed: a ship without them says so, once
-                self.create_subscription(Float64, self.p[f'{which}_thruster_topic'],
-                                         lambda msg, w=which: self._on_thruster(w, msg), 10)
+                self.create_subscription(
+                    Float64, self.p[f'{which}_thruster_topic'],
+                    lambda msg, w=which: self._on_thruster(w, msg), 10)  # type: ignore[misc]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
@@ -276,7 +287,7 @@ class SimNode(Node):
 
     # ---- set-up -------------------------------------------------------------------------
     @staticmethod
-    def _build(p: dict) -> ShipSimulator:
+    def _build(p: Mapping[str, Any]) -> ShipSimulator:
         """
         Build the simulator for parameters p.
 
@@ -302,14 +313,14 @@ class SimNode(Node):
                 f'deg, {thr}')
 
     @staticmethod
-    def _frames(p: dict) -> tuple[str, str, str]:
+    def _frames(p: Mapping[str, Any]) -> tuple[str, str, str]:
         """(world, odom, body) frame names: the ship's own two carry the prefix."""
         pre = p['frame_prefix'].strip('/')
         return (p['frame_id'],) + tuple(f'{pre}/{p[k]}' if pre else p[k]
                                         for k in ('odom_frame_id', 'child_frame_id'))
 
     @staticmethod
-    def _check_frames(p: dict) -> None:
+    def _check_frames(p: Mapping[str, Any]) -> None:
         for name in ('frame_id', 'odom_frame_id', 'child_frame_id', 'frame_prefix'):
             v = p[name]
             if name != 'frame_prefix' and not v.strip():
@@ -431,10 +442,10 @@ class SimNode(Node):
         self.odom_pub.publish(msg)
         if self._tf is not None:
             transform_from_state(state, t, msg=self._tf.transforms[0])
-            self.tf_pub.publish(self._tf)
+            cast('Publisher', self.tf_pub).publish(self._tf)   # (made with _tf)
         if self.joint_pub is not None:
             act = self.sim.actuator_states()
-            js = self._joint_msg
+            js = cast(JointState, self._joint_msg)   # (made with joint_pub)
             js.header.stamp = msg.header.stamp
             js.position = [act[pos] for pos, _ in self._joints.values()]
             js.velocity = [act[vel] for _, vel in self._joints.values()]
@@ -545,7 +556,7 @@ class SimNode(Node):
         if which in self.channel_topics:
             return self.channel_topics[which]
         key = {'rudder': 'rudder_topic', 'rpm': 'rpm_topic'}.get(which, f'{which}_topic')
-        return self.p.get(key, which)
+        return cast(str, self.p.get(key, which))   # (a topic parameter: a string)
 
     def _timeouts(self, now: float) -> None:
         """Zero the shaft speed of each channel silent beyond command_timeout_s (once each)."""
@@ -568,14 +579,14 @@ class SimNode(Node):
                                    '(command_timeout_s): set to 0 until the next one')
 
     # ---- services and parameters --------------------------------------------------------
-    def _on_reset(self, request, response):
+    def _on_reset(self, request: Any, response: Any) -> Any:   # Trigger's (messages are Any)
         self.sim.reset()
         self._restart_clock()
         self._window = (self._steady_s(), 0)
         response.success, response.message = True, 'reset to the initial state'
         return response
 
-    def _validate(self, params) -> SetParametersResult:
+    def _validate(self, params: list[Parameter]) -> SetParametersResult:
         """
         Refuse, with the reason, any parameter change that cannot be applied.
 
@@ -603,7 +614,7 @@ class SimNode(Node):
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
-    def _apply(self, params) -> None:
+    def _apply(self, params: list[Parameter]) -> None:
         """
         Apply an accepted change.
 
@@ -647,7 +658,7 @@ class SimNode(Node):
                                   if names & RESTART_PARAMS else ''))
 
 
-def command_topics(channels, overrides: str) -> dict[str, str]:
+def command_topics(channels: Sequence[str], overrides: str) -> dict[str, str]:
     """
     Return channel -> command topic for a craft commanded channel by channel.
 
@@ -678,12 +689,12 @@ def command_topics(channels, overrides: str) -> dict[str, str]:
     return out
 
 
-def declared_joints(actuators) -> dict[str, tuple[str, str]]:
+def declared_joints(actuators: Iterable[str]) -> dict[str, tuple[str, str]]:
     """Return joint -> (position state, velocity state) the actuators declare (``JOINTS``)."""
     return {joint: states for a in actuators for joint, states in actuator(a).joints.items()}
 
 
-def main(args=None) -> None:
+def main(args: list[str] | None = None) -> None:
     spin_node(SimNode, args)
 
 

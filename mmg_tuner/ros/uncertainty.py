@@ -23,6 +23,7 @@ spread until the next run; with fewer than 2 members left the covariance is zero
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
@@ -87,11 +88,12 @@ class EnsembleSpread:
             return None
         dev = np.array(states) - centre[None]
         dev[:, _PSI] = (dev[:, _PSI] + np.pi) % (2 * np.pi) - np.pi
-        return self.scale * np.sqrt(np.sum(dev ** 2, axis=0) / (len(states) - 1))
+        s: np.ndarray = self.scale * np.sqrt(np.sum(dev ** 2, axis=0) / (len(states) - 1))
+        return s
 
 
-def fill_covariance(msg, spread: EnsembleSpread | None, sim: ShipSimulator, run: object,
-                    centre: np.ndarray) -> None:
+def fill_covariance(msg: Any, spread: EnsembleSpread | None, sim: ShipSimulator, run: object,
+                    centre: np.ndarray) -> None:   # msg: an Odometry (messages are Any)
     """
     Fill an Odometry's pose and twist covariance from ``spread`` (zeros without one).
 
