@@ -123,11 +123,11 @@ def fit(ship: ShipConfig, trials: Sequence[Trial],
     i1, i2 = PARAM_INDEX['azimuth_k1'], PARAM_INDEX['azimuth_k2']
     i3 = PARAM_INDEX['azimuth_rate_max']
 
-    def resid(z, limit):
+    def resid(z: np.ndarray, limit: float) -> np.ndarray:
         p = base.copy()
         p[i1], p[i2] = math.exp(z[0]), math.exp(z[1])
         p[i3] = math.exp(z[2]) if len(z) > 2 else limit
-        out = []
+        out: list[np.ndarray] = []
         for ctrl, sub, m, h in data:
             T = len(ctrl)
             a = np.zeros((T, len(fam.outputs)))
@@ -136,7 +136,7 @@ def fit(ship: ShipConfig, trials: Sequence[Trial],
         e = np.concatenate([x.ravel() for x in out])[seen]   # a sensor dropout: no residual
         return np.where(np.isfinite(e), e, 10.0)   # a diverging drive: far off, not NaN
 
-    def fit(z0, limit=0.0):
+    def fit(z0: np.ndarray, limit: float = 0.0) -> tuple[np.ndarray, float]:
         lo, hi = _AZ_BOUNDS[0][:len(z0)], _AZ_BOUNDS[1][:len(z0)]
         z0 = np.clip(z0, lo + 1e-6, hi - 1e-6)
         sol = least_squares(resid, z0, args=(limit,), method='trf', bounds=(lo, hi),
@@ -153,8 +153,8 @@ def fit(ship: ShipConfig, trials: Sequence[Trial],
     k1, k2 = (ship['azimuth_k1'], ship['azimuth_k2'])
     z0 = np.log([k1 if k1 > 0 else 4.0, k2 if k2 > 0 else 3.0])
 
-    def better(new, old):   # by 1 % and by more than an angle no sensor resolves
-        return new < 0.99 * old and old - new > _AZ_RESOLUTION_RAD ** 2 * seen.sum()
+    def better(new: float, old: float) -> bool:   # by 1 % and more than sensors resolve
+        return bool(new < 0.99 * old) and old - new > _AZ_RESOLUTION_RAD ** 2 * seen.sum()
 
     (z, sse), rate = fit(z0, base[i3]), base[i3]
     if base[i3] > 0:
