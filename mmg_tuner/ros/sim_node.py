@@ -448,7 +448,7 @@ class SimNode(Node):
             js = cast(JointState, self._joint_msg)   # (made with joint_pub)
             js.header.stamp = msg.header.stamp
             js.position = [act[pos] for pos, _ in self._joints.values()]
-            js.velocity = [act[vel] for _, vel in self._joints.values()]
+            js.velocity = [act[vel] if vel else math.nan for _, vel in self._joints.values()]
             self.joint_pub.publish(js)
         if self.clock_pub is not None:
             self._clock_msg.clock = msg.header.stamp

@@ -23,6 +23,8 @@ PLAUSIBILITY = {'propulsion': ['thrust'], 'helm': {'nozzle': 'rudder'}}
 TRIALS = 'toy_jet_trials'
 # an effect of its own: a nozzle whose zero is off (the module beside this one)
 EFFECTS = 'toy_jet_effects'
+# the nozzle as a joint sim_node publishes (its angle; no rate state)
+JOINTS = {'nozzle_joint': ('nozzle',)}
 
 import math
 

@@ -1,9 +1,10 @@
 """
 sim_node serves a vessel that is new files only: the toy water-jet plugin (test/core/toy_plugin).
 
-The plugin's actuator declares its channels' topics (jet/thrust, jet/angle); the node subscribes
-one per channel in its namespace, with no edit under mmg_tuner/. The node's odometry follows
-the offline simulation of the same commands.
+The plugin's actuator declares its channels' topics (jet/thrust, jet/angle) and its nozzle as a
+joint; the node subscribes one topic per channel in its namespace and publishes the joint, with
+no edit under mmg_tuner/. The node's odometry follows the offline simulation of the same
+commands.
 """
 from pathlib import Path
 import sys
@@ -25,6 +26,7 @@ def ros(tmp_path_factory):
 def test_sim_node_serves_the_toy_water_jet_on_its_declared_topics(ros, tmp_path):
     from mmg_tuner.ros.conversions import seconds_from_stamp
     from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
     env, node, ex = ros
     plugin = toy_plugin_env(tmp_path)
@@ -34,6 +36,8 @@ def test_sim_node_serves_the_toy_water_jet_on_its_declared_topics(ros, tmp_path)
     ship.write_text(TOY_SHIP_YAML)
     odom = []
     sub = node.create_subscription(Odometry, '/toy/odom', odom.append, 100)
+    joints = []
+    jsub = node.create_subscription(JointState, '/toy/joint_states', joints.append, 100)
     pubs = {t: node.create_publisher(Float64, f'/toy/jet/{t}', 10) for t in ('thrust', 'angle')}
 
     def commanding():
@@ -48,8 +52,13 @@ def test_sim_node_serves_the_toy_water_jet_on_its_declared_topics(ros, tmp_path)
         assert spin_until(ex, commanding, 240.0), f'no odometry; node said:\n{stop(proc)}'
     finally:
         node.destroy_subscription(sub)
+        node.destroy_subscription(jsub)
         out = stop(proc)
     assert 'Traceback' not in out, out
+    # the nozzle the toy declares as a joint (JOINTS), its angle with the odometry
+    assert joints and list(joints[-1].name) == ['nozzle_joint'], (joints[-1:], out)
+    assert joints[-1].position[0] == pytest.approx(0.0, abs=1e-9)
+    assert np.isnan(joints[-1].velocity[0])
     # thrust 4000 N against X_u = 2000 N s/m: u -> 2 (1 - exp(-t m / X_u)), m / X_u = 10 s
     t = seconds_from_stamp(odom[-1].header.stamp)
     u = odom[-1].twist.twist.linear.x

@@ -33,8 +33,9 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      ``twin_azimuth_effects.py``); the effect table (``core/effects.py``) appends them after
      the library's own, their parameters become slots of the layout, the diagnosis searches
      them in any family driven by this actuator. The kernel reads their slots.
-   * optionally ``JOINTS``: joint name -> (position state, velocity state) among ``STATES``,
-     what ``sim_node`` publishes as sensor_msgs/JointState (a tug's azimuth angles).
+   * optionally ``JOINTS``: joint name -> (position state, velocity state) among ``STATES``
+     (a 1-tuple: no velocity state, published as NaN), what ``sim_node`` publishes as
+     sensor_msgs/JointState (a tug's azimuth angles).
    * optionally ``TRIALS``: the module (beside this one, or a full module path) that says what
      the ``generate`` command sails for a craft this actuator drives, in place of the
      screw-and-rudder manoeuvres (``twin_azimuth_trials.py`` is the example): ``RATE_HZ``
@@ -113,7 +114,8 @@ class Actuator:
     # its plausibility rules (propulsion outputs, helm) when config/model_plausibility.yaml
     # has no entry for it: a plugin declares its own (core/plausibility.py)
     plausibility: dict[str, Any] = field(default_factory=dict)
-    # joint -> (position state, velocity state) a simulator publishes (sim_node's JointState)
+    # joint -> (position state, velocity state or '') a simulator publishes (sim_node's
+    # JointState)
     joints: dict[str, tuple[str, str]] = field(default_factory=dict)
 
 
@@ -196,7 +198,7 @@ def actuator(name: str) -> Actuator:
                                 getattr(mod, 'forces', None),
                                 dict(getattr(mod, 'COMMANDED', {})),
                                 dict(getattr(mod, 'PLAUSIBILITY', {})),
-                                {str(k): (str(v[0]), str(v[1]))
+                                {str(k): (str(v[0]), str(v[1]) if len(v) > 1 else '')
                                  for k, v in getattr(mod, 'JOINTS', {}).items()})
     return _CACHE[name]
 
