@@ -96,11 +96,9 @@ def bollard_unit_warnings(ship: ShipConfig, n: np.ndarray, thrust: np.ndarray,
     gives thrust.
     """
     curve = _bollard_curve(ship)
-    st = ship.extra.get('steering') or {}
-    try:
-        max_rps = float(st.get('max_thruster_rps', 0.0) or 0.0) if isinstance(st, dict) else 0.0
-    except (TypeError, ValueError):
-        max_rps = 0.0
+    shaft = next((c for c in ship.family.inputs if c in TABLE and TABLE[c].unit == 'rev/s'), None)
+    lim = _limit(ship, shaft) if shaft is not None else None
+    max_rps = lim.limit if lim is not None else 0.0
     out = []
     w = shaft_speed_warning('n', np.asarray(n, float), max_rps)
     if w:

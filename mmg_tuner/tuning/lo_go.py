@@ -56,7 +56,7 @@ from mmg_tuner.core.integrate import accelerations_many, actuator_outputs
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.models import module_of
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.simulate import REPLAY_STEP_S, simulate_batch, steps_per_sample
+from mmg_tuner.core.simulate import simulate_batch, steps_per_sample
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.tuning.gate import check_before_writing, mark_note
@@ -273,10 +273,6 @@ def fit_thrust(table: BollardTable, degree: int | None = None) -> ThrustFit:
 
 
 # ------------------------------------------------------------------ the actuators' own fits
-GO_STEP_S = REPLAY_STEP_S
-"""The longest integration step of GO and ``evaluate``'s scoring [s] (core/simulate.py)."""
-
-
 def actuator_fits(ship: ShipConfig, trials: Sequence[Trial], substeps: int | None = None
                   ) -> dict[str, Any]:
     """
@@ -1163,6 +1159,6 @@ def _actuator_params(ship: ShipConfig) -> tuple[str, ...]:
     return tuple(q for a in ship.family.actuators for q in actuator(a).params)
 
 
-__all__ = ['BollardTable', 'GO_RIDGE', 'GO_STEP_S', 'GoResult', 'IdentifyResult', 'LoResult',
-           'METHODS', 'ThrustFit', 'actuator_fits', 'check_bollard_table', 'fit_thrust',
-           'go_fit', 'identify', 'lo_fit', 'read_bollard_table', 'steps_per_sample']
+__all__ = ['BollardTable', 'GO_RIDGE', 'GoResult', 'IdentifyResult', 'LoResult', 'METHODS',
+           'ThrustFit', 'actuator_fits', 'check_bollard_table', 'fit_thrust', 'go_fit', 'identify',
+           'lo_fit', 'read_bollard_table', 'steps_per_sample']

@@ -167,11 +167,6 @@ def load_companion(name: str, key: str) -> ModuleType | None:
                           f'be imported: {exc}') from exc
 
 
-def trials_module(name: str) -> str | None:
-    """Return the module an actuator names as its ``generate`` catalogue (``TRIALS``), or None."""
-    return companion(name, 'TRIALS')
-
-
 @functools.lru_cache(maxsize=None)   # the registry is fixed at import: parse each source once
 def commanded_channels() -> frozenset[str]:
     """Return the channels that carry an order the actuators move toward (``COMMANDED``)."""
