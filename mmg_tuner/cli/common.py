@@ -186,13 +186,13 @@ def check_run(ship: ShipConfig, rpm: float, speed_ms: float, speed_opt: str,
     limit. rudders: (option as given, rudder angle [deg]) pairs.
     """
     lim = input_limits(ship)
-    problem = lim.check_rpm(rpm)
+    problem = lim.channel('rpm').problem(rpm)
     if problem:
         raise UsageError(f'--rpm: {problem} for {ship.name}')
     if speed_ms > lim.top_speed_ms:
         raise UsageError(f'{speed_opt}: {speed_ms:g} m/s exceeds the plausible top speed of '
                          f'{ship.name}, {lim.top_speed_ms:.1f} m/s (Froude number {FN_TOP:g})')
-    limit_deg = math.degrees(ship.max_rudder_rad)
+    limit_deg = math.degrees(lim.channel('rudder').limit)
     for opt, deg in rudders:
         if abs(deg) > limit_deg + 1e-9:
             raise UsageError(f'{opt}: rudder {deg:g} deg exceeds the {ship.name} steering '

@@ -22,21 +22,21 @@ Fn 0.15-0.25. So
   and 60). For SUZAKU (service 106 rpm at 6 kn) this gives about 840 rpm; for the 7 m KVLCC2
   model (about 710 rpm at 1.18 m/s) about 5000 rpm.
 
-Astern and thrusters follow the ship's model family (``core/models``): a family that covers
-astern revolutions (``astern_rpm``) accepts rpm in [-rpm_max, rpm_max]; one with thruster
-inputs accepts thruster revolutions up to the ship's ``steering.max_thruster_rps`` (clamped
-beyond it, refused beyond twice it, like the rudder). Other families refuse both.
-
-A family without a screw and rudder (the twin-azimuth tug) is commanded channel by channel:
-:func:`command_limits` gives each command channel its clamp and plausibility cap by the
-channel's unit -- a shaft speed [rev/s] the YAML's ``steering.max_thruster_rps``, an azimuth
-angle [rad] its ``steering.max_azimuth_deg`` (0: a fixed thruster).
+Every input channel has one :class:`CommandLimit` (``InputLimits.channels``), by its name or
+unit: a command beyond ``limit`` is clamped to it, beyond ``plausible`` refused; a recorded sample
+beyond ``recorded`` is dropped by the readers. The rpm is refused beyond ``rpm_max`` and, unless
+the family covers astern revolutions (``astern_rpm``), at or below 0; the rudder is clamped to
+the steering gear's ``max_rudder_deg`` and refused beyond twice it (90 deg at most); a shaft
+speed [rev/s] (a tunnel thruster, an azimuth drive) is clamped to the YAML's
+``steering.max_thruster_rps`` and refused beyond twice it; another angle [rad] (an azimuth) is
+clamped to ``steering.max_azimuth_deg`` (0: a fixed thruster) and refused beyond one turn. The
+simulator, the node, the readers and the units checks all read this one table.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Mapping
 
 from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.ship import ShipConfig
@@ -53,6 +53,66 @@ POSITION_MAX_M = 2.0e7  # half the Earth's circumference: no local frame reaches
 THRUSTER_PLAUSIBLE_FACTOR = 2.0  # beyond 2 x the thruster limit: a unit error, not a command
 THRUSTER_CHANNELS = ('bow_thruster', 'stern_thruster')
 ANGLE_PLAUSIBLE_RAD = 2 * math.pi  # beyond one turn: degrees read as radians, not a command
+# no recorded shaft turns faster: a model's thruster reaches ~30 rev/s, a ship's a few; beyond it
+# a sample is corrupt (within it a wrong unit is named by data/channel_units.py, data kept)
+RECORDED_RPS_MAX = 200.0
+
+
+@dataclass(frozen=True)
+class CommandLimit:
+    """
+    The range of one input channel: what a command may be and what a recording may show.
+
+    channel: its name (``core/channels.py``); unit: its unit; limit: |value| beyond it is
+    clamped to it (a steering gear's or a thruster's limit); plausible: |value| beyond it is
+    refused as a command (a unit error, not a command); recorded: |value| beyond it is no
+    sample of a recording (the readers drop it; looser than ``plausible`` where the readers
+    keep the data and the units checks name a wrong unit instead); basis: where the limit
+    comes from (for messages); forward_only: values <= 0 are outside the model (the rpm of a
+    family without astern revolutions).
+    """
+
+    channel: str
+    unit: str
+    limit: float
+    plausible: float
+    basis: str
+    recorded: float = math.inf
+    forward_only: bool = False
+
+    def _show(self, value: float) -> str:
+        """Return ``value unit``, with degrees beside radians."""
+        deg = f' ({math.degrees(value):.1f} deg)' if self.unit == 'rad' else ''
+        return f'{value:.6g} {self.unit}{deg}'
+
+    def problem(self, value: float) -> str:
+        """Say why ``value`` is no plausible command of the channel ('' if it is)."""
+        name = f'{self.channel} command'
+        if not math.isfinite(value):
+            return f'{name} {value} is not finite'
+        if value <= 0 and self.forward_only:
+            return (f'{name} {value:g} {self.unit} <= 0 is outside the model (forward '
+                    'revolutions only)')
+        if abs(value) > self.plausible:
+            return (f'{name} {self._show(value)} is beyond the plausible '
+                    f'+-{self._show(self.plausible)}'
+                    + (f' ({self.basis})' if self.plausible == self.limit else ''))
+        return ''
+
+    def check(self, value: Any) -> tuple[float | None, str]:
+        """Return (the value to apply or None: refused, the problem or '')."""
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            return None, f'{self.channel} command {value!r} is not a number: ignored'
+        if problem := self.problem(value):
+            return None, f'{problem}: ignored'
+        if abs(value) > self.limit:
+            clamped = math.copysign(self.limit, value)
+            return clamped, (f'{self.channel} command {self._show(value)} beyond the '
+                             f'+-{self._show(self.limit)} limit ({self.basis}): clamped to '
+                             f'{clamped:.6g}')
+        return value, ''
 
 
 @dataclass(frozen=True)
@@ -62,11 +122,10 @@ class InputLimits:
 
     Attributes
     ----------
-    rpm_max: largest plausible propeller speed [rev/min]; the model covers rpm > 0 only.
-    rudder_max_rad: the steering gear's limit (``ShipConfig.max_rudder_rad``): commands
-        beyond it are clamped to it.
-    rudder_plausible_rad: hard cap for recorded rudder angles, min(2 x rudder_max_rad,
-        90 deg): beyond it a sample is a unit error or corrupt, not a steering action.
+    channels: each input channel's clamp and caps (:class:`CommandLimit`), by name: the rpm,
+        rudder and thrusters of a screw-and-rudder ship, an azimuth tug's shaft speeds and
+        angles (:func:`command_limits`); the one table the simulator, the node and the
+        readers judge commands and recorded samples by.
     top_speed_ms: generous top speed (Fn 0.5) [m/s]; e.g. the largest initial speed.
     speed_max_ms: no state of the ship moves faster (Fn 1.5) [m/s]; beyond it the
         simulation has diverged or a recording is corrupt.
@@ -77,79 +136,35 @@ class InputLimits:
         range an explicit integrator may still diverge at high speed; the simulation
         detects that at run time.)
     position_max_m: |x|, |y| beyond it [m] is no position in a local frame.
-    rpm_basis: how rpm_max was found (for messages).
-    astern_rpm: the model family covers rpm <= 0 (then |rpm| <= rpm_max is plausible).
-    thruster_max_rps: the thrusters' limit [rev/s]: commands beyond it are clamped to it;
-        0 when the family has no thruster inputs (every thruster command is refused).
-    thruster_basis: where thruster_max_rps comes from (for messages).
     model: the ship's model family (for messages).
     length_m: the ship's length between perpendiculars [m] (0: not known, generic limits);
         it scales the readers' consistency checks (data/consistency.py).
 
     """
 
-    rpm_max: float
-    rudder_max_rad: float
-    rudder_plausible_rad: float
+    channels: Mapping[str, CommandLimit]
     top_speed_ms: float
     speed_max_ms: float
     yaw_rate_max_rad_s: float
     dt_min_s: float
     dt_max_s: float
     position_max_m: float = POSITION_MAX_M
-    rpm_basis: str = ''
-    astern_rpm: bool = False
-    thruster_max_rps: float = 0.0
-    thruster_basis: str = ''
     model: str = ''
     length_m: float = 0.0
 
     @property
     def thrusters(self) -> bool:
-        """Whether the ship's model family has thruster inputs."""
-        return self.thruster_max_rps > 0
+        """Whether the ship's model family has tunnel-thruster inputs."""
+        return all(c in self.channels for c in THRUSTER_CHANNELS)
 
-    def check_rpm(self, rpm: float) -> str:
-        """Say why rpm is not a plausible propeller speed for the family ('' if it is)."""
-        if not math.isfinite(rpm):
-            return f'rpm {rpm} is not finite'
-        if rpm <= 0 and not self.astern_rpm:
-            return f'rpm {rpm:g} <= 0 is outside the MMG model (forward revolutions only)'
-        if abs(rpm) > self.rpm_max:
-            return (f'rpm {rpm:g} exceeds the plausible {"+-" if self.astern_rpm else ""}'
-                    f'{self.rpm_max:.0f} rpm ({self.rpm_basis})')
-        return ''
-
-    def check_thruster(self, rps: float, which: str = 'thruster') -> str:
+    def channel(self, name: str) -> CommandLimit:
         """
-        Say why rps [rev/s] is not a plausible command for ``which`` thruster ('' if it is).
+        Return the limit of channel ``name``: the ship's own, else the generic one by unit.
 
-        The thrusters' own limit (``thruster_max_rps``) is a clamp, the caller's business, as
-        for the rudder; refused here: no thrusters in the family, non-finite, or beyond
-        THRUSTER_PLAUSIBLE_FACTOR x the limit (a unit error: rpm read as rev/s).
+        A channel the ship lacks still has a recording cap (a bag may carry a thruster topic
+        the model ignores): :func:`generic_limit`.
         """
-        if not self.thrusters:
-            model = f'{self.model} model' if self.model else 'model'
-            return f"{which} command: the ship's {model} has no thrusters"
-        if not math.isfinite(rps):
-            return f'{which} {rps} rev/s is not finite'
-        cap = THRUSTER_PLAUSIBLE_FACTOR * self.thruster_max_rps
-        if abs(rps) > cap:
-            return (f'{which} {rps:g} rev/s is beyond the plausible +-{cap:g} rev/s '
-                    f'({THRUSTER_PLAUSIBLE_FACTOR:g} x the {self.thruster_max_rps:g} rev/s '
-                    f'limit, {self.thruster_basis})')
-        return ''
-
-    def check_rudder(self, rudder_rad: float) -> str:
-        """
-        Return '' if rudder_rad is within the hard plausibility cap, else why not.
-
-        '' if rudder_rad is within the hard plausibility cap, else why not (the steering gear's own
-        limit, a clamp, is the caller's business).
-        """
-        return _finite_within('rudder', rudder_rad, self.rudder_plausible_rad, lambda: (
-            f'rad ({math.degrees(rudder_rad):.0f} deg) is beyond the plausible '
-            f'{math.degrees(self.rudder_plausible_rad):.0f} deg'))
+        return self.channels.get(name) or generic_limit(name)
 
     def check_speed(self, speed_ms: float) -> str:
         """'' if speed_ms is a plausible (initial or recorded) forward speed, else why not."""
@@ -198,7 +213,7 @@ def input_limits(ship: ShipConfig) -> InputLimits:
     Examples
     --------
     >>> lim = input_limits(load_ship('suzaku'))
-    >>> round(lim.rpm_max)   # about 840
+    >>> round(lim.channels['rpm'].limit)   # about 840
 
     """
     key = (ship.kind, ship.params.tobytes(), ship.max_rudder_rad)
@@ -224,26 +239,71 @@ def _compute(ship: ShipConfig) -> InputLimits:
     except SimulationError:  # no rpm holds it (an odd tuned resistance): the search bracket
         rpm_top = 1e5 / RPM_FACTOR
         basis = f'no rpm holds {top:.1f} m/s; the search bracket'
-    rudder = float(ship.max_rudder_rad)
-    fam = ship.family
-    thr, thr_basis = 0.0, ''
-    if all(c in fam.inputs for c in THRUSTER_CHANNELS):
-        thr, thr_basis = _thruster_limit(ship, RPM_FACTOR * rpm_top / 60.0)
+    rpm_max = RPM_FACTOR * rpm_top
     return InputLimits(
-        rpm_max=RPM_FACTOR * rpm_top,
-        rudder_max_rad=rudder,
-        rudder_plausible_rad=min(2.0 * rudder, RUDDER_HARD_CAP_RAD),
+        channels=_channel_limits(ship, ship.family.inputs, rpm_max, basis),
         top_speed_ms=top,
         speed_max_ms=vmax,
         yaw_rate_max_rad_s=vmax / (0.5 * L),
         dt_min_s=DT_MIN_S,
         dt_max_s=L / top,
-        rpm_basis=basis,
-        astern_rpm=fam.astern_rpm,
-        thruster_max_rps=thr,
-        thruster_basis=thr_basis,
         model=ship.model,
         length_m=float(L))
+
+
+def _channel_limits(ship: ShipConfig, channels: Iterable[str], rpm_max: float,
+                    rpm_basis: str) -> dict[str, CommandLimit]:
+    """
+    Return each channel's limits, by its name or unit (the module docstring).
+
+    rpm: refused beyond ``rpm_max`` (and at or below 0 without astern revolutions); rudder:
+    clamped to the steering gear's ``max_rudder_rad``, refused beyond min(2 x it, 90 deg); a
+    shaft speed [rev/s]: clamped to ``steering.max_thruster_rps`` (the propeller's plausible
+    maximum without one), refused beyond twice it; another angle [rad]: clamped to
+    ``steering.max_azimuth_deg`` (a half turn without one), refused beyond one turn; another
+    unit: finiteness only. A bad YAML value is a ConfigError naming the file and field.
+    """
+    out = {}
+    for ch in channels:
+        unit = TABLE[ch].unit
+        if ch == 'rpm':
+            out[ch] = CommandLimit(ch, unit, rpm_max, rpm_max, rpm_basis, recorded=rpm_max,
+                                   forward_only=not ship.family.astern_rpm)
+        elif ch == 'rudder':
+            rudder = float(ship.max_rudder_rad)
+            cap = min(2.0 * rudder, RUDDER_HARD_CAP_RAD)
+            out[ch] = CommandLimit(ch, unit, rudder, cap, f'the steering gear of {ship.name}',
+                                   recorded=cap)
+        elif unit == 'rev/s':   # a tunnel thruster may go without a YAML limit, a drive not
+            rps, basis = _thruster_limit(ship, rpm_max / 60.0 if ch in THRUSTER_CHANNELS
+                                         else 0.0)
+            if rps == 0.0:
+                raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps is '
+                                  f'needed to command {ch} (the shaft speed limit, rev/s)')
+            out[ch] = CommandLimit(ch, unit, rps, THRUSTER_PLAUSIBLE_FACTOR * rps, basis,
+                                   recorded=RECORDED_RPS_MAX)
+        elif unit == 'rad':
+            out[ch] = _angle_limit(ship, ch)
+        else:
+            out[ch] = CommandLimit(ch, unit, math.inf, math.inf, 'no limit for this unit')
+    return out
+
+
+def _angle_limit(ship: ShipConfig, channel: str) -> CommandLimit:
+    """Return an azimuth angle's limit: ``steering.max_azimuth_deg`` (0: a fixed thruster)."""
+    steering = ship.extra.get('steering') or {}
+    if not isinstance(steering, dict):
+        steering = {}
+    value = steering.get('max_azimuth_deg', 180.0)
+    deg = float(value) if isinstance(value, (int, float)) and \
+        not isinstance(value, bool) else math.nan
+    if not (math.isfinite(deg) and 0.0 <= deg <= 180.0):
+        raise ConfigError(f'{ship.source or ship.name}: steering.max_azimuth_deg = '
+                          f'{value!r} must be a number of degrees in [0, 180]')
+    basis = (f'steering.max_azimuth_deg of {ship.name}' if 'max_azimuth_deg' in steering
+             else 'no steering.max_azimuth_deg: a half turn')
+    return CommandLimit(channel, 'rad', math.radians(deg), ANGLE_PLAUSIBLE_RAD, basis,
+                        recorded=ANGLE_PLAUSIBLE_RAD)
 
 
 def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:
@@ -267,75 +327,32 @@ def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:
     return rps, f'steering.max_thruster_rps of {ship.name}'
 
 
-@dataclass(frozen=True)
-class CommandLimit:
-    """
-    The range of one command channel of a family commanded channel by channel.
-
-    channel: its name (``core/channels.py``); unit: its unit; limit: |value| beyond it is
-    clamped to it; plausible: |value| beyond it is refused (a unit error, not a command);
-    basis: where the limit comes from (for messages).
-    """
-
-    channel: str
-    unit: str
-    limit: float
-    plausible: float
-    basis: str
-
-    def check(self, value: Any) -> tuple[float | None, str]:
-        """Return (the value to apply or None: refused, the problem or '')."""
-        name = f'{self.channel} command'
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            return None, f'{name} {value!r} is not a number: ignored'
-        if not math.isfinite(value):
-            return None, f'{name} {value} {self.unit} is not finite: ignored'
-        if abs(value) > self.plausible:
-            return None, (f'{name} {value:g} {self.unit} is beyond the plausible '
-                          f'+-{self.plausible:g} {self.unit}: ignored')
-        if abs(value) > self.limit:
-            clamped = math.copysign(self.limit, value)
-            deg = f' ({math.degrees(value):.1f} deg)' if self.unit == 'rad' else ''
-            lim = f' ({math.degrees(self.limit):.1f} deg)' if self.unit == 'rad' else ''
-            return clamped, (f'{name} {value:g} {self.unit}{deg} beyond the +-{self.limit:.6g} '
-                             f'{self.unit}{lim} limit ({self.basis}): clamped to '
-                             f'{clamped:.6g}')
-        return value, ''
-
-
 def command_limits(ship: ShipConfig, channels: Iterable[str]) -> dict[str, CommandLimit]:
-    """
-    Return the clamp and cap of each command channel, by its unit (module docstring).
+    """Return the limits of the ship's input channels ``channels`` (``input_limits``'s)."""
+    table = input_limits(ship).channels
+    return {ch: table[ch] for ch in channels}
 
-    A shaft speed [rev/s] is clamped to ``steering.max_thruster_rps`` (refused beyond twice
-    it), an angle [rad] to ``steering.max_azimuth_deg`` (refused beyond one turn); a channel
-    in another unit gets no limit beyond finiteness. A bad YAML value is a ConfigError naming
-    the file and field.
+
+# Without a ship the readers still refuse what no ship can do (a unit error, corrupt data).
+GENERIC_BASIS = 'no ship given: the generic cap'
+_GENERIC = {'rpm': 1e5, 'rudder': RUDDER_HARD_CAP_RAD}
+_GENERIC_BY_UNIT = {'rev/s': RECORDED_RPS_MAX, 'rad': ANGLE_PLAUSIBLE_RAD}
+
+
+def generic_limit(channel: str) -> CommandLimit:
     """
-    steering = ship.extra.get('steering') or {}
-    if not isinstance(steering, dict):
-        steering = {}
-    out = {}
-    for ch in channels:
-        unit = TABLE[ch].unit
-        if unit == 'rev/s':
-            rps, basis = _thruster_limit(ship, 0.0)
-            if rps == 0.0:
-                raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps is '
-                                  f'needed to command {ch} (the shaft speed limit, rev/s)')
-            out[ch] = CommandLimit(ch, unit, rps, THRUSTER_PLAUSIBLE_FACTOR * rps, basis)
-        elif unit == 'rad':
-            value = steering.get('max_azimuth_deg', 180.0)
-            deg = float(value) if isinstance(value, (int, float)) and \
-                not isinstance(value, bool) else math.nan
-            if not (math.isfinite(deg) and 0.0 <= deg <= 180.0):
-                raise ConfigError(f'{ship.source or ship.name}: steering.max_azimuth_deg = '
-                                  f'{value!r} must be a number of degrees in [0, 180]')
-            basis = (f'steering.max_azimuth_deg of {ship.name}' if 'max_azimuth_deg' in steering
-                     else 'no steering.max_azimuth_deg: a half turn')
-            out[ch] = CommandLimit(ch, unit, math.radians(deg), ANGLE_PLAUSIBLE_RAD, basis)
-        else:
-            out[ch] = CommandLimit(ch, unit, math.inf, math.inf, 'no limit for this unit')
-    return out
+    Return the generic limit of ``channel``: what no ship's recording of it can show.
+
+    1e5 rpm, a 90-deg rudder, a shaft speed of RECORDED_RPS_MAX, an angle of one turn; no
+    limit for another unit or a name outside the channel table.
+    """
+    ch = TABLE.get(channel)
+    unit = ch.unit if ch is not None else ''
+    cap = _GENERIC.get(channel, _GENERIC_BY_UNIT.get(unit, math.inf))
+    return CommandLimit(channel, unit, cap, cap, GENERIC_BASIS, recorded=cap)
+
+
+GENERIC_LIMITS = InputLimits(
+    channels={c: generic_limit(c) for c in ('rpm', 'rudder') + THRUSTER_CHANNELS},
+    top_speed_ms=50.0, speed_max_ms=100.0, yaw_rate_max_rad_s=2 * math.pi, dt_min_s=DT_MIN_S,
+    dt_max_s=60.0)

@@ -18,7 +18,7 @@ from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
 from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
-from mmg_tuner.core.limits import command_limits, CommandLimit, input_limits, InputLimits
+from mmg_tuner.core.limits import CommandLimit, input_limits, InputLimits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
 from mmg_tuner.errors import SimulationError
@@ -188,8 +188,9 @@ class ShipSimulator:
         self._inp[0, :len(fam.inputs)] = 0.0
         self._a = np.zeros(N_ACT_STATES)
         self.limits: InputLimits = input_limits(ship)
-        self.command_limits: dict[str, CommandLimit] = {} if self.rpm_rudder else \
-            command_limits(ship, self.command_channels)
+        # each command channel's clamp and plausibility cap (one table for every family)
+        self.command_limits: dict[str, CommandLimit] = {
+            c: self.limits.channels[c] for c in self.command_channels}
         if residual is not None and not self.rpm_rudder:
             raise SimulationError(f'{ship.name}: a residual network drives screw-and-rudder '
                                   f'ships only; the {fam.name!r} family reads '
@@ -214,12 +215,10 @@ class ShipSimulator:
         self._cmd: dict[str, float] = dict.fromkeys(self.command_channels, 0.0)
         if self.rpm_rudder:
             rpm, rudder_rad = float(rpm), float(rudder_rad)
-            if problem := lim.check_rpm(rpm):
-                raise SimulationError(f'{ship.name}: initial {problem}')
-            if not (math.isfinite(rudder_rad) and abs(rudder_rad) <= lim.rudder_max_rad):
-                raise SimulationError(f'{ship.name}: initial rudder {rudder_rad:g} rad is '
-                                      f"outside the steering gear's +-{lim.rudder_max_rad:.4f} "
-                                      f'rad (+-{math.degrees(lim.rudder_max_rad):.1f} deg)')
+            for name, value in (('rpm', rpm), ('rudder', rudder_rad)):
+                c = self.check_command(name, value)
+                if c.problem:   # an initial command is a setting: refused, never clamped
+                    raise SimulationError(f'{ship.name}: initial {c.problem}')
         else:   # rpm and rudder mean nothing here: the initial commands come from ``commands``
             rpm = rudder_rad = math.nan
         self.rpm0 = rpm
@@ -335,21 +334,15 @@ class ShipSimulator:
         """
         Check a command of any channel in ``command_channels`` (ValueError for another).
 
-        rpm, rudder and thrusters as :meth:`check_rpm`, :meth:`check_rudder` and
-        :meth:`check_thruster`; a channel-by-channel family's commands against
-        ``command_limits`` (clamped beyond the YAML's limit, ignored when not a plausible
-        value), the problem said.
+        Against the channel's :class:`~mmg_tuner.core.limits.CommandLimit`: clamped beyond its
+        limit (the steering gear's, the YAML's), ignored when not a plausible value (not a
+        number, not finite, beyond the cap, rpm <= 0 for a family without astern), the
+        problem said.
         """
         if channel not in self.command_channels:
             raise ValueError(f'{self.ship.name}: {channel!r} is no command of the '
                              f'{self.ship.family.name} family; its commands: '
                              f'{", ".join(self.command_channels)}')
-        if self.rpm_rudder:
-            if channel == 'rpm':
-                return self.check_rpm(value)
-            if channel == 'rudder':
-                return self.check_rudder(value)
-            return self.check_thruster(channel.removesuffix('_thruster'), value)
         return CommandCheck(*self.command_limits[channel].check(value))
 
     def set_command(self, channel: str, value: float) -> str:
@@ -360,63 +353,27 @@ class ShipSimulator:
         return c.problem
 
     def check_rudder(self, rudder_rad: float) -> CommandCheck:
-        """
-        Check a rudder command [rad].
-
-        Non-finite or beyond the plausible cap (a unit error, garbage): ignored; beyond the
-        steering gear's limit: clamped to it.
-        """
-        lim = self.limits
-        try:
-            rudder_rad = float(rudder_rad)
-        except (TypeError, ValueError):
-            return CommandCheck(None, f'rudder command {rudder_rad!r} is not a number: ignored')
-        if problem := lim.check_rudder(rudder_rad):
-            return CommandCheck(None, f'rudder command: {problem}: ignored')
-        if abs(rudder_rad) > lim.rudder_max_rad:
-            clamped = math.copysign(lim.rudder_max_rad, rudder_rad)
-            return CommandCheck(clamped, f'rudder command {math.degrees(rudder_rad):.1f} deg '
-                                f'beyond the {math.degrees(lim.rudder_max_rad):.1f} deg limit: '
-                                'clamped')
-        return CommandCheck(rudder_rad)
+        """Check a rudder command [rad] (:meth:`check_command` of ``rudder``)."""
+        return self.check_command('rudder', rudder_rad)
 
     def check_rpm(self, rpm: float) -> CommandCheck:
-        """
-        Check an rpm command.
-
-        Non-finite, <= 0 (unless the family covers astern) or beyond the plausible maximum:
-        ignored.
-        """
-        try:
-            rpm = float(rpm)
-        except (TypeError, ValueError):
-            return CommandCheck(None, f'rpm command {rpm!r} is not a number: ignored')
-        if problem := self.limits.check_rpm(rpm):
-            return CommandCheck(None, f'rpm command: {problem}: ignored')
-        return CommandCheck(rpm)
+        """Check an rpm command (:meth:`check_command` of ``rpm``)."""
+        return self.check_command('rpm', rpm)
 
     def check_thruster(self, which: str, rps: float) -> CommandCheck:
         """
-        Check a bow or stern thruster command [rev/s].
+        Check a bow or stern thruster command [rev/s] (:meth:`check_command`).
 
-        Ignored when the family has no thrusters, non-finite or beyond the plausible cap;
-        beyond the thrusters' limit: clamped to it.
+        Ignored, said so, when the family has no thrusters.
         """
         if which not in THRUSTERS:
             raise ValueError(f'which must be one of {THRUSTERS}, got {which!r}')
-        lim = self.limits
-        try:
-            rps = float(rps)
-        except (TypeError, ValueError):
-            return CommandCheck(None, f'{which} thruster command {rps!r} is not a number: '
-                                'ignored')
-        if problem := lim.check_thruster(rps, f'{which} thruster'):
-            return CommandCheck(None, f'{problem}: ignored')
-        if abs(rps) > lim.thruster_max_rps:
-            clamped = math.copysign(lim.thruster_max_rps, rps)
-            return CommandCheck(clamped, f'{which} thruster command {rps:g} rev/s beyond the '
-                                f'{lim.thruster_max_rps:g} rev/s limit: clamped')
-        return CommandCheck(rps)
+        channel = f'{which}_thruster'
+        if channel not in self.command_limits:
+            model = f'{self.ship.model} model' if self.ship.model else 'model'
+            return CommandCheck(None, f"{which} thruster command: the ship's {model} has no "
+                                'thrusters')
+        return self.check_command(channel, rps)
 
     def set_thruster(self, which: str, rps: float) -> str:
         """Apply a thruster command ('bow' or 'stern', validated); a problem or ''."""

@@ -25,9 +25,9 @@ import math
 from typing import cast, Sequence
 
 from mmg_tuner.core import frames
-from mmg_tuner.core.channels import TABLE
+from mmg_tuner.core.channels import ENVIRONMENT, TABLE
 from mmg_tuner.core.geodesy import ALT_MAX_M, Datum, datum_from_fixes, geodetic_to_enu
-from mmg_tuner.core.limits import ANGLE_PLAUSIBLE_RAD, InputLimits, RUDDER_HARD_CAP_RAD
+from mmg_tuner.core.limits import GENERIC_LIMITS, InputLimits
 from mmg_tuner.data.bag import RawRecording, Series
 from mmg_tuner.data.consistency import (check_motion, clock_resets, cuts, Motion,
                                         reset_findings, split_at, unusable_reason,
@@ -43,31 +43,14 @@ MIN_SAMPLES = 10
 MAX_SAMPLES = 20_000_000  # ~230 days at 1 s: more means corrupt stamps
 LAG_MIN_R2 = 0.5  # below it the yaw model explains too little to date the commands
 MAX_WIND_MS = 100.0  # no anemometer reading beyond it is wind (the strongest gusts ~110 m/s)
-# no thruster turns faster: a model's reaches ~30 rev/s, a ship's a few; more is a unit error
-MAX_THRUSTER_RPS = 200.0
-# what no recording of another actuator's channel can show, by the channel's unit (a shaft speed,
-# an angle beyond one turn: degrees read as radians)
-PLAUSIBLE_BY_UNIT = {'rev/s': MAX_THRUSTER_RPS, 'rad': ANGLE_PLAUSIBLE_RAD}
 
 
-# Without a ship the readers still refuse what no ship can do (a unit error, corrupt data);
-# with one (load_trials(..., limits=input_limits(ship))) the ranges are the ship's own.
-GENERIC_LIMITS = InputLimits(
-    rpm_max=1e5, rudder_max_rad=RUDDER_HARD_CAP_RAD, rudder_plausible_rad=RUDDER_HARD_CAP_RAD,
-    top_speed_ms=50.0, speed_max_ms=100.0, yaw_rate_max_rad_s=2 * math.pi, dt_min_s=1e-3,
-    dt_max_s=60.0, rpm_basis='no ship given: the generic cap of 1e5 rpm')
-
-
+# the readers' plausibility: an input channel's ``recorded`` cap (core/limits.py), the ship's own
+# with one (load_trials(..., limits=input_limits(ship))), else GENERIC_LIMITS
 def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[np.ndarray, str]:
     """(mask of samples no ship of these limits can show, what is wrong with them)."""
     v = s.values
     none = np.zeros(len(v), dtype=bool)
-    if role == 'rudder':
-        return (np.abs(v[:, 0] * tm.factor('rudder')) > lim.rudder_plausible_rad,
-                f'|rudder| > {math.degrees(lim.rudder_plausible_rad):.0f} deg')
-    if role == 'rpm':
-        return (np.abs(v[:, 0] * tm.factor('rpm')) > lim.rpm_max,
-                f'|rpm| > {lim.rpm_max:.0f} ({lim.rpm_basis})')
     if role == 'odom' and s.msgtype == NAVSATFIX:  # lat, lon [deg], alt [m], status
         return ((np.abs(v[:, 0]) > 90) | (np.abs(v[:, 1]) > 180) | (v[:, 3] < 0)
                 | (np.abs(v[:, 2]) > ALT_MAX_M),
@@ -89,13 +72,13 @@ def _implausible(s: Series, role: str, tm: TopicMap, lim: InputLimits) -> tuple[
                      f'{math.degrees(lim.yaw_rate_max_rad_s):.0f} deg/s')
     if role == 'wind':
         return np.hypot(v[:, 0], v[:, 1]) > MAX_WIND_MS, f'wind > {MAX_WIND_MS:g} m/s'
-    if role in THRUSTER_ROLES:
-        return (np.abs(v[:, 0] * tm.factor(role)) > MAX_THRUSTER_RPS,
-                f'|{role}| > {MAX_THRUSTER_RPS:g} rev/s')
-    cap = PLAUSIBLE_BY_UNIT.get(TABLE[role].unit) if role in TABLE else None
-    if cap is not None:   # another actuator's channel: a shaft speed or an angle
-        return (np.abs(v[:, 0] * tm.factor(role)) > cap,
-                f'|{role}| > {cap:g} {TABLE[role].unit}')
+    if role in TABLE and role not in ENVIRONMENT:   # an input channel: its recording cap
+        c = lim.channel(role)
+        if math.isfinite(c.recorded):
+            cap = f'{math.degrees(c.recorded):.0f} deg' if c.unit == 'rad' else \
+                f'{c.recorded:.6g} {c.unit}'
+            why = f' ({c.basis})' if c.recorded == c.limit else ''
+            return np.abs(v[:, 0] * tm.factor(role)) > c.recorded, f'|{role}| > {cap}{why}'
     return none, ''
 
 

@@ -304,12 +304,13 @@ class SimNode(Node):
         if self.channel_topics:
             return ', '.join(f'{ch} on {self.channel_topics[ch]} clamped to +-{c.limit:.4g} '
                              f'{c.unit}' for ch, c in self.sim.command_limits.items())
-        lim = self.sim.limits
-        rpm = f'[-{lim.rpm_max:.0f}, {lim.rpm_max:.0f}]' if lim.astern_rpm else \
-            f'(0, {lim.rpm_max:.0f}]'
-        thr = f'thrusters clamped to +-{lim.thruster_max_rps:g} rev/s' if lim.thrusters else \
-            'no thrusters'
-        return (f'rpm in {rpm}, rudder clamped to +-{math.degrees(lim.rudder_max_rad):.1f} '
+        lim = self.sim.command_limits
+        rpm, rudder = lim['rpm'], lim['rudder']
+        rng = f'(0, {rpm.limit:.0f}]' if rpm.forward_only else \
+            f'[-{rpm.limit:.0f}, {rpm.limit:.0f}]'
+        thr = f'thrusters clamped to +-{lim["bow_thruster"].limit:g} rev/s' \
+            if self.sim.limits.thrusters else 'no thrusters'
+        return (f'rpm in {rng}, rudder clamped to +-{math.degrees(rudder.limit):.1f} '
                 f'deg, {thr}')
 
     @staticmethod
@@ -358,16 +359,10 @@ class SimNode(Node):
 
     # ---- commands -----------------------------------------------------------------------
     def _on_rudder(self, msg: Float64) -> None:
-        c = self.sim.check_rudder(msg.data)
-        if c.value is not None:
-            self.sim.set_rudder(c.value)
-        self._command_received('rudder', c.value, c.problem)
+        self._on_channel('rudder', msg)
 
     def _on_rpm(self, msg: Float64) -> None:
-        c = self.sim.check_rpm(msg.data)
-        if c.value is not None:
-            self.sim.set_rpm(c.value)
-        self._command_received('rpm', c.value, c.problem)
+        self._on_channel('rpm', msg)
 
     def _on_thruster(self, which: str, msg: Float64) -> None:
         name = f'{which}_thruster'
@@ -379,13 +374,10 @@ class SimNode(Node):
                 self.get_logger().warn(f'{c.problem} ({self.sim.ship.name}); further {name} '
                                        'commands are ignored silently (see /diagnostics)')
             return
-        c = self.sim.check_thruster(which, msg.data)
-        if c.value is not None:
-            self.sim.set_thruster(which, c.value)
-        self._command_received(name, c.value, c.problem)
+        self._on_channel(name, msg)
 
     def _on_channel(self, channel: str, msg: Float64) -> None:
-        """Take one thruster command of a craft commanded per thruster (checked, clamped)."""
+        """Take one command of a channel (checked against its limit, clamped)."""
         c = self.sim.check_command(channel, msg.data)
         if c.value is not None:
             self.sim.set_command(channel, c.value)

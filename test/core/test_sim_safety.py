@@ -35,22 +35,25 @@ def test_limits_are_physical_and_consistent(suzaku, kvlcc2):
         lim = input_limits(ship)
         assert lim is input_limits(ship)  # cached
         # a generous multiple of the service rpm, far below a unit error (rad/s or rev/s)
-        assert 3 * service_rpm < lim.rpm_max < 20 * service_rpm
-        assert lim.rpm_max == pytest.approx(2 * self_propulsion_rpm(ship, lim.top_speed_ms))
-        assert lim.rudder_max_rad == ship.max_rudder_rad
-        assert lim.rudder_max_rad < lim.rudder_plausible_rad <= math.pi / 2
+        rpm, rudder = lim.channels['rpm'], lim.channels['rudder']
+        assert 3 * service_rpm < rpm.limit < 20 * service_rpm
+        assert rpm.limit == pytest.approx(2 * self_propulsion_rpm(ship, lim.top_speed_ms))
+        assert rpm.forward_only and rpm.plausible == rpm.recorded == rpm.limit
+        assert rudder.limit == ship.max_rudder_rad
+        assert rudder.limit < rudder.plausible == rudder.recorded <= math.pi / 2
         froude = lim.top_speed_ms / math.sqrt(9.80665 * ship.L_pp)
         assert froude == pytest.approx(0.5)
         assert lim.dt_min_s <= 0.1 <= lim.dt_max_s
         # the largest accepted command held in a straight run never looks like divergence
         # (steady speed about Fn 1.0 against the Fn 1.5 cap: no knife-edge)
         T = 2001
-        traj = simulate(ship, [0, 0, 0, 1.0, 0, 0], np.tile([lim.rpm_max, 0.0], (T, 1)), 0.5,
+        traj = simulate(ship, [0, 0, 0, 1.0, 0, 0], np.tile([rpm.limit, 0.0], (T, 1)), 0.5,
                         'rk4')
         speed = np.hypot(traj['u'], traj['v'])
         assert traj.ok and np.all(np.isfinite(speed)) and speed.max() < 0.8 * lim.speed_max_ms
-        assert lim.check_rpm(lim.rpm_max) == '' and lim.check_rpm(2 * lim.rpm_max)
-        assert lim.check_rudder(1e308) and lim.check_rudder(math.nan)
+        assert rpm.problem(rpm.limit) == '' and rpm.problem(2 * rpm.limit)
+        assert rudder.problem(1e308) and rudder.problem(math.nan)
+        assert 'clamped' in rudder.check(2 * rudder.limit - 1e-9)[1]
 
 
 def test_huge_rpm_commands_never_give_a_nan_state(suzaku):
@@ -94,14 +97,15 @@ def test_divergence_within_the_limits_resets_with_a_diagnostic(kvlcc2):
     instability, not a marginal one): reset with the reason, never NaN.
     """
     lim = input_limits(kvlcc2)
+    rpm_max, rudder_max = lim.channels['rpm'].limit, lim.channels['rudder'].limit
     sim = ShipSimulator(kvlcc2, dt=lim.dt_max_s, x0=[0, 0, 0, 1.0, 0, 0], rpm=700.0,
                         rudder_rad=0.0, integrator='euler')
-    assert sim.set_rpm(lim.rpm_max) == '' and sim.set_rudder(lim.rudder_max_rad) == ''
+    assert sim.set_rpm(rpm_max) == '' and sim.set_rudder(rudder_max) == ''
     ok = [sim.step(10) for _ in range(200)]
     assert not all(ok)
     f = sim.failure
     assert f.reason.startswith(('implausible state', 'diverged', 'surge'))
-    assert f.rpm == lim.rpm_max and f.time_s > 0
+    assert f.rpm == rpm_max and f.time_s > 0
     assert all(math.isfinite(v) for v in f.last_state)
     assert np.all(np.isfinite(sim.s))
 
@@ -137,13 +141,14 @@ floats = st.one_of(st.sampled_from(NASTY), st.floats(allow_nan=True, allow_infin
 def test_any_command_sequence_keeps_the_state_finite_and_plausible(sim, cmds):
     sim.reset()
     lim = sim.limits
+    rpm_max, rudder_max = lim.channels['rpm'].limit, lim.channels['rudder'].limit
     for rpm, rudder in cmds:
         p_rpm = sim.set_rpm(rpm)
         p_rud = sim.set_rudder(rudder)
-        assert 0 < sim.rpm <= lim.rpm_max and abs(sim.rudder) <= lim.rudder_max_rad
-        if not (math.isfinite(rpm) and 0 < rpm <= lim.rpm_max):
+        assert 0 < sim.rpm <= rpm_max and abs(sim.rudder) <= rudder_max
+        if not (math.isfinite(rpm) and 0 < rpm <= rpm_max):
             assert p_rpm  # refused with a reason, never silently
-        if not (math.isfinite(rudder) and abs(rudder) <= lim.rudder_max_rad):
+        if not (math.isfinite(rudder) and abs(rudder) <= rudder_max):
             assert p_rud
         ok = sim.step(20)
         assert ok or sim.failure is not None
@@ -169,11 +174,11 @@ def esso():
 
 
 def test_astern_rpm_is_accepted_only_where_the_family_covers_it(suzaku, esso):
-    lim = input_limits(esso)
-    assert lim.astern_rpm and not input_limits(suzaku).astern_rpm
-    assert lim.check_rpm(-lim.rpm_max) == '' and lim.check_rpm(0.0) == ''
-    assert 'exceeds the plausible' in lim.check_rpm(-2 * lim.rpm_max)
-    assert 'not finite' in lim.check_rpm(-math.inf)
+    rpm = input_limits(esso).channels['rpm']
+    assert not rpm.forward_only and input_limits(suzaku).channels['rpm'].forward_only
+    assert rpm.problem(-rpm.limit) == '' and rpm.problem(0.0) == ''
+    assert 'beyond the plausible' in rpm.problem(-2 * rpm.limit)
+    assert 'not finite' in rpm.problem(-math.inf)
     # the lowspeed ship backs down from rest with its propeller astern
     sim = ShipSimulator(esso, dt=0.1, x0=[0, 0, 0, 0.0, 0, 0], rpm=0.0)
     assert sim.set_rpm(-600.0) == '' and sim.rpm == -600.0
@@ -182,7 +187,7 @@ def test_astern_rpm_is_accepted_only_where_the_family_covers_it(suzaku, esso):
     assert sim.s[3] < -0.04 and sim.s[0] < -0.6
     # SUZAKU (container family) still refuses it with the clear message, and holds its rpm
     z = ShipSimulator(suzaku, dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0)
-    assert '<= 0 is outside the MMG model' in z.set_rpm(-50.0) and z.rpm == 106.0
+    assert '<= 0 is outside the model' in z.set_rpm(-50.0) and z.rpm == 106.0
     with pytest.raises(SimulationError, match='surge'):
         ShipSimulator(suzaku, dt=0.1, x0=[0, 0, 0, 0.0, 0, 0], rpm=106.0)
 
@@ -201,9 +206,10 @@ def test_thrusters_turn_the_lowspeed_ship_and_are_validated(esso):
     assert abs(still) < 0.01 and bow > 0.3 and stern < -0.3
     sim = ShipSimulator(esso, dt=0.1, x0=[0, 0, 0, 0.0, 0, 0], rpm=0.0)
     lim = sim.limits
-    assert lim.thruster_max_rps == 30.0  # steering.max_thruster_rps of the YAML
+    thr_max = lim.channels['bow_thruster'].limit
+    assert thr_max == 30.0  # steering.max_thruster_rps of the YAML
     assert sim.set_thruster('bow', 10.0) == ''
-    for bad in (math.nan, math.inf, -math.inf, 1e308, 2.5 * lim.thruster_max_rps):
+    for bad in (math.nan, math.inf, -math.inf, 1e308, 2.5 * thr_max):
         assert 'ignored' in sim.set_thruster('bow', bad) and sim.bow == 10.0, bad
     assert 'clamped' in sim.set_thruster('stern', -45.0) and sim.stern == -30.0
     sim.reset()
@@ -228,14 +234,15 @@ def test_thrusters_are_refused_for_a_family_without_them(suzaku):
 @given(cmds=st.lists(st.tuples(floats, floats, floats, floats), min_size=1, max_size=4))
 def test_any_lowspeed_command_sequence_keeps_the_state_finite(esso, cmds):
     sim = ShipSimulator(esso, dt=0.1, x0=[0, 0, 0, 0.3, 0, 0], rpm=300.0)
-    lim = sim.limits
+    ch = sim.limits.channels
+    rpm_max, rudder_max, thr_max = (ch[c].limit for c in ('rpm', 'rudder', 'bow_thruster'))
     for rpm, rudder, bow, stern in cmds:
         p = [sim.set_rpm(rpm), sim.set_rudder(rudder), sim.set_thruster('bow', bow),
              sim.set_thruster('stern', stern)]
-        assert abs(sim.rpm) <= lim.rpm_max and abs(sim.rudder) <= lim.rudder_max_rad
-        assert max(abs(sim.bow), abs(sim.stern)) <= lim.thruster_max_rps
+        assert abs(sim.rpm) <= rpm_max and abs(sim.rudder) <= rudder_max
+        assert max(abs(sim.bow), abs(sim.stern)) <= thr_max
         for value, problem in zip((bow, stern), p[2:]):
-            if not (math.isfinite(value) and abs(value) <= lim.thruster_max_rps):
+            if not (math.isfinite(value) and abs(value) <= thr_max):
                 assert problem  # refused or clamped with a reason, never silently
         ok = sim.step(20)
         assert ok or sim.failure is not None

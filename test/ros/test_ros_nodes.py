@@ -126,7 +126,7 @@ def test_bad_commands_reset_and_refused_parameters(ros, sim_proc):
     node.destroy_subscription(sub)
     out = stop(sim_proc)
     assert 'not finite' in out and 'clamped' in out and '<= 0' in out
-    assert 'exceeds the plausible' in out and 'Traceback' not in out
+    assert 'beyond the plausible' in out and 'Traceback' not in out
 
 
 # refused at start (exit 2, one ERROR line) and at run time (a reason)
