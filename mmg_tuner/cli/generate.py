@@ -51,6 +51,7 @@ from mmg_tuner.cli.args import bounded, positive_float
 from mmg_tuner.cli.common import check_run, check_samples, Parser, run_command, SEED, UsageError
 from mmg_tuner.core import maneuvers as mv
 from mmg_tuner.core.limits import input_limits
+from mmg_tuner.core.noise import Sigmas
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import self_propulsion_rpm
 from mmg_tuner.data.assemble import MIN_SAMPLES
@@ -204,6 +205,9 @@ def command(argv: list[str] | None = None) -> int:
         except ConfigError as exc:
             raise UsageError(f'--hull-scale/--scale: {exc}') from None
     kit = trial_kit(ship)
+    if kit is not None and args.from_advice:   # catalogue manoeuvres a diagnosis advised
+        args.rate_hz = float(kit.RATE_HZ) if args.rate_hz is None else args.rate_hz
+        return _from_advice(args, ship, kit.Noise)
     if kit is not None:   # its actuator's own catalogue, channel CSVs, tables
         return _catalogue(args, ship, kit, maneuvers_given)
     if args.only:
@@ -274,10 +278,12 @@ def _write(out: OutputDir, trial: Trial, name: str, storage: str) -> None:
     out.write_text(Path('csv') / f'{name}.csv', trial_csv_text(trial))
 
 
-def _from_advice(args: argparse.Namespace, ship: ShipConfig) -> int:
+def _from_advice(args: argparse.Namespace, ship: ShipConfig,
+                 noise_model: type[Sigmas] = SensorNoise) -> int:
+    """Sail the trials a diagnosis advised (``noise_model``: the craft's sensors)."""
     from mmg_tuner.diagnosis.advice import load_advice, trial_from_spec
     specs = load_advice(args.from_advice)
-    noise = SensorNoise.none() if args.no_noise else SensorNoise()
+    noise = noise_model.none() if args.no_noise else noise_model()
     out = OutputDir.open(args.out, resume=True)
     written: list[str] = []
     try:
@@ -307,8 +313,7 @@ def _catalogue(args: argparse.Namespace, ship: ShipConfig, kit: ModuleType,
                maneuvers_given: bool) -> int:
     """Sail the catalogue the ship's actuator declares; write channel CSVs, tables, trials.yaml."""
     for flag, given in (('--maneuvers', maneuvers_given), ('--rpm', args.rpm),
-                        ('--speed-kn', args.speed_kn), ('--from-advice', args.from_advice),
-                        ('--record-wind', args.record_wind)):
+                        ('--speed-kn', args.speed_kn), ('--record-wind', args.record_wind)):
         if given:
             raise UsageError(f"{flag}: {ship.name} sails its actuator's own catalogue "
                              '(--only NAME ... picks some)')

@@ -70,6 +70,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 import math
+from types import ModuleType
 from typing import Any, Callable, cast, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.effects import EFFECTS
@@ -77,9 +78,9 @@ from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.maneuvers import steered
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate_batch
-from mmg_tuner.data.generate import SensorNoise
+from mmg_tuner.data.generate import SensorNoise, trial_kit
 from mmg_tuner.data.trial import Trial
-from mmg_tuner.errors import DiagnosisError
+from mmg_tuner.errors import DiagnosisError, SimulationError
 from mmg_tuner.tuning.identifiability import jacobian
 from mmg_tuner.tuning.objective import Objective, TrialBatch
 from mmg_tuner.tuning.parameters import ParameterSpace
@@ -189,6 +190,97 @@ class TrialSpec:
                 f'{self.rudder_rate_deg_s:.1f}°/s, record {self.duration_s:.0f} s')
 
 
+@dataclass(frozen=True)
+class CatalogueSpec:
+    """
+    A manoeuvre of the craft's own trial catalogue, by name (its actuator's ``TRIALS``).
+
+    For a craft not steered by a screw and rudder (a twin-azimuth tug, a water-jet) the
+    repertoire is what its actuator declares it sails (``catalogue(ship)``; the protocol in
+    ``core/actuators/__init__.py``). catalogue: the manoeuvre's name; mirror: sailed to the
+    other side (the catalogue module's optional ``mirror(ship, maneuver)``); duration_s: its
+    length [s]; kind: what it is (for the instruction); mirrorable: the catalogue can mirror it
+    (else its held-out twin is the same manoeuvre sailed again).
+    """
+
+    catalogue: str
+    duration_s: float
+    kind: str = ''
+    mirror: bool = False
+    mirrorable: bool = False
+
+    @property
+    def name(self) -> str:
+        return f"advice_{self.catalogue}{'_mirrored' if self.mirror else ''}"
+
+    def instruction(self) -> str:
+        """E.g. 'zigzag_p20deg_5rps of the craft's trial catalogue (zigzag), record 100 s'."""
+        side = ', to the other side' if self.mirror else ''
+        kind = f' ({self.kind})' if self.kind else ''
+        return (f"{self.catalogue} of the craft's trial catalogue{kind}{side}; record "
+                f'{self.duration_s:.0f} s')
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def maneuver(self, ship: ShipConfig) -> tuple[ModuleType, Any]:
+        """Return (the catalogue module, the manoeuvre to sail); DiagnosisError if absent."""
+        kit = trial_kit(ship)
+        found = [m for m in (kit.catalogue(ship) if kit is not None else ())
+                 if m.name == self.catalogue]
+        if kit is None or not found:
+            raise DiagnosisError(f'advice spec: {self.catalogue!r} is no manoeuvre of the trial '
+                                 f"catalogue of {ship.name}'s actuators")
+        m = found[0]
+        if self.mirror:
+            mirror = getattr(kit, 'mirror', None)
+            if mirror is None:
+                raise DiagnosisError(f'advice spec: the trial catalogue of {ship.name} has no '
+                                     f'mirror(): {self.catalogue} cannot be sailed mirrored')
+            m = mirror(ship, m)
+        return kit, m
+
+
+Spec = TrialSpec | CatalogueSpec
+"""A trial the advice can name: a screw-and-rudder manoeuvre or a catalogue one."""
+
+
+def spec_from_dict(d: dict[str, Any]) -> Spec:
+    """Return the spec a diagnosis.json entry describes (either kind)."""
+    if isinstance(d, dict) and 'catalogue' in d:
+        known = {f.name for f in fields(CatalogueSpec)}
+        if set(d) - known:
+            raise DiagnosisError(f'advice spec: unknown field(s) {sorted(set(d) - known)}')
+        try:
+            return CatalogueSpec(**d)
+        except TypeError as exc:
+            raise DiagnosisError(f'advice spec: {exc}') from None
+    return TrialSpec.from_dict(d)
+
+
+def sail(ship: ShipConfig, spec: Spec, dt: float) -> tuple[Trial | None, str]:
+    """
+    Return the trial ``ship`` sails for ``spec`` without noise (None and why when it stops).
+
+    Sampled at dt; a screw-and-rudder manoeuvre by :func:`run_spec`, a catalogue one by the
+    catalogue's ``generate``.
+    """
+    if isinstance(spec, CatalogueSpec):
+        kit, m = spec.maneuver(ship)
+        try:
+            truth, _ = kit.generate(ship, m, 1.0 / dt, kit.Noise(), 0)
+        except SimulationError as exc:
+            return None, str(exc)
+        return truth, ''
+    t, states, controls, why = run_spec(ship, spec, dt)
+    return (None if why else Trial(t, states, controls, name=spec.name)), why
+
+
+def replay_inputs(ship: ShipConfig, trial: Trial) -> np.ndarray:
+    """Return the recorded inputs that drive ``ship``'s simulation of ``trial`` (T, n)."""
+    return np.ascontiguousarray(trial.input_array(ship.family.inputs))
+
+
 def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """
@@ -224,8 +316,8 @@ def run_spec(ship: ShipConfig, spec: TrialSpec, dt: float
     return t, out, np.column_stack([rpm, rudder]), why
 
 
-def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
-                    noise: SensorNoise | None = None, seed: int = 0,
+def trial_from_spec(truth: ShipConfig, spec: Spec, rate_hz: float = 1.0,
+                    noise: Any = None, seed: int = 0,
                     name: str | None = None) -> tuple[Trial, Trial]:
     """
     (truth, measured) trial of spec sailed by ``truth`` (its hidden effects acting).
@@ -234,6 +326,17 @@ def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
     """
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise DiagnosisError(f'rate_hz = {rate_hz}: must be a finite number > 0')
+    if isinstance(spec, CatalogueSpec):   # the catalogue's own noise unless one is given
+        kit, m = spec.maneuver(truth)
+        try:
+            tr, measured = kit.generate(truth, m, rate_hz, noise or kit.Noise(), seed)
+        except SimulationError as exc:
+            raise DiagnosisError(f'{name or spec.name}: the advised trial stopped: {exc}') \
+                from None
+        note = [f'generated from advice: {spec.instruction()}']
+        a, b = (Trial(x.t, x.states, name=name or spec.name, inputs=x.inputs,
+                      notes=x.notes + note) for x in (tr, measured))
+        return a, b
     t, states, controls, why = run_spec(truth, spec, 1.0 / rate_hz)
     name = name or spec.name
     if why:
@@ -247,7 +350,7 @@ def trial_from_spec(truth: ShipConfig, spec: TrialSpec, rate_hz: float = 1.0,
     return tr, noise.apply(tr, np.random.default_rng(seed + 1))
 
 
-def specs_from_diagnosis(doc: dict[str, Any]) -> list[TrialSpec]:
+def specs_from_diagnosis(doc: dict[str, Any]) -> list[Spec]:
     """
     Return the advised trials of a diagnosis.json document (its 'advice' list), each once.
 
@@ -257,7 +360,7 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[TrialSpec]:
     if not isinstance(doc, dict) or not isinstance(doc.get('advice'), list):
         raise DiagnosisError("no 'advice' list in the diagnosis document (a diagnosis.json of "
                              'this version, written by diagnose)')
-    out: list[TrialSpec] = []
+    out: list[Spec] = []
     for i, a in enumerate(doc['advice']):
         if isinstance(a, dict) and a.get('degenerate'):
             continue   # no trial settles it: its best trial is a record, not advice
@@ -268,7 +371,7 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[TrialSpec]:
                                  f'{SPEC_VERSION}')
         pair = [a['spec']] + ([a['pair']] if isinstance(a.get('pair'), dict) else [])
         for d in pair:   # the advised trial, then its mirror (one tuned on, one held out)
-            s = TrialSpec.from_dict(d)
+            s = spec_from_dict(d)
             if s not in out:
                 out.append(s)
     return out
@@ -276,19 +379,29 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[TrialSpec]:
 
 # ------------------------------------------------------------------------------ repertoire
 def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
-               ) -> list[TrialSpec]:
+               ) -> list[Spec]:
     """
     Feasible trials around the recorded operating point (rpm0, speed0).
+
+    A craft whose actuator declares its trial catalogue (``TRIALS``) sails that catalogue
+    (:class:`CatalogueSpec`); a family with neither a catalogue nor a screw and rudder has
+    no repertoire (no trial is advised). Else, for a screw and rudder:
 
     Zigzags of 10, 20 and the largest multiple of 5 deg within the rudder limit, turning circles
     and a pull-out, at 0.8, 1 and 1.2 x rpm0, rpm steps from 0.8 to 1.2 and from 1.2 to 0.5 x
     rpm0 half-way through a zigzag, and a zigzag with the gear at half its rate. Speeds follow
     the rpm (propeller law).
     """
+    kit = trial_kit(ship)
+    if kit is not None:
+        return [CatalogueSpec(m.name, float(m.duration_s), str(getattr(m, 'kind', '')),
+                              mirrorable=hasattr(kit, 'mirror')) for m in kit.catalogue(ship)]
+    if not {'rpm', 'rudder'} <= set(ship.family.inputs):
+        return []
     max_deg = math.degrees(ship.max_rudder_rad)
     rate = math.degrees(ship.rudder_rate_rad_s)
     big = min(35.0, 5.0 * math.floor(max_deg / 5.0))
-    out = []
+    out: list[Spec] = []
     for f in (0.8, 1.0, 1.2):
         rpm, u = rpm0 * f, speed0 * f
         for a in sorted({10.0, 20.0, big}):
@@ -313,24 +426,31 @@ def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
     return out
 
 
-def mirrored(spec: TrialSpec) -> TrialSpec:
-    """Return spec with the rudder to the other side (the advised trial's held-out twin)."""
+def mirrored(spec: Spec) -> Spec:
+    """
+    Return the advised trial's held-out twin: spec to the other side.
+
+    The rudder to the other side; a catalogue manoeuvre mirrored when its catalogue can
+    (``mirror``), else the same manoeuvre sailed again.
+    """
+    if isinstance(spec, CatalogueSpec):
+        return replace(spec, mirror=not spec.mirror) if spec.mirrorable else spec
     return replace(spec, rudder_deg=-spec.rudder_deg)
 
 
 def separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
-               spec: TrialSpec, dt: float, sigma_pos: float, sigma_psi: float) -> float:
+               spec: Spec, dt: float, sigma_pos: float, sigma_psi: float) -> float:
     """
     Return the predicted separation of two parameter vectors on spec (see the module).
 
     0 when the manoeuvre cannot be run, inf when one model diverges on it.
     """
     sa = replace(ship, params=np.asarray(params_a, float))
-    t, states, controls, why = run_spec(sa, spec, dt)
-    if why:
+    trial, why = sail(sa, spec, dt)
+    if trial is None:
         return 0.0
-    return _replay_separation(ship, params_a, params_b, states, controls, dt, sigma_pos,
-                              sigma_psi)
+    return _replay_separation(ship, params_a, params_b, trial.states,
+                              replay_inputs(ship, trial), dt, sigma_pos, sigma_psi)
 
 
 def _replay_separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndarray,
@@ -360,7 +480,7 @@ def residual_scale(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial]
     e_pos, e_psi = [], []
     for t in trials:
         out, _, k_fail = simulate_batch(ship.kind, np.asarray(params)[None], t.states[None, 0],
-                                        t.controls[None], t.dt, None, 'rk4',
+                                        replay_inputs(ship, t)[None], t.dt, None, 'rk4',
                                         max(1, int(math.ceil(t.dt / 0.1))))
         k = int(k_fail[0, 0])
         d = out[0, 0, :k] - t.states[:k]
@@ -373,8 +493,9 @@ def residual_scale(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial]
 
 
 def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float]:
-    """(median rpm, median speed [m/s], median duration [s], dt [s]) of trials."""
-    rpm = float(np.median([np.median(t.controls[:, 0]) for t in trials]))
+    """(median rpm (NaN: none recorded), median speed [m/s], median duration [s], dt [s])."""
+    rpm = float(np.median([np.median(t.inputs['rpm']) if 'rpm' in t.inputs else math.nan
+                           for t in trials]))
     # the speed the ship holds (trials that start near rest would otherwise say ~0)
     u = float(np.median([np.median(t.states[:, 3]) for t in trials]))
     dur = float(np.median([t.t[-1] - t.t[0] for t in trials]))
@@ -382,7 +503,7 @@ def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float
 
 
 def _rival_figures(ship: ShipConfig, rivals: list[dict[str, Any]], trials: Sequence[Trial],
-                   sigma: tuple[float, float], specs: Sequence[TrialSpec], dt: float
+                   sigma: tuple[float, float], specs: Sequence[Spec], dt: float
                    ) -> list[_Item]:
     """Return each rival pair's predicted separation on every spec (0: cannot be run)."""
     sig_pos, sig_psi = sigma
@@ -391,8 +512,9 @@ def _rival_figures(ship: ShipConfig, rivals: list[dict[str, Any]], trials: Seque
         pa, pb = np.asarray(r['params_a'], float), np.asarray(r['params_b'], float)
         seps = np.array([separation(ship, pa, pb, s, dt, sig_pos, sig_psi) for s in specs])
         seps[~np.isfinite(seps)] = 0.0   # a model diverging on it: not a trial to advise
-        recorded = max((_replay_separation(ship, pa, pb, t.states, t.controls, t.dt, sig_pos,
-                                           sig_psi) for t in trials if abs(t.dt - dt) < 1e-9),
+        recorded = max((_replay_separation(ship, pa, pb, t.states, replay_inputs(ship, t), t.dt,
+                                           sig_pos, sig_psi)
+                        for t in trials if abs(t.dt - dt) < 1e-9),
                        default=0.0)
         out.append(_Item(r['about'], r['kind'], seps,
                          recorded if math.isfinite(recorded) else None))
@@ -417,7 +539,7 @@ def advise(ship: ShipConfig, rivals: list[dict[str, Any]], trials: Sequence[Tria
     return [_rival_entry(it, specs) for it in items if np.any(it.figures > 0)]
 
 
-def _rival_entry(it: _Item, specs: Sequence[TrialSpec]) -> dict[str, Any]:
+def _rival_entry(it: _Item, specs: Sequence[Spec]) -> dict[str, Any]:
     order = np.argsort(-it.figures, kind='stable')
     spec, best = specs[order[0]], float(it.figures[order[0]])
     return {'about': it.about, 'kind': it.kind, 'instruction': _twice(spec),
@@ -449,9 +571,9 @@ def suspect_measurement(a: dict[str, Any]) -> dict[str, Any]:
                             f'{SETTLES:g} x the recorded needed); instead: {settle_by}')}
 
 
-def _twice(spec: TrialSpec) -> str:
-    return (spec.instruction() + '; sail it twice, once to each side (one run for tuning, one '
-            'held out)')
+def _twice(spec: Spec) -> str:
+    sides = '' if spec == mirrored(spec) else ', once to each side'
+    return (spec.instruction() + f'; sail it twice{sides} (one run for tuning, one held out)')
 
 
 def _effect_se(jac: np.ndarray, s2: float, n_base: int, j: int, width: float,
@@ -490,7 +612,7 @@ class _Information:
     cannot be run); columns: the base targets (``base_names``), then each probed effect (col).
     """
 
-    specs: list[TrialSpec]
+    specs: list[Spec]
     r_rec: np.ndarray
     r_with: list[np.ndarray | None]
     s2: float
@@ -523,7 +645,7 @@ class _Information:
 
 def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
                  obj: Objective, effects: Sequence[str], trials: Sequence[Trial],
-                 specs: Sequence[TrialSpec] | None = None) -> _Information:
+                 specs: Sequence[Spec] | None = None) -> _Information:
     """
     Linearise where the flag is raised and add each repertoire trial (see the module).
 
@@ -554,12 +676,12 @@ def _information(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     specs = list(repertoire(ship, rpm0, u0, dur) if specs is None else specs)
     r_with: list[np.ndarray | None] = []
     for spec in specs:
-        t, states, controls, why = run_spec(sailer, spec, dt)
-        if why or not np.all(np.isfinite(states)):
+        sailed, _ = sail(sailer, spec, dt)
+        if sailed is None or not np.all(np.isfinite(sailed.states)):
             r_with.append(None)
             continue
-        o = Objective(ship, TrialBatch.from_trials([Trial(t, states, controls, name=spec.name)]),
-                      obj.weights, 0.0, integ, obj.substeps)
+        o = Objective(ship, TrialBatch.from_trials([sailed]), obj.weights, 0.0, integ,
+                      obj.substeps)
         jc, _ = jacobian(o, space, theta, 1e-3)
         r_with.append(cast(np.ndarray, np.linalg.qr(np.vstack([r_rec, jc]), mode='r')))
     n = base.dim
@@ -669,12 +791,10 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     suspect is real. Per-pair entries follow, then per-effect ones ordered by ``rank`` (low
     first; default: as given).
     """
-    if not {'rpm', 'rudder'} <= set(ship.family.channels):
-        # the repertoire is screw-and-rudder manoeuvres (rpm, rudder): none can be sailed by
-        # this family (a twin-azimuth tug), so there is no trial to advise
-        return []
     rpm0, u0, dur, dt = operating_point(trials)
     specs = repertoire(ship, rpm0, u0, dur)
+    if not specs:   # neither a screw and rudder nor a catalogue: no trial to advise
+        return []
     if rivals and sigma is None:
         raise DiagnosisError('advise_all: rival pairs are judged against sigma = (position [m], '
                              'heading [rad]); pass residual_scale(...)')
@@ -709,7 +829,7 @@ def advise_all(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray,
     return out
 
 
-def joint_choice(items: Sequence[_Item], specs: Sequence[TrialSpec]) -> dict[str, Any] | None:
+def joint_choice(items: Sequence[_Item], specs: Sequence[Spec]) -> dict[str, Any] | None:
     """
     Return the one trial for all items (None: fewer than two).
 
@@ -774,7 +894,7 @@ def _settles(res: float, rec: float | None) -> bool:
     return bool(res >= MIN_SEPARATION and (rec is None or res > SETTLES * rec))
 
 
-def load_advice(path: str | Path) -> list[TrialSpec]:
+def load_advice(path: str | Path) -> list[Spec]:
     """Return the advised trials of a diagnosis.json file (errors name the file)."""
     from pathlib import Path
 

@@ -271,3 +271,24 @@ def test_lowspeed_cross_flow_integrals_survive_underflow():
         assert np.isfinite(iy) and np.isfinite(in_) and abs(iy) < 1e-300 and abs(in_) < 1e-300
     iy, in_ = cross_flow_integrals(0.1, 1.0)  # a sign change inside: the closed form still runs
     assert np.isfinite(iy) and iy != 0.0
+
+
+@pytest.mark.parametrize('name', ['suzaku', 'kvlcc2', 'esso_osaka_3m', 'qiuxin_tug',
+                                  'qiuxin_tug_simplified6', 'otter_usv'])
+def test_every_input_channel_has_one_limit_the_simulator_and_readers_share(name):
+    """One table: each input channel's clamp <= command cap <= recording cap, by name or unit."""
+    from mmg_tuner.core.ship import load_ship
+
+    ship = load_ship(name)
+    lim = input_limits(ship)
+    assert set(lim.channels) == set(ship.family.inputs)
+    for ch, c in lim.channels.items():
+        assert c.channel == ch and 0 <= c.limit <= c.plausible <= c.recorded, c
+        value, problem = c.check(c.limit)
+        assert value == c.limit and problem == ''
+        if math.isfinite(c.plausible) and c.plausible > c.limit:   # clamped, said so
+            value, problem = c.check(-(c.limit + c.plausible) / 2)
+            assert value == -c.limit and 'clamped' in problem and c.basis in problem
+        if math.isfinite(c.plausible):   # beyond the cap: refused, said so
+            assert c.check(2 * c.plausible + 1)[0] is None
+    assert lim.channel('bow_thruster').recorded == 200.0   # a topic the model may lack

@@ -8,6 +8,7 @@ that clean data names nothing. The base model starts from the published
 coefficients (the twin's truth): what ``diagnose --ship qiuxin_tug`` does without --params.
 Cost: three tuning and three held-out manoeuvres of 100 s at 2.5 Hz, the quick budget.
 """
+import json
 import math
 
 import mmg_tuner as mt
@@ -176,3 +177,38 @@ def test_a_bollard_table_too_short_for_its_degree_is_refused():
         lo_go.fit_thrust(table, 3)
     with pytest.raises(mt.TuningError, match='not monotone'):
         lo_go.check_bollard_table([0, 4, 8, 12], [0, 7, 2, 60])   # > 5 %: no scatter
+
+
+def test_the_advice_sails_the_tugs_own_catalogue_and_generate_runs_it(tmp_path):
+    """
+    A craft without a screw and rudder is advised from its actuator's catalogue (TRIALS).
+
+    Rivals: the published tug against one with a 3 deg port azimuth offset, judged on a zigzag
+    and a straight run. The advised trial is a catalogue manoeuvre that separates them better
+    than the recorded trials, its held-out twin the same manoeuvre mirrored, and ``generate
+    --from-advice`` sails both as the tug's channel recordings.
+    """
+    from mmg_tuner.cli.generate import command as generate
+    from mmg_tuner.diagnosis.advice import advise, CatalogueSpec, load_advice, mirrored, \
+        repertoire, residual_scale
+
+    tug = mt.load_ship('qiuxin_tug')
+    specs = repertoire(tug, math.nan, 1.0, 100.0)
+    assert [s.catalogue for s in specs] == [m.name for m in twin.catalogue(tug)]
+    assert all(isinstance(s, CatalogueSpec) and mirrored(s).mirror for s in specs)
+    trials = sail(tug, ('zigzag_p20deg_7rps', 'straight_5rps'), 0)
+    offset = tug.with_params({'azimuth_offset_port': math.radians(3.0)})
+    (a,) = advise(tug, [{'about': 'azimuth_offset_port', 'kind': 'indistinguishable',
+                         'params_a': tug.params, 'params_b': offset.params}],
+                  trials, residual_scale(tug, tug.params, trials))
+    assert a['spec']['catalogue'] in {m.name for m in twin.catalogue(tug)}
+    assert a['pair'] == {**a['spec'], 'mirror': True}
+    assert a['separation'] > 1.5 * a['separation_recorded'] and a['settles']
+    (tmp_path / 'diagnosis.json').write_text(json.dumps({'advice': [a]}))
+    assert [s.mirror for s in load_advice(tmp_path)] == [False, True]
+    assert generate(['--ship', 'qiuxin_tug', '--out', str(tmp_path / 'gen'), '--from-advice',
+                     str(tmp_path), '--rate-hz', '2.5']) == 0
+    csvs = sorted(p.name for p in (tmp_path / 'gen' / 'csv').iterdir())
+    assert csvs == sorted(f"advice_{a['spec']['catalogue']}{m}.csv" for m in ('', '_mirrored'))
+    (back,) = mt.load_trials(tmp_path / 'gen' / 'csv' / csvs[0])
+    assert {'n_port', 'azimuth_port'} <= set(back.inputs)

@@ -12,7 +12,7 @@ the ``generate`` command use it through that declaration (the protocol is in
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import TYPE_CHECKING
 
@@ -184,6 +184,15 @@ def _inputs(ship: ShipConfig, n_p: np.ndarray, n_s: np.ndarray, order: np.ndarra
             'azimuth_port': np.full(n_p.size, order[0, 0]),
             'azimuth_stbd': np.full(n_p.size, order[0, 1]),
             'azimuth_cmd_port': order[:, 0], 'azimuth_cmd_stbd': order[:, 1]}
+
+
+def mirror(ship: ShipConfig, m: Maneuver) -> Maneuver:
+    """
+    Return ``m`` sailed to the other side: its steer negated (a straight run is its own).
+
+    The diagnosis's advice sails an advised manoeuvre twice, once to each side.
+    """
+    return replace(m, name=f'{m.name}_mirrored', steer=-m.steer)
 
 
 def generate(ship: ShipConfig, m: Maneuver, rate_hz: float, noise: Noise,
