@@ -11,6 +11,7 @@ from typing import Any, cast, Mapping, Sequence
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.api._common import _as_list, _check, _check_common, _config, _is_int, _write_all
 from mmg_tuner.api.tuning import _check_residual_options
+from mmg_tuner.core.correction import feature_names
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -26,7 +27,7 @@ from mmg_tuner.diagnosis.select import check_trial_sets
 from mmg_tuner.diagnosis.select import diagnose as _diagnose
 from mmg_tuner.diagnosis.settings import (BUDGETS, DiagnosisSettings, MapFn, restart_period,
                                           RETUNE_METHODS)
-from mmg_tuner.errors import DiagnosisError, MissingDependencyError
+from mmg_tuner.errors import ConfigError, DiagnosisError, MissingDependencyError
 from mmg_tuner.learn import require_jax
 from mmg_tuner.tuning.gate import check_before_writing, mark_note
 from mmg_tuner.tuning.gate import markdown as gate_markdown
@@ -446,11 +447,10 @@ def _residual_wanted(dx: 'DiagnosisResult', tune_final: list[Trial],
     if st.get('remaining_is_noise') is not False:
         return False, ('not trained: ' + (st.get('noise') or 'no noise floor to judge what '
                                           'remains against'))
-    fam = dx.ship.family
-    if tuple(fam.inputs[:2]) != ('rpm', 'rudder'):   # the network's features (learn/residual.py)
-        return False, (f"not trained although {st.get('noise')}: the residual network learns "
-                       f'screw-and-rudder ships only; the {fam.name!r} family reads '
-                       + ', '.join(fam.inputs))
+    try:   # a family whose channels a network cannot read (core/correction.py)
+        feature_names(dx.ship.family)
+    except ConfigError as exc:
+        return False, f"not trained although {st.get('noise')}: {exc}"
     try:
         require_jax()
     except MissingDependencyError as exc:

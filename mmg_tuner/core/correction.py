@@ -3,8 +3,9 @@ A learned correction of the accelerations: the hybrid's residual network, evalua
 
 The one sample loop (``integrate.drive``) adds a small MLP's (du, dv_m, dr) to the family's
 accelerations when a network is attached (``learn/residual.py`` trains, stores and loads it).
-The network sees a window of the most recent samples (the current one included) of
-:data:`FEATURES`, each standardised and ordered oldest first, and its output is held over the
+The network sees a window of the most recent samples (the current one included) of its
+family's features (:func:`feature_names`: the state, the family's first channels by name, the
+apparent wind), each standardised and ordered oldest first, and its output is held over the
 sample interval, as the recorded inputs are. Only NumPy and numba: a ROS install without JAX
 runs trained hybrids.
 """
@@ -18,15 +19,58 @@ from mmg_tuner.core.dynamics import apparent_wind
 from numba import njit
 
 if TYPE_CHECKING:  # annotations only: numba never evaluates them
-    from mmg_tuner.core._jit import FloatArray, IntArray
+    from typing import Sequence
 
+    from mmg_tuner.core._jit import FloatArray, IntArray
+    from mmg_tuner.core.models import Family
+
+N_COMMAND_SLOTS = 4   # command channels a feature row holds (zero where a family has fewer)
 FEATURES: tuple[str, ...] = ('u', 'v', 'r', 'rpm', 'rudder', 'bow_thruster', 'stern_thruster',
                              'wind_u', 'wind_v')
-"""Per-sample inputs of the network: the model state through the water (u, v_m [m/s],
-r [rad/s]), rpm [rev/min], rudder [rad] (recorded), bow and stern thrusters [rev/s] (zero
-when the ship has none) and the apparent wind (the air's velocity relative to the ship) in
-body axes [m/s]."""
+"""Per-sample inputs of a screw-and-rudder ship's network (:func:`feature_names`): the model
+state through the water (u, v_m [m/s], r [rad/s]), rpm [rev/min], rudder [rad] (recorded), bow
+and stern thrusters [rev/s] (zero when the ship has none) and the apparent wind (the air's
+velocity relative to the ship) in body axes [m/s]."""
 N_FEATURES = len(FEATURES)
+
+
+def feature_names(family: Family) -> tuple[str, ...]:
+    """
+    Return the names of a family's feature row: u, v, r, its commands, wind_u, wind_v.
+
+    The command slots hold the family's first N_COMMAND_SLOTS input channels in kernel order
+    (the kernel reads them by position), then empty names (zero) when it has fewer. Each must
+    be always recorded and none beyond the slots may be: a channel that may be NaN (a
+    commanded angle recorded only sometimes) comes after them. Another family has no network
+    (ConfigError naming its channels).
+    """
+    from mmg_tuner.core.channels import TABLE
+    from mmg_tuner.errors import ConfigError
+
+    def always(c: str) -> bool:
+        d = TABLE[c].default
+        return d is None or d == d
+    inputs = family.inputs
+    n = min(N_COMMAND_SLOTS, len(inputs))
+    if not all(always(c) for c in inputs[:n]) or any(always(c) for c in inputs[n:]):
+        raise ConfigError(f'the {family.name!r} family reads {", ".join(inputs)}: a residual '
+                          f'network reads its first {N_COMMAND_SLOTS} channels, each always '
+                          'recorded (the ones that may be NaN after them)')
+    return ('u', 'v', 'r') + inputs[:n] + ('',) * (N_COMMAND_SLOTS - n) + ('wind_u', 'wind_v')
+
+
+def features_fit(names: Sequence[str], family: Family) -> bool:
+    """
+    Whether a network of feature ``names`` reads ``family``'s channels as it was trained to.
+
+    Equal to :func:`feature_names` but for the padding: a slot beyond the family's commands
+    may carry any name the family lacks (networks saved before the names were per family
+    call SUZAKU's empty slots bow_thruster and stern_thruster; zero either way).
+    """
+    own = feature_names(family)
+    if len(names) != len(own):
+        return False
+    return all(a == b or (b == '' and a not in family.inputs) for a, b in zip(names, own))
 
 
 @njit(cache=True, fastmath=FASTMATH)

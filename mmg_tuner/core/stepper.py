@@ -15,6 +15,7 @@ import math
 from typing import Any, Mapping, TYPE_CHECKING
 
 from mmg_tuner.core.actuators import actuator
+from mmg_tuner.core.correction import FEATURES, features_fit
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
 from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
@@ -191,10 +192,11 @@ class ShipSimulator:
         # each command channel's clamp and plausibility cap (one table for every family)
         self.command_limits: dict[str, CommandLimit] = {
             c: self.limits.channels[c] for c in self.command_channels}
-        if residual is not None and not self.rpm_rudder:
-            raise SimulationError(f'{ship.name}: a residual network drives screw-and-rudder '
-                                  f'ships only; the {fam.name!r} family reads '
-                                  f'{", ".join(fam.inputs)}')
+        if residual is not None and not features_fit(
+                getattr(residual, 'features', FEATURES), fam):
+            raise SimulationError(f'{ship.name}: the residual network reads '
+                                  f'{", ".join(getattr(residual, "features", FEATURES))}, '
+                                  f'not the {fam.name!r} family\'s {", ".join(fam.inputs)}')
         lim = self.limits
         try:
             dt = float(dt)

@@ -1394,9 +1394,7 @@ def _advice(ship: ShipConfig, base: ParameterSpace, base_theta: np.ndarray, obj:
     # information a trial adds (a trial the base targets mimic once tuned on settles nothing),
     # linearised where the flag was raised: every single-parameter effect at its smallest
     tuned = base.full_params(ship.params, base_theta)[0]
-    # (no trial advice, so no scale, for a family without rpm and rudder: advice.advise_all)
-    sigma = (residual_scale(ship, tuned, trials)
-             if rival_pairs and {'rpm', 'rudder'} <= set(ship.family.channels) else None)
+    sigma = residual_scale(ship, tuned, trials) if rival_pairs else None
     suspects = [e for e in aliased if e not in impossible]
     out = advise_all(ship, base, base_theta, obj, effects, trials, suspects, rival_pairs, sigma,
                      rank)

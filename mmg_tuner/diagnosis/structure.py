@@ -366,16 +366,19 @@ def regime_values(trial: Trial, states: np.ndarray) -> dict[str, np.ndarray]:
     """
     Per-sample regime coordinates of a trial.
 
-    speed |U| [m/s], drift angle |beta| = |atan2(-v, u)| [deg], |rudder| [deg] and the
-    propeller load n / |u| [rev/min per m/s] (high when the propeller works hard for the
-    speed: accelerating, stopping, slow), from the recorded states and inputs.
+    speed |U| [m/s], drift angle |beta| = |atan2(-v, u)| [deg] and, for a trial with a
+    rudder and rpm, |rudder| [deg] and the propeller load n / |u| [rev/min per m/s] (high
+    when the propeller works hard for the speed: accelerating, stopping, slow), from the
+    recorded states and inputs.
     """
     u, v = states[:, 3], states[:, 4]
-    return {'speed': np.hypot(u, v),
-            'drift angle': np.degrees(np.abs(np.arctan2(-v, u))),
-            'rudder': np.degrees(np.abs(trial['rudder'])),
-            'propeller load': np.abs(trial['rpm']) / np.maximum(np.abs(u), 0.05 * max(
-                float(np.max(np.abs(u))), 1e-6))}
+    out = {'speed': np.hypot(u, v), 'drift angle': np.degrees(np.abs(np.arctan2(-v, u)))}
+    if 'rudder' in trial.inputs:   # a screw and rudder's (another craft: speed and drift)
+        out['rudder'] = np.degrees(np.abs(trial['rudder']))
+    if 'rpm' in trial.inputs:
+        out['propeller load'] = np.abs(trial['rpm']) / np.maximum(np.abs(u), 0.05 * max(
+            float(np.max(np.abs(u))), 1e-6))
+    return out
 
 
 def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Sequence[Trial],
@@ -421,13 +424,13 @@ def learnable(ship: ShipConfig, tune_trials: Sequence[Trial], test_trials: Seque
     # where: per state, and per regime bin (tertiles over the test samples)
     eb_parts: list[np.ndarray] = []
     eh_parts: list[np.ndarray] = []
-    reg_parts: dict[str, list[np.ndarray]] = {k: [] for k in REGIMES}
+    reg_parts: dict[str, list[np.ndarray]] = {}
     res_parts: list[np.ndarray] = []
     for tr, n in zip(test_trials, names):
         eb_parts.append(errors(base.trials[n].predicted, tr.states))
         eh_parts.append(errors(hyb.trials[n].predicted, tr.states))
         for k, x in regime_values(tr, tr.states).items():
-            reg_parts[k].append(x)
+            reg_parts.setdefault(k, []).append(x)
         res_parts.append(simulate_segments(ship, fit.net, tr, 'rk4', restart_every_s)[1])
     eb, eh = np.concatenate(eb_parts), np.concatenate(eh_parts)
     res = np.concatenate(res_parts)
@@ -498,9 +501,10 @@ def plot_learnable(doc: Mapping[str, Any]) -> dict[str, bytes]:
     from mmg_tuner.tuning.report import png_bytes
     reg, res, fin = doc['_plot']
     fig = Figure(figsize=(12, 8))
-    axes = fig.subplots(3, len(REGIMES), sharex='col')
+    regimes = [k for k in REGIMES if k in reg]   # a craft without a rudder: speed and drift
+    axes = fig.subplots(3, len(regimes), sharex='col', squeeze=False)
     for j, (label, unit) in enumerate((('du', 'm/s^2'), ('dv', 'm/s^2'), ('dr', 'rad/s^2'))):
-        for i, k in enumerate(REGIMES):
+        for i, k in enumerate(regimes):
             ax = axes[j, i]
             m = fin & np.isfinite(res[:, j])
             ax.scatter(reg[k][m], res[m, j], s=2, alpha=0.4)

@@ -11,8 +11,9 @@ from pathlib import Path
 
 from mmg_tuner._ship_params import load_ship_with_params
 from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.errors import ConfigError
 from mmg_tuner.learn.plausibility import warn_network_once
-from mmg_tuner.learn.residual import load_residual, model_kind, ResidualNet
+from mmg_tuner.learn.residual import check_fits, load_residual, model_kind, ResidualNet
 
 
 @dataclass(frozen=True)
@@ -49,5 +50,9 @@ def load_model(name_or_path: str | Path = 'suzaku', params_file: str | Path | No
     ship = load_ship_with_params(name_or_path, params_file)
     net = None if params_file is None else load_residual(params_file)
     if net is not None:
+        try:
+            check_fits(net, ship)
+        except ConfigError as exc:
+            raise ConfigError(f'{params_file}: {exc}') from None
         warn_network_once(ship, net, f'{ship.name} with {params_file}')
     return Model(ship, net)

@@ -45,9 +45,9 @@ def network_findings(ship: ShipConfig, net: ResidualNet | None) -> list[Finding]
     """
     Return the warnings on ``ship`` + ``net``'s response to full rudder each way ([] if none).
 
-    [] without a network, for a family without rpm and rudder channels (a network drives
-    screw-and-rudder ships only) and when no rpm holds the service speed (the physics' own
-    check says so).
+    [] without a network, for a family without rpm and rudder channels (the probe is a
+    full rudder; another craft's network is not probed) and when no rpm holds the service
+    speed (the physics' own check says so).
     """
     if net is None or not {'rpm', 'rudder'} <= set(ship.family.channels) or \
             'n_P' not in ship.family.outputs:

@@ -6,9 +6,10 @@ accelerations; with ``physics=False`` the MLP alone gives them (Wakita et al. 20
 network, kept for comparison). As in that paper, the network sees a finite window of the
 most recent samples (the current one included) of
 
-    u, v_m, r (the model state, through the water), rpm [rev/min], rudder [rad] (recorded),
-    bow and stern thrusters [rev/s] and the apparent wind (air velocity relative to the ship)
-    in body axes [m/s]: :data:`FEATURES`,
+    u, v_m, r (the model state, through the water), the family's first four command channels
+    (a screw-and-rudder ship's rpm [rev/min], rudder [rad] and thrusters [rev/s], a tug's shaft
+    speeds and measured azimuths; zero where it has fewer) and the apparent wind (air velocity
+    relative to the ship) in body axes [m/s]: ``core.correction.feature_names``,
 
 each standardised by ``x_mean``/``x_std`` and ordered oldest first. The residual is
 evaluated once per sample from the sampled window and held over the sample interval, as the
@@ -16,11 +17,11 @@ recorded inputs are (zero-order hold; with Euler this is the paper's scheme). Be
 sample of a run the window is padded with that sample; a restart from a measured state takes
 the measured history before it.
 
-The network's input features assume a screw-and-rudder plant (its first inputs rpm and rudder,
-then optional bow and stern thrusters, zero when the ship has none). Only NumPy and numba here
-(a ROS install without JAX runs trained hybrids); training lives in ``learn/train.py``. The
-weights are stored in a portable ``.npz`` (no pickle). The runs step the core's one
-``integrate.advance`` with the network's accelerations.
+A network stores its feature names and is refused for a ship whose family reads other
+channels (:func:`check_fits`). Only NumPy and numba here (a ROS install without JAX runs
+trained hybrids); training lives in ``learn/train.py``. The weights are stored in a portable
+``.npz`` (no pickle). The runs step the core's one ``integrate.advance`` with the network's
+accelerations.
 """
 from __future__ import annotations
 
@@ -34,7 +35,8 @@ from typing import Any, cast, Sequence, TYPE_CHECKING
 from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import json_default, json_loads, load_yaml, read_npz
 from mmg_tuner.core._jit import FASTMATH
-from mmg_tuner.core.correction import feature_row, FEATURES, N_FEATURES, window_residual
+from mmg_tuner.core.correction import (feature_names, feature_row, FEATURES, features_fit,
+                                       N_COMMAND_SLOTS, N_FEATURES, window_residual)
 from mmg_tuner.core.correction import mlp_forward  # noqa: F401  (re-exported: the tests')
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.integrate import (drive, has_measured_wind, input_row, N_ENV, RECORD,
@@ -75,7 +77,10 @@ class ResidualNet:
     added to the network's output, 1.0 (True) = physics + residual (hybrid), 0.0 (False) =
     the network alone (Wakita et al. 2022 Type-1), between for an ensemble of hybrid and pure
     networks (:func:`~mmg_tuner.learn.train.ensemble`: the hybrids' share); seed: the
-    training seed; meta: training facts (trials, epochs, losses, share, seconds, versions).
+    training seed; meta: training facts (trials, epochs, losses, share, seconds, versions);
+    features: the names of a feature row (``core.correction.feature_names`` of the family it
+    was trained for): a ship whose family reads other channels is refused
+    (:func:`check_fits`).
     """
 
     window: int
@@ -88,6 +93,7 @@ class ResidualNet:
     physics: float = 1.0
     seed: int = 0
     meta: dict[str, Any] = field(default_factory=dict)
+    features: tuple[str, ...] = FEATURES
 
     def __post_init__(self) -> None:
         """Check shapes once, so the compiled kernels never read out of bounds."""
@@ -120,7 +126,7 @@ class ResidualNet:
                   'physics': np.array(self.physics if blend else bool(self.physics)),
                   'seed': np.array(self.seed, np.int64), 'n_layers': np.array(len(self.weights)),
                   'x_mean': self.x_mean, 'x_std': self.x_std, 'y_scale': self.y_scale,
-                  'features': np.array(FEATURES),
+                  'features': np.array(self.features),
                   'meta': np.array(json.dumps(self.meta, default=json_default))}
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             arrays[f'W{i}'] = w
@@ -148,10 +154,10 @@ class ResidualNet:
         if fmt not in (FORMAT, FORMAT_BLEND):
             raise ConfigError(f"{path}: key 'format' = {fmt!r}, expected {FORMAT!r} or "
                               f'{FORMAT_BLEND!r}')
-        feats = tuple(str(f) for f in get('features'))
-        if feats != FEATURES:
-            raise ConfigError(f"{path}: key 'features' = {feats}, this version reads "
-                              f'{FEATURES}')
+        feats = tuple(str(f) for f in np.atleast_1d(get('features')))
+        if len(feats) != N_FEATURES or feats[:3] != FEATURES[:3] or feats[-2:] != FEATURES[-2:]:
+            raise ConfigError(f"{path}: key 'features' = {feats}, this version reads u, v, r, "
+                              f'{N_COMMAND_SLOTS} command channels, wind_u, wind_v')
         try:
             n = int(get('n_layers'))
             meta = json_loads(str(get('meta')), path, what="key 'meta'", limit=1 << 20)
@@ -161,7 +167,8 @@ class ResidualNet:
                       x_mean=np.asarray(get('x_mean'), float),
                       x_std=np.asarray(get('x_std'), float),
                       y_scale=np.asarray(get('y_scale'), float),
-                      physics=float(get('physics')), seed=int(get('seed')), meta=meta)
+                      physics=float(get('physics')), seed=int(get('seed')), meta=meta,
+                      features=feats)
         except ConfigError as exc:
             msg = str(exc).replace('<ResidualNet>', str(path))
             raise ConfigError(msg if msg.startswith(str(path)) else f'{path}: {msg}') from None
@@ -353,6 +360,20 @@ def trial_rows(ship: ShipConfig, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
     return rows, ms
 
 
+def check_fits(net: ResidualNet, ship: ShipConfig) -> None:
+    """
+    Refuse a network trained on other channels than ``ship``'s family reads (ConfigError).
+
+    Its feature names against the family's (``core.correction.features_fit``), both named.
+    """
+    if not features_fit(net.features, ship.family):
+        own = feature_names(ship.family)   # (refuses a family no network can read)
+        raise ConfigError(f'the residual network reads {", ".join(f for f in net.features if f)}'
+                          f'; {ship.name} ({ship.family.name} family) gives '
+                          f'{", ".join(f for f in own if f)}: it was trained for another '
+                          'kind of ship')
+
+
 def _check_dt(net: ResidualNet, dt: float, what: str) -> None:
     if abs(dt - net.dt_s) > 1e-6 * net.dt_s:
         raise SimulationError(f'{what}: sample interval {dt:g} s, but the residual network was '
@@ -379,6 +400,7 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
     inputs = np.ascontiguousarray(trial.input_array(ship.family.channels))
     res = np.full((T, 3), np.nan)
     if net is not None:
+        check_fits(net, ship)
         _check_dt(net, dt, trial.name)
         rows, _ = trial_rows(ship, trial) if restart_every_s is not None else (None, None)
         sizes, flat = net.packed()

@@ -18,7 +18,7 @@ import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import FEATURES, N_FEATURES
+from mmg_tuner.core.correction import feature_names, N_FEATURES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
@@ -264,17 +264,20 @@ def split_validation(trials: list[Trial], fraction: float, window: int
     return train, val
 
 
-def _check_trials(trials: Sequence[Trial], what: str) -> float:
+def _check_trials(trials: Sequence[Trial], what: str, ship: ShipConfig) -> float:
+    """Return the trials' one sample step; refuse none, mixed steps or non-finite features."""
+    channels = [c for c in feature_names(ship.family)[3:-2] if c]
     if not trials:
         raise TuningError(f'train_residual: no {what} trials given')
     dts = {round(t.dt, 9) for t in trials}
     if len(dts) != 1:
         raise TuningError(f'train_residual: {what} trials have different sample steps '
                           f'{sorted(dts)}; resample them on one grid (--dt)')
-    for tr in trials:
-        if not (np.all(np.isfinite(tr.states)) and np.all(np.isfinite(tr.controls))):
+    for tr in trials:   # the channels the network reads (a missing one: its default)
+        inputs = tr.input_array(channels)
+        if not (np.all(np.isfinite(tr.states)) and np.all(np.isfinite(inputs))):
             raise TuningError(f'train_residual: {what} trial {tr.name} has non-finite states '
-                              'or controls')
+                              f'or commands ({", ".join(channels)})')
     return float(dts.pop())
 
 
@@ -325,13 +328,13 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     t_start = time.perf_counter()
     cfg = config
     trials = list(trials)
-    dt = _check_trials(trials, 'training')
+    dt = _check_trials(trials, 'training', ship)
     if validation is None:
         train_trials, val_trials = split_validation(trials, cfg.validation_fraction, cfg.window)
         val_note = f'validation: the last {cfg.validation_fraction:.0%} of each training trial'
     else:
         val_trials = list(validation)
-        if abs(_check_trials(val_trials, 'validation') - dt) > 1e-9:
+        if abs(_check_trials(val_trials, 'validation', ship) - dt) > 1e-9:
             raise TuningError('train_residual: validation trials have a different sample step '
                               f'from the training trials ({dt:g} s)')
         train_trials = trials
@@ -483,8 +486,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                     if cfg.physics else {})
     train_loss = mean_loss(model, w_tr, wt_tr)
     weights, biases = model.export()
+    features = feature_names(ship.family)
     net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
-                      cfg.seed)
+                      cfg.seed, features=features)
     share, parts = _share(net, tr_arrs, F, teacher_residuals)
     share_by_group = {}
     if groups is not None:
@@ -494,7 +498,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             Fg = np.concatenate([F[off[i]:off[i + 1]] for i in ks])
             share_by_group[g] = _share(net, [tr_arrs[i] for i in ks], Fg, teacher_residuals)[0]
     seconds = time.perf_counter() - t_start
-    meta = {'ship': ship.name, 'model': ship.model, 'features': list(FEATURES),
+    meta = {'ship': ship.name, 'model': ship.model, 'features': list(features),
             'trials': [t.name for t in train_trials],
             'validation': [t.name for t in val_trials], 'windows_train': len(w_tr),
             'windows_val': len(w_va), 'horizon_samples': H, 'stride_samples': stride,
@@ -509,7 +513,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
                     'the states x, y, psi, u, v, r of ((simulated - measured) / sigma)^2'}
     net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
-                      cfg.seed, meta)
+                      cfg.seed, meta, features)
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,
                        physics_train if cfg.physics else None,
                        physics_val if cfg.physics else None, best_epoch, notes, val_by_group,
@@ -538,11 +542,12 @@ def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
     a = nets[0]
     for i, n in enumerate(nets[1:], 1):
         same = (n.window == a.window and n.dt_s == a.dt_s and len(n.weights) == len(a.weights)
-                and all(x.shape == y.shape for x, y in zip(n.weights[:-1], a.weights[:-1])))
+                and all(x.shape == y.shape for x, y in zip(n.weights[:-1], a.weights[:-1]))
+                and n.features == a.features)
         if not same:
             raise ConfigError(f'ensemble: network {i} (seed {n.seed}) differs from network 0 '
-                              'in window, dt_s, depth or hidden sizes: train them with the '
-                              'same options')
+                              'in window, dt_s, depth, hidden sizes or features: train them '
+                              'with the same options for one ship')
     nets = [a] + [restandardised(n, a.x_mean, a.x_std, a.y_scale) for n in nets[1:]]
     k, L = len(nets), len(a.weights)
     ws: list[np.ndarray] = []
@@ -571,7 +576,7 @@ def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
             'member_output_biases': [np.asarray(n.biases[-1], float).tolist() for n in nets],
             'member_physics': [float(n.physics) for n in nets]}
     return ResidualNet(a.window, a.dt_s, tuple(ws), tuple(bs), a.x_mean, a.x_std, a.y_scale,
-                       float(np.mean([n.physics for n in nets])), a.seed, meta)
+                       float(np.mean([n.physics for n in nets])), a.seed, meta, a.features)
 
 
 def restandardised(net: ResidualNet, x_mean: np.ndarray, x_std: np.ndarray,
@@ -602,7 +607,7 @@ def restandardised(net: ResidualNet, x_mean: np.ndarray, x_std: np.ndarray,
                                         for b in meta['member_output_biases']]
     return ResidualNet(net.window, net.dt_s, tuple(ws), tuple(bs), np.asarray(x_mean, float),
                        np.asarray(x_std, float), np.asarray(y_scale, float), net.physics,
-                       net.seed, meta)
+                       net.seed, meta, net.features)
 
 
 def members(net: ResidualNet) -> list[ResidualNet]:
@@ -640,7 +645,7 @@ def members(net: ResidualNet) -> list[ResidualNet]:
         out.append(ResidualNet(net.window, net.dt_s, tuple(ws), tuple(bs), net.x_mean,
                                net.x_std, net.y_scale, phys[m] if phys else net.physics,
                                int(seeds[m]),
-                               dict(infos[m]) if m < len(infos) else {}))
+                               dict(infos[m]) if m < len(infos) else {}, net.features))
     return out
 
 

@@ -27,13 +27,13 @@ from dataclasses import replace
 import math
 import re
 import time
-from typing import Any, cast, Iterable, Mapping, Sequence, TYPE_CHECKING
+from typing import Any, Callable, cast, Iterable, Mapping, Sequence, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from mmg_tuner.core.actuators import actuator
 from mmg_tuner.core.channels import TABLE as CHANNEL_TABLE
 from mmg_tuner.core.frames import enu_yaw_to_psi
-from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M
+from mmg_tuner.core.limits import DT_MIN_S, POSITION_MAX_M, THRUSTER_CHANNELS
 from mmg_tuner.core.plausibility import checked
 from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
 from mmg_tuner.errors import ConfigError, MmgTunerError
@@ -110,12 +110,12 @@ PARAMS = {
                                        f'command [rev/s, + pushes the {side} to starboard]; '
                                        'only for a model with thrusters', read_only=True)
        for side in THRUSTERS},
-    # a craft commanded channel by channel (a model without a screw and rudder): one
-    # std_msgs/Float64 topic per command channel, in the channel's unit and sign, clamped to
-    # the ship's limit; the topic the actuator declares for it (core/channels.py), relative
+    # one std_msgs/Float64 topic per command channel of any model, in the channel's unit and
+    # sign, clamped to the ship's limit; the topic the actuator declares for it
+    # (core/channels.py), relative, unless a parameter names another
     'command_topics': Param('', 'CHANNEL=TOPIC,... overriding the topic a command channel '
-                            'is read from (default: the topic its actuator declares, relative); '
-                            'only for a model commanded channel by channel', read_only=True),
+                            'is read from (default: its parameter above, else the topic its '
+                            'actuator declares, relative)', read_only=True),
     'joint_states_topic': Param('joint_states', 'sensor_msgs/JointState of the joints the '
                                 "model's actuators declare (position, velocity in their "
                                 "states' units and signs) with the odometry", read_only=True),
@@ -216,44 +216,25 @@ class SimNode(Node):
         if self.p['imu_rate_hz'] > 0:
             pubs['imu'] = self.create_publisher(Imu, self.p['imu_topic'], 10).publish
         self.sensors = SimulatedSensors(self.p, self.sim.dt, pubs, body)
-        # a craft commanded per thruster: channel -> topic (empty for a screw and rudder)
-        self.channel_topics = command_topics(self.sim.command_channels,
-                                             self.p['command_topics']) \
-            if not self.sim.rpm_rudder else {}
+        # channel -> topic: one subscription per command channel, whatever the actuator
+        self.channel_topics = command_topics(self._subscribed(self.sim),
+                                             self.p['command_topics'], self._screw_topics(self.p))
+        for ch, topic in self.channel_topics.items():
+            self.create_subscription(Float64, topic, self._taker(ch), 10)
         self.joint_pub = self._joint_msg = None
-        if self.channel_topics:
-            # (a lambda binding its channel as a default: mypy cannot infer it against the
-            # one-argument callback; below too)
-            for ch, topic in self.channel_topics.items():
-                self.create_subscription(
-                    Float64, topic,
-                    lambda msg, c=ch: self._on_channel(c, msg), 10)  # type: ignore[misc]
-            self._joints = declared_joints(self.sim.ship.family.actuators)
-            if self._joints:
-                self.joint_pub = self.create_publisher(JointState,
-                                                       self.p['joint_states_topic'], 10)
-                self._joint_msg = JointState(name=list(self._joints))
-        else:
-            self.create_subscription(Float64, self.p['rudder_topic'], self._on_rudder, 10)
-            self.create_subscription(Float64, self.p['rpm_topic'], self._on_rpm, 10)
-            for which in THRUSTERS:  # always subscribed: a ship without them says so, once
-                self.create_subscription(
-                    Float64, self.p[f'{which}_thruster_topic'],
-                    lambda msg, w=which: self._on_thruster(w, msg), 10)  # type: ignore[misc]
+        self._joints = declared_joints(self.sim.ship.family.actuators)
+        if self._joints:
+            self.joint_pub = self.create_publisher(JointState, self.p['joint_states_topic'], 10)
+            self._joint_msg = JointState(name=list(self._joints))
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
-        thrusters = self.sim.limits.thrusters
-        if self.channel_topics:
-            commands = {ch: CommandHealth(lim.unit, self.sim.commands[ch])
-                        for ch, lim in self.sim.command_limits.items()}
-        else:
-            commands = {
-                'rudder': CommandHealth('rad', self.sim.rudder),
-                'rpm': CommandHealth('rpm', self.sim.rpm),
-                **{f'{w}_thruster': CommandHealth('rev/s', 0.0, required=False,
-                                                  supported=thrusters) for w in THRUSTERS}}
+        # a channel with a default value (a tunnel thruster) need not be commanded to start
+        commands = {ch: CommandHealth(CHANNEL_TABLE[ch].unit, self.sim.commands.get(ch, 0.0),
+                                      required=CHANNEL_TABLE[ch].default is None,
+                                      supported=ch in self.sim.command_channels)
+                    for ch in self.channel_topics}
         self.health = Health(self.get_fully_qualified_name(), self.sim.ship.name,
                              commands=commands, since=self._steady_s())
         self._unsupported_logged: set[str] = set()
@@ -301,17 +282,36 @@ class SimNode(Node):
 
     def _accepted(self) -> str:
         """Describe the command ranges of the current ship, for the log."""
-        if self.channel_topics:
-            return ', '.join(f'{ch} on {self.channel_topics[ch]} clamped to +-{c.limit:.4g} '
-                             f'{c.unit}' for ch, c in self.sim.command_limits.items())
-        lim = self.sim.command_limits
-        rpm, rudder = lim['rpm'], lim['rudder']
-        rng = f'(0, {rpm.limit:.0f}]' if rpm.forward_only else \
-            f'[-{rpm.limit:.0f}, {rpm.limit:.0f}]'
-        thr = f'thrusters clamped to +-{lim["bow_thruster"].limit:g} rev/s' \
-            if self.sim.limits.thrusters else 'no thrusters'
-        return (f'rpm in {rng}, rudder clamped to +-{math.degrees(rudder.limit):.1f} '
-                f'deg, {thr}')
+        out = []
+        for ch, topic in self.channel_topics.items():
+            c = self.sim.command_limits.get(ch)
+            if c is None:
+                out.append(f'{ch} on {topic}: none (the model has no such input)')
+            elif c.forward_only:
+                out.append(f'{ch} on {topic} in (0, {c.limit:.6g}] {c.unit}')
+            elif c.limit == c.plausible:
+                out.append(f'{ch} on {topic} in [-{c.limit:.6g}, {c.limit:.6g}] {c.unit}')
+            else:
+                deg = f' ({math.degrees(c.limit):.1f} deg)' if c.unit == 'rad' else ''
+                out.append(f'{ch} on {topic} clamped to +-{c.limit:.4g} {c.unit}{deg}')
+        return ', '.join(out)
+
+    @staticmethod
+    def _subscribed(sim: ShipSimulator) -> tuple[str, ...]:
+        """
+        Return the command channels subscribed for ``sim``'s ship.
+
+        Its own; a screw-and-rudder ship also both tunnel thrusters (a ship without them says
+        so, once: a ship swapped in by the ``ship`` parameter may have them).
+        """
+        extra = THRUSTER_CHANNELS if sim.rpm_rudder else ()
+        return tuple(dict.fromkeys(sim.command_channels + extra))
+
+    @staticmethod
+    def _screw_topics(p: Mapping[str, Any]) -> dict[str, str]:
+        """Return the screw-and-rudder channels' topics their own parameters name."""
+        return {'rudder': p['rudder_topic'], 'rpm': p['rpm_topic'],
+                **{f'{w}_thruster': p[f'{w}_thruster_topic'] for w in THRUSTERS}}
 
     @staticmethod
     def _frames(p: Mapping[str, Any]) -> tuple[str, str, str]:
@@ -358,26 +358,20 @@ class SimNode(Node):
                 self.stamp0, world, odom)]))
 
     # ---- commands -----------------------------------------------------------------------
-    def _on_rudder(self, msg: Float64) -> None:
-        self._on_channel('rudder', msg)
+    def _taker(self, channel: str) -> Callable[[Float64], None]:
+        """Return the subscription callback of ``channel``'s commands."""
+        return lambda msg: self._on_command(channel, msg)
 
-    def _on_rpm(self, msg: Float64) -> None:
-        self._on_channel('rpm', msg)
-
-    def _on_thruster(self, which: str, msg: Float64) -> None:
-        name = f'{which}_thruster'
-        if not self.sim.limits.thrusters:  # one state, logged once per ship: not per message
-            c = self.sim.check_thruster(which, msg.data)
-            self.health.command(name, None, c.problem, self._steady_s())
-            if name not in self._unsupported_logged:
-                self._unsupported_logged.add(name)
-                self.get_logger().warn(f'{c.problem} ({self.sim.ship.name}); further {name} '
+    def _on_command(self, channel: str, msg: Float64) -> None:
+        """Take one command of a channel (checked against its limit, clamped, or refused)."""
+        if channel not in self.sim.command_channels:   # one state, logged once per ship
+            c = self.sim.check_thruster(channel.removesuffix('_thruster'), msg.data)
+            self.health.command(channel, None, c.problem, self._steady_s())
+            if channel not in self._unsupported_logged:
+                self._unsupported_logged.add(channel)
+                self.get_logger().warn(f'{c.problem} ({self.sim.ship.name}); further {channel} '
                                        'commands are ignored silently (see /diagnostics)')
             return
-        self._on_channel(name, msg)
-
-    def _on_channel(self, channel: str, msg: Float64) -> None:
-        """Take one command of a channel (checked against its limit, clamped)."""
         c = self.sim.check_command(channel, msg.data)
         if c.value is not None:
             self.sim.set_command(channel, c.value)
@@ -545,10 +539,7 @@ class SimNode(Node):
 
     def _command_topic(self, which: str) -> str:
         """Return the topic a command channel is subscribed on (for the log)."""
-        if which in self.channel_topics:
-            return self.channel_topics[which]
-        key = {'rudder': 'rudder_topic', 'rpm': 'rpm_topic'}.get(which, f'{which}_topic')
-        return cast(str, self.p.get(key, which))   # (a topic parameter: a string)
+        return self.channel_topics.get(which, which)
 
     def _timeouts(self, now: float) -> None:
         """Zero the shaft speed of each channel silent beyond command_timeout_s (once each)."""
@@ -620,9 +611,9 @@ class SimNode(Node):
             self._spread = EnsembleSpread.of(self.sim, self.p['integrator'])
             self._pending = None
             self.health.hardware_id = self.sim.ship.name
-            for w in THRUSTERS if not self.channel_topics else ():
-                cmd = self.health.commands[f'{w}_thruster']   # the new ship may have some
-                cmd.supported, cmd.value = self.sim.limits.thrusters, 0.0
+            for ch, cmd in self.health.commands.items():   # the new ship may have thrusters
+                if CHANNEL_TABLE[ch].default is not None:
+                    cmd.supported, cmd.value = ch in self.sim.command_channels, 0.0
             self._unsupported_logged.clear()
             self._restart_clock()
             self._window = (self._steady_s(), 0)
@@ -650,13 +641,15 @@ class SimNode(Node):
                                   if names & RESTART_PARAMS else ''))
 
 
-def command_topics(channels: Sequence[str], overrides: str) -> dict[str, str]:
+def command_topics(channels: Sequence[str], overrides: str,
+                   params: Mapping[str, str] | None = None) -> dict[str, str]:
     """
-    Return channel -> command topic for a craft commanded channel by channel.
+    Return channel -> command topic, one per command channel.
 
-    Each channel on the topic its actuator declares (``CHANNELS``' 4th element,
-    core/channels.py), made relative (in the node's namespace), unless ``overrides``
-    (``CHANNEL=TOPIC,...``, the ``command_topics`` parameter) names another.
+    Each channel on the topic ``overrides`` (``CHANNEL=TOPIC,...``, the ``command_topics``
+    parameter) names, else its own parameter's (``params``: ``rudder_topic``, ``rpm_topic``,
+    the thrusters'; as given), else the topic its actuator declares (``CHANNELS``' 4th element,
+    core/channels.py), made relative (in the node's namespace).
     """
     given: dict[str, str] = {}
     for item in overrides.split(','):
@@ -671,6 +664,8 @@ def command_topics(channels: Sequence[str], overrides: str) -> dict[str, str]:
     for ch in channels:
         if ch in given:
             out[ch] = given[ch]
+        elif params and ch in params:
+            out[ch] = params[ch]
         elif ch in CHANNEL_TABLE and CHANNEL_TABLE[ch].topic:
             out[ch] = CHANNEL_TABLE[ch].topic.lstrip('/')
     missing = [c for c in channels if c not in out]

@@ -538,3 +538,131 @@ def test_a_blend_steps_as_the_mean_of_its_hybrid_and_pure_members(suzaku, trial,
     assert back.physics == pytest.approx(2 / 3)
     assert [m.physics for m in members(back)] == [1.0, 1.0, 0.0]
     assert np.allclose(one_steps(members(back)[2]), one_steps(nets[2]), rtol=0, atol=1e-9)
+
+
+# ------------------------------------------------------------- every family, by its channels
+FAMILY_SHIPS = {'container': 'suzaku', 'standard': 'kvlcc2', 'lowspeed': 'esso_osaka_3m',
+                'surge_decoupled_rudder': 'esso_osaka_3m_control',
+                'surge_decoupled': 'qiuxin_tug', 'simplified6': 'qiuxin_tug_simplified6'}
+
+
+def test_the_family_ships_cover_every_family():
+    from mmg_tuner.core.models import families
+    assert set(FAMILY_SHIPS) == {f.name for f in families()}
+
+
+def sailed(ship, T=121, dt=0.2):
+    """
+    Sail ``ship`` without noise under smooth commands of every always-recorded channel.
+
+    At 5 Hz: the simplified6 tug's explicit RK4 diverges at 2 Hz (a stiff model; its
+    catalogue records at 5 Hz).
+    """
+    from mmg_tuner.core.channels import TABLE
+    from mmg_tuner.core.limits import input_limits
+    from mmg_tuner.core.simulate import self_propulsion_rpm
+    lim = input_limits(ship)
+    t = np.arange(T) * dt
+    wave = np.sin(2 * np.pi * t / 40.0)
+    u0 = 0.2 * lim.top_speed_ms
+    inputs = {}
+    for c in ship.family.inputs:
+        d, limit = TABLE[c].default, lim.channels[c].limit
+        if d is not None and d != d:
+            continue   # a channel recorded only sometimes: NaN
+        if c == 'rpm':
+            inputs[c] = np.full(T, self_propulsion_rpm(ship, u0))
+        elif TABLE[c].unit == 'rev/s':   # a drive ahead, a tunnel thruster about zero
+            inputs[c] = 0.3 * limit * (wave if d == 0.0 else 1.0 + 0.2 * wave)
+        else:
+            inputs[c] = 0.5 * min(limit, 0.5) * wave
+    from mmg_tuner.core.simulate import simulate
+    run = simulate(ship, [0.0, 0.0, 0.0, u0, 0.0, 0.0], inputs, dt, 'rk4')
+    assert run.ok, (ship.name, run.status)
+    return run
+
+
+@pytest.mark.parametrize('family', sorted(FAMILY_SHIPS))
+def test_training_simulation_equals_inference_for_every_family(family):
+    """
+    The JAX window simulation equals the compiled hybrid run for every family (1e-9).
+
+    A network of the family's features (its first channels by name: a tug's shaft speeds
+    and azimuths) with a current and an antenna offset, restarted at the same sample.
+    """
+    pytest.importorskip('jax')
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    from mmg_tuner.core.correction import feature_names
+    from mmg_tuner.learn._engine import make_simulator, MLP
+    ship = load_ship(FAMILY_SHIPS[family]).with_params(
+        {'antenna_x': 0.3, 'current_speed': 0.05, 'current_dir': 1.0})
+    trial = sailed(ship)
+    names = feature_names(ship.family)
+    assert names[3:3 + min(4, len(ship.family.inputs))] == ship.family.inputs[:4]
+    net = replace(random_net(dt=trial.dt, scale=1e-3), features=names)
+    k0, H = 40, 20
+    model = MLP([net.n_inputs, 8, 3], jax.random.PRNGKey(0))
+    model = eqx.tree_at(lambda m: [la.weight for la in m.layers] + [la.bias for la in m.layers],
+                        model, [jnp.asarray(x) for x in net.weights + net.biases])
+    sim = make_simulator(ship.kind, ship.params, True, True, trial.dt, net.x_mean, net.x_std,
+                         net.y_scale)
+    b = _window_batch(ship, trial, net, k0, H)
+    obs, res = sim(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
+    ref, _, _, _ = simulate_segments(ship, net, trial, 'rk4', k0 * trial.dt)
+    assert np.max(np.abs(np.asarray(res))) > 1e-5   # the network acts
+    np.testing.assert_allclose(np.asarray(obs)[0], ref[k0 + 1:k0 + H + 1], rtol=1e-9,
+                               atol=1e-9)
+
+
+def test_a_network_trained_for_another_family_is_refused():
+    tug, suzaku = load_ship('qiuxin_tug'), load_ship('suzaku')
+    from mmg_tuner.core.correction import feature_names
+    from mmg_tuner.core.stepper import ShipSimulator
+    from mmg_tuner.learn.residual import check_fits
+    net = replace(random_net(dt=0.5), features=feature_names(tug.family))
+    check_fits(net, tug)
+    with pytest.raises(ConfigError, match='n_port.*suzaku.*rpm, rudder'):
+        check_fits(net, suzaku)
+    with pytest.raises(SimulationError, match='n_port'):
+        ShipSimulator(suzaku, dt=0.5, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0, residual=net)
+    sim = ShipSimulator(tug, dt=0.5, x0=[0, 0, 0, 1.0, 0, 0], residual=net)
+    sim.set_command('n_port', 6.0)
+    sim.set_command('n_stbd', 6.0)
+    assert sim.step(20) and np.all(np.isfinite(sim.s))
+
+
+def test_a_tug_hybrid_trains_saves_and_drives_the_node_stepper(tmp_path):
+    """
+    Train, save and run the hybrid of a craft without a screw and rudder, end to end.
+
+    Trained through the JAX simulation on the tug's catalogue (a thrust scale the physics
+    lacks), its features the tug's channels by name, saved and loaded, run by
+    ``simulate_hybrid`` and the stepper.
+    """
+    pytest.importorskip('jax')
+    from mmg_tuner.core.actuators import twin_azimuth_trials as twin
+    from mmg_tuner.core.stepper import ShipSimulator
+    from mmg_tuner.learn import ResidualConfig, train_residual
+
+    tug = load_ship('qiuxin_tug')
+    truth = tug.with_params({'thrust_scale_port': 0.8})
+    cat = {m.name: m for m in twin.catalogue(tug)}
+    trials = [twin.generate(truth, cat[n], 2.5, twin.Noise(), i)[1]
+              for i, n in enumerate(('zigzag_p20deg_7rps', 'turning_p20deg_7rps',
+                                     'differential_1'))]
+    fit = train_residual(tug, trials, config=ResidualConfig(
+        window=2, hidden=(8,), horizon_s=10.0, epochs=5, patience=5, seed=0))
+    net = fit.net
+    assert net.features[3:7] == ('n_port', 'n_stbd', 'azimuth_port', 'azimuth_stbd')
+    net.save(tmp_path / 'tug.npz')
+    back = ResidualNet.load(tmp_path / 'tug.npz')
+    assert back.features == net.features
+    run = simulate_hybrid(tug, back, trials[0])
+    assert run.ok and np.all(np.isfinite(run.states))
+    sim = ShipSimulator(tug, dt=0.4, x0=[0, 0, 0, 1.0, 0, 0], residual=back)
+    sim.set_command('n_port', 7.0)
+    sim.set_command('n_stbd', 7.0)
+    assert sim.step(50) and np.all(np.isfinite(sim.s))
