@@ -80,7 +80,7 @@ class CommandLimit:
     recorded: float = math.inf
     forward_only: bool = False
 
-    def _show(self, value: float) -> str:
+    def show(self, value: float) -> str:
         """Return ``value unit``, with degrees beside radians."""
         deg = f' ({math.degrees(value):.1f} deg)' if self.unit == 'rad' else ''
         return f'{value:.6g} {self.unit}{deg}'
@@ -94,8 +94,9 @@ class CommandLimit:
             return (f'{name} {value:g} {self.unit} <= 0 is outside the model (forward '
                     'revolutions only)')
         if abs(value) > self.plausible:
-            return (f'{name} {self._show(value)} is beyond the plausible '
-                    f'+-{self._show(self.plausible)}'
+            span = f'(0, {self.show(self.plausible)}]' if self.forward_only else \
+                f'+-{self.show(self.plausible)}'
+            return (f'{name} {self.show(value)} is beyond the plausible {span}'
                     + (f' ({self.basis})' if self.plausible == self.limit else ''))
         return ''
 
@@ -109,8 +110,8 @@ class CommandLimit:
             return None, f'{problem}: ignored'
         if abs(value) > self.limit:
             clamped = math.copysign(self.limit, value)
-            return clamped, (f'{self.channel} command {self._show(value)} beyond the '
-                             f'+-{self._show(self.limit)} limit ({self.basis}): clamped to '
+            return clamped, (f'{self.channel} command {self.show(value)} beyond the '
+                             f'+-{self.show(self.limit)} limit ({self.basis}): clamped to '
                              f'{clamped:.6g}')
         return value, ''
 
@@ -216,7 +217,9 @@ def input_limits(ship: ShipConfig) -> InputLimits:
     >>> round(lim.channels['rpm'].limit)   # about 840
 
     """
-    key = (ship.kind, ship.params.tobytes(), ship.max_rudder_rad)
+    steering = ship.extra.get('steering')
+    key = (ship.kind, ship.params.tobytes(), ship.max_rudder_rad, ship.name, ship.source,
+           repr(sorted(steering.items())) if isinstance(steering, dict) else repr(steering))
     lim = _CACHE.get(key)
     if lim is None:
         if len(_CACHE) >= 64:
@@ -276,10 +279,8 @@ def _channel_limits(ship: ShipConfig, channels: Iterable[str], rpm_max: float,
                                    recorded=cap)
         elif unit == 'rev/s':   # a tunnel thruster may go without a YAML limit, a drive not
             rps, basis = _thruster_limit(ship, rpm_max / 60.0 if ch in THRUSTER_CHANNELS
-                                         else 0.0)
-            if rps == 0.0:
-                raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps is '
-                                  f'needed to command {ch} (the shaft speed limit, rev/s)')
+                                         else math.inf)
+            # (a drive without one: no limit to clamp to; the simulator refuses to command it)
             out[ch] = CommandLimit(ch, unit, rps, THRUSTER_PLAUSIBLE_FACTOR * rps, basis,
                                    recorded=RECORDED_RPS_MAX)
         elif unit == 'rad':
@@ -310,13 +311,15 @@ def _thruster_limit(ship: ShipConfig, fallback_rps: float) -> tuple[float, str]:
     """
     Find the thrusters' limit [rev/s] and where it comes from.
 
-    The YAML's ``steering.max_thruster_rps``, else the propeller's plausible maximum (a
-    generous cap that still catches unit errors).
+    The YAML's ``steering.max_thruster_rps``, else ``fallback_rps`` (for a tunnel thruster the
+    propeller's plausible maximum, a generous cap that still catches unit errors; for a drive
+    none: inf).
     """
     steering = ship.extra.get('steering') or {}
     value = steering.get('max_thruster_rps') if isinstance(steering, dict) else None
     if value is None:
-        return fallback_rps, "no steering.max_thruster_rps: the propeller's plausible maximum"
+        return fallback_rps, ('no steering.max_thruster_rps' if fallback_rps == math.inf else
+                              "no steering.max_thruster_rps: the propeller's plausible maximum")
     try:
         rps = float(value)
     except (TypeError, ValueError):

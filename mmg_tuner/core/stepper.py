@@ -15,14 +15,14 @@ import math
 from typing import Any, Mapping, TYPE_CHECKING
 
 from mmg_tuner.core.actuators import actuator
-from mmg_tuner.core.correction import FEATURES, features_fit
+from mmg_tuner.core.correction import FEATURES, features_fit, N_COMMAND_SLOTS
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
 from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
 from mmg_tuner.core.limits import CommandLimit, input_limits, InputLimits
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
-from mmg_tuner.errors import SimulationError
+from mmg_tuner.errors import ConfigError, SimulationError
 from numba import njit
 import numpy as np
 
@@ -192,6 +192,10 @@ class ShipSimulator:
         # each command channel's clamp and plausibility cap (one table for every family)
         self.command_limits: dict[str, CommandLimit] = {
             c: self.limits.channels[c] for c in self.command_channels}
+        for c, lim_c in self.command_limits.items():
+            if lim_c.unit == 'rev/s' and not math.isfinite(lim_c.limit):
+                raise ConfigError(f'{ship.source or ship.name}: steering.max_thruster_rps is '
+                                  f'needed to command {c} (the shaft speed limit, rev/s)')
         if residual is not None and not features_fit(
                 getattr(residual, 'features', FEATURES), fam):
             raise SimulationError(f'{ship.name}: the residual network reads '
@@ -218,18 +222,16 @@ class ShipSimulator:
         if self.rpm_rudder:
             rpm, rudder_rad = float(rpm), float(rudder_rad)
             for name, value in (('rpm', rpm), ('rudder', rudder_rad)):
-                c = self.check_command(name, value)
-                if c.problem:   # an initial command is a setting: refused, never clamped
-                    raise SimulationError(f'{ship.name}: initial {c.problem}')
+                if problem := self._initial_problem(name, value):
+                    raise SimulationError(f'{ship.name}: initial {problem}')
         else:   # rpm and rudder mean nothing here: the initial commands come from ``commands``
             rpm = rudder_rad = math.nan
         self.rpm0 = rpm
         self.rudder0 = rudder_rad
         self._cmd0 = dict(self._cmd)
         for name, value in (commands or {}).items():
-            c = self.check_command(name, value)
-            if c.problem:   # an initial command is a setting: refused, never clamped
-                raise SimulationError(f'{ship.name}: initial {c.problem}')
+            if problem := self._initial_problem(name, value):
+                raise SimulationError(f'{ship.name}: initial {problem}')
             self._cmd0[name] = float(value)
         self._last = np.empty(6)
         self._obs = np.empty(6)
@@ -240,6 +242,27 @@ class ShipSimulator:
         self.reset()
         if self.failures:  # the very first step failed: refuse the settings
             raise SimulationError(f'{ship.name}: the first step fails ({self.failure})')
+
+    def _initial_problem(self, channel: str, value: Any) -> str:
+        """
+        Say why ``value`` cannot be ``channel``'s initial command ('' if it can).
+
+        An initial command is a setting: beyond the channel's limit it is refused, not
+        clamped (ValueError for a channel the family is not commanded by).
+        """
+        if channel not in self.command_limits:
+            self.check_command(channel, 0.0)   # the ValueError naming the family's commands
+        c = self.command_limits[channel]
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            return f'{channel} command {value!r} is not a number'
+        if problem := c.problem(v):
+            return problem
+        if abs(v) > c.limit:
+            return (f'{channel} command {c.show(v)} is outside the +-{c.show(c.limit)} '
+                    f'limit ({c.basis})')
+        return ''
 
     def _check_x0(self, x0: npt.ArrayLike | None) -> np.ndarray:
         lim = self.limits
@@ -459,8 +482,7 @@ class ShipSimulator:
         while done < n:
             if (self.steps + done) % self._every == 0:
                 self._acc = self._residual.accelerations(
-                    s, (self.rpm, self.rudder, self.bow, self.stern),
-                    apparent_wind_body(self.ship, s))
+                    s, self._feature_commands, apparent_wind_body(self.ship, s))
             chunk = min(n - done, self._every - (self.steps + done) % self._every)
             status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
                                          self.method, chunk,
@@ -470,6 +492,18 @@ class ShipSimulator:
             if status != OK:
                 return status, done
         return OK, n
+
+    @property
+    def _feature_commands(self) -> tuple[float, ...]:
+        """
+        Return the network's command slots: the family's first channels, as held.
+
+        In kernel order (``core.correction.feature_names``); a measured angle's slot holds
+        the angle commanded (offline, the recorded one: they differ by the drive's lag).
+        """
+        names = self.ship.family.inputs[:N_COMMAND_SLOTS]
+        return tuple(self._cmd.get(c, 0.0) for c in names) + \
+            (0.0,) * (N_COMMAND_SLOTS - len(names))
 
     def observed(self) -> np.ndarray:
         """x, y, psi, u, v, r as measured (antenna position, velocities over ground)."""

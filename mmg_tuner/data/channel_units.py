@@ -31,9 +31,11 @@ RPM_PER_RPS = 60.0
 def _limit(ship: ShipConfig, channel: str) -> CommandLimit | None:
     """Return the ship's command limit of ``channel`` (None: the YAML gives none to judge by)."""
     try:
-        return command_limits(ship, (channel,))[channel]
-    except ConfigError:   # a shaft speed without steering.max_thruster_rps: nothing to judge by
+        lim = command_limits(ship, (channel,))[channel]
+    except ConfigError:   # a bad YAML value: the loaders say so; nothing to judge by here
         return None
+    # (a shaft speed without steering.max_thruster_rps has no limit: nothing to judge by)
+    return lim if math.isfinite(lim.limit) else None
 
 
 def shaft_speed_warning(column: str, values: np.ndarray, max_rps: float,

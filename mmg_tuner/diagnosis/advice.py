@@ -76,6 +76,7 @@ from typing import Any, Callable, cast, Sequence, TYPE_CHECKING
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.core.layout import EFFECT_NEUTRAL
 from mmg_tuner.core.maneuvers import steered
+from mmg_tuner.core.noise import Sigmas
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import simulate_batch
 from mmg_tuner.data.generate import SensorNoise, trial_kit
@@ -234,10 +235,10 @@ class CatalogueSpec:
         m = found[0]
         if self.mirror:
             mirror = getattr(kit, 'mirror', None)
-            if mirror is None:
-                raise DiagnosisError(f'advice spec: the trial catalogue of {ship.name} has no '
-                                     f'mirror(): {self.catalogue} cannot be sailed mirrored')
-            m = mirror(ship, m)
+            m = mirror(ship, m) if mirror is not None else None
+            if m is None:
+                raise DiagnosisError(f'advice spec: the trial catalogue of {ship.name} cannot '
+                                     f'mirror {self.catalogue}')
         return kit, m
 
 
@@ -370,10 +371,13 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[Spec]:
             raise DiagnosisError(f"advice[{i}]: spec version {a.get('version')} is not "
                                  f'{SPEC_VERSION}')
         pair = [a['spec']] + ([a['pair']] if isinstance(a.get('pair'), dict) else [])
+        added = False
         for d in pair:   # the advised trial, then its mirror (one tuned on, one held out)
             s = spec_from_dict(d)
-            if s not in out:
+            # a twin equal to its trial (no other side) is sailed again: a second run
+            if s not in out or (added and d is not pair[0] and s == out[-1]):
                 out.append(s)
+                added = True
     return out
 
 
@@ -394,8 +398,10 @@ def repertoire(ship: ShipConfig, rpm0: float, speed0: float, duration_s: float
     """
     kit = trial_kit(ship)
     if kit is not None:
+        mirror = getattr(kit, 'mirror', None)
         return [CatalogueSpec(m.name, float(m.duration_s), str(getattr(m, 'kind', '')),
-                              mirrorable=hasattr(kit, 'mirror')) for m in kit.catalogue(ship)]
+                              mirrorable=mirror is not None and mirror(ship, m) is not None)
+                for m in kit.catalogue(ship)]
     if not {'rpm', 'rudder'} <= set(ship.family.inputs):
         return []
     max_deg = math.degrees(ship.max_rudder_rad)
@@ -469,14 +475,16 @@ def _replay_separation(ship: ShipConfig, params_a: np.ndarray, params_b: np.ndar
 
 
 def residual_scale(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial],
-                   noise: SensorNoise | None = None) -> tuple[float, float]:
+                   noise: Sigmas | None = None) -> tuple[float, float]:
     """
     (sigma_pos [m], sigma_psi [rad]).
 
     The RMS position and heading residual of params on trials (replayed from their first sample),
     or the sensor noise when larger.
     """
-    noise = SensorNoise() if noise is None else noise
+    if noise is None:   # the craft's sensors (its catalogue's), else a ship's
+        kit = trial_kit(ship)
+        noise = kit.Noise() if kit is not None else SensorNoise()
     e_pos, e_psi = [], []
     for t in trials:
         out, _, k_fail = simulate_batch(ship.kind, np.asarray(params)[None], t.states[None, 0],
@@ -488,8 +496,8 @@ def residual_scale(ship: ShipConfig, params: np.ndarray, trials: Sequence[Trial]
         e_psi.append(((d[:, 2] + math.pi) % (2 * math.pi) - math.pi) ** 2)
     pos = math.sqrt(float(np.mean(np.concatenate(e_pos)))) if e_pos else 0.0
     psi = math.sqrt(float(np.mean(np.concatenate(e_psi)))) if e_psi else 0.0
-    return (max(pos, noise.position_m / ship.scale_ratio, 1e-9),
-            max(psi, noise.heading_rad, 1e-9))
+    return (max(pos, float(getattr(noise, 'position_m', 0.0)) / ship.scale_ratio, 1e-9),
+            max(psi, float(getattr(noise, 'heading_rad', 0.0)), 1e-9))
 
 
 def operating_point(trials: Sequence[Trial]) -> tuple[float, float, float, float]:

@@ -23,6 +23,11 @@ class Model:
     ship: ShipConfig
     residual: ResidualNet | None = None
 
+    def __post_init__(self) -> None:
+        """Refuse a network trained for a family that reads other channels."""
+        if self.residual is not None:
+            check_fits(self.residual, self.ship)
+
     @property
     def kind(self) -> str:
         """'physics', 'hybrid', 'pure network' or 'blend' (:func:`~.residual.model_kind`)."""

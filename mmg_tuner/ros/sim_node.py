@@ -176,6 +176,7 @@ RESTART_PARAMS = {'ship', 'params_file', 'dt', 'integrator', 'initial_x', 'initi
                   'initial_yaw', 'initial_speed', 'initial_rpm', 'initial_rudder'}
 BUSY_FRACTION = 0.8  # of each timer period spent stepping at most: the executor stays served
 CHUNK_STEPS = 50     # steps per compiled call between deadline checks (~0.2 ms with RK4)
+SHOWN_UNIT = {'rev/min': 'rpm'}   # a channel unit as /diagnostics and the log show it
 _NUMBER = re.compile(r'[-+]?\d[\d.e+-]*')
 FAILURE_LOG_S = 5.0  # [s] at most one divergence ERROR per this wall time
 
@@ -231,7 +232,10 @@ class SimNode(Node):
         self.add_post_set_parameters_callback(self._apply)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         # a channel with a default value (a tunnel thruster) need not be commanded to start
-        commands = {ch: CommandHealth(CHANNEL_TABLE[ch].unit, self.sim.commands.get(ch, 0.0),
+        # (the propeller's speed shown in rpm, as ships and their crews give it)
+        commands = {ch: CommandHealth(SHOWN_UNIT.get(CHANNEL_TABLE[ch].unit,
+                                                     CHANNEL_TABLE[ch].unit),
+                                      self.sim.commands.get(ch, 0.0),
                                       required=CHANNEL_TABLE[ch].default is None,
                                       supported=ch in self.sim.command_channels)
                     for ch in self.channel_topics}
@@ -285,6 +289,8 @@ class SimNode(Node):
         out = []
         for ch, topic in self.channel_topics.items():
             c = self.sim.command_limits.get(ch)
+            if c is not None:
+                c = replace(c, unit=SHOWN_UNIT.get(c.unit, c.unit))
             if c is None:
                 out.append(f'{ch} on {topic}: none (the model has no such input)')
             elif c.forward_only:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from mmg_tuner.core.layout import STATE_NAMES
-from mmg_tuner.core.stepper import ShipSimulator, THRUSTERS
+from mmg_tuner.core.stepper import ShipSimulator
 from mmg_tuner.learn.model import Model
 from mmg_tuner.tuning.interval import model_interval
 import numpy as np
@@ -56,8 +56,12 @@ class EnsembleSpread:
             return None
         by_name = dict(zip(('x', 'u', 'y', 'v', 'psi', 'r'), iv.scale))   # INDEX_STATES
         scale = np.array([by_name[n] for n in STATE_NAMES])
+        # a craft commanded channel by channel starts from the commands held (at the start:
+        # the initial ones); a screw and rudder from its initial rpm and rudder
+        start = None if sim.rpm_rudder else sim.commands
         members = [ShipSimulator(m.ship, sim.dt, sim.x0, sim.rpm0, sim.rudder0, integrator,
-                                 sim.substeps, residual=m.residual) for m in iv.members]
+                                 sim.substeps, residual=m.residual, commands=start)
+                   for m in iv.members]
         return cls(members, scale, [True] * len(members))
 
     def follow(self, sim: ShipSimulator, run: object) -> None:
@@ -76,9 +80,8 @@ class EnsembleSpread:
         for i, m in enumerate(self.members):
             if not self.alive[i] or m.steps == sim.steps:
                 continue
-            m.rudder, m.rpm = sim.rudder, sim.rpm   # already validated by the simulator
-            for w in THRUSTERS:
-                setattr(m, w, getattr(sim, w))
+            for channel, value in sim.commands.items():   # validated by the simulator
+                m.set_command(channel, value)
             self.alive[i] = m.step(sim.steps - m.steps)
 
     def sigma(self, centre: np.ndarray) -> np.ndarray | None:

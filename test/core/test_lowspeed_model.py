@@ -384,7 +384,10 @@ def test_generic_simulation_with_measured_wind_and_thrusters(p, ship):
         one = simulate(ship, x0, named, dt, method).states
         many, status, _ = simulate_batch(ship.kind, np.stack([p, p]), np.stack([x0, x0]),
                                          np.stack([kernel, kernel]), dt, integrator=method)
-        assert np.array_equal(many[1, 0], one) and np.all(status == 0)
+        # the same loop (integrate.drive) in two compiled callers: equal to rounding (bitwise
+        # in most runs; twice in full suites after 2026-11-29 not, never in isolation)
+        np.testing.assert_allclose(many[1, 0], one, rtol=1e-12, atol=1e-12)
+        assert np.all(status == 0)
     # thruster channels left out mean 0 rev/s
     no_thr = {n: v for n, v in named.items() if 'thruster' not in n}
     zero = {**no_thr, 'bow_thruster': np.zeros(T), 'stern_thruster': np.zeros(T)}

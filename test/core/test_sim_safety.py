@@ -292,3 +292,35 @@ def test_every_input_channel_has_one_limit_the_simulator_and_readers_share(name)
         if math.isfinite(c.plausible):   # beyond the cap: refused, said so
             assert c.check(2 * c.plausible + 1)[0] is None
     assert lim.channel('bow_thruster').recorded == 200.0   # a topic the model may lack
+
+
+def test_a_tug_without_a_shaft_limit_reads_data_but_is_not_commanded_and_limits_follow_the_yaml():
+    """
+    Refuse to command a tug without steering.max_thruster_rps, naming the key.
+
+    Its limits still exist for the readers (no clamp to judge by); a changed limit in the
+    YAML is a new table (the cache is keyed by the steering section).
+    """
+    from dataclasses import replace
+
+    from mmg_tuner.core.ship import load_ship
+    from mmg_tuner.errors import ConfigError
+    tug = load_ship('qiuxin_tug')
+    steering = dict(tug.extra['steering'])
+    bare = replace(tug, extra={**tug.extra, 'steering': {k: v for k, v in steering.items()
+                                                         if k != 'max_thruster_rps'}})
+    lim = input_limits(bare)
+    assert math.isinf(lim.channels['n_port'].limit) and lim.channels['n_port'].recorded == 200
+    with pytest.raises(ConfigError, match='max_thruster_rps is needed to command n_port'):
+        ShipSimulator(bare, dt=0.2, x0=[0, 0, 0, 0.5, 0, 0])
+    slow = replace(tug, extra={**tug.extra, 'steering': {**steering, 'max_thruster_rps': 5.0,
+                                                         'max_azimuth_deg': 10.0}})
+    assert input_limits(slow).channels['n_port'].limit == 5.0
+    assert input_limits(slow).channels['azimuth_port'].limit == pytest.approx(math.radians(10))
+    assert input_limits(tug).channels['n_port'].limit == 12.0
+
+
+def test_an_initial_command_beyond_the_limit_is_refused_and_said_so(suzaku):
+    with pytest.raises(SimulationError, match=r'initial rudder command .* is outside the '
+                                              r'\+-0\.785398 rad \(45\.0 deg\) limit'):
+        ShipSimulator(suzaku, dt=0.1, x0=[0, 0, 0, 3.0, 0, 0], rpm=106.0, rudder_rad=1.0)

@@ -666,3 +666,30 @@ def test_a_tug_hybrid_trains_saves_and_drives_the_node_stepper(tmp_path):
     sim.set_command('n_port', 7.0)
     sim.set_command('n_stbd', 7.0)
     assert sim.step(50) and np.all(np.isfinite(sim.s))
+
+
+def test_the_stepper_feeds_a_tug_network_its_commands_by_name():
+    """The node's stepper hands the network the tug's channels (not a screw's rpm/rudder)."""
+    from mmg_tuner.core.correction import feature_names
+    from mmg_tuner.core.stepper import ShipSimulator
+    tug = load_ship('qiuxin_tug')
+    seen = []
+
+    class Spy:   # the stepper's view of a network: dt_s, physics, features, stepper()
+        dt_s, physics, features = 0.4, 1.0, feature_names(tug.family)
+
+        def stepper(self):
+            return self
+
+        def reset(self, state=None):
+            pass
+
+        def accelerations(self, state, act, wind):
+            seen.append(tuple(act))
+            return 0.0, 0.0, 0.0
+
+    sim = ShipSimulator(tug, dt=0.4, x0=[0, 0, 0, 1.0, 0, 0], residual=Spy())
+    for channel, value in (('n_port', 7.0), ('n_stbd', 6.0), ('azimuth_port', 0.3)):
+        assert sim.set_command(channel, value) == ''
+    assert sim.step(2)
+    assert seen[-1] == (7.0, 6.0, 0.3, 0.0)

@@ -341,7 +341,7 @@ def test_lowspeed_ship_takes_astern_rpm_and_thrusters(ros):
             node.destroy_subscription(s)
         out = stop(proc)
     assert 'Traceback' not in out, out
-    assert 'bow_thruster on bow_thruster clamped to +-30 rev/s' in out, out
+    assert 'bow_thruster on /esso/bow clamped to +-30 rev/s' in out, out
 
 
 def test_ship_without_thrusters_refuses_them_with_one_warning(ros):

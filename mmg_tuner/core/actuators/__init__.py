@@ -44,7 +44,9 @@ How to add an actuator ``myact`` (``tunnel_thrusters.py`` is the shortest templa
      its defaults are the craft's sensors), ``catalogue(ship)`` (dataclasses with ``name``,
      ``role`` ('identification' or 'validation') and ``duration_s``), ``generate(ship, maneuver,
      rate_hz, noise, seed) -> (truth, measured)`` and ``tables(ship, noise, seed)`` (name ->
-     (CSV header, rows, description), written beside the trials).
+     (CSV header, rows, description), written beside the trials); optionally ``mirror(ship,
+     maneuver)`` (the manoeuvre to the other side, None when it has none). The diagnosis
+     advises a trial of this catalogue, its mirror as the held-out twin.
    * optionally ``SYMBOLIC``: the module (beside this one, or a full path) that gives the
      ``export`` command the actuator as CasADi expressions (``twin_azimuth_symbolic.py``:
      ``STATES``, ``INPUTS``, ``ACTING`` and their units, ``REFERENCE_POINT``, ``outputs``,

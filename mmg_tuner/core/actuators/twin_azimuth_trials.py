@@ -186,12 +186,15 @@ def _inputs(ship: ShipConfig, n_p: np.ndarray, n_s: np.ndarray, order: np.ndarra
             'azimuth_cmd_port': order[:, 0], 'azimuth_cmd_stbd': order[:, 1]}
 
 
-def mirror(ship: ShipConfig, m: Maneuver) -> Maneuver:
+def mirror(ship: ShipConfig, m: Maneuver) -> Maneuver | None:
     """
-    Return ``m`` sailed to the other side: its steer negated (a straight run is its own).
+    Return ``m`` sailed to the other side: its steer negated (None: it has no other side).
 
-    The diagnosis's advice sails an advised manoeuvre twice, once to each side.
+    The diagnosis's advice sails an advised manoeuvre twice, once to each side. A straight
+    run has no side, and a random sequence's sign is drawn (its steer is an amplitude).
     """
+    if m.kind in ('straight', 'random') or m.steer == 0.0:
+        return None
     return replace(m, name=f'{m.name}_mirrored', steer=-m.steer)
 
 
