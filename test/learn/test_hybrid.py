@@ -585,7 +585,7 @@ def sailed(ship, T=121, dt=0.2):
 @pytest.mark.parametrize('family', sorted(FAMILY_SHIPS))
 def test_training_simulation_equals_inference_for_every_family(family):
     """
-    The JAX window simulation equals the compiled hybrid run for every family (1e-9).
+    The JAX window simulation equals the compiled hybrid run for every family (1e-12).
 
     A network of the family's features (its first channels by name: a tug's shaft speeds
     and azimuths) with a current and an antenna offset, restarted at the same sample.
@@ -613,8 +613,9 @@ def test_training_simulation_equals_inference_for_every_family(family):
     obs, res = sim(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
     ref, _, _, _ = simulate_segments(ship, net, trial, 'rk4', k0 * trial.dt)
     assert np.max(np.abs(np.asarray(res))) > 1e-5   # the network acts
-    np.testing.assert_allclose(np.asarray(obs)[0], ref[k0 + 1:k0 + H + 1], rtol=1e-9,
-                               atol=1e-9)
+    # measured 2026-11-29: at most 3.6e-15 m apart (the same kernel, JAX's own kinematics)
+    np.testing.assert_allclose(np.asarray(obs)[0], ref[k0 + 1:k0 + H + 1], rtol=1e-12,
+                               atol=1e-12)
 
 
 def test_a_network_trained_for_another_family_is_refused():
