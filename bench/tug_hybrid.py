@@ -77,3 +77,7 @@ def main(argv: list[str] | None = None) -> dict:
     return {'index_physics': mp, 'index_hybrid': mh, 'runs_better': better,
             'runs_scored': len(ok), 'share': float(fit.share), 'epochs': int(fit.epochs),
             'train_s': seconds, 'seed': args.seed, 'trials': rows}
+
+
+if __name__ == '__main__':
+    main()
