@@ -370,14 +370,15 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[Spec]:
         if a.get('version', SPEC_VERSION) != SPEC_VERSION:
             raise DiagnosisError(f"advice[{i}]: spec version {a.get('version')} is not "
                                  f'{SPEC_VERSION}')
-        pair = [a['spec']] + ([a['pair']] if isinstance(a.get('pair'), dict) else [])
-        added = False
-        for d in pair:   # the advised trial, then its mirror (one tuned on, one held out)
-            s = spec_from_dict(d)
-            # a twin equal to its trial (no other side) is sailed again: a second run
-            if s not in out or (added and d is not pair[0] and s == out[-1]):
-                out.append(s)
-                added = True
+        spec = spec_from_dict(a['spec'])
+        fresh = spec not in out
+        if fresh:
+            out.append(spec)
+        if isinstance(a.get('pair'), dict):   # its twin: one run tuned on, one held out
+            twin = spec_from_dict(a['pair'])
+            # a twin equal to its trial (no other side) is the same manoeuvre sailed again
+            if twin not in out or (fresh and twin == spec):
+                out.append(twin)
     return out
 
 
