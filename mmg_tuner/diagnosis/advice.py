@@ -375,10 +375,10 @@ def specs_from_diagnosis(doc: dict[str, Any]) -> list[Spec]:
         if fresh:
             out.append(spec)
         if isinstance(a.get('pair'), dict):   # its twin: one run tuned on, one held out
-            twin = spec_from_dict(a['pair'])
-            # a twin equal to its trial (no other side) is the same manoeuvre sailed again
-            if twin not in out or (fresh and twin == spec):
-                out.append(twin)
+            held_out = spec_from_dict(a['pair'])
+            # one equal to its trial (no other side) is the same manoeuvre sailed again
+            if held_out not in out or (fresh and held_out == spec):
+                out.append(held_out)
     return out
 
 
