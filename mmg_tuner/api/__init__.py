@@ -33,8 +33,8 @@ from mmg_tuner.api.diagnosing import (diagnose, DiagnoseConfig, DiagnosisResult,
 from mmg_tuner.api.evaluating import evaluate, EvaluateConfig, simulate
 from mmg_tuner.api.identifying import identify, IdentifyConfig
 from mmg_tuner.api.loading import load_model, load_ship, load_trials
-from mmg_tuner.api.tuning import (Fit, MODEL_CHOICES, RESIDUAL_FILE, RESIDUAL_KINDS, tune,
-                                  TuneConfig, TuneResult)
+from mmg_tuner.api.tuning import (Fit, INDEX_WEIGHTS, MODEL_CHOICES, RESIDUAL_FILE,
+                                  RESIDUAL_KINDS, tune, TuneConfig, TuneResult)
 # the results and names the workflows return or take, from where they are defined
 from mmg_tuner.core.effects import EFFECTS
 from mmg_tuner.data.trial import Trial
@@ -49,4 +49,4 @@ __all__ = ['BUDGETS', 'Cause', 'DiagnoseConfig', 'DiagnosisResult', 'Fit', 'Mode
            'load_trials', 'simulate',
            'tune', 'EvaluateConfig', 'EvaluateResult', 'evaluate', 'IdentifyConfig',
            'IdentifyResult', 'identify', 'split_alternate', 'config_fields', 'Trial', 'EFFECTS',
-           'MODEL_CHOICES', 'RESIDUAL_FILE', 'RESIDUAL_KINDS']
+           'INDEX_WEIGHTS', 'MODEL_CHOICES', 'RESIDUAL_FILE', 'RESIDUAL_KINDS']

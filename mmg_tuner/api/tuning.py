@@ -11,6 +11,7 @@ from typing import Any, Callable, cast, Mapping, Sequence
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.api._common import (_as_list, _check, _check_common, _config, _finite, _is_int,
                                    _write_all, config_fields)
+from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MissingDependencyError, MmgTunerError, TuningError
@@ -18,7 +19,7 @@ from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, ResidualNet, 
 from mmg_tuner.learn.model import Model
 from mmg_tuner.learn.train import members, split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
-from mmg_tuner.tuning.evaluate import compare_index
+from mmg_tuner.tuning.evaluate import compare_index, evaluate, pooled_sigma
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
 from mmg_tuner.tuning.gate import check_before_writing, mark_note
 from mmg_tuner.tuning.gate import markdown as gate_markdown
@@ -26,12 +27,16 @@ from mmg_tuner.tuning.interval import calibrate_interval, with_interval
 from mmg_tuner.tuning.lsq import local_least_squares
 from mmg_tuner.tuning.objective import Objective, paper_weights
 from mmg_tuner.tuning.parameters import ParameterSpace
+from mmg_tuner.tuning.prior_cv import (
+    choose_prior, folds, label, PriorChoice, PUBLISHED, sessions, TIE)
 from mmg_tuner.tuning.report import (json_text, markdown_report, params_yaml_text, plot_trials,
                                      unique_names)
 from mmg_tuner.tuning.tuner import Progress, Tuner, TuningResult
 import numpy as np
 
 
+INDEX_WEIGHTS = 'index'
+"""TuneConfig.weights: 1 / sigma^2 of each state pooled over the trials fitted."""
 logger = logging.getLogger('mmg_tuner.api')   # one logger for the API, as before the split
 
 
@@ -42,7 +47,9 @@ class TuneConfig:
 
     targets: parameter names to tune (default: the ship's); a_r: relative box half-width
     (default: the ship's, 0.5); bounds: per-parameter a_r or (lower, upper); weights: six
-    non-negative error weights on x, y, psi, u, v, r (default: the paper's L, L, pi/4, 0, 0, 0);
+    non-negative error weights on x, y, psi, u, v, r (default: the paper's L, L, pi/4, 0, 0, 0;
+    'index': 1 / sigma^2 of each state pooled over the trials fitted, the standardisation of
+    the index ``evaluate`` scores with);
     shoot_every_s: restart from the recorded state every H s (0: never); popsize / max_popsize /
     max_evals: IPOP-CMA-ES budget; seed: a whole number. residual: None, 'hybrid' (after the
     tuning, train a neural residual on the tuning trials: ``tune --residual``) or 'network'
@@ -64,13 +71,16 @@ class TuneConfig:
     recommended one; with residual_seeds >= 2 the chosen network's ensemble carries a
     prediction interval calibrated there, ``tuning/interval.py``). polish: after CMA-ES, a
     local least-squares polish of at most this many simulations on the same objective's
-    residuals (``tuning/lsq.py``; 0: none).
+    residuals (``tuning/lsq.py``; 0: none). prior_choices: prior weights to choose from by
+    cross-validation over sessions (days) of the tuning trials, the published values always
+    a candidate (``tuning/prior_cv.py``; the choice and its table are in the result's
+    ``prior_choice``); empty: use ``prior``.
     """
 
     targets: tuple[str, ...] | None = None
     a_r: float | None = None
     bounds: Mapping[str, float | tuple[float, float]] = field(default_factory=dict)
-    weights: tuple[float, ...] | None = None
+    weights: tuple[float, ...] | str | None = None
     shoot_every_s: float = 0.0
     integrator: str = 'euler'
     substeps: int = 1
@@ -86,6 +96,7 @@ class TuneConfig:
     prior: float = 0.0
     model: str = 'physics'
     polish: int = 0
+    prior_choices: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         E = TuningError
@@ -104,6 +115,13 @@ class TuneConfig:
                'groups)', E)
         _check('prior', self.prior, _finite(self.prior) and self.prior >= 0,
                'a finite number >= 0 (0: no prior)', E)
+        object.__setattr__(self, 'prior_choices', tuple(self.prior_choices))
+        _check('prior_choices', self.prior_choices,
+               all(_finite(w) and float(w) >= 0 for w in self.prior_choices),
+               'finite numbers >= 0 (the prior weights to choose from by leaving days out; '
+               'empty: use prior)', E)
+        _check('prior_choices', self.prior_choices, not self.prior_choices or not self.prior,
+               f'empty with prior = {self.prior:g} (give one weight or the choices)', E)
         if self.targets is not None:
             object.__setattr__(self, 'targets', tuple(self.targets))
         for name, b in dict(self.bounds).items():
@@ -111,13 +129,16 @@ class TuneConfig:
                 len(b) == 2 and all(_finite(x) for x in b) and float(b[0]) < float(b[1]))
             _check(f'bounds[{name!r}]', b, ok, 'a finite a_r > 0 or (lower, upper) with '
                    'lower < upper', E)
-        if self.weights is not None:
+        if self.weights is not None and not isinstance(self.weights, str):
             w = tuple(float(x) if _finite(x) else math.nan for x in self.weights)
             _check('weights', self.weights, len(w) == 6 and all(x >= 0 for x in w),
                    'six finite numbers >= 0 (x, y, psi, u, v, r)', E)
             _check('weights', self.weights, any(x > 0 for x in w),
                    'not all zero (J would be 0 for every candidate)', E)
             object.__setattr__(self, 'weights', w)
+        _check('weights', self.weights, not isinstance(self.weights, str)
+               or self.weights == INDEX_WEIGHTS,
+               f'six numbers >= 0 or {INDEX_WEIGHTS!r} (1 / sigma^2 of each state)', E)
         _check('shoot_every_s', self.shoot_every_s,
                _finite(self.shoot_every_s) and self.shoot_every_s >= 0,
                'a finite number >= 0 [s] (0: never)', E)
@@ -138,10 +159,21 @@ class TuneConfig:
                'model its restarts: max_evals=0 and shoot_every_s cancel each other, nothing '
                'would tune)', E)
 
-    def objective_spec(self) -> ObjectiveSpec:
-        """Return what CMA-ES minimises, for the one objective factory (tuning/factory.py)."""
-        return ObjectiveSpec(self.weights, self.shoot_every_s, self.integrator, self.substeps,
-                             self.segment_s, self.balance, self.prior)
+    def objective_spec(self, trials: Sequence[Trial] = ()) -> ObjectiveSpec:
+        """
+        Return what CMA-ES minimises, for the one objective factory (tuning/factory.py).
+
+        ``trials``: those fitted, for weights 'index' (1 / sigma^2 pooled over them).
+        """
+        weights = self.weights
+        if weights == INDEX_WEIGHTS:
+            if not trials:
+                raise TuningError("weights 'index' needs the trials to pool sigma over")
+            sig = pooled_sigma(trials)
+            weights = tuple(1.0 / max(sig[n], 1e-12) ** 2 for n in STATE_NAMES)
+        return ObjectiveSpec(cast('tuple[float, ...] | None', weights), self.shoot_every_s,
+                             self.integrator, self.substeps, self.segment_s, self.balance,
+                             self.prior)
 
 
 @dataclass
@@ -214,6 +246,7 @@ class TuneResult:
     residual: ResidualResult | None = None   # tune --residual / --residual-only
     choice: Choice | None = None             # tune --model auto: the candidates compared
     choice_notes: list[str] = field(default_factory=list)
+    prior_choice: PriorChoice | None = None  # prior_choices: the days-out cross-validation
 
     @property
     def tuned_ship(self) -> ShipConfig:
@@ -248,7 +281,8 @@ class TuneResult:
             'restarts': self.restarts, 'wall_s': float(self.wall_s),
             'interrupted': self.interrupted,
             'settings': {'a_r': c.a_r or self.ship.a_r,
-                         'weights': list(c.weights or paper_weights(self.ship.L_pp)),
+                         'weights': (c.weights if isinstance(c.weights, str) else
+                                     list(c.weights or paper_weights(self.ship.L_pp))),
                          'shoot_every_s': c.shoot_every_s, 'integrator': c.integrator,
                          'dt': self.dt, 'seed': c.seed, 'max_evals': c.max_evals,
                          'popsize': [c.popsize, c.max_popsize]},
@@ -256,6 +290,7 @@ class TuneResult:
             'residual': None if self.residual is None else self.residual.report(),
             'model_choice': None if self.choice is None else {
                 **self.choice.to_dict(), 'notes': list(self.choice_notes)},
+            'prior_choice': None if self.prior_choice is None else self.prior_choice.to_dict(),
         }
 
     def write(self, out: str | Path | OutputDir, plots: bool = True,
@@ -277,6 +312,8 @@ class TuneResult:
         params_text = params_yaml_text(self.ship, self.params,
                                        mark_note(f'tuned by mmg_tuner on {names}', marks))
         md = markdown_report(rep) + gate_markdown(marks)
+        if self.prior_choice is not None:
+            md += prior_markdown(self.prior_choice)
         if self.choice is not None:   # --model auto: what was compared, and why this one
             md += ('\n## Model chosen (--model auto)\n\nIndex (Wakita et al. 2022 eq. 26, '
                    'restarts every 100 s) on the last quarter of each tuning trial, mean per '
@@ -343,10 +380,7 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     if not trials:
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
-    spec = cfg.objective_spec()
-    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
-        spec = replace(spec, group_of=dict(groups) if groups else
-                       {n: n for n in unique_names(trials)})
+    spec = cfg.objective_spec(trials)
     names = unique_names(trials + test)
     obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
     sets = {'tune': (obj, names[:len(trials)])}
@@ -357,42 +391,129 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
                 cfg.a_r or ship.a_r)
     if cfg.residual is not None:
         require_jax()   # before any work: says how to install it
-    if cfg.residual == 'network':   # the pure network: no physics to tune
+    prior_choice = None
+    if cfg.prior_choices and cfg.residual != 'network':
+        prior_choice = choose_prior_by_days(ship, trials, cfg, groups)
+        cfg = replace(cfg, prior=prior_choice.prior or 0.0, prior_choices=())
+    if cfg.residual == 'network' or (prior_choice is not None and prior_choice.prior is None):
+        # the pure network, or the published values chosen: no physics to tune
         pre = _fit(sets, ship.params)
         result = TuneResult({n: float(ship[n]) for n in space.names}, pre, pre, [], [], 0, 0,
                             0.0, False, ship, space, cfg, trials, test, obj.batch.dt)
     else:
-        minimised = obj if spec == spec.plain else make_objective(ship, trials, spec, space)
-        t0 = time.perf_counter()
-        tuner = Tuner(space, minimised,
-                      popsize=cfg.popsize, max_popsize=cfg.max_popsize,
-                      max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
-        if cfg.max_evals:
-            res = tuner.run(resume=resume, progress=progress)
-        else:   # the polish alone, from the pre-determined values
-            J_pre = float(minimised(ship.params[None])[0])
-            res = TuningResult(space.pre.copy(), J_pre, 0, 0, 0.0, [], False)
-        theta, evaluations = res.theta, res.evaluations
-        if cfg.polish and not res.interrupted:
-            if spec.shoot_every_s:   # the residual vector has no restarts: not the same J
-                logger.warning('polish skipped: it does not model shoot_every_s restarts')
-            else:
-                loc = local_least_squares(space, minimised, theta, cfg.polish, method='lm')
-                theta, evaluations = loc.theta, evaluations + loc.simulations
-                logger.info('least-squares polish: %d simulations, J %.6g -> %.6g',
-                            loc.simulations, res.J, loc.J)
+        theta, res, evaluations, wall_s = _fit_physics(
+            ship, trials, cfg, space, groups, checkpoint, resume, progress)
         tuned = space.full_params(ship.params, theta)[0]
         result = TuneResult(dict(zip(space.names, map(float, theta))), _fit(sets, tuned),
                             _fit(sets, ship.params), space.on_bound(theta),
-                            list(res.history), evaluations, res.restarts,
-                            res.wall_s + (time.perf_counter() - t0 - res.wall_s
-                                          if cfg.polish else 0.0),
+                            list(res.history), evaluations, res.restarts, wall_s,
                             res.interrupted, ship, space, cfg, trials, test, obj.batch.dt)
+    result.prior_choice = prior_choice
     if cfg.residual is not None and not result.interrupted:
         result.residual = _train_residual(result)
     if cfg.model == 'auto' and not result.interrupted:
         _choose(result, groups)
     return result
+
+
+def _fit_physics(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig, space: ParameterSpace,
+                 groups: Mapping[str, str] | None, checkpoint: str | Path | None = None,
+                 resume: bool = False, progress: Callable[[Progress], None] | None = None
+                 ) -> tuple[np.ndarray, TuningResult, int, float]:
+    """
+    Tune the physics' targets: CMA-ES and/or the least-squares polish (the one fit of ``tune``).
+
+    Returns the tuned targets, CMA-ES's result, the simulations run and the wall time [s].
+    """
+    spec = cfg.objective_spec(trials)
+    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
+        spec = replace(spec, group_of=dict(groups) if groups else
+                       {n: n for n in unique_names(trials)})
+    minimised = make_objective(ship, trials, spec, space)
+    t0 = time.perf_counter()
+    tuner = Tuner(space, minimised,
+                  popsize=cfg.popsize, max_popsize=cfg.max_popsize,
+                  max_evaluations=cfg.max_evals, seed=cfg.seed, checkpoint=checkpoint)
+    if cfg.max_evals:
+        res = tuner.run(resume=resume, progress=progress)
+    else:   # the polish alone, from the pre-determined values
+        J_pre = float(minimised(ship.params[None])[0])
+        res = TuningResult(space.pre.copy(), J_pre, 0, 0, 0.0, [], False)
+    theta, evaluations = res.theta, res.evaluations
+    if cfg.polish and not res.interrupted:
+        if spec.shoot_every_s:   # the residual vector has no restarts: not the same J
+            logger.warning('polish skipped: it does not model shoot_every_s restarts')
+        else:
+            loc = local_least_squares(space, minimised, theta, cfg.polish, method='lm')
+            theta, evaluations = loc.theta, evaluations + loc.simulations
+            logger.info('least-squares polish: %d simulations, J %.6g -> %.6g',
+                        loc.simulations, res.J, loc.J)
+    wall_s = res.wall_s + (time.perf_counter() - t0 - res.wall_s if cfg.polish else 0.0)
+    return theta, res, evaluations, wall_s
+
+
+def choose_prior_by_days(ship: ShipConfig, trials: Sequence[Trial], cfg: TuneConfig,
+                         groups: Mapping[str, str] | None = None) -> PriorChoice:
+    """
+    Choose ``cfg.prior_choices``' weight by leaving sessions (days) out (``tuning/prior_cv.py``).
+
+    Each fold of whole sessions is held out once; the physics is tuned on the rest with each
+    weight as :func:`tune` tunes it, and scored on the fold by the index (restarts every 100 s,
+    sigma pooled over the fold). ``groups``: trial name -> kind of run (the table's columns,
+    and the balance of the fits); default each trial its own kind. Fewer than two sessions:
+    nothing to hold out, the most cautious candidate (the published values) is returned.
+    """
+    trials = list(trials)
+    names = unique_names(trials)
+    by_name = dict(zip(names, trials))
+    kind_of = {n: (groups or {}).get(t.name, n) for n, t in zip(names, trials)}
+    fold_names = folds(sessions(names))
+    priors = sorted({float(w) for w in cfg.prior_choices})
+    held: dict[str, dict[str, float | None]] = {PUBLISHED: {}, **{label(w): {} for w in priors}}
+    if len(fold_names) < 2:
+        logger.warning('prior choices: the trials are one session; nothing to hold out, the '
+                       'published values are kept')
+        return choose_prior(priors, {c: dict.fromkeys(names, 1.0) for c in held}, kind_of,
+                            fold_names)
+    space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
+    fit_cfg = replace(cfg, prior_choices=(), residual=None, model='physics')
+    for i, out in enumerate(fold_names, 1):
+        held_out = [by_name[n] for n in out]
+        rest = [by_name[n] for n in names if n not in out]
+        sig = pooled_sigma(held_out)
+        scored = {PUBLISHED: ship}
+        for w in priors:
+            theta = _fit_physics(ship, rest, replace(fit_cfg, prior=w), space, groups)[0]
+            scored[label(w)] = ship.with_params(dict(zip(space.names, map(float, theta))))
+        for c, model in scored.items():
+            ev = evaluate(model, held_out, 100.0, cfg.integrator, cfg.substeps, sigma=sig)
+            held[c].update({n: ev.trials[t.name].index for n, t in zip(out, held_out)})
+        logger.info('prior choices: fold %d of %d held out (%s): %s', i, len(fold_names),
+                    ', '.join(out), ', '.join(
+                        f'{c} {_mean_index([held[c][n] for n in out])}' for c in held))
+    choice = choose_prior(priors, held, kind_of, fold_names)
+    logger.info('prior choices: %s chosen (worst ratio to published over the kinds %.3f)',
+                choice.chosen, choice.score[choice.chosen])
+    return choice
+
+
+def _mean_index(values: list[float | None]) -> str:
+    return ('failed' if any(v is None for v in values)
+            else f'{np.mean([float(v) for v in values if v is not None]):.3g}')
+
+
+def prior_markdown(choice: PriorChoice) -> str:
+    """Return the report's section on the prior chosen by leaving days out."""
+    return ('\n## Prior chosen by leaving days out (prior choices)\n\nEach fold of whole '
+            'sessions (the date in the trial names) held out once; the physics tuned on the '
+            'rest with each prior weight, scored on the fold (index, Wakita et al. 2022 eq. '
+            '26, restarts every 100 s, sigma pooled over the fold); mean per kind, ratio to '
+            'the published values in brackets; the lowest worst ratio wins, ties within '
+            f'{TIE:g} go to the more cautious (`tuning/prior_cv.py`).\n\n'
+            + choice.markdown() + f'\nChosen: **{choice.chosen}**'
+            + (' (nothing tuned: no weight beat the published values on every kind of '
+               'held-out run)' if choice.prior is None else '')
+            + '.\nFolds: ' + '; '.join(', '.join(f) for f in choice.folds) + '\n')
 
 
 def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:

@@ -73,6 +73,27 @@ def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
             'LO < HI') from None
 
 
+def weight_word(s: str) -> float | str:
+    """Parse one --weights word: a number >= 0 or 'index'."""
+    return s if s == api.INDEX_WEIGHTS else nonneg_float(s)
+
+
+def weights_option(words: list[float | str] | str | None) -> tuple[float, ...] | str | None:
+    """Return --weights (or a recipe's ``weights``) as TuneConfig takes it."""
+    if words is None or isinstance(words, str):
+        return words
+    if any(isinstance(w, str) for w in words):
+        if list(words) == [api.INDEX_WEIGHTS]:
+            return api.INDEX_WEIGHTS
+        given = ' '.join(map(str, words))
+        raise UsageError(f'--weights {given}: six numbers (X Y PSI U V R) or the one word '
+                         f'{api.INDEX_WEIGHTS!r}')
+    if len(words) != 6:
+        raise UsageError(f'--weights: {len(words)} number(s) given; six are needed (X Y PSI U '
+                         f'V R), or the word {api.INDEX_WEIGHTS!r}')
+    return tuple(float(w) for w in words)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog='tune', description=__doc__.strip().split('\n')[0])
     ap.add_argument('trials', nargs='*', help='tuning trials: bags, .mcap, .csv, .dat, folders')
@@ -87,10 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--bound', action='append', default=[], type=bound_spec,
                     metavar='NAME=AR|NAME=LO:HI',
                     help='per-parameter a_r or explicit bounds (repeatable)')
-    ap.add_argument('--weights', nargs=6, type=nonneg_float,
-                    metavar=('X', 'Y', 'PSI', 'U', 'V', 'R'),
-                    help="error weights, >= 0, not all 0 (default: the paper's L_pp, L_pp, "
-                    'pi/4, 0, 0, 0)')
+    ap.add_argument('--weights', nargs='+', type=weight_word, metavar='W',
+                    help="error weights on X Y PSI U V R, >= 0, not all 0 (default: the paper's "
+                    "L_pp, L_pp, pi/4, 0, 0, 0), or 'index': 1 / sigma^2 of each state pooled "
+                    "over the tuning trials (the index's standardisation)")
     ap.add_argument('--shoot-every', type=nonneg_float, default=0.0,
                     help='restart the simulation from the recorded state every H s (0: never)')
     ap.add_argument('--segment', type=nonneg_float, default=0.0, metavar='S',
@@ -102,6 +123,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--prior', type=nonneg_float, default=0.0, metavar='W',
                     help='pull toward the pre-determined values: W x J per sample per squared '
                     'box width (0: none)')
+    ap.add_argument('--prior-choices', type=nonneg_float, nargs='+', default=None, metavar='W',
+                    help='choose the --prior from these weights by leaving days out: each '
+                    'session (the date in the trial names) held out once, the published values '
+                    "always a candidate; the report shows the table (a ship's tuning.recipe may "
+                    'set it; --prior given wins)')
     add_reading_options(ap, DT, 'resample every trial to this step [s]')
     ap.add_argument('--integrator', choices=('euler', 'rk4'), default='euler')
     ap.add_argument('--substeps', type=SUBSTEPS, default=1)
@@ -368,20 +394,22 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
     if 'hidden' in opts:
         opts['hidden'] = tuple(opts['hidden'])
     return api.TuneConfig(targets=args.targets, a_r=args.ar, bounds=dict(args.bound),
-                          weights=tuple(args.weights) if args.weights else None,
+                          weights=weights_option(args.weights),
                           shoot_every_s=args.shoot_every, integrator=args.integrator,
                           substeps=args.substeps, popsize=args.popsize,
                           max_popsize=args.max_popsize, max_evals=args.max_evals,
                           seed=args.seed, segment_s=getattr(args, 'segment', 0.0),
                           balance=getattr(args, 'balance', 'sample'),
-                          prior=getattr(args, 'prior', 0.0), residual=kind, residual_options=opts,
+                          prior=getattr(args, 'prior', 0.0),
+                          prior_choices=tuple(getattr(args, 'prior_choices', None) or ()),
+                          residual=kind, residual_options=opts,
                           residual_seeds=1 if seeds is None else seeds,
                           model=getattr(args, 'model', 'physics'),
                           polish=getattr(args, 'polish', 0))
 
 
-RECIPE_KEYS = ('targets', 'segment', 'balance', 'prior', 'max_evals', 'polish', 'integrator',
-               'substeps', 'popsize', 'max_popsize')
+RECIPE_KEYS = ('targets', 'weights', 'segment', 'balance', 'prior', 'prior_choices', 'max_evals',
+               'polish', 'integrator', 'substeps', 'popsize', 'max_popsize')
 """What a ship config's ``tuning.recipe`` may set (the dests of this command's options)."""
 
 
@@ -391,7 +419,8 @@ def apply_recipe(args: argparse.Namespace, given: dict[str, Any], ship: ShipConf
 
     A plain ``tune TRIALS --ship NAME`` then tunes as that ship's config says works on its
     kind of data (config/esso_osaka_3m.yaml: the low-speed recipe of bench/esso_osaka.py);
-    an option given on the command line always wins. Returns what was applied.
+    an option given on the command line always wins (``--prior`` also over the recipe's
+    ``prior_choices``). Returns what was applied.
     """
     recipe = (ship.extra.get('tuning') or {}).get('recipe') or {}
     if not isinstance(recipe, dict):
@@ -402,8 +431,9 @@ def apply_recipe(args: argparse.Namespace, given: dict[str, Any], ship: ShipConf
                          f'{list(RECIPE_KEYS)})')
     applied = []
     for k, v in recipe.items():
-        if k not in given:
-            setattr(args, k, list(v) if k == 'targets' else v)
+        if k not in given and not (k == 'prior_choices' and 'prior' in given):
+            setattr(args, k, list(v) if k in ('targets', 'prior_choices')
+                    or (k == 'weights' and not isinstance(v, str)) else v)
             applied.append(f'{k}={v if k != "targets" else len(v)}')
     return applied
 
@@ -540,6 +570,12 @@ def command(argv: list[str] | None = None) -> int:
             print('--model auto: candidates on the last quarter of each tuning trial (index, '
                   'mean per kind):\n' + result.choice.markdown()
                   + f'recommended: {result.choice.chosen} (written as params.yaml)')
+        if result.prior_choice is not None:
+            pc = result.prior_choice
+            print('--prior-choices: held-out index per kind with each days-out fit (ratio to '
+                  'the published values):\n' + pc.markdown() + f'chosen: {pc.chosen}'
+                  + (' (no weight beat the published values on every kind of held-out run: '
+                     'nothing tuned)' if pc.prior is None else ''))
         if result.residual is not None:
             print(_residual_line(result.residual))
         if result.bounds_hit:

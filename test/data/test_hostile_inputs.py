@@ -467,7 +467,8 @@ def test_a_tune_that_changed_nothing_says_so_last_and_exits_3(suzaku, trial, tmp
         names = ship.tuning_targets
         J = SimpleNamespace(tune=1.0, test=None, failed_at_s={})
         return SimpleNamespace(params={n: float(ship[n]) for n in names}, J=J, J_pre=J,
-                               choice=None, residual=None, bounds_hit=[], evaluations=0,
+                               choice=None, residual=None, prior_choice=None,
+                               bounds_hit=[], evaluations=0,
                                wall_s=0.0, interrupted=False, write=lambda out, **kw: None)
 
     monkeypatch.setattr(cli_tune.api, 'tune', fake_tune)
