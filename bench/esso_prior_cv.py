@@ -17,7 +17,7 @@ the registered checks with the chosen weight:
 
 Runs are read whole, as the command reads them, and scored as the issue scores the withheld
 eight: ``mt.evaluate``, RK4 at the recorded 10 Hz, restart every 100 s. ``--quick``: the
-days-out table on the zigzag and random runs alone, polish 20 (a check that it runs).
+days-out table on the zigzag and random runs alone, polish 40 (a check that it runs).
 """
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         if args.quick:
             paths = [PONDS / 'zigzag', PONDS / 'random']
-            rep = _run_tune(paths, Path(tmp) / 'all', ['--polish', '20'])
+            rep = _run_tune(paths, Path(tmp) / 'all', ['--polish', '40'])
         else:
             rep = _run_tune([PONDS], Path(tmp) / 'all', [])
         tune_s = time.perf_counter() - t0
@@ -131,3 +131,7 @@ def main(argv: list[str] | None = None) -> dict:
                     'verdicts': {'C1': 'pass' if c1_pass else 'fail',
                                  'C2': 'pass' if c2_pass else 'fail'}})
     return figures
+
+
+if __name__ == '__main__':
+    main()

@@ -380,6 +380,10 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     if not trials:
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
+    if cfg.polish and cfg.polish < space.dim + 2 and cfg.residual != 'network':
+        raise TuningError(f'polish = {cfg.polish}: fewer simulations than one finite-difference '
+                          f'Jacobian of the {space.dim} targets and a step ({space.dim + 2}); '
+                          f'give at least {space.dim + 2}, or 0 for none')
     spec = cfg.objective_spec(trials)
     names = unique_names(trials + test)
     obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials

@@ -114,6 +114,8 @@ def test_tune_frees_what_new_days_confirm_and_keeps_what_they_refute(tmp_path):
         mt.TuneConfig(prior=0.5, prior_choices=(0.0, 1.0))
     with pytest.raises(TuningError, match='prior_choices'):
         mt.TuneConfig(prior_choices=(-1.0,))
+    with pytest.raises(TuningError, match='at least 3'):   # a polish that could not step
+        mt.tune(ship, scattered, targets=['N_r'], max_evals=0, polish=2)
 
 
 def test_recipe_prior_choices_unless_a_prior_is_given():
