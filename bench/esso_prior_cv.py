@@ -62,8 +62,17 @@ def _by_kind(model: object, runs: list, kind_of: dict[str, str]) -> dict[str, fl
 
 
 def _load(files: list[Path], ship: object) -> tuple[list, dict[str, str]]:
-    runs = mt.load_trials([str(f) for f in files], ship=ship)
-    return runs, {t.name: f.parent.name for t, f in zip(runs, files)}
+    """Read the files; each run's kind is its folder's name."""
+    runs, kind_of = [], {}
+    for f in files:
+        for t in mt.load_trials([str(f)], ship=ship):
+            runs.append(t)
+            kind_of[t.name] = f.parent.name
+    return runs, kind_of
+
+
+def _cell(x: float | None, r: float | None) -> str:
+    return 'failed' if x is None else f'{x:.3f} ({r:.2f})'
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -86,9 +95,10 @@ def main(argv: list[str] | None = None) -> dict:
         print('| candidate | ' + ' | '.join(kinds) + ' | worst ratio |')
         print('|---|' + '---|' * (len(kinds) + 1))
         for c, v in pc['index_by_kind'].items():
+            score = pc['score'][c]
             print(f'| {c} | ' + ' | '.join(
-                f"{v[k]:.3f} ({pc['ratio_to_published'][c][k]:.2f})" for k in kinds)
-                + f" | {pc['score'][c]:.3f} |")
+                _cell(v[k], pc['ratio_to_published'][c][k]) for k in kinds)
+                + f" | {'inf' if score is None else f'{score:.3f}'} |")
         figures: dict = {'tune_wall_s': tune_s, 'prior_choice': pc, 'quick': args.quick}
         if args.quick:
             return figures

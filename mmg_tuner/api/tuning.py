@@ -159,6 +159,13 @@ class TuneConfig:
                'model its restarts: max_evals=0 and shoot_every_s cancel each other, nothing '
                'would tune)', E)
 
+    def check_polish(self, dim: int) -> None:
+        """Refuse a polish budget below one Jacobian of ``dim`` targets and a step."""
+        if self.polish and self.polish < dim + 2 and self.residual != 'network':
+            raise TuningError(f'polish = {self.polish}: fewer simulations than one finite-'
+                              f'difference Jacobian of the {dim} targets and a step; give at '
+                              f'least {dim + 2}, or 0 for none')
+
     def objective_spec(self, trials: Sequence[Trial] = ()) -> ObjectiveSpec:
         """
         Return what CMA-ES minimises, for the one objective factory (tuning/factory.py).
@@ -170,7 +177,7 @@ class TuneConfig:
             if not trials:
                 raise TuningError("weights 'index' needs the trials to pool sigma over")
             sig = pooled_sigma(trials)
-            weights = tuple(1.0 / max(sig[n], 1e-12) ** 2 for n in STATE_NAMES)
+            weights = tuple(1.0 / sig[n] ** 2 for n in STATE_NAMES)   # (sig > 0: checked)
         return ObjectiveSpec(cast('tuple[float, ...] | None', weights), self.shoot_every_s,
                              self.integrator, self.substeps, self.segment_s, self.balance,
                              self.prior)
@@ -281,8 +288,10 @@ class TuneResult:
             'restarts': self.restarts, 'wall_s': float(self.wall_s),
             'interrupted': self.interrupted,
             'settings': {'a_r': c.a_r or self.ship.a_r,
-                         'weights': (c.weights if isinstance(c.weights, str) else
-                                     list(c.weights or paper_weights(self.ship.L_pp))),
+                         'weights': list(c.objective_spec(self.trials).weights
+                                         or paper_weights(self.ship.L_pp)),
+                         'weights_rule': (c.weights if isinstance(c.weights, str) else
+                                          'given' if c.weights else 'paper'),
                          'shoot_every_s': c.shoot_every_s, 'integrator': c.integrator,
                          'dt': self.dt, 'seed': c.seed, 'max_evals': c.max_evals,
                          'popsize': [c.popsize, c.max_popsize]},
@@ -380,10 +389,7 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     if not trials:
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
-    if cfg.polish and cfg.polish < space.dim + 2 and cfg.residual != 'network':
-        raise TuningError(f'polish = {cfg.polish}: fewer simulations than one finite-difference '
-                          f'Jacobian of the {space.dim} targets and a step ({space.dim + 2}); '
-                          f'give at least {space.dim + 2}, or 0 for none')
+    cfg.check_polish(space.dim)
     spec = cfg.objective_spec(trials)
     names = unique_names(trials + test)
     obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
@@ -412,7 +418,10 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
                             _fit(sets, ship.params), space.on_bound(theta),
                             list(res.history), evaluations, res.restarts, wall_s,
                             res.interrupted, ship, space, cfg, trials, test, obj.batch.dt)
-    result.prior_choice = prior_choice
+    if prior_choice is not None:   # the choice's fits count as the tuning's work
+        result.prior_choice = prior_choice
+        result.evaluations += prior_choice.simulations
+        result.wall_s += prior_choice.wall_s
     if cfg.residual is not None and not result.interrupted:
         result.residual = _train_residual(result)
     if cfg.model == 'auto' and not result.interrupted:
@@ -464,40 +473,59 @@ def choose_prior_by_days(ship: ShipConfig, trials: Sequence[Trial], cfg: TuneCon
     Each fold of whole sessions is held out once; the physics is tuned on the rest with each
     weight as :func:`tune` tunes it, and scored on the fold by the index (restarts every 100 s,
     sigma pooled over the fold). ``groups``: trial name -> kind of run (the table's columns,
-    and the balance of the fits); default each trial its own kind. Fewer than two sessions:
-    nothing to hold out, the most cautious candidate (the published values) is returned.
+    and the balance of the fits); default each trial its own kind. One trial: nothing to hold
+    out, the largest weight is returned unvalidated (``PriorChoice.note`` says so). Ctrl-C
+    during a fit stops the choice (KeyboardInterrupt): nothing half-fitted is scored.
     """
     trials = list(trials)
     names = unique_names(trials)
     by_name = dict(zip(names, trials))
     kind_of = {n: (groups or {}).get(t.name, n) for n, t in zip(names, trials)}
-    fold_names = folds(sessions(names))
+    session_of = sessions(names)
+    fold_names = folds(session_of)
     priors = sorted({float(w) for w in cfg.prior_choices})
-    held: dict[str, dict[str, float | None]] = {PUBLISHED: {}, **{label(w): {} for w in priors}}
+    if len({label(w) for w in priors}) < len(priors):
+        raise TuningError(f'prior_choices {priors}: weights closer than 12 significant digits')
     if len(fold_names) < 2:
-        logger.warning('prior choices: the trials are one session; nothing to hold out, the '
-                       'published values are kept')
-        return choose_prior(priors, {c: dict.fromkeys(names, 1.0) for c in held}, kind_of,
-                            fold_names)
+        choice = PriorChoice.unvalidated(priors, fold_names)
+        logger.warning('prior choices: %s; %s', choice.note, choice.chosen)
+        return choice
+    if all(s == n for n, s in session_of.items()):
+        logger.info('prior choices: no date common to the trial names; each trial is its own '
+                    'session (runs of one day on both sides of a split look better than a new '
+                    'day will)')
+    if cfg.max_evals:
+        logger.warning('prior choices: %d CMA-ES runs of up to %d evaluations each before the '
+                       'tuning itself (max_evals=0 with a polish is the quick way)',
+                       len(fold_names) * len(priors), cfg.max_evals)
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
     fit_cfg = replace(cfg, prior_choices=(), residual=None, model='physics')
+    held: dict[str, dict[str, float | None]] = {PUBLISHED: {}, **{label(w): {} for w in priors}}
+    sims, t0 = 0, time.perf_counter()
     for i, out in enumerate(fold_names, 1):
         held_out = [by_name[n] for n in out]
         rest = [by_name[n] for n in names if n not in out]
         sig = pooled_sigma(held_out)
         scored = {PUBLISHED: ship}
         for w in priors:
-            theta = _fit_physics(ship, rest, replace(fit_cfg, prior=w), space, groups)[0]
+            theta, res, evaluations, _ = _fit_physics(ship, rest, replace(fit_cfg, prior=w),
+                                                      space, groups)
+            if res.interrupted:   # CMA-ES caught Ctrl-C: do not score half a fit
+                raise KeyboardInterrupt
+            sims += evaluations
             scored[label(w)] = ship.with_params(dict(zip(space.names, map(float, theta))))
         for c, model in scored.items():
             ev = evaluate(model, held_out, 100.0, cfg.integrator, cfg.substeps, sigma=sig)
-            held[c].update({n: ev.trials[t.name].index for n, t in zip(out, held_out)})
+            # (evaluate names its scores uniquely, in the trials' order)
+            held[c].update(zip(out, (s.index for s in ev.trials.values())))
         logger.info('prior choices: fold %d of %d held out (%s): %s', i, len(fold_names),
                     ', '.join(out), ', '.join(
                         f'{c} {_mean_index([held[c][n] for n in out])}' for c in held))
     choice = choose_prior(priors, held, kind_of, fold_names)
-    logger.info('prior choices: %s chosen (worst ratio to published over the kinds %.3f)',
-                choice.chosen, choice.score[choice.chosen])
+    choice.simulations, choice.wall_s = sims, time.perf_counter() - t0
+    logger.info('prior choices: %s chosen (worst ratio to published over the kinds %.3f); %d '
+                'simulations in %.0f s', choice.chosen, choice.score[choice.chosen], sims,
+                choice.wall_s)
     return choice
 
 

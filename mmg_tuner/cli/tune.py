@@ -73,25 +73,9 @@ def bound_spec(s: str) -> tuple[str, float | tuple[float, float]]:
             'LO < HI') from None
 
 
-def weight_word(s: str) -> float | str:
-    """Parse one --weights word: a number >= 0 or 'index'."""
-    return s if s == api.INDEX_WEIGHTS else nonneg_float(s)
-
-
-def weights_option(words: list[float | str] | str | None) -> tuple[float, ...] | str | None:
-    """Return --weights (or a recipe's ``weights``) as TuneConfig takes it."""
-    if words is None or isinstance(words, str):
-        return words
-    if any(isinstance(w, str) for w in words):
-        if list(words) == [api.INDEX_WEIGHTS]:
-            return api.INDEX_WEIGHTS
-        given = ' '.join(map(str, words))
-        raise UsageError(f'--weights {given}: six numbers (X Y PSI U V R) or the one word '
-                         f'{api.INDEX_WEIGHTS!r}')
-    if len(words) != 6:
-        raise UsageError(f'--weights: {len(words)} number(s) given; six are needed (X Y PSI U '
-                         f'V R), or the word {api.INDEX_WEIGHTS!r}')
-    return tuple(float(w) for w in words)
+def weights_option(words: list[float] | str | None) -> tuple[float, ...] | str | None:
+    """Return --weights / --index-weights (or a recipe's ``weights``) as TuneConfig takes it."""
+    return words if words is None or isinstance(words, str) else tuple(map(float, words))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -108,10 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--bound', action='append', default=[], type=bound_spec,
                     metavar='NAME=AR|NAME=LO:HI',
                     help='per-parameter a_r or explicit bounds (repeatable)')
-    ap.add_argument('--weights', nargs='+', type=weight_word, metavar='W',
-                    help="error weights on X Y PSI U V R, >= 0, not all 0 (default: the paper's "
-                    "L_pp, L_pp, pi/4, 0, 0, 0), or 'index': 1 / sigma^2 of each state pooled "
-                    "over the tuning trials (the index's standardisation)")
+    ap.add_argument('--weights', nargs=6, type=nonneg_float,
+                    metavar=('X', 'Y', 'PSI', 'U', 'V', 'R'),
+                    help="error weights, >= 0, not all 0 (default: the paper's L_pp, L_pp, "
+                    'pi/4, 0, 0, 0)')
+    ap.add_argument('--index-weights', dest='weights', action='store_const',
+                    const=api.INDEX_WEIGHTS,
+                    help='weigh each state by 1 / sigma^2 pooled over the tuning trials (the '
+                    "index's standardisation) instead of --weights (a recipe: weights: index)")
     ap.add_argument('--shoot-every', type=nonneg_float, default=0.0,
                     help='restart the simulation from the recorded state every H s (0: never)')
     ap.add_argument('--segment', type=nonneg_float, default=0.0, metavar='S',
@@ -420,7 +408,7 @@ def apply_recipe(args: argparse.Namespace, given: dict[str, Any], ship: ShipConf
     A plain ``tune TRIALS --ship NAME`` then tunes as that ship's config says works on its
     kind of data (config/esso_osaka_3m.yaml: the low-speed recipe of bench/esso_osaka.py);
     an option given on the command line always wins (``--prior`` also over the recipe's
-    ``prior_choices``). Returns what was applied.
+    ``prior_choices`` and ``--prior-choices`` over its ``prior``). Returns what was applied.
     """
     recipe = (ship.extra.get('tuning') or {}).get('recipe') or {}
     if not isinstance(recipe, dict):
@@ -429,11 +417,20 @@ def apply_recipe(args: argparse.Namespace, given: dict[str, Any], ship: ShipConf
     if bad:
         raise UsageError(f'{ship.source}: tuning.recipe: unknown option(s) {bad} (known: '
                          f'{list(RECIPE_KEYS)})')
+    for k in ('targets', 'prior_choices'):
+        if k in recipe and not isinstance(recipe[k], list):
+            raise UsageError(f'{ship.source}: tuning.recipe.{k}: a list, not {recipe[k]!r}')
+    w = recipe.get('weights')
+    if w is not None and w != api.INDEX_WEIGHTS and not (isinstance(w, list) and len(w) == 6):
+        raise UsageError(f'{ship.source}: tuning.recipe.weights: six numbers (x, y, psi, u, v, '
+                         f'r) or {api.INDEX_WEIGHTS!r}, not {w!r}')
+    # a prior given on the command line cancels the recipe's choices, and choices given
+    # cancel the recipe's prior
+    cancelled = {'prior_choices': 'prior', 'prior': 'prior_choices'}
     applied = []
     for k, v in recipe.items():
-        if k not in given and not (k == 'prior_choices' and 'prior' in given):
-            setattr(args, k, list(v) if k in ('targets', 'prior_choices')
-                    or (k == 'weights' and not isinstance(v, str)) else v)
+        if k not in given and cancelled.get(k) not in given:
+            setattr(args, k, list(v) if isinstance(v, list) else v)
             applied.append(f'{k}={v if k != "targets" else len(v)}')
     return applied
 
@@ -536,6 +533,8 @@ def command(argv: list[str] | None = None) -> int:
         method = None if ship is None else identify_method(args, ship)
         if method is not None:
             return identify_command(args, method)
+        if ship is not None:   # before the output folder: nothing would tune
+            config.check_polish(len(config.targets or ship.tuning_targets))
     with show_log(args.quiet), OutputDir.open(args.out, resume=resume) as out:
         for n in notes:
             logging.getLogger(__name__).warning('resume: %s', n)

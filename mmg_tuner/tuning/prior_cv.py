@@ -25,9 +25,10 @@ The rule (:func:`choose_prior`), registered there before it was run:
 from __future__ import annotations
 
 from dataclasses import dataclass
+import datetime
 import math
 import re
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from mmg_tuner.errors import TuningError
 import numpy as np
@@ -39,27 +40,42 @@ TIE = 0.01
 MAX_FOLDS = 6
 """At most this many folds (each a fit per prior weight): sessions are merged round-robin."""
 
-_DATES = (re.compile(r'\d{1,2}-[A-Za-z]{3}-\d{4}'),          # 12-Nov-2020 (the pond's files)
-          re.compile(r'\d{4}-\d{2}-\d{2}'),                  # 2020-11-12 (ISO, rosbag2 names)
-          re.compile(r'(?<!\d)(?:19|20)\d{2}[01]\d[0-3]\d(?!\d)'))   # 20201112
+_MONTHS = {m: i for i, m in enumerate(('jan', 'feb', 'mar', 'apr', 'may', 'jun', 'jul', 'aug',
+                                       'sep', 'oct', 'nov', 'dec'), 1)}
+# (day, month, year) from a match; every format becomes one date, so 12-Nov-2020 and 20201112
+# are the same day
+_DATES: tuple[tuple[re.Pattern[str], Callable[[re.Match[str]], tuple[int, int, int]]], ...] = (
+    (re.compile(r'(?<!\d)(\d{1,2})-([A-Za-z]{3})-(\d{4})(?!\d)'),   # 12-Nov-2020 (the pond's)
+     lambda m: (int(m[1]), _MONTHS.get(m[2].lower(), 0), int(m[3]))),
+    (re.compile(r'(?<!\d)((?:19|20)\d{2})[-_]([01]\d)[-_]([0-3]\d)(?!\d)'),
+     lambda m: (int(m[3]), int(m[2]), int(m[1]))),   # 2020-11-12, rosbag2_2020_11_12-10_..
+    (re.compile(r'(?<!\d)((?:19|20)\d{2})([01]\d)([0-3]\d)(?!\d)'),   # 20201112
+     lambda m: (int(m[3]), int(m[2]), int(m[1]))))
+
+
+def session_date(name: str) -> str | None:
+    """Return the date in a trial's name as YYYY-MM-DD (None: none that is a real date)."""
+    for pattern, parts in _DATES:
+        for m in pattern.finditer(name):
+            day, month, year = parts(m)
+            try:
+                return datetime.date(year, month, day).isoformat()
+            except ValueError:   # not a date (a month word that is not one, day 31 of June)
+                continue
+    return None
 
 
 def sessions(names: Sequence[str]) -> dict[str, str]:
     """
     Return each trial's session: the date in its name when every name has one and they differ.
 
-    Otherwise (no dates, or one day for all) each trial is its own session: the folds then
-    leave runs out, the best that can be done without knowing the days.
+    Otherwise (a name without a date, or one day for all) each trial is its own session: the
+    folds then leave runs out, the best that can be done without knowing the days.
     """
-    found = {}
-    for n in names:
-        for pattern in _DATES:
-            m = pattern.search(n)
-            if m:
-                found[n] = m.group(0)
-                break
-    if len(found) == len(names) and len(set(found.values())) >= 2:
-        return found
+    found = {n: session_date(n) for n in names}
+    dates = {d for d in found.values() if d is not None}
+    if len(dates) >= 2 and all(d is not None for d in found.values()):
+        return {n: str(d) for n, d in found.items()}
     return {n: n for n in names}
 
 
@@ -75,7 +91,7 @@ def folds(session_of: Mapping[str, str], max_folds: int = MAX_FOLDS) -> list[lis
 
 def label(prior: float) -> str:
     """Return a candidate's name: 'prior W'."""
-    return f'prior {prior:g}'
+    return f'prior {prior:.12g}'
 
 
 @dataclass
@@ -95,9 +111,28 @@ class PriorChoice:
     ratio: dict[str, dict[str, float]]
     score: dict[str, float]
     folds: list[list[str]]
+    note: str = ''            # why nothing was held out, if so
+    simulations: int = 0      # of the fits behind the table
+    wall_s: float = 0.0
+
+    @classmethod
+    def unvalidated(cls, priors: Sequence[float], fold_names: list[list[str]]
+                    ) -> 'PriorChoice':
+        """
+        Return the choice when nothing can be held out (one session): the largest weight.
+
+        Without evidence the most cautious fit that still tunes: the data move only what
+        they pull hard on.
+        """
+        w = float(max(priors))
+        return cls(label(w), w, {}, {}, {}, fold_names,
+                   note='the trials are one session: nothing to hold out, so the largest '
+                   'weight is used without cross-validation')
 
     def markdown(self) -> str:
         """Return the table of held-out index per kind and ratio to published (choice marked)."""
+        if not self.by_kind:
+            return f'{self.chosen}: {self.note}\n'
         kinds = sorted({k for v in self.by_kind.values() for k in v})
         lines = ['| candidate | ' + ' | '.join(kinds) + ' | worst ratio to published |',
                  '|---|' + '---|' * (len(kinds) + 1)]
@@ -116,7 +151,8 @@ class PriorChoice:
                                            for k, x in v.items()}
                                        for c, v in self.ratio.items()},
                 'score': {c: (None if math.isinf(s) else s) for c, s in self.score.items()},
-                'folds': self.folds, 'tie': TIE}
+                'folds': self.folds, 'tie': TIE, 'note': self.note,
+                'simulations': self.simulations, 'wall_s': self.wall_s}
 
 
 def choose_prior(priors: Sequence[float], held_out: Mapping[str, Mapping[str, float | None]],

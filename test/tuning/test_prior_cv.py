@@ -12,13 +12,17 @@ import pytest
 
 def test_sessions_are_the_dates_in_the_names():
     names = ['turn_14-Sep-2020_13_39_32', 'turn_14-Sep-2020_13_51_45', 'berthing_12-Nov-2020_1']
-    assert sessions(names) == {names[0]: '14-Sep-2020', names[1]: '14-Sep-2020',
-                               names[2]: '12-Nov-2020'}
-    iso = ['rosbag2_2024-05-01-10_00', 'rosbag2_2024-05-02-09_00']
-    assert set(sessions(iso).values()) == {'2024-05-01', '2024-05-02'}
-    assert set(sessions(['a_20240501', 'b_20240502']).values()) == {'20240501', '20240502'}
-    # no dates, a name without one, or one day for all: each run its own session
-    for names in (['a', 'b', 'c'], ['a_20240501', 'b'], ['x_12-Nov-2020', 'y_12-Nov-2020']):
+    assert sessions(names) == {names[0]: '2020-09-14', names[1]: '2020-09-14',
+                               names[2]: '2020-11-12'}
+    bags = ['rosbag2_2024_05_01-10_00_00', 'rosbag2_2024_05_02-09_00_00']   # ros2 bag record
+    assert set(sessions(bags).values()) == {'2024-05-01', '2024-05-02'}
+    # every way of writing a day is the same day
+    mixed = ['a_12-Nov-2020', 'b_2020-11-12', 'c_20201112', 'd_2020_11_13']
+    assert list(sessions(mixed).values()) == ['2020-11-12'] * 3 + ['2020-11-13']
+    # no dates, a name without one, a month word that is not one, or one day for all: each
+    # run its own session
+    for names in (['a', 'b', 'c'], ['a_20240501', 'b'], ['test1-rpm-1200', 'test2-rpm-1300'],
+                  ['x_12-Nov-2020', 'y_12-Nov-2020'], ['r_2024_13_45', 'r_2024_02_30']):
         assert sessions(names) == {n: n for n in names}
 
 
@@ -68,6 +72,9 @@ def test_a_tie_goes_to_the_more_cautious_and_every_loser_keeps_the_published():
     assert math.isinf(choose_prior([0, 5], held, KIND, []).score[label(0)])
     with pytest.raises(TuningError, match='prior 0.5'):
         choose_prior([0.5], held, KIND, [])
+    held = _held({PUBLISHED: {'turning': 2.0, 'berthing': 1.0},
+                  label(5): {'turning': 1.0, 'berthing': 0.995}})   # tied with the start
+    assert choose_prior([5], held, KIND, []).chosen == PUBLISHED
 
 
 def _run(ship, name, seed, rudder_deg):
@@ -118,35 +125,69 @@ def test_tune_frees_what_new_days_confirm_and_keeps_what_they_refute(tmp_path):
         mt.tune(ship, scattered, targets=['N_r'], max_evals=0, polish=2)
 
 
+def test_the_choice_survives_odd_names_and_one_trial(caplog):
+    import mmg_tuner as mt
+    ship = load_ship('esso_osaka_3m')
+    n0 = ship['N_r']
+    opts = {'targets': ['N_r'], 'max_evals': 0, 'polish': 30, 'segment_s': 20.0,
+            'integrator': 'rk4', 'weights': 'index', 'prior_choices': (0.0, 1e6)}
+    # two runs of one name on one day, one name with a byte that is not text
+    runs = [_run(ship.with_params({'N_r': 1.3 * n0}), name, i, 20 - 15 * i)
+            for i, name in enumerate(('run_01-Jan-2021', 'run_01-Jan-2021',
+                                      'run_02-Jan-2021_\udcff'))]
+    res = mt.tune(ship, runs, config=mt.TuneConfig(**opts))
+    pc = res.prior_choice
+    assert len(pc.folds) == 2 and sorted(map(len, pc.folds)) == [1, 2]
+    # each run scored on its own: the two runs of one name are different runs
+    first, second = (pc.by_kind[PUBLISHED][k] for k in sorted(pc.by_kind[PUBLISHED])[:2])
+    assert first != second
+    assert pc.simulations > 0 and res.evaluations >= pc.simulations
+    # one trial: nothing to hold out; the largest weight, and the report says why
+    res = mt.tune(ship, runs[:1], config=mt.TuneConfig(**opts))
+    assert res.prior_choice.prior == 1e6 and not res.prior_choice.by_kind
+    assert 'nothing to hold out' in res.prior_choice.markdown()
+    assert 'nothing to hold out' in caplog.text
+
+
 def test_recipe_prior_choices_unless_a_prior_is_given():
     from types import SimpleNamespace
 
     from mmg_tuner.cli.tune import apply_recipe, build_parser, explicit_options, tune_config
-    ship = SimpleNamespace(extra={'tuning': {'recipe': {'prior_choices': [0.0, 0.5],
-                                                        'max_evals': 0, 'polish': 5}}},
-                           source='esso.yaml')
-    for extra, choices, prior in (([], (0.0, 0.5), 0.0), (['--prior', '0.2'], (), 0.2),
-                                  (['--prior-choices', '1', '2'], (1.0, 2.0), 0.0)):
+    from mmg_tuner.errors import MmgTunerError
+    recipe = {'prior_choices': [0.0, 0.5], 'prior': 0.0, 'max_evals': 0, 'polish': 5,
+              'weights': 'index'}
+    ship = SimpleNamespace(extra={'tuning': {'recipe': recipe}}, source='esso.yaml')
+    for extra, choices, prior, weights in (
+            ([], (0.0, 0.5), 0.0, 'index'), (['--prior', '0.2'], (), 0.2, 'index'),
+            (['--prior-choices', '1', '2'], (1.0, 2.0), 0.0, 'index'),
+            (['--weights'] + ['2'] * 6, (0.0, 0.5), 0.0, (2.0,) * 6)):
         argv = ['runs/', '--ship', 'esso_osaka_3m', '--out', 'o'] + extra
         args = build_parser().parse_args(argv)
         apply_recipe(args, explicit_options(build_parser(), argv), ship)
         cfg = tune_config(args)
-        assert (cfg.prior_choices, cfg.prior) == (choices, prior)
+        assert (cfg.prior_choices, cfg.prior, cfg.weights) == (choices, prior, weights)
+    # a command-line choice cancels a recipe's non-zero prior
+    recipe['prior'] = 0.05
+    argv = ['runs/', '--ship', 'esso_osaka_3m', '--out', 'o', '--prior-choices', '1']
+    args = build_parser().parse_args(argv)
+    apply_recipe(args, explicit_options(build_parser(), argv), ship)
+    assert tune_config(args).prior == 0.0
+    for bad in ({'prior_choices': 0.5}, {'weights': 1.0}, {'targets': 'N_r'}):
+        ship.extra['tuning']['recipe'] = bad
+        with pytest.raises(MmgTunerError, match=next(iter(bad))):
+            apply_recipe(build_parser().parse_args(['runs/', '--out', 'o']), {}, ship)
 
 
-def test_weights_index_is_the_index_standardisation():
+def test_index_weights_are_the_index_standardisation():
     import mmg_tuner as mt
     from mmg_tuner.cli.tune import build_parser, tune_config
-    from mmg_tuner.errors import MmgTunerError
     from mmg_tuner.tuning.evaluate import pooled_sigma
     base = ['runs/', '--ship', 'esso_osaka_3m', '--out', 'o']
-    assert tune_config(build_parser().parse_args(base + ['--weights', 'index'])).weights \
+    assert tune_config(build_parser().parse_args(base + ['--index-weights'])).weights \
         == 'index'
-    assert tune_config(build_parser().parse_args(base + ['--weights'] + ['2'] * 6)).weights \
-        == (2.0,) * 6
-    for bad in (['1', '2'], ['index', '1'], ['heavy']):
-        with pytest.raises((MmgTunerError, SystemExit)):
-            tune_config(build_parser().parse_args(base + ['--weights'] + bad))
+    # --weights takes six numbers and leaves the trials after it alone
+    args = build_parser().parse_args(['--weights'] + ['2'] * 6 + ['runs/', '--out', 'o'])
+    assert tune_config(args).weights == (2.0,) * 6 and args.trials == ['runs/']
     ship = load_ship('esso_osaka_3m')
     runs = [_run(ship, 'a', 0, 20), _run(ship, 'b', 1, -10)]
     spec = mt.TuneConfig(weights='index').objective_spec(runs)
