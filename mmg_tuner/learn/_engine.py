@@ -1,14 +1,16 @@
 """
 The differentiable simulation and the optimiser (JAX, equinox, optax; imported lazily).
 
-The physics is the compiled numba kernel itself, called through ``jax.pure_callback`` on the
-whole batch, with a custom VJP whose backward multiplies by the kernel's state Jacobian
-(central differences in float64, computed in the same callback as the forward). The network,
+The physics is the compiled numba kernel itself, called on the whole batch as an XLA FFI
+handler (``_bridge.ffi_handler``; ``jax.pure_callback`` where XLA refuses it), with a custom
+VJP whose backward multiplies by the kernel's state Jacobian (forward differences in float64,
+computed in the same call as the forward). The network,
 the features, the kinematics and the integrator steps are JAX, so the gradient of the
 simulation-based loss flows through every step of the simulated window.
 """
 from __future__ import annotations
 
+import logging
 from typing import Any, Callable, cast, Mapping, Sequence
 
 import equinox as eqx
@@ -17,9 +19,11 @@ import jax.numpy as jnp
 from jax.typing import ArrayLike
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.learn._bridge import batch_derivative
+from mmg_tuner.learn._bridge import batch_derivative, ffi_handler
 import numpy as np
 import optax
+
+logger = logging.getLogger(__name__)
 
 # the physics runs in float64 (before any array); (jax's config.update has no annotations)
 jax.config.update('jax_enable_x64', True)  # type: ignore[no-untyped-call]
@@ -38,15 +42,73 @@ DataLoss = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike],
 Total = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike], tuple[jax.Array, jax.Array]]
 
 
-def physics_fn(kind: int, p: np.ndarray) -> Callable[..., jax.Array]:
+_FFI_TARGETS: dict[int, bool] = {}
+
+
+def _ffi_target(kind: int, p: np.ndarray) -> str | None:
+    """
+    Register family ``kind``'s XLA FFI handler once; return its target name, or None.
+
+    None when XLA refuses it (a C API version it does not speak) or when a call on a few rows
+    differs from the kernel's: the caller falls back to ``jax.pure_callback``.
+    """
+    name = f'mmg_tuner_physics_{kind}'
+    if kind not in _FFI_TARGETS:
+        ok = False
+        try:
+            address: int = getattr(ffi_handler(kind), 'address')
+            capsule = jax.ffi.pycapsule(address)  # type: ignore[no-untyped-call]
+            jax.ffi.register_ffi_target(name, capsule, platform='cpu')
+            ok = _ffi_agrees(kind, name, p)
+        except Exception as exc:   # noqa: BLE001 -- any refusal means: use the callback
+            logger.warning('the physics runs through jax.pure_callback (slower): its XLA FFI '
+                           'handler was refused: %s', exc)
+        _FFI_TARGETS[kind] = ok
+    return name if _FFI_TARGETS[kind] else None
+
+
+def _ffi_call(name: str, s: jax.Array, act: jax.Array, wind: jax.Array, p: jax.Array,
+              with_jac: bool) -> Any:
+    shapes = [s.shape] + ([s.shape + (6,)] if with_jac else [])
+    out = [jax.ShapeDtypeStruct(x, jnp.float64)  # type: ignore[no-untyped-call]
+           for x in shapes]
+    return jax.ffi.ffi_call(name, out, vmap_method='broadcast_all')(s, act, wind, p)
+
+
+def _ffi_agrees(kind: int, name: str, p: np.ndarray) -> bool:
+    """Return whether the FFI handler gives the kernel's F and J (parameters p), to the bit."""
+    tag = family_tag(kind)
+    rng = np.random.default_rng(0)
+    from mmg_tuner.core.models import family_of_code
+    n_out = len(family_of_code(kind).outputs)
+    S = np.zeros((3, 6))
+    S[:, 2:] = rng.uniform([-3.0, 0.1, -0.1, -0.05], [3.0, 1.0, 0.1, 0.05], (3, 4))
+    A = rng.uniform(0.0, 1.0, (3, n_out))
+    Wd = np.column_stack([rng.uniform(0.0, 3.0, 3), rng.uniform(-3.0, 3.0, 3)])
+    F, J = np.empty((3, 6)), np.empty((3, 6, 6))
+    batch_derivative(tag, p, S, A, Wd, F, J, True)
+    got = _ffi_call(name, jnp.asarray(S), jnp.asarray(A), jnp.asarray(Wd), jnp.asarray(p), True)
+    same = np.array_equal(np.asarray(got[0]), F, equal_nan=True) and \
+        np.array_equal(np.asarray(got[1]), J, equal_nan=True)
+    if not same:
+        logger.warning('the physics runs through jax.pure_callback (slower): its XLA FFI '
+                       'handler disagreed with the kernel on a test batch')
+    return bool(same)
+
+
+def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.Array]:
     """
     Return ds/dt (B, 6) of the family as a differentiable JAX function of the states (B, 6).
 
     Actuators (B, n_outputs) and wind (B, 2) are data (zero cotangent); ``kind``: the family
-    code.
+    code. ffi: call the kernel as an XLA FFI handler (``_bridge.ffi_handler``) when XLA takes
+    it; False (or refused): through ``jax.pure_callback``, the same kernel with Python between
+    (the reference the tests compare against).
     """
     p = np.ascontiguousarray(p, dtype=float)
     tag = family_tag(kind)
+    target = _ffi_target(kind, p) if ffi else None
+    p_jax = jnp.asarray(p)
 
     def host(s: np.ndarray, act: np.ndarray, wind: np.ndarray, with_jac: bool
              ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
@@ -64,16 +126,21 @@ def physics_fn(kind: int, p: np.ndarray) -> Callable[..., jax.Array]:
 
     @jax.custom_vjp
     def f(s: jax.Array, act: jax.Array, wind: jax.Array) -> jax.Array:
-        out: jax.Array = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s,
-                                           act, wind)
+        if target is not None:
+            out: jax.Array = _ffi_call(target, s, act, wind, p_jax, False)[0]
+            return out
+        out = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind)
         return out
 
     def fwd(s: jax.Array, act: jax.Array, wind: jax.Array
             ) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
-        F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True),
-                                 (shape(s), jax.ShapeDtypeStruct(  # type: ignore[no-untyped-call]
-                                     s.shape + (6,), jnp.float64)),
-                                 s, act, wind)
+        if target is not None:
+            F, J = _ffi_call(target, s, act, wind, p_jax, True)
+        else:
+            jac = jax.ShapeDtypeStruct(s.shape + (6,),  # type: ignore[no-untyped-call]
+                                       jnp.float64)
+            F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True), (shape(s), jac),
+                                     s, act, wind)
         return F, (J, act, wind)
 
     def bwd(res: tuple[jax.Array, jax.Array, jax.Array], g: jax.Array

@@ -240,6 +240,36 @@ def test_bridge_forward_is_the_compiled_kernel(any_ship):
         assert np.array_equal(F[b], out)
 
 
+def test_bridge_ffi_handler_is_taken_and_equals_the_callback(any_ship):
+    """
+    The physics runs as an XLA FFI handler, bit for bit the pure_callback reference.
+
+    Values and vector-Jacobian products, on a batch and under jax.vmap (leading axes): a
+    handler that read a wrong offset, row count or argument, or silently fell back to the
+    callback, fails.
+    """
+    pytest.importorskip('jax')
+    import jax
+    import jax.numpy as jnp
+
+    from mmg_tuner.learn import _engine
+    ship = any_ship
+    rng = np.random.default_rng(5)
+    S, A, Wd = (jnp.asarray(x) for x in _states_inputs(ship, rng, 24))
+    fast = _engine.physics_fn(ship.kind, ship.params)
+    ref = _engine.physics_fn(ship.kind, ship.params, ffi=False)
+    assert _engine._FFI_TARGETS[ship.kind] is True   # registered and self-tested
+    G = jnp.asarray(rng.normal(size=S.shape))
+    Fa, vjp_a = jax.vjp(lambda s: fast(s, A, Wd), S)
+    Fb, vjp_b = jax.vjp(lambda s: ref(s, A, Wd), S)
+    assert np.array_equal(np.asarray(Fa), np.asarray(Fb))
+    assert np.array_equal(np.asarray(vjp_a(G)[0]), np.asarray(vjp_b(G)[0]))
+    # three batches of eight under vmap: the handler sees (3, 8, 6) and must treat it as 24 rows
+    batched = jax.vmap(lambda s, a, w: fast(s, a, w))(S.reshape(3, 8, 6),
+                                                      A.reshape(3, 8, -1), Wd.reshape(3, 8, 2))
+    assert np.array_equal(np.asarray(batched).reshape(24, 6), np.asarray(ref(S, A, Wd)))
+
+
 def test_bridge_gradient_matches_finite_differences(any_ship):
     """
     Check the VJP (compiled Jacobian) against central differences of the whole kernel.
