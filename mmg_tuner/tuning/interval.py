@@ -45,13 +45,15 @@ class Interval:
 
     model: the ensemble (its prediction is the interval's centre); members: the networks it
     averages, each with the same physics; scale: c_i per state of INDEX_STATES (x, u, y, v,
-    psi, r); level: the nominal share of samples inside (e.g. 0.9).
+    psi, r); level: the nominal share of samples inside (e.g. 0.9); own_members: False when
+    the members were given (``calibrate_interval(members=...)``), which a network cannot store.
     """
 
     model: Model
     members: tuple[Model, ...]
     scale: tuple[float, ...]
     level: float
+    own_members: bool = True   # the members are the ensemble's own networks (storable)
 
     def to_dict(self) -> dict[str, Any]:
         return {'level': self.level, 'members': len(self.members),
@@ -99,18 +101,24 @@ def _ratios(model: Model, members: Sequence[Model], trials: Sequence[Trial],
 
 
 def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9,
-                       restart_every_s: float = 100.0, integrator: str = 'rk4') -> Interval:
+                       restart_every_s: float = 100.0, integrator: str = 'rk4',
+                       members: Sequence[Model] | None = None) -> Interval:
     """
     Return the interval of an ensemble ``model`` with factors calibrated on ``trials``.
 
     ``trials``: trials the networks did not train on (e.g. the validation part of the
     training runs); per state, c = the ``level`` quantile of |error| / spread over their
-    samples.
+    samples. members: the models whose spread about ``model``'s prediction is the interval's
+    (default: the ensemble's own networks, each with its physics; give others, e.g. with a
+    different physics, to compare; at least 2). Only the default is stored with a network
+    (:func:`with_interval`): the simulator node steps the ensemble's own members.
     """
     if not 0 < level < 1:
         raise TuningError(f'interval level {level!r}: give a share in (0, 1), e.g. 0.9')
     model = as_model(model)
-    mem = ensemble_members(model)
+    mem = ensemble_members(model) if members is None else tuple(as_model(m) for m in members)
+    if len(mem) < 2:
+        raise TuningError(f'an interval needs at least 2 members; {len(mem)} given')
     R = np.concatenate(_ratios(model, mem, list(trials), restart_every_s, integrator))
     # the order statistic at or above the level (no interpolation): at least that share of
     # the calibration samples is inside
@@ -119,7 +127,7 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     if not all(np.isfinite(scale)):
         raise TuningError('the interval could not be calibrated: the model failed on a '
                           'calibration trial (its errors are not finite)')
-    return Interval(model, mem, scale, float(level))
+    return Interval(model, mem, scale, float(level), members is None)
 
 
 def coverage(interval: Interval, trials: Sequence[Trial], restart_every_s: float = 100.0,
@@ -148,6 +156,10 @@ def with_interval(interval: Interval) -> Model:
     simulator node the uncertainty of a model loaded from its params.yaml
     (:func:`model_interval`).
     """
+    if not interval.own_members:
+        raise TuningError('this interval was calibrated with members given by the caller; a '
+                          "network stores only its own members' interval (the node steps "
+                          'those): calibrate without members= to store it')
     # an interval's model is an ensemble: it has a network (ensemble_members checked)
     net = cast('ResidualNet', interval.model.residual)
     meta = {**net.meta, 'interval': {'level': interval.level,

@@ -270,6 +270,28 @@ def test_bridge_ffi_handler_is_taken_and_equals_the_callback(any_ship):
     assert np.array_equal(np.asarray(batched).reshape(24, 6), np.asarray(ref(S, A, Wd)))
 
 
+def test_bridge_falls_back_to_the_callback_when_xla_refuses_the_handler(monkeypatch, caplog):
+    """A handler XLA refuses (e.g. a C API it does not speak) leaves the callback, and says so."""
+    pytest.importorskip('jax')
+    import jax.numpy as jnp
+
+    from mmg_tuner.learn import _engine
+    ship = mt.load_ship('kvlcc2')
+
+    def refused(kind):
+        raise RuntimeError('XLA FFI handler API version 9.0 is not supported')
+
+    monkeypatch.setattr(_engine, 'ffi_handler', refused)
+    monkeypatch.setattr(_engine, '_FFI_TARGETS', {})
+    S, A, Wd = (jnp.asarray(x) for x in _states_inputs(ship, np.random.default_rng(6), 8))
+    with caplog.at_level('WARNING', logger='mmg_tuner.learn._engine'):
+        F = _engine.physics_fn(ship.kind, ship.params)(S, A, Wd)
+    assert 'pure_callback' in caplog.text and 'API version 9.0' in caplog.text
+    assert _engine._FFI_TARGETS == {ship.kind: False}
+    ref = _engine.physics_fn(ship.kind, ship.params, ffi=False)(S, A, Wd)
+    assert np.array_equal(np.asarray(F), np.asarray(ref))
+
+
 def test_bridge_gradient_matches_finite_differences(any_ship):
     """
     Check the VJP (compiled Jacobian) against central differences of the whole kernel.

@@ -76,6 +76,25 @@ def test_interval_calibrated_on_trials_covers_its_level_and_travels_with_the_mod
     assert 'Prediction interval (nominal 90 %)' in res.markdown()
 
 
+def test_interval_members_given_are_used_and_not_stored(trials):
+    """Members given (one with another physics) make the interval; it cannot be stored."""
+    ship = mt.load_ship('suzaku')
+    model = mt.Model(ship, ensemble([_kick(2e-4), _kick(-2e-4)]))
+    own = calibrate_interval(model, trials, 0.9, integrator='euler')
+    off = ship.with_params({'N_r': 1.2 * ship['N_r']})
+    given = calibrate_interval(model, trials, 0.9, integrator='euler',
+                               members=list(own.members) + [mt.Model(off, None)])
+    assert len(given.members) == 3 and not given.own_members and own.own_members
+    assert given.members[2].ship is off and given.members[2].residual is None
+    # the third member changes the spread, so the calibrated factors, every one of them
+    assert all(g != pytest.approx(o, rel=1e-3) for g, o in zip(given.scale, own.scale))
+    assert coverage(given, trials, integrator='euler')['all'] >= 0.9   # its own calibration
+    with pytest.raises(TuningError, match='members given'):
+        with_interval(given)
+    with pytest.raises(TuningError, match='at least 2 members'):
+        calibrate_interval(model, trials, members=own.members[:1])
+
+
 def test_simulator_members_spread_grows_in_free_run_and_plain_models_have_none():
     # the sim_node's covariance (ros/uncertainty.py, no ROS needed): the members are stepped
     # with the simulator's commands; their calibrated spread grows in free run
