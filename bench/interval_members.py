@@ -43,6 +43,11 @@ MAX_FACTOR = 3.0
 COVERAGE = (0.80, 0.95)
 
 
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run interval_members``."""
+    return main((['--quick'] if quick else []) + argv)
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(prog='python -m bench run interval_members')
     ap.add_argument('--quick', action='store_true')
@@ -96,3 +101,7 @@ def main(argv: list[str] | None = None) -> dict:
              'none: item 5 not met by these member sets'))
     figures.update({'sets': rows, 'first_within_bound': first})
     return figures
+
+
+if __name__ == '__main__':
+    main()

@@ -254,6 +254,8 @@ class TuneResult:
     choice: Choice | None = None             # tune --model auto: the candidates compared
     choice_notes: list[str] = field(default_factory=list)
     prior_choice: PriorChoice | None = None  # prior_choices: the days-out cross-validation
+    # tune --model auto: every candidate compared, by name (the recommended: tuned_model)
+    candidates: dict[str, ShipConfig | Model] = field(repr=False, default_factory=dict)
 
     @property
     def tuned_ship(self) -> ShipConfig:
@@ -606,7 +608,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
                 notes.append('prediction interval: nominal 90 %, factors '
                              f'{iv.to_dict()["scale"]} (calibrated on the validation part)')
         result.residual = r
-    result.choice, result.choice_notes = choice, notes
+    result.choice, result.choice_notes, result.candidates = choice, notes, cands
 
 
 def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult

@@ -11,6 +11,7 @@ from mmg_tuner.errors import TuningError
 from mmg_tuner.learn import ensemble, members
 from mmg_tuner.learn.model import load_model
 from mmg_tuner.learn.residual import ResidualNet, zero_net
+from mmg_tuner.learn.train import split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.interval import (calibrate_interval, coverage, Interval,
                                        model_interval, with_interval)
@@ -143,6 +144,12 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
     c = res.choice
     assert list(c.by_kind) == ['physics', 'hybrid', 'network', 'blend']
     assert c.score[c.chosen] == min(c.score.values()) >= 1.0
+    # every candidate compared is kept, each scoring as the table says (to score elsewhere)
+    assert list(res.candidates) == list(c.by_kind)
+    again = choose_model(res.candidates, split_validation(trials, 0.25, 5)[1], groups)
+    assert again.by_kind == c.by_kind
+    assert res.candidates['physics'].params is not None and \
+        res.candidates['hybrid'].residual is not None
     res.write(tmp_path / 'out', plots=False)
     params = (tmp_path / 'out' / 'params.yaml').read_text()
     assert '## Model chosen (--model auto)' in (tmp_path / 'out' / 'report.md').read_text()

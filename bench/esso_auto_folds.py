@@ -1,0 +1,137 @@
+"""
+``tune --model auto`` on the three development folds: the recommended model against each candidate.
+
+    python -m bench run esso_auto_folds [--quick]
+
+Registered in bench/esso_auto_folds_preregistration.md (issue 46's "must hold": within 5 % of
+the best single candidate on every kind, better than the published MMG on every kind). Per
+fold (the position split of bench/esso_osaka.py, 32 runs), the guide's command
+(``--dt 0.5 --model auto --residual-seeds 3`` with the ship's recipe) on the fold's tuning
+files, through the functions the command uses; every candidate it compared
+(``TuneResult.candidates``) and the published model scored on the fold's held-out runs (read
+as the command reads them, 0.5 s grid, ``mt.evaluate``: RK4, restarts every 100 s, sigma
+pooled over the fold). Prints the per-fold and the mean tables, and the verdicts D1 and D2.
+``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+import time
+
+import mmg_tuner as mt
+from mmg_tuner.api import tune as api_tune
+from mmg_tuner.cli.tune import (apply_recipe, build_parser, explicit_options,
+                                load_tune_and_test, trial_kinds, tune_config)
+from mmg_tuner.data.esso import runs_by_kind, split_runs
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+PONDS = ROOT / 'data' / 'esso_osaka_frt'
+SHIP = 'esso_osaka_3m'
+WITHIN = 1.05   # D1
+
+
+def benchmark(quick: bool, argv: list[str]) -> dict:
+    """Entry point of ``python -m bench run esso_auto_folds``."""
+    return main((['--quick'] if quick else []) + argv)
+
+
+def _auto(files: list[Path], quick: bool) -> mt.TuneResult:
+    """The guide's auto command on ``files``, as the command configures and reads them."""
+    argv = [str(f) for f in files] + ['--ship', SHIP, '--dt', '0.5', '--model', 'auto',
+                                      '--residual-seeds', '3', '--out', 'unused', '--quiet']
+    if quick:
+        argv += ['--residual-epochs', '3']
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    ship = mt.load_ship(SHIP)
+    apply_recipe(args, explicit_options(parser, argv), ship)
+    config = tune_config(args)
+    trials, _ = load_tune_and_test(args, ship)
+    return api_tune(ship, trials, [], config, groups=trial_kinds(trials))
+
+
+def _by_kind(model: object, runs: list, kind_of: dict[str, str]) -> dict[str, float]:
+    """Mean eq. 26 index per kind over ``runs`` (sigma pooled over them; failed: inf)."""
+    ev = mt.evaluate(model, runs, restart_every_s=100.0, integrator='rk4')
+    out: dict[str, list[float]] = {}
+    for t in runs:
+        idx = ev.trials[t.name].index
+        out.setdefault(kind_of[t.name], []).append(np.inf if idx is None else idx)
+    return {k: float(np.mean(v)) for k, v in out.items()}
+
+
+def _table(scores: dict[str, dict[str, float]], chosen: str) -> str:
+    kinds = sorted(next(iter(scores.values())))
+    lines = ['| model | ' + ' | '.join(kinds) + ' |', '|---|' + '---|' * len(kinds)]
+    for m, v in scores.items():
+        mark = ' (recommended)' if m == chosen and m != 'recommended' else ''
+        lines.append(f'| {m}{mark} | ' + ' | '.join(f'{v[k]:.4g}' for k in kinds) + ' |')
+    return '\n'.join(lines)
+
+
+def _verdicts(scores: dict[str, dict[str, float]], chosen: str) -> dict[str, dict[str, bool]]:
+    cands = [m for m in scores if m != 'published']
+    d1, d2 = {}, {}
+    for k in scores[chosen]:
+        best = min(scores[m][k] for m in cands)
+        d1[k] = bool(scores[chosen][k] <= WITHIN * best)
+        d2[k] = bool(scores[chosen][k] < scores['published'][k])
+    return {'D1': d1, 'D2': d2}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(prog='python -m bench run esso_auto_folds')
+    ap.add_argument('--quick', action='store_true')
+    args = ap.parse_args(argv)
+    files = runs_by_kind(PONDS)
+    published = mt.load_ship(SHIP)
+    per_fold: dict[int, dict] = {}
+    t0 = time.perf_counter()
+    for fold in ((1,) if args.quick else (0, 1, 2)):
+        train, test = [], []
+        for fs in files.values():
+            a, b = split_runs(fs, fold)
+            train += a
+            test += b
+        t1 = time.perf_counter()
+        res = _auto(train, args.quick)
+        auto_s = time.perf_counter() - t1
+        assert res.choice is not None   # model='auto'
+        chosen = res.choice.chosen
+        runs, kind_of = [], {}
+        for f in test:
+            for t in mt.load_trials([str(f)], ship=published, dt=0.5):
+                runs.append(t)
+                kind_of[t.name] = f.parent.name
+        scores = {'published': _by_kind(published, runs, kind_of)}
+        for name, model in res.candidates.items():
+            scores[name] = _by_kind(model, runs, kind_of)
+        per_fold[fold] = {'recommended': chosen, 'scores': scores, 'auto_wall_s': auto_s,
+                          'verdicts': _verdicts(scores, chosen)}
+        print(f'\nfold {fold}: {len(train)} tuning runs, {len(runs)} held out; auto '
+              f'{auto_s:.0f} s; recommended {chosen}')
+        print(_table(scores, chosen))
+    # A_k(M): the mean over folds of each model's mean index per kind; the recommended one per
+    # fold (its name may differ between folds)
+    models = list(next(iter(per_fold.values()))['scores'])
+    kinds = sorted(next(iter(per_fold.values()))['scores']['published'])
+    mean = {m: {k: float(np.mean([pf['scores'][m][k] for pf in per_fold.values()
+                                  if m in pf['scores']])) for k in kinds} for m in models}
+    mean['recommended'] = {k: float(np.mean([pf['scores'][pf['recommended']][k]
+                                             for pf in per_fold.values()])) for k in kinds}
+    verdicts = _verdicts(mean, 'recommended')
+    print('\nmean over the folds, A_k(M):')
+    print(_table(mean, 'recommended'))
+    for name, by_kind in verdicts.items():
+        ok = all(by_kind.values())
+        print(f'{name}: {"PASS" if ok else "FAIL"} ('
+              + ', '.join(f'{k} {"pass" if v else "fail"}' for k, v in by_kind.items()) + ')')
+    print(f'wall time: {time.perf_counter() - t0:.0f} s')
+    return {'folds': per_fold, 'mean_index_by_kind': mean, 'verdicts': verdicts,
+            'quick': args.quick}
+
+
+if __name__ == '__main__':
+    main()
