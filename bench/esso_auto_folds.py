@@ -19,6 +19,7 @@ import argparse
 from pathlib import Path
 import time
 
+from bench.esso_prior_cv import index_by_kind
 import mmg_tuner as mt
 from mmg_tuner.api import tune as api_tune
 from mmg_tuner.cli.tune import (apply_recipe, build_parser, explicit_options,
@@ -50,16 +51,6 @@ def _auto(files: list[Path], quick: bool) -> mt.TuneResult:
     config = tune_config(args)
     trials, _ = load_tune_and_test(args, ship)
     return api_tune(ship, trials, [], config, groups=trial_kinds(trials))
-
-
-def _by_kind(model: object, runs: list, kind_of: dict[str, str]) -> dict[str, float]:
-    """Mean eq. 26 index per kind over ``runs`` (sigma pooled over them; failed: inf)."""
-    ev = mt.evaluate(model, runs, restart_every_s=100.0, integrator='rk4')
-    out: dict[str, list[float]] = {}
-    for t in runs:
-        idx = ev.trials[t.name].index
-        out.setdefault(kind_of[t.name], []).append(np.inf if idx is None else idx)
-    return {k: float(np.mean(v)) for k, v in out.items()}
 
 
 def _table(scores: dict[str, dict[str, float]], chosen: str) -> str:
@@ -105,9 +96,9 @@ def main(argv: list[str] | None = None) -> dict:
             for t in mt.load_trials([str(f)], ship=published, dt=0.5):
                 runs.append(t)
                 kind_of[t.name] = f.parent.name
-        scores = {'published': _by_kind(published, runs, kind_of)}
+        scores = {'published': index_by_kind(published, runs, kind_of)}
         for name, model in res.candidates.items():
-            scores[name] = _by_kind(model, runs, kind_of)
+            scores[name] = index_by_kind(model, runs, kind_of)
         per_fold[fold] = {'recommended': chosen, 'scores': scores, 'auto_wall_s': auto_s,
                           'verdicts': _verdicts(scores, chosen)}
         print(f'\nfold {fold}: {len(train)} tuning runs, {len(runs)} held out; auto '

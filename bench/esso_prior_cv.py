@@ -52,7 +52,8 @@ def _run_tune(paths: list[Path], out: Path, extra: list[str]) -> dict:
     return json.loads((out / 'report.json').read_text())
 
 
-def _by_kind(model: object, runs: list, kind_of: dict[str, str]) -> dict[str, float]:
+def index_by_kind(model: object, runs: list, kind_of: dict[str, str]) -> dict[str, float]:
+    """Mean eq. 26 index per kind over ``runs`` (sigma pooled over them; failed: inf)."""
     ev = mt.evaluate(model, runs, restart_every_s=100.0, integrator='rk4')
     out: dict[str, list[float]] = {}
     for t in runs:
@@ -119,13 +120,13 @@ def main(argv: list[str] | None = None) -> dict:
                 r = _run_tune(train, Path(tmp) / f'fold{fold}', ['--prior', f'{prior:g}'])
                 model = ship.with_params({n: v['tuned'] for n, v in r['params'].items()})
             for name, m in (('published', ship), ('tuned', model)):
-                for k, x in _by_kind(m, runs, kind_of).items():
+                for k, x in index_by_kind(m, runs, kind_of).items():
                     c1.setdefault(k, {}).setdefault(name, []).append(x)
     c1_mean = {k: {m: float(np.mean(x)) for m, x in v.items()} for k, v in c1.items()}
     fresh_files = sorted(FRESH.glob('*/*.csv'))
     runs, kind_of = _load(fresh_files, ship)
-    c2 = {name: _by_kind(m, runs, kind_of) for name, m in (('published', ship),
-                                                           ('tuned', tuned))}
+    c2 = {name: index_by_kind(m, runs, kind_of)
+          for name, m in (('published', ship), ('tuned', tuned))}
     print('\nC1, three position folds (mean over folds of the mean index per kind), '
           'published -> tuned:')
     for k, v in c1_mean.items():
