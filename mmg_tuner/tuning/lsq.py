@@ -32,6 +32,12 @@ BROYDEN_MIN_DIM = 4
 """Rank-one (Broyden) Jacobian updates from this many tuned parameters up: below, a
 finite-difference Jacobian costs so few simulations that refreshing it is cheaper than a
 step wasted on a stale one."""
+LAMBDA_MAX = 1e16
+"""Stop when the damping exceeds this with an exact Jacobian: the step is then below 1e-16
+of the unit box and every further try is rejected. Without it, a parameter on the box's
+lower edge (where 0 + a tiny step is still a step) kept the loop going until lambda
+overflowed to inf (an overflow RuntimeWarning seen in the days-out prior choice), some 30
+simulations for nothing each time."""
 BROYDEN_MIN_RATIO = 0.25
 """A Broyden-updated Jacobian is kept while the last step achieved at least this share of the
 reduction it predicted (the usual trust-region threshold); else it is recomputed."""
@@ -136,6 +142,8 @@ def local_least_squares(space: ParameterSpace, obj: Objective, theta0: np.ndarra
             nu *= 2.0
             if not exact:
                 Jac = None
+            elif lam > LAMBDA_MAX:   # no step the box can resolve is left: a minimum
+                break
     theta = space.from_unit(z)
     J = obj(space.full_params(base, np.vstack([theta, space.from_unit(z0)])))
     sims += 2
