@@ -39,7 +39,7 @@ def benchmark(quick: bool, argv: list[str]) -> dict:
 
 
 def _auto(files: list[Path], quick: bool) -> mt.TuneResult:
-    """The guide's auto command on ``files``, as the command configures and reads them."""
+    """Run the guide's auto command on ``files``, as the command configures and reads them."""
     argv = [str(f) for f in files] + ['--ship', SHIP, '--dt', '0.5', '--model', 'auto',
                                       '--residual-seeds', '3', '--out', 'unused', '--quiet']
     if quick:
@@ -63,13 +63,25 @@ def _table(scores: dict[str, dict[str, float]], chosen: str) -> str:
 
 
 def _verdicts(scores: dict[str, dict[str, float]], chosen: str) -> dict[str, dict[str, bool]]:
+    """D1 and D2 per kind; a non-finite score (a failed run) fails the kind."""
     cands = [m for m in scores if m != 'published']
     d1, d2 = {}, {}
     for k in scores[chosen]:
         best = min(scores[m][k] for m in cands)
-        d1[k] = bool(scores[chosen][k] <= WITHIN * best)
-        d2[k] = bool(scores[chosen][k] < scores['published'][k])
+        ok = bool(np.isfinite(scores[chosen][k]))
+        d1[k] = ok and bool(scores[chosen][k] <= WITHIN * best)
+        d2[k] = ok and bool(scores[chosen][k] < scores['published'][k])
     return {'D1': d1, 'D2': d2}
+
+
+def _print_verdicts(verdicts: dict[str, dict[str, bool]], prefix: str = '') -> None:
+    for name, by_kind in verdicts.items():
+        if not by_kind:
+            print(f'{prefix}{name}: undecided')
+            continue
+        ok = all(by_kind.values())
+        print(f'{prefix}{name}: {"PASS" if ok else "FAIL"} ('
+              + ', '.join(f'{k} {"pass" if v else "fail"}' for k, v in by_kind.items()) + ')')
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -104,9 +116,13 @@ def main(argv: list[str] | None = None) -> dict:
         print(f'\nfold {fold}: {len(train)} tuning runs, {len(runs)} held out; auto '
               f'{auto_s:.0f} s; recommended {chosen}')
         print(_table(scores, chosen))
+        _print_verdicts(per_fold[fold]['verdicts'], f'fold {fold} (for information) ')
     # A_k(M): the mean over folds of each model's mean index per kind; the recommended one per
-    # fold (its name may differ between folds)
-    models = list(next(iter(per_fold.values()))['scores'])
+    # fold (its name may differ between folds). A candidate missing from a fold (not trained
+    # there) would make the means unlike: then D1 is not decided.
+    names = [list(pf['scores']) for pf in per_fold.values()]
+    models = list(dict.fromkeys(m for ns in names for m in ns))
+    complete = all(set(ns) == set(models) for ns in names)
     kinds = sorted(next(iter(per_fold.values()))['scores']['published'])
     mean = {m: {k: float(np.mean([pf['scores'][m][k] for pf in per_fold.values()
                                   if m in pf['scores']])) for k in kinds} for m in models}
@@ -115,10 +131,10 @@ def main(argv: list[str] | None = None) -> dict:
     verdicts = _verdicts(mean, 'recommended')
     print('\nmean over the folds, A_k(M):')
     print(_table(mean, 'recommended'))
-    for name, by_kind in verdicts.items():
-        ok = all(by_kind.values())
-        print(f'{name}: {"PASS" if ok else "FAIL"} ('
-              + ', '.join(f'{k} {"pass" if v else "fail"}' for k, v in by_kind.items()) + ')')
+    if not complete:
+        print('not every candidate was trained in every fold: D1 undecided')
+        verdicts['D1'] = {}
+    _print_verdicts(verdicts)
     print(f'wall time: {time.perf_counter() - t0:.0f} s')
     return {'folds': per_fold, 'mean_index_by_kind': mean, 'verdicts': verdicts,
             'quick': args.quick}

@@ -74,6 +74,11 @@ def main(argv: list[str] | None = None) -> dict:
     window = ResidualConfig().window
     val = split_validation(mt.load_trials(paths, model.ship, dt=0.5), 0.25, window)[1]
     fresh = mt.load_trials([FRESH], model.ship, dt=0.5)
+    if chosen != 'blend':   # the registered sets are the blend's six networks and more
+        print(f'the {chosen} was recommended: the registered member sets (the blend of hybrid '
+              'and network seeds) do not apply; nothing compared')
+        figures['registered_sets'] = False
+        return figures
     own = list(ensemble_members(model))
     physics = Model(model.ship, None)
     published = Model(mt.load_ship(SHIP), None)

@@ -605,6 +605,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
             else:
                 # (the interval's model is the chosen network's, which it keeps)
                 r.net = cast(ResidualNet, with_interval(iv).residual)
+                cands[choice.chosen] = Model(physics, r.net)   # the model written
                 notes.append('prediction interval: nominal 90 %, factors '
                              f'{iv.to_dict()["scale"]} (calibrated on the validation part)')
         result.residual = r

@@ -11,6 +11,7 @@ simulation-based loss flows through every step of the simulated window.
 from __future__ import annotations
 
 import logging
+import threading
 from typing import Any, Callable, cast, Mapping, Sequence
 
 import equinox as eqx
@@ -43,6 +44,10 @@ Total = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike], tuple[jax.Array, j
 
 
 _FFI_TARGETS: dict[int, bool] = {}
+_FFI_LOCK = threading.Lock()   # one registration per family, whichever thread asks first
+AGREE_RTOL = 1e-12
+"""The self-test's tolerance: a misread struct gives gross errors; the kernel compiled twice
+(fast-math) may differ by an ulp. The tests hold the handler to the callback bit for bit."""
 
 
 def _ffi_target(kind: int, p: np.ndarray) -> str | None:
@@ -53,18 +58,19 @@ def _ffi_target(kind: int, p: np.ndarray) -> str | None:
     differs from the kernel's: the caller falls back to ``jax.pure_callback``.
     """
     name = f'mmg_tuner_physics_{kind}'
-    if kind not in _FFI_TARGETS:
-        ok = False
-        try:
-            address: int = getattr(ffi_handler(kind), 'address')
-            capsule = jax.ffi.pycapsule(address)  # type: ignore[no-untyped-call]
-            jax.ffi.register_ffi_target(name, capsule, platform='cpu')
-            ok = _ffi_agrees(kind, name, p)
-        except Exception as exc:   # noqa: BLE001 -- any refusal means: use the callback
-            logger.warning('the physics runs through jax.pure_callback (slower): its XLA FFI '
-                           'handler was refused: %s', exc)
-        _FFI_TARGETS[kind] = ok
-    return name if _FFI_TARGETS[kind] else None
+    with _FFI_LOCK:
+        if kind not in _FFI_TARGETS:
+            ok = False
+            try:
+                address: int = getattr(ffi_handler(kind), 'address')
+                capsule = jax.ffi.pycapsule(address)  # type: ignore[no-untyped-call]
+                jax.ffi.register_ffi_target(name, capsule, platform='cpu')
+                ok = _ffi_agrees(kind, name, p)
+            except Exception as exc:   # noqa: BLE001 -- any refusal means: use the callback
+                logger.warning('the physics runs through jax.pure_callback (slower): its XLA '
+                               'FFI handler was refused: %s', exc)
+            _FFI_TARGETS[kind] = ok
+        return name if _FFI_TARGETS[kind] else None
 
 
 def _ffi_call(name: str, s: jax.Array, act: jax.Array, wind: jax.Array, p: jax.Array,
@@ -72,11 +78,13 @@ def _ffi_call(name: str, s: jax.Array, act: jax.Array, wind: jax.Array, p: jax.A
     shapes = [s.shape] + ([s.shape + (6,)] if with_jac else [])
     out = [jax.ShapeDtypeStruct(x, jnp.float64)  # type: ignore[no-untyped-call]
            for x in shapes]
-    return jax.ffi.ffi_call(name, out, vmap_method='broadcast_all')(s, act, wind, p)
+    # float64 only: the handler reads the buffers' bytes as doubles
+    args = [jnp.asarray(x, dtype=jnp.float64) for x in (s, act, wind, p)]
+    return jax.ffi.ffi_call(name, out, vmap_method='broadcast_all')(*args)
 
 
 def _ffi_agrees(kind: int, name: str, p: np.ndarray) -> bool:
-    """Return whether the FFI handler gives the kernel's F and J (parameters p), to the bit."""
+    """Return whether the FFI handler gives the kernel's F and J (parameters p) on test rows."""
     tag = family_tag(kind)
     rng = np.random.default_rng(0)
     from mmg_tuner.core.models import family_of_code
@@ -88,12 +96,14 @@ def _ffi_agrees(kind: int, name: str, p: np.ndarray) -> bool:
     F, J = np.empty((3, 6)), np.empty((3, 6, 6))
     batch_derivative(tag, p, S, A, Wd, F, J, True)
     got = _ffi_call(name, jnp.asarray(S), jnp.asarray(A), jnp.asarray(Wd), jnp.asarray(p), True)
-    same = np.array_equal(np.asarray(got[0]), F, equal_nan=True) and \
-        np.array_equal(np.asarray(got[1]), J, equal_nan=True)
+    rows = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(J), axis=(1, 2))
+    same = bool(rows.any()) and all(
+        np.allclose(np.asarray(g)[rows], ref[rows], rtol=AGREE_RTOL, atol=1e-300)
+        for g, ref in zip(got, (F, J)))
     if not same:
         logger.warning('the physics runs through jax.pure_callback (slower): its XLA FFI '
                        'handler disagreed with the kernel on a test batch')
-    return bool(same)
+    return same
 
 
 def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.Array]:
@@ -129,7 +139,8 @@ def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.
         if target is not None:
             out: jax.Array = _ffi_call(target, s, act, wind, p_jax, False)[0]
             return out
-        out = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind)
+        out = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind,
+                                vmap_method='sequential')
         return out
 
     def fwd(s: jax.Array, act: jax.Array, wind: jax.Array
@@ -140,7 +151,7 @@ def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.
             jac = jax.ShapeDtypeStruct(s.shape + (6,),  # type: ignore[no-untyped-call]
                                        jnp.float64)
             F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True), (shape(s), jac),
-                                     s, act, wind)
+                                     s, act, wind, vmap_method='sequential')
         return F, (J, act, wind)
 
     def bwd(res: tuple[jax.Array, jax.Array, jax.Array], g: jax.Array

@@ -111,7 +111,8 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     samples. members: the models whose spread about ``model``'s prediction is the interval's
     (default: the ensemble's own networks, each with its physics; give others, e.g. with a
     different physics, to compare; at least 2). Only the default is stored with a network
-    (:func:`with_interval`): the simulator node steps the ensemble's own members.
+    (:func:`with_interval`): the simulator node steps the ensemble's own members (members
+    given are never stored, even the ensemble's own passed explicitly).
     """
     if not 0 < level < 1:
         raise TuningError(f'interval level {level!r}: give a share in (0, 1), e.g. 0.9')

@@ -264,6 +264,13 @@ def test_bridge_ffi_handler_is_taken_and_equals_the_callback(any_ship):
     Fb, vjp_b = jax.vjp(lambda s: ref(s, A, Wd), S)
     assert np.array_equal(np.asarray(Fa), np.asarray(Fb))
     assert np.array_equal(np.asarray(vjp_a(G)[0]), np.asarray(vjp_b(G)[0]))
+    # the parameters are read at every call, not kept from the first registration
+    p2 = np.array(ship.params)
+    p2[PARAM_INDEX['current_speed']] += 0.3   # the current enters every family's dx, dy
+    other = _engine.physics_fn(ship.kind, p2)(S, A, Wd)
+    assert not np.array_equal(np.asarray(other), np.asarray(Fa))
+    assert np.array_equal(np.asarray(other),
+                          np.asarray(_engine.physics_fn(ship.kind, p2, ffi=False)(S, A, Wd)))
     # three batches of eight under vmap: the handler sees (3, 8, 6) and must treat it as 24 rows
     batched = jax.vmap(lambda s, a, w: fast(s, a, w))(S.reshape(3, 8, 6),
                                                       A.reshape(3, 8, -1), Wd.reshape(3, 8, 2))
