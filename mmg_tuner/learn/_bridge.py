@@ -210,7 +210,10 @@ def ffi_handler(kind: int) -> object:
         # NaN, which the training skips as a diverging window, never stale memory
         F[:] = np.nan
         J[:] = np.nan
-        for g in range(groups):
+        if groups == 1:   # whole arrays (no slicing)
+            batch_derivative(tag, P[0], S, A, Wd, F, J, cf[12] > 1)
+            return _ptr(0)
+        for g in range(groups):   # under jax.vmap: one parameter row per group of rows
             lo, hi = g * m, (g + 1) * m
             batch_derivative(tag, P[g], S[lo:hi], A[lo:hi], Wd[lo:hi], F[lo:hi],
                              J[lo:hi] if cf[12] > 1 else J, cf[12] > 1)
