@@ -14,6 +14,16 @@ them miss), so the factors c_i are calibrated: on trials the models did not trai
 validation part of the training runs), c_i is the ``level`` quantile of |error_i| / spread_i,
 so that share of their samples falls inside. Coverage on other held-out trials then says
 whether the interval holds (a nominal 90 % interval should cover about 90 % of the samples).
+
+The start error (``calibrate_interval(start_error=True)``): every member restarts from the
+*recorded* state, so the members' spread starts at zero, while the recorded state has its
+own error, which every simulation carries from its start and which the recorded value it is
+compared with carries again. sigma_j, the recorded state j's error, is the RMS over every
+restart of the centre model's error one sample after it, / sqrt 2 (two readings; the model
+can hardly err in one sample); the spread then adds, in quadrature, the centre model's
+change when restarted with state j raised by sigma_j (for each j) and sigma_i itself:
+
+    spread_i^2 = members' spread_i^2 + sum_j (s_i(start + sigma_j e_j) - s_i)^2 + sigma_i^2.
 """
 from __future__ import annotations
 
@@ -46,7 +56,9 @@ class Interval:
     model: the ensemble (its prediction is the interval's centre); members: the networks it
     averages, each with the same physics; scale: c_i per state of INDEX_STATES (x, u, y, v,
     psi, r); level: the nominal share of samples inside (e.g. 0.9); own_members: False when
-    the members were given (``calibrate_interval(members=...)``), which a network cannot store.
+    the members were given (``calibrate_interval(members=...)``), which a network cannot store;
+    start_sigma: the recorded state's error per state of STATE_NAMES (x, y, psi [m, rad], u, v
+    [m/s], r [rad/s]) when the spread carries the start error (see the module), else None.
     """
 
     model: Model
@@ -54,10 +66,14 @@ class Interval:
     scale: tuple[float, ...]
     level: float
     own_members: bool = True   # the members are the ensemble's own networks (storable)
+    start_sigma: tuple[float, ...] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {'level': self.level, 'members': len(self.members),
-                'scale': dict(zip(INDEX_STATES, self.scale))}
+        out: dict[str, Any] = {'level': self.level, 'members': len(self.members),
+                               'scale': dict(zip(INDEX_STATES, self.scale))}
+        if self.start_sigma is not None:
+            out['start_sigma'] = dict(zip(STATE_NAMES, self.start_sigma))
+        return out
 
 
 def ensemble_members(model: Model) -> tuple[Model, ...]:
@@ -73,26 +89,88 @@ def ensemble_members(model: Model) -> tuple[Model, ...]:
     return tuple(Model(model.ship, n) for n in nets)
 
 
+def _restarts(trial: Trial, restart_every_s: float) -> np.ndarray:
+    """Return the samples a simulation restarts from the recorded state (as ``predict``)."""
+    T = len(trial)
+    K = T if not restart_every_s else max(1, int(round(restart_every_s / trial.dt)))
+    return np.arange(0, T, K)
+
+
+def _wrapped(d: np.ndarray) -> np.ndarray:
+    """Return state differences (..., 6) with the heading's wrapped to [-pi, pi]."""
+    k = _COL['psi']
+    d[..., k] = (d[..., k] + np.pi) % (2 * np.pi) - np.pi
+    return d
+
+
+def start_sigma(model: Model, trials: Sequence[Trial], restart_every_s: float = 100.0,
+                integrator: str = 'rk4') -> tuple[float, ...]:
+    """
+    Return the recorded state's error sigma_j per state of STATE_NAMES (see the module).
+
+    The RMS over every restart of ``trials`` of the model's error one sample after it,
+    / sqrt 2.
+    """
+    first = []
+    for tr in trials:
+        pred, _, _ = predict(model, tr, restart_every_s, integrator)
+        k = _restarts(tr, restart_every_s) + 1
+        k = k[k < len(tr)]
+        first.append(errors(pred, tr.states)[k])
+    e = np.concatenate(first) if first else np.empty((0, 6))
+    e = e[np.all(np.isfinite(e), axis=1)]
+    if len(e) == 0:
+        raise TuningError('the start error needs a restart followed by a simulated sample '
+                          'in the calibration trials; none had one')
+    return tuple(float(x) for x in np.sqrt(np.mean(e ** 2, axis=0) / 2.0))
+
+
+def _start_variance(model: Model, trial: Trial, pred: np.ndarray, sigma: Sequence[float],
+                    restart_every_s: float, integrator: str) -> np.ndarray:
+    """Return sum_j (model restarted with state j + sigma_j - model)^2 + sigma^2 (T, 6)."""
+    starts = _restarts(trial, restart_every_s)
+    var = np.zeros((len(trial), 6))
+    for j, s_j in enumerate(sigma):
+        if not s_j > 0:
+            continue
+        states = trial.states.copy()
+        states[starts, j] += s_j
+        moved, _, _ = predict(model, replace(trial, states=states), restart_every_s,
+                              integrator)
+        var += _wrapped(moved - pred) ** 2
+    var += np.asarray(sigma)[None] ** 2
+    var[starts] = 0.0   # the restart itself is the recorded state (error 0 there)
+    return var
+
+
 def _centre_and_spread(model: Model, members: Sequence[Model], trial: Trial,
-                       restart_every_s: float, integrator: str
+                       restart_every_s: float, integrator: str,
+                       sigma: Sequence[float] | None = None
                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Return the model's error (T, 6) and the members' spread (T, 6), in STATE_NAMES order."""
+    """
+    Return the model's error (T, 6) and the spread (T, 6), in STATE_NAMES order.
+
+    The spread: the members' about the model's prediction; with sigma (the recorded state's
+    error), and the start error's added in quadrature (see the module).
+    """
     pred, _, _ = predict(model, trial, restart_every_s, integrator)
     err = errors(pred, trial.states)
     runs = np.stack([predict(m, trial, restart_every_s, integrator)[0] for m in members])
     # heading: spread of the members' differences from the centre, wrapped
-    dev = runs - pred[None]
-    k = _COL['psi']
-    dev[..., k] = (dev[..., k] + np.pi) % (2 * np.pi) - np.pi
-    spread = np.sqrt(np.sum(dev ** 2, axis=0) / max(len(members) - 1, 1))
-    return err, spread
+    dev = _wrapped(runs - pred[None])
+    var = np.sum(dev ** 2, axis=0) / max(len(members) - 1, 1)
+    if sigma is not None:
+        var = var + _start_variance(model, trial, pred, sigma, restart_every_s, integrator)
+    return err, np.sqrt(var)
 
 
 def _ratios(model: Model, members: Sequence[Model], trials: Sequence[Trial],
-            restart_every_s: float, integrator: str) -> list[np.ndarray]:
+            restart_every_s: float, integrator: str,
+            sigma: Sequence[float] | None = None) -> list[np.ndarray]:
     out = []
     for tr in trials:
-        err, spread = _centre_and_spread(model, members, tr, restart_every_s, integrator)
+        err, spread = _centre_and_spread(model, members, tr, restart_every_s, integrator,
+                                         sigma)
         cols = [_COL[n] for n in INDEX_STATES]
         e, s = np.abs(err[:, cols]), spread[:, cols]
         r = np.where(s > TINY, e / np.maximum(s, TINY), np.where(e > TINY, np.inf, 0.0))
@@ -102,7 +180,8 @@ def _ratios(model: Model, members: Sequence[Model], trials: Sequence[Trial],
 
 def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9,
                        restart_every_s: float = 100.0, integrator: str = 'rk4',
-                       members: Sequence[Model] | None = None) -> Interval:
+                       members: Sequence[Model] | None = None,
+                       start_error: bool = False) -> Interval:
     """
     Return the interval of an ensemble ``model`` with factors calibrated on ``trials``.
 
@@ -112,7 +191,9 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     (default: the ensemble's own networks, each with its physics; give others, e.g. with a
     different physics, to compare; at least 2). Only the default is stored with a network
     (:func:`with_interval`): the simulator node steps the ensemble's own members (members
-    given are never stored, even the ensemble's own passed explicitly).
+    given are never stored, even the ensemble's own passed explicitly). start_error: the
+    spread also carries the recorded start's error (see the module; sigma estimated on
+    ``trials``).
     """
     if not 0 < level < 1:
         raise TuningError(f'interval level {level!r}: give a share in (0, 1), e.g. 0.9')
@@ -120,15 +201,19 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     mem = ensemble_members(model) if members is None else tuple(as_model(m) for m in members)
     if len(mem) < 2:
         raise TuningError(f'an interval needs at least 2 members; {len(mem)} given')
-    R = np.concatenate(_ratios(model, mem, list(trials), restart_every_s, integrator))
+    trials = list(trials)
+    sigma = start_sigma(model, trials, restart_every_s, integrator) if start_error else None
+    R = np.concatenate(_ratios(model, mem, trials, restart_every_s, integrator, sigma))
     # the order statistic at or above the level (no interpolation): at least that share of
     # the calibration samples is inside
     scale = tuple(float(np.quantile(R[:, i], level, method='higher'))
                   for i in range(len(INDEX_STATES)))
     if not all(np.isfinite(scale)):
         raise TuningError('the interval could not be calibrated: the model failed on a '
-                          'calibration trial (its errors are not finite)')
-    return Interval(model, mem, scale, float(level), members is None)
+                          'calibration trial (its errors are not finite), or its members agree '
+                          'exactly where it errs (a zero spread; start_error=True adds the '
+                          "recorded state's error)")
+    return Interval(model, mem, scale, float(level), members is None, sigma)
 
 
 def coverage(interval: Interval, trials: Sequence[Trial], restart_every_s: float = 100.0,
@@ -140,7 +225,8 @@ def coverage(interval: Interval, trials: Sequence[Trial], restart_every_s: float
     {state: share}, 'trials': {trial: share}, 'level': the nominal share}.
     """
     trials = list(trials)
-    R = _ratios(interval.model, interval.members, trials, restart_every_s, integrator)
+    R = _ratios(interval.model, interval.members, trials, restart_every_s, integrator,
+                interval.start_sigma)
     c = np.asarray(interval.scale)
     inside = [r <= c[None, :] for r in R]
     every = np.concatenate(inside)
@@ -163,9 +249,11 @@ def with_interval(interval: Interval) -> Model:
                           'those): calibrate without members= to store it')
     # an interval's model is an ensemble: it has a network (ensemble_members checked)
     net = cast('ResidualNet', interval.model.residual)
-    meta = {**net.meta, 'interval': {'level': interval.level,
-                                     'scale': list(interval.scale),
-                                     'states': list(INDEX_STATES)}}
+    info: dict[str, Any] = {'level': interval.level, 'scale': list(interval.scale),
+                            'states': list(INDEX_STATES)}
+    if interval.start_sigma is not None:   # in STATE_NAMES order
+        info['start_sigma'] = dict(zip(STATE_NAMES, interval.start_sigma))
+    meta = {**net.meta, 'interval': info}
     return Model(interval.model.ship, replace(net, meta=meta))
 
 
@@ -176,5 +264,8 @@ def model_interval(model: Model) -> Interval | None:
     info = None if net is None or not isinstance(net.meta, dict) else net.meta.get('interval')
     if not info:
         return None
+    sigma = info.get('start_sigma')
     return Interval(model, ensemble_members(model), tuple(float(c) for c in info['scale']),
-                    float(info['level']))
+                    float(info['level']),
+                    start_sigma=None if sigma is None else
+                    tuple(float(sigma[n]) for n in STATE_NAMES))

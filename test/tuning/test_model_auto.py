@@ -261,3 +261,38 @@ def test_ship_recipe_fills_only_the_options_not_given():
     ship.extra['tuning']['recipe'] = {'nope': 1}
     with pytest.raises(Exception, match='nope'):
         apply_recipe(args, {}, ship)
+
+
+def test_interval_start_error_measures_the_recorded_noise_and_covers_with_small_factors(
+        trials):
+    """
+    Recorded states with a known white error: the start error finds it, and carries it.
+
+    The model is the trials' own ship (two tiny kicks): the members' spread alone misses the
+    recorded error, which every restart starts from and every sample carries, so its factors
+    are large; with the start error the spread is the error's and the factors near a normal
+    quantile's (1.6 at 90 %).
+    """
+    from dataclasses import replace
+    from mmg_tuner.tuning.evaluate import predict
+    ship = mt.load_ship('suzaku')
+    sd = np.array([0.05, 0.05, 0.005, 0.01, 0.005, 0.001])   # x, y, psi, u, v, r
+    rng = np.random.default_rng(3)
+    # the truth: the ship itself, driven by the trials' inputs (the recordings have their own
+    # sensor noise and antenna), recorded with the known error sd
+    truth = [replace(t, states=predict(ship, t, 0.0)[0]) for t in trials]
+    noisy = [replace(t, states=t.states + sd * rng.standard_normal(t.states.shape))
+             for t in truth]
+    model = mt.Model(ship, ensemble([_kick(2e-5), _kick(-2e-5)]))
+    plain = calibrate_interval(model, noisy, 0.9, restart_every_s=10.0)
+    iv = calibrate_interval(model, noisy, 0.9, restart_every_s=10.0, start_error=True)
+    assert plain.start_sigma is None and iv.start_sigma is not None
+    # 48 restarts: the estimate within about three of its standard errors (10 %)
+    ratio = np.asarray(iv.start_sigma) / sd
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), ratio
+    assert max(plain.scale) > 5.0 and max(iv.scale) < 3.0
+    assert coverage(iv, noisy, restart_every_s=10.0)['all'] >= 0.9
+    assert set(iv.to_dict()['start_sigma']) == {'x', 'y', 'psi', 'u', 'v', 'r'}
+    # stored with the network, and read back: evaluate's coverage is the same interval's
+    carried = model_interval(with_interval(iv))
+    assert carried.start_sigma == pytest.approx(iv.start_sigma)
