@@ -12,6 +12,11 @@ they pinned the networks down), and it is exactly the quantity whose coverage ``
 reports on held-out runs. Caveat: c_i was calibrated on 100 s runs restarted from the
 measurement; over a longer free run it is extrapolated.
 
+An interval calibrated with the start error (``calibrate_interval(start_error=True)``) also
+carries sigma_j, the recorded state's error: the node then steps, beside the members, the
+model started with state j raised by sigma_j, and adds their departures and sigma_i itself in
+quadrature, as the calibration did (the start the node is given is taken to be a recorded one).
+
 Mapping (REP-103/105, the node's frames): pose covariance over (x east, y north, z, roll,
 pitch, yaw) in ``odom`` gets the variances of the model's y (east), x (north) and psi; twist
 covariance over (vx forward, vy left, ..., wz) in ``base_link`` those of u, v and r. Only the
@@ -22,7 +27,7 @@ spread until the next run; with fewer than 2 members left the covariance is zero
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from mmg_tuner.core.layout import STATE_NAMES
@@ -45,6 +50,10 @@ class EnsembleSpread:
     scale: np.ndarray          # (6,) c_i in STATE_NAMES order (x, y, psi, u, v, r)
     alive: list[bool]
     run: object = None         # the node's run the members follow (a new one resets them)
+    # with the start error: the model from a start raised by sigma_j (one per state j with
+    # sigma_j > 0), after the members in ``members`` and ``alive``; sigma (6,), else zeros
+    n_start: int = 0
+    start_sigma: np.ndarray = field(default_factory=lambda: np.zeros(6))
 
     @classmethod
     def of(cls, sim: ShipSimulator, integrator: str) -> 'EnsembleSpread | None':
@@ -62,7 +71,16 @@ class EnsembleSpread:
         members = [ShipSimulator(m.ship, sim.dt, sim.x0, sim.rpm0, sim.rudder0, integrator,
                                  sim.substeps, residual=m.residual, commands=start)
                    for m in iv.members]
-        return cls(members, scale, [True] * len(members))
+        sigma = np.zeros(6) if iv.start_sigma is None else np.asarray(iv.start_sigma)
+        raised = []
+        for j in np.flatnonzero(sigma > 0):
+            x0 = np.array(sim.x0, dtype=float)
+            x0[j] += sigma[j]
+            raised.append(ShipSimulator(sim.ship, sim.dt, x0, sim.rpm0, sim.rudder0,
+                                        integrator, sim.substeps, residual=sim.residual,
+                                        commands=start))
+        every = members + raised
+        return cls(every, scale, [True] * len(every), n_start=len(raised), start_sigma=sigma)
 
     def follow(self, sim: ShipSimulator, run: object) -> None:
         """
@@ -85,13 +103,27 @@ class EnsembleSpread:
             self.alive[i] = m.step(sim.steps - m.steps)
 
     def sigma(self, centre: np.ndarray) -> np.ndarray | None:
-        """Return c_i x the members' standard deviation about ``centre`` (6,), or None."""
-        states = [m.observed() for m, ok in zip(self.members, self.alive) if ok]
+        """
+        Return c_i x the spread about ``centre`` (6,), or None.
+
+        The spread: the members' standard deviation, with the start error's departures and
+        sigma added in quadrature when the interval carries them (a raised start that failed
+        counts as no departure).
+        """
+        k = len(self.members) - self.n_start
+        states = [m.observed() for m, ok in zip(self.members[:k], self.alive[:k]) if ok]
         if len(states) < 2:
             return None
-        dev = np.array(states) - centre[None]
-        dev[:, _PSI] = (dev[:, _PSI] + np.pi) % (2 * np.pi) - np.pi
-        s: np.ndarray = self.scale * np.sqrt(np.sum(dev ** 2, axis=0) / (len(states) - 1))
+
+        def dev(x: list[np.ndarray]) -> np.ndarray:
+            d = np.array(x).reshape(len(x), 6) - centre[None]
+            d[:, _PSI] = (d[:, _PSI] + np.pi) % (2 * np.pi) - np.pi
+            return d
+
+        var = np.sum(dev(states) ** 2, axis=0) / (len(states) - 1)
+        raised = [m.observed() for m, ok in zip(self.members[k:], self.alive[k:]) if ok]
+        var += np.sum(dev(raised) ** 2, axis=0) + self.start_sigma ** 2
+        s: np.ndarray = self.scale * np.sqrt(var)
         return s
 
 

@@ -135,6 +135,29 @@ def test_simulator_members_spread_grows_in_free_run_and_plain_models_have_none()
     assert msg.pose.covariance[35] == 0.0 and all(m.steps == 0 for m in spread.members)
 
 
+def test_simulator_spread_with_the_start_error_adds_the_raised_starts():
+    """A stored start error: the node steps the model from raised starts and adds sigma."""
+    from mmg_tuner.core.stepper import ShipSimulator
+    from mmg_tuner.ros.uncertainty import EnsembleSpread
+    ship = mt.load_ship('suzaku')
+    model = mt.Model(ship, ensemble([_kick(2e-4), _kick(-2e-4)]))
+    sd = (0.0, 0.2, 0.01, 0.05, 0.0, 0.002)   # x, y, psi, u, v, r; x and v none
+    iv = Interval(model, tuple(mt.Model(ship, n) for n in members(model.residual)),
+                  (2.0,) * 6, 0.9, start_sigma=sd)
+    sim = ShipSimulator(ship, 0.1, [0, 0, 0, 3.0, 0, 0], 100.0,
+                        residual=with_interval(iv).residual)
+    spread = EnsembleSpread.of(sim, 'rk4')
+    assert spread.n_start == 4 and len(spread.members) == 6
+    # at the start the members agree; each raised start departs by its sigma: 2 sigma^2
+    np.testing.assert_allclose(spread.sigma(sim.observed()), 2.0 * np.sqrt(2) * np.array(sd),
+                               atol=1e-12)
+    sim.set_rudder(0.2)
+    sim.step(300)
+    spread.follow(sim, 1)
+    s = spread.sigma(sim.observed())
+    # a yaw-rate error at the start turns into heading and then into position: x grows
+    assert s[0] > 2.0 * 0.01 and s[2] > 2.0 * np.sqrt(2) * 0.01
+
 def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials, tmp_path):
     pytest.importorskip('jax')
     groups = {t.name: KINDS[t.name] for t in trials}
