@@ -10,7 +10,9 @@ fold (the position split of bench/esso_osaka.py, 32 runs), the guide's command
 files, through the functions the command uses; every candidate it compared
 (``TuneResult.candidates``) and the published model scored on the fold's held-out runs (read
 as the command reads them, 0.5 s grid, ``mt.evaluate``: RK4, restarts every 100 s, sigma
-pooled over the fold). Prints the per-fold and the mean tables, and the verdicts D1 and D2.
+pooled over the fold). Prints the per-fold and the mean tables, and the verdicts D1 and D2;
+and (amendment 1) the interval the command wrote: its factors and its coverage of the fold's
+held-out runs, verdict I1 (every fold: largest factor <= 3, coverage in [0.80, 0.95]).
 ``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
 """
 from __future__ import annotations
@@ -24,13 +26,19 @@ import mmg_tuner as mt
 from mmg_tuner.api import tune as api_tune
 from mmg_tuner.cli.tune import (apply_recipe, build_parser, explicit_options,
                                 load_tune_and_test, trial_kinds, tune_config)
+from mmg_tuner.core.ship import ShipConfig
+from mmg_tuner.core.trial import Trial
 from mmg_tuner.data.esso import runs_by_kind, split_runs
+from mmg_tuner.learn.model import Model
+from mmg_tuner.tuning.evaluate import INDEX_STATES
+from mmg_tuner.tuning.interval import coverage, model_interval
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 PONDS = ROOT / 'data' / 'esso_osaka_frt'
 SHIP = 'esso_osaka_3m'
 WITHIN = 1.05   # D1
+MAX_FACTOR, COVERAGE = 3.0, (0.80, 0.95)   # I1
 
 
 def benchmark(quick: bool, argv: list[str]) -> dict:
@@ -74,6 +82,19 @@ def _verdicts(scores: dict[str, dict[str, float]], chosen: str) -> dict[str, dic
     return {'D1': d1, 'D2': d2}
 
 
+def _interval(model: ShipConfig | Model, runs: list[Trial]) -> dict | None:
+    """Return the written interval's factors and its coverage of ``runs`` (None: none)."""
+    iv = model_interval(model) if isinstance(model, Model) else None
+    if iv is None:
+        return None
+    cov = coverage(iv, runs)
+    scale = {k: round(v, 3) for k, v in zip(INDEX_STATES, iv.scale)}
+    ok = max(iv.scale) <= MAX_FACTOR and COVERAGE[0] <= cov['all'] <= COVERAGE[1]
+    return {'scale': scale, 'largest': max(iv.scale), 'coverage': cov['all'],
+            'coverage_states': cov['states'], 'members': len(iv.members),
+            'start_sigma': iv.to_dict().get('start_sigma'), 'pass': bool(ok)}
+
+
 def _print_verdicts(verdicts: dict[str, dict[str, bool]], prefix: str = '') -> None:
     for name, by_kind in verdicts.items():
         if not by_kind:
@@ -112,11 +133,20 @@ def main(argv: list[str] | None = None) -> dict:
         for name, model in res.candidates.items():
             scores[name] = index_by_kind(model, runs, kind_of)
         per_fold[fold] = {'recommended': chosen, 'scores': scores, 'auto_wall_s': auto_s,
-                          'verdicts': _verdicts(scores, chosen)}
+                          'verdicts': _verdicts(scores, chosen),
+                          'interval': _interval(res.candidates[chosen], runs)}
         print(f'\nfold {fold}: {len(train)} tuning runs, {len(runs)} held out; auto '
               f'{auto_s:.0f} s; recommended {chosen}')
         print(_table(scores, chosen))
         _print_verdicts(per_fold[fold]['verdicts'], f'fold {fold} (for information) ')
+        iv = per_fold[fold]['interval']
+        if iv is None:
+            print(f'fold {fold} interval: none written (I1 fail)')
+        else:
+            states = ', '.join(f'{k} {v:.3f}' for k, v in iv['coverage_states'].items())
+            print(f'fold {fold} interval: factors {iv["scale"]}, largest {iv["largest"]:.2f}; '
+                  f'held-out coverage {iv["coverage"]:.3f} ({states}): '
+                  f'I1 {"pass" if iv["pass"] else "fail"}')
     # A_k(M): the mean over folds of each model's mean index per kind; the recommended one per
     # fold (its name may differ between folds). A candidate missing from a fold (not trained
     # there) would make the means unlike: then D1 is not decided.
@@ -135,6 +165,10 @@ def main(argv: list[str] | None = None) -> dict:
         print('not every candidate was trained in every fold: D1 undecided')
         verdicts['D1'] = {}
     _print_verdicts(verdicts)
+    i1 = all(pf['interval'] is not None and pf['interval']['pass'] for pf in per_fold.values())
+    verdicts['I1'] = {f'fold {f}': bool(pf['interval'] and pf['interval']['pass'])
+                      for f, pf in per_fold.items()}
+    print(f'I1 (the written interval, every fold): {"PASS" if i1 else "FAIL"}')
     print(f'wall time: {time.perf_counter() - t0:.0f} s')
     return {'folds': per_fold, 'mean_index_by_kind': mean, 'verdicts': verdicts,
             'quick': args.quick}

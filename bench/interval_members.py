@@ -36,7 +36,8 @@ from mmg_tuner.errors import TuningError
 from mmg_tuner.learn.model import as_model, Model
 from mmg_tuner.learn.train import ResidualConfig, split_validation
 from mmg_tuner.tuning.evaluate import INDEX_STATES
-from mmg_tuner.tuning.interval import calibrate_interval, coverage, ensemble_members
+from mmg_tuner.tuning.interval import (calibrate_interval, coverage, ensemble_members,
+                                       model_interval)
 
 ROOT = Path(__file__).resolve().parents[1]
 PONDS = ROOT / 'data' / 'esso_osaka_frt'
@@ -104,6 +105,16 @@ def main(argv: list[str] | None = None) -> dict:
                       'start_sigma': iv.to_dict().get('start_sigma')}
         print(f'| {name} ({len(mem)}) | ' + ' | '.join(f'{c:.2f}' for c in iv.scale)
               + f' | {max(iv.scale):.2f} | {cov["all"]:.3f} |')
+    written = model_interval(model)   # the interval tune --model auto wrote (N3's rule)
+    if written is not None:
+        cov = coverage(written, fresh)
+        rows['written'] = {'members': len(written.members),
+                           'scale': dict(zip(INDEX_STATES, written.scale)),
+                           'largest': max(written.scale), 'fresh_coverage': cov['all'],
+                           'fresh_coverage_states': cov['states']}
+        print(f'| written by tune ({len(written.members)}) | '
+              + ' | '.join(f'{c:.2f}' for c in written.scale)
+              + f' | {max(written.scale):.2f} | {cov["all"]:.3f} |')
     for group in 'MN':
         first = next((n for n, r in rows.items() if n[0] == group
                       and r['largest'] <= MAX_FACTOR), None)

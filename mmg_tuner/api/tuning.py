@@ -596,8 +596,12 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         if r.seeds >= 2:
             try:
                 # (the chosen is not the physics: a Model with its network)
+                # members that differ in physics as well as weights (the tuned physics and
+                # the one the tuning started from, alone) and the recorded start's error:
+                # the registered rule of bench/interval_members_preregistration.md (N3)
                 iv = calibrate_interval(cast(Model, cands[choice.chosen]), val, 0.9,
-                                        integrator=rc.integrator)
+                                        integrator=rc.integrator, start_error=True,
+                                        physics=(physics, result.ship))
             except TuningError as exc:   # e.g. a member diverges where their mean does not
                 notes.append(f'no prediction interval: {exc}')
                 logger.warning('--model auto: the recommended %s is written without a '
@@ -607,7 +611,9 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
                 r.net = cast(ResidualNet, with_interval(iv).residual)
                 cands[choice.chosen] = Model(physics, r.net)   # the model written
                 notes.append('prediction interval: nominal 90 %, factors '
-                             f'{iv.to_dict()["scale"]} (calibrated on the validation part)')
+                             f'{iv.to_dict()["scale"]} (calibrated on the validation part; '
+                             f'members: the {len(iv.members) - 2} networks, the tuned and the '
+                             "starting physics alone; with the recorded start's error)")
         result.residual = r
     result.choice, result.choice_notes, result.candidates = choice, notes, cands
 

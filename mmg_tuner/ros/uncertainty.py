@@ -116,7 +116,7 @@ class EnsembleSpread:
             return None
 
         def dev(x: list[np.ndarray]) -> np.ndarray:
-            d = np.array(x).reshape(len(x), 6) - centre[None]
+            d: np.ndarray = np.array(x).reshape(len(x), 6) - centre[None]
             d[:, _PSI] = (d[:, _PSI] + np.pi) % (2 * np.pi) - np.pi
             return d
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 from typing import Any, cast, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.layout import STATE_NAMES
+from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.learn.model import as_model, Model
@@ -54,7 +55,8 @@ class Interval:
     A calibrated prediction interval: the model, its members, a factor per state.
 
     model: the ensemble (its prediction is the interval's centre); members: the networks it
-    averages, each with the same physics; scale: c_i per state of INDEX_STATES (x, u, y, v,
+    averages, each with the same physics, then any physics alone (``calibrate_interval(physics=
+    ...)``, members that differ in physics); scale: c_i per state of INDEX_STATES (x, u, y, v,
     psi, r); level: the nominal share of samples inside (e.g. 0.9); own_members: False when
     the members were given (``calibrate_interval(members=...)``), which a network cannot store;
     start_sigma: the recorded state's error per state of STATE_NAMES (x, y, psi [m, rad], u, v
@@ -181,7 +183,8 @@ def _ratios(model: Model, members: Sequence[Model], trials: Sequence[Trial],
 def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9,
                        restart_every_s: float = 100.0, integrator: str = 'rk4',
                        members: Sequence[Model] | None = None,
-                       start_error: bool = False) -> Interval:
+                       start_error: bool = False,
+                       physics: Sequence[ShipConfig] = ()) -> Interval:
     """
     Return the interval of an ensemble ``model`` with factors calibrated on ``trials``.
 
@@ -193,12 +196,23 @@ def calibrate_interval(model: Model, trials: Sequence[Trial], level: float = 0.9
     (:func:`with_interval`): the simulator node steps the ensemble's own members (members
     given are never stored, even the ensemble's own passed explicitly). start_error: the
     spread also carries the recorded start's error (see the module; sigma estimated on
-    ``trials``).
+    ``trials``). physics: ships (of the model's family) whose physics alone joins the
+    ensemble's own members, e.g. the tuned physics and the one the tuning started from: members
+    that differ in physics as well as in weights; stored with the network as their parameters
+    that differ from the model's ship.
     """
     if not 0 < level < 1:
         raise TuningError(f'interval level {level!r}: give a share in (0, 1), e.g. 0.9')
     model = as_model(model)
-    mem = ensemble_members(model) if members is None else tuple(as_model(m) for m in members)
+    if members is not None and physics:
+        raise TuningError('calibrate_interval: give members= or physics=, not both (physics '
+                          "adds to the ensemble's own members)")
+    for ship in physics:
+        if ship.model != model.ship.model:
+            raise TuningError(f'calibrate_interval: the physics member {ship.name!r} is a '
+                              f'{ship.model} model, the ensemble a {model.ship.model} one')
+    mem = ensemble_members(model) + tuple(Model(ship, None) for ship in physics) \
+        if members is None else tuple(as_model(m) for m in members)
     if len(mem) < 2:
         raise TuningError(f'an interval needs at least 2 members; {len(mem)} given')
     trials = list(trials)
@@ -253,8 +267,17 @@ def with_interval(interval: Interval) -> Model:
                             'states': list(INDEX_STATES)}
     if interval.start_sigma is not None:   # in STATE_NAMES order
         info['start_sigma'] = dict(zip(STATE_NAMES, interval.start_sigma))
+    alone = [m.ship for m in interval.members if m.residual is None]
+    if alone:   # each as the parameters that differ from the model's ship
+        info['physics_members'] = [_differ(interval.model.ship, ship) for ship in alone]
     meta = {**net.meta, 'interval': info}
     return Model(interval.model.ship, replace(net, meta=meta))
+
+
+def _differ(base: ShipConfig, ship: ShipConfig) -> dict[str, float]:
+    """Return the parameters of ``ship`` that differ from ``base``'s, by name."""
+    a, b = base.as_dict(), ship.as_dict()
+    return {k: v for k, v in b.items() if not (v == a[k] or (np.isnan(v) and np.isnan(a[k])))}
 
 
 def model_interval(model: Model) -> Interval | None:
@@ -265,7 +288,10 @@ def model_interval(model: Model) -> Interval | None:
     if not info:
         return None
     sigma = info.get('start_sigma')
-    return Interval(model, ensemble_members(model), tuple(float(c) for c in info['scale']),
+    alone = tuple(Model(model.ship.with_params(d, 'the interval of the network meta'), None)
+                  for d in info.get('physics_members', []))
+    return Interval(model, ensemble_members(model) + alone,
+                    tuple(float(c) for c in info['scale']),
                     float(info['level']),
                     start_sigma=None if sigma is None else
                     tuple(float(sigma[n]) for n in STATE_NAMES))

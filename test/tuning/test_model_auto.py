@@ -96,6 +96,27 @@ def test_interval_members_given_are_used_and_not_stored(trials):
         calibrate_interval(model, trials, members=own.members[:1])
 
 
+def test_interval_physics_members_are_stored_and_stepped_again(trials):
+    """Physics alone joins the ensemble's members; stored as its differing parameters."""
+    ship = mt.load_ship('suzaku')
+    model = mt.Model(ship, ensemble([_kick(2e-4), _kick(-2e-4)]))
+    off = ship.with_params({'N_r': 1.2 * ship['N_r'], 'Y_v': 0.9 * ship['Y_v']})
+    iv = calibrate_interval(model, trials, 0.9, integrator='euler', physics=(ship, off))
+    assert iv.own_members and len(iv.members) == 4
+    assert [m.residual is None for m in iv.members] == [False, False, True, True]
+    info = with_interval(iv).residual.meta['interval']
+    assert info['physics_members'] == [{}, {'N_r': 1.2 * ship['N_r'], 'Y_v': 0.9 * ship['Y_v']}]
+    carried = model_interval(with_interval(iv))
+    np.testing.assert_array_equal(carried.members[3].ship.params, off.params)
+    assert carried.scale == iv.scale
+    assert coverage(carried, trials, integrator='euler') == coverage(iv, trials,
+                                                                     integrator='euler')
+    with pytest.raises(TuningError, match='not both'):
+        calibrate_interval(model, trials, members=iv.members, physics=(off,))
+    with pytest.raises(TuningError, match='physics member'):
+        calibrate_interval(model, trials, physics=(mt.load_ship('kvlcc2'),))
+
+
 def test_simulator_members_spread_grows_in_free_run_and_plain_models_have_none():
     # the sim_node's covariance (ros/uncertainty.py, no ROS needed): the members are stepped
     # with the simulator's commands; their calibrated spread grows in free run
@@ -157,6 +178,7 @@ def test_simulator_spread_with_the_start_error_adds_the_raised_starts():
     s = spread.sigma(sim.observed())
     # a yaw-rate error at the start turns into heading and then into position: x grows
     assert s[0] > 2.0 * 0.01 and s[2] > 2.0 * np.sqrt(2) * 0.01
+
 
 def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials, tmp_path):
     pytest.importorskip('jax')
