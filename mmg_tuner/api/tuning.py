@@ -392,12 +392,8 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         raise TuningError('no tuning trials given')
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
     cfg.check_polish(space.dim)
-    spec = cfg.objective_spec(trials)
-    names = unique_names(trials + test)
-    obj = make_objective(ship, trials, spec.plain)   # J as reported: whole trials
-    sets = {'tune': (obj, names[:len(trials)])}
-    if test:
-        sets['test'] = (make_objective(ship, test, spec.plain), names[len(trials):])
+    sets = _report_sets(ship, trials, test, cfg)
+    obj = sets['tune'][0]
     logger.info('tuning %d parameters of %s on %d trial(s)%s; box a_r = %g', space.dim,
                 ship.name, len(trials), f', testing on {len(test)}' if test else '',
                 cfg.a_r or ship.a_r)
@@ -431,6 +427,27 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
     return result
 
 
+def _report_sets(ship: ShipConfig, trials: list[Trial], test: list[Trial], cfg: TuneConfig
+                 ) -> dict[str, tuple[Objective, list[str]]]:
+    """Return the objectives J is reported by (whole trials), per set, with trial names."""
+    spec = cfg.objective_spec(trials)
+    names = unique_names(trials + test)
+    sets = {'tune': (make_objective(ship, trials, spec.plain), names[:len(trials)])}
+    if test:
+        sets['test'] = (make_objective(ship, test, spec.plain), names[len(trials):])
+    return sets
+
+
+def _fitting_objective(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig,
+                       space: ParameterSpace, groups: Mapping[str, str] | None) -> Objective:
+    """Return the objective the physics is fitted by (the recipe's segments, prior, ...)."""
+    spec = cfg.objective_spec(trials)
+    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
+        spec = replace(spec, group_of=dict(groups) if groups else
+                       {n: n for n in unique_names(trials)})
+    return make_objective(ship, trials, spec, space)
+
+
 def _fit_physics(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig, space: ParameterSpace,
                  groups: Mapping[str, str] | None, checkpoint: str | Path | None = None,
                  resume: bool = False, progress: Callable[[Progress], None] | None = None
@@ -441,10 +458,7 @@ def _fit_physics(ship: ShipConfig, trials: list[Trial], cfg: TuneConfig, space: 
     Returns the tuned targets, CMA-ES's result, the simulations run and the wall time [s].
     """
     spec = cfg.objective_spec(trials)
-    if cfg.balance == 'group':   # without kinds each trial is its own: balance 'trial'
-        spec = replace(spec, group_of=dict(groups) if groups else
-                       {n: n for n in unique_names(trials)})
-    minimised = make_objective(ship, trials, spec, space)
+    minimised = _fitting_objective(ship, trials, cfg, space, groups)
     t0 = time.perf_counter()
     tuner = Tuner(space, minimised,
                   popsize=cfg.popsize, max_popsize=cfg.max_popsize,
@@ -567,6 +581,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
     physics = result.tuned_ship
     cands: dict[str, ShipConfig | Model] = {'physics': physics}
     trained, notes = {}, []
+    joint_params: dict[str, float] = {}
     try:
         require_jax()
     except MissingDependencyError as exc:
@@ -586,11 +601,27 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         if 'hybrid' in trained and 'network' in trained:
             trained['blend'] = _blend(result, trained['hybrid'], trained['network'])
             cands['blend'] = Model(physics, trained['blend'].net)
+        if 'hybrid' in trained and result.space.dim:
+            try:
+                joint, joint_params = _train_joint(result, groups)
+            except MmgTunerError as exc:
+                notes.append(f'joint: not trained ({exc})')
+                logger.warning('--model auto: the joint model was not trained: %s', exc)
+            else:
+                trained['joint'] = joint
+                cands['joint'] = Model(result.ship.with_params(
+                    {**result.params, **joint_params}), joint.net)
     rc = _residual_config(cfg)
     val = split_validation(result.trials, rc.validation_fraction, rc.window)[1]
     choice = choose_model(cands, val, groups, integrator=rc.integrator)
     logger.info('--model auto: candidates on the validation part of the tuning trials:\n%s'
                 'recommended: %s', choice.markdown(), choice.chosen)
+    if choice.chosen == 'joint':   # its physics is written: J reported for it
+        result.params = {**result.params, **joint_params}
+        result.J = _fit(_report_sets(result.ship, result.trials, result.test, cfg),
+                        result.tuned_ship.params)
+        notes.append("the physics written is the joint training's (its coefficients moved "
+                     'from the tuned values with the network); J above is of those')
     if choice.chosen != 'physics':
         r = trained[choice.chosen]
         if r.seeds >= 2:
@@ -618,6 +649,54 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
     result.choice, result.choice_notes, result.candidates = choice, notes, cands
 
 
+def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
+                 ) -> tuple[ResidualResult, dict[str, float]]:
+    """
+    Train one hybrid network and the tuned coefficients together (``--model auto``'s joint).
+
+    The coefficients start from the tuned values, stay in the tuning's boxes and are pulled
+    toward the values the tuning started from with the tuning's prior weight, carried into the
+    training loss's units (its ratio to the fitting objective's data part at the tuned values:
+    the same balance of data and prior). One seed: networks each with their own physics are
+    not one ensemble. Returns the result (scored against the tuned physics) and the
+    coefficients.
+    """
+    from mmg_tuner.learn import JointCoefficients
+    cfg = result.config
+    rc = _residual_config(replace(cfg, residual='hybrid'))
+    physics = result.tuned_ship
+    space = result.space
+    free = [i for i, n in enumerate(space.names) if n not in NOT_JOINT]
+    names = tuple(space.names[i] for i in free)
+    if not names:
+        raise TuningError('no tuned coefficient can be trained with the network (only '
+                          f'{", ".join(space.names)})')
+    weight = 0.0
+    if cfg.prior:
+        obj = _fitting_objective(result.ship, result.trials, cfg, space, groups)
+        p = physics.params[None]
+        total, pull = float(obj(p)[0]), float(obj.prior(p)[0]) if obj.prior else 0.0
+        if obj.prior is not None and math.isfinite(total) and total - pull > 0:
+            weight = obj.prior.weight / (total - pull)
+    coeffs = JointCoefficients(names, tuple(float(physics[n]) for n in names),
+                               tuple(float(space.lower[i]) for i in free),
+                               tuple(float(space.upper[i]) for i in free),
+                               tuple(float(space.pre[i]) for i in free), weight)
+    logger.info('training the joint model: one network and %d coefficients (seed %d, prior '
+                "weight %.3g per unit of the physics' loss)", len(names), rc.seed, weight)
+    fit = train_residual(physics, result.trials, config=rc, coefficients=coeffs)
+    joint = result.ship.with_params({**result.params, **fit.coefficients})
+    model = Model(joint, fit.net)
+    index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
+             for which, trials in (('tune', result.trials), ('test', result.test)) if trials}
+    logger.info('   joint: %.1f s, %d epochs; share %.1f %%', fit.seconds, fit.epochs,
+                100 * fit.share)
+    return (ResidualResult(fit.net, 'joint', fit.share, fit.val_gain, index,
+                           index.get('test', {}).get('gain'), fit.seconds, fit.epochs,
+                           fit.seed, {**asdict(rc), 'coefficients': fit.coefficients}, 1),
+            fit.coefficients)
+
+
 def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult
            ) -> ResidualResult:
     """Return the ensemble of every member of the hybrid and the pure network, scored."""
@@ -640,6 +719,9 @@ def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult
 # ---------------------------------------------------------------------------------- residual
 RESIDUAL_FILE = 'params.residual.npz'
 RESIDUAL_KINDS = ('hybrid', 'network')
+NOT_JOINT = ('current_speed', 'current_dir', 'antenna_x', 'antenna_y', 'wind_speed',
+             'wind_dir')
+"""Parameters never trained with the network: the network's features read them."""
 MODEL_CHOICES = ('physics', 'auto')
 
 
@@ -720,12 +802,16 @@ class ResidualResult:
                     f'{self.seed + self.seeds - 1}') + '); '
                  f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
                  + (f'Share of the total acceleration{mean}: {100 * self.share:.1f} %. '
-                    if self.kind == 'hybrid' else 'The network alone gives the '
+                    if self.kind in ('hybrid', 'joint') else 'The network alone gives the '
                     'accelerations (no physics). ' if self.kind == 'pure network' else
                     f'A blend: the mean of {self.seeds} hybrid and pure networks, '
                     f'{100 * self.net.physics:.0f} % of the physics plus their mean output. ')
                  + ('' if self.val_gain is None else
-                    f'Gain on its validation windows{mean}: {100 * self.val_gain:.1f} %.'), '',
+                    f'Gain on its validation windows{mean}: {100 * self.val_gain:.1f} %.')
+                 + ('' if self.kind != 'joint' else ' Its physics coefficients were trained '
+                    'with it (the physics written): ' + ', '.join(
+                        f'{n} {v:.6g}' for n, v in self.config['coefficients'].items()) + '.'),
+                 '',
                  '| trials | index, tuned physics | index, with the network | gain |',
                  '|---|---|---|---|']
         for which, v in self.index.items():

@@ -9,7 +9,8 @@ to install them) when they are missing.
 """
 from mmg_tuner.learn.residual import load_residual, ResidualNet
 from mmg_tuner.learn.train import (
-    ensemble, members, require_jax, ResidualConfig, ResidualFit, train_residual)
+    ensemble, JointCoefficients, members, require_jax, ResidualConfig, ResidualFit,
+    train_residual)
 
 __all__ = ['ResidualConfig', 'ResidualFit', 'ResidualNet', 'ensemble', 'load_residual',
-           'members', 'require_jax', 'train_residual']
+           'JointCoefficients', 'members', 'require_jax', 'train_residual']

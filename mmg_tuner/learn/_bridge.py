@@ -77,6 +77,35 @@ def batch_derivative(kind: tuple[int, ...], p_in: FloatArray, S: FloatArray, A: 
 
 
 @njit(cache=True)
+def batch_param_jacobian(kind: tuple[int, ...], p_in: FloatArray, S: FloatArray,
+                         A: FloatArray, Wd: FloatArray, F: FloatArray, idx: IntArray,
+                         hp: FloatArray, Jp: FloatArray) -> None:
+    """
+    Fill Jp (B, 6, k) = dF/dp[idx] by forward differences (steps hp (k,)) at F's rows.
+
+    F: :func:`batch_derivative`'s output for the same rows and parameters (the base point);
+    idx: the parameter slots (never the wind's, which each row sets). For the training of a
+    network and the physics' coefficients together (``_engine.physics_fn(free=...)``).
+    """
+    p = p_in.copy()
+    s = np.empty(6)
+    fp = np.empty(6)
+    for b in range(S.shape[0]):
+        p[_Vw] = Wd[b, 0]
+        p[_dirw] = Wd[b, 1]
+        act = act_tuple(kind, A, b)
+        for i in range(6):
+            s[i] = S[b, i]
+        for k in range(idx.shape[0]):
+            j = idx[k]
+            p[j] = p_in[j] + hp[k]
+            derivative(kind, p, s, act, fp)
+            p[j] = p_in[j]
+            for i in range(6):
+                Jp[b, i, k] = (fp[i] - F[b, i]) / hp[k]
+
+
+@njit(cache=True)
 def teacher_residuals(rows: FloatArray, window: int, sizes: IntArray, flat: FloatArray,
                       x_mean: FloatArray, x_std: FloatArray, y_scale: FloatArray,
                       out: FloatArray) -> None:
@@ -155,9 +184,12 @@ def ffi_handler(kind: int) -> object:
     Arguments (XLA buffers, float64 only: the caller casts, the handler reads bytes): the
     states S (..., 6), actuator tuples A (..., n), winds Wd (..., 2) (:func:`batch_derivative`)
     and the parameter vector (read from the buffer at every call); results: F (..., 6), and
-    with a second result the state Jacobian J (..., 6, 6). Every leading axis is one batch of
-    rows. Compiled once per family and process (about a second). The struct offsets are those
-    of ``FFI_API_VERSION`` on a 64-bit platform (every field 8 bytes, enums padded).
+    with a second result the state Jacobian J (..., 6, 6). With two more arguments, the free
+    parameters' slots (k,) and their difference steps (k,) (both float64), and a third result:
+    the parameter Jacobian Jp (..., 6, k) (:func:`batch_param_jacobian`). Every leading axis
+    is one batch of rows. Compiled once per family and process (about a second). The struct
+    offsets are those of ``FFI_API_VERSION`` on a 64-bit platform (every field 8 bytes, enums
+    padded).
     """
     if kind in _HANDLERS:
         return _HANDLERS[kind]
@@ -169,7 +201,7 @@ def ffi_handler(kind: int) -> object:
     def handler(frame):  # type: ignore[no-untyped-def]  # a numba cfunc
         # XLA_FFI_CallFrame as 8-byte words: 1 extension_start, 9 args.args, 12 rets.size,
         # 14 rets.rets; the stage is a 4-byte enum at byte 32 (its padding is not ours to read)
-        cf = carray(frame, (15,), dtype=np.int64)
+        cf = carray(frame, (15,), dtype=np.int64)   # 7 args.size
         if cf[1] != 0 and carray(_ptr(cf[1] + 8), (1,), dtype=np.int32)[0] == \
                 _METADATA_EXTENSION:   # XLA asks the handler's metadata (at registration)
             md = _ptr(carray(_ptr(cf[1]), (4,), dtype=np.int64)[3])
@@ -183,7 +215,7 @@ def ffi_handler(kind: int) -> object:
             return _ptr(0)
         if carray(frame, (9,), dtype=np.int32)[8] != _EXECUTE:
             return _ptr(0)
-        args = carray(_ptr(cf[9]), (4,), dtype=np.int64)
+        args = carray(_ptr(cf[9]), (cf[7],), dtype=np.int64)
         rets = carray(_ptr(cf[14]), (cf[12],), dtype=np.int64)
         # XLA_FFI_Buffer as words: 3 data, 4 rank, 5 dims
         bs = carray(_ptr(args[0]), (6,), dtype=np.int64)
@@ -206,17 +238,33 @@ def ffi_handler(kind: int) -> object:
         if cf[12] > 1:
             bj = carray(_ptr(rets[1]), (6,), dtype=np.int64)
             J = carray(_ptr(bj[3]), (B, 6, 6), dtype=np.float64)
+        n_free = 0
+        idx = np.empty(0, dtype=np.int64)
+        hp = np.empty(0)
+        Jp = np.empty((1, 6, 1))
+        if cf[12] > 2 and cf[7] > 5:   # the free parameters' Jacobian (the same for each group)
+            bi = carray(_ptr(args[4]), (6,), dtype=np.int64)
+            n_free = _last(bi)
+            idx = carray(_ptr(bi[3]), (n_free,), dtype=np.float64).astype(np.int64)
+            bh = carray(_ptr(args[5]), (6,), dtype=np.int64)
+            hp = carray(_ptr(bh[3]), (n_free,), dtype=np.float64)
+            bq = carray(_ptr(rets[2]), (6,), dtype=np.int64)
+            Jp = carray(_ptr(bq[3]), (B, 6, n_free), dtype=np.float64)
+            Jp[:] = np.nan
         # NaN first: a kernel that raised (nothing can be raised through XLA from here) leaves
         # NaN, which the training skips as a diverging window, never stale memory
         F[:] = np.nan
         J[:] = np.nan
-        if groups == 1:   # whole arrays (no slicing)
-            batch_derivative(tag, P[0], S, A, Wd, F, J, cf[12] > 1)
-            return _ptr(0)
         for g in range(groups):   # under jax.vmap: one parameter row per group of rows
             lo, hi = g * m, (g + 1) * m
-            batch_derivative(tag, P[g], S[lo:hi], A[lo:hi], Wd[lo:hi], F[lo:hi],
-                             J[lo:hi] if cf[12] > 1 else J, cf[12] > 1)
+            if groups == 1:   # whole arrays (no slicing)
+                batch_derivative(tag, P[0], S, A, Wd, F, J, cf[12] > 1)
+            else:
+                batch_derivative(tag, P[g], S[lo:hi], A[lo:hi], Wd[lo:hi], F[lo:hi],
+                                 J[lo:hi] if cf[12] > 1 else J, cf[12] > 1)
+            if n_free > 0:
+                batch_param_jacobian(tag, P[g], S[lo:hi], A[lo:hi], Wd[lo:hi], F[lo:hi], idx,
+                                     hp, Jp[lo:hi])
         return _ptr(0)
 
     _HANDLERS[kind] = handler

@@ -10,6 +10,7 @@ simulation-based loss flows through every step of the simulated window.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import logging
 import threading
 from typing import Any, Callable, cast, Mapping, Sequence
@@ -20,7 +21,8 @@ import jax.numpy as jnp
 from jax.typing import ArrayLike
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
-from mmg_tuner.learn._bridge import batch_derivative, FD_REL_STEP, ffi_handler
+from mmg_tuner.learn._bridge import (batch_derivative, batch_param_jacobian, FD_REL_STEP,
+                                     ffi_handler)
 import numpy as np
 import optax
 
@@ -33,14 +35,16 @@ _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
 _ax = PARAM_INDEX['antenna_x']
 _ay = PARAM_INDEX['antenna_y']
+_NOT_FREE = {_Vc, _dirc, _ax, _ay, PARAM_INDEX['wind_speed'], PARAM_INDEX['wind_dir']}
 
 # a batch of windows simulated: (model, x0, hist, inp, act, wind) -> (observed, residual)
-Simulate = Callable[['MLP', ArrayLike, ArrayLike, ArrayLike, ArrayLike, ArrayLike],
+Simulate = Callable[['MLP | Joint', ArrayLike, ArrayLike, ArrayLike, ArrayLike, ArrayLike],
                     tuple[jax.Array, jax.Array]]
 # a batch's losses of a model: (model, batch, window weights) -> ...
-DataLoss = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike],
+DataLoss = Callable[['MLP | Joint', Mapping[str, ArrayLike], ArrayLike],
                     tuple[jax.Array, jax.Array, jax.Array]]
-Total = Callable[['MLP', Mapping[str, ArrayLike], ArrayLike], tuple[jax.Array, jax.Array]]
+Total = Callable[['MLP | Joint', Mapping[str, ArrayLike], ArrayLike],
+                 tuple[jax.Array, jax.Array]]
 
 
 _FFI_TARGETS: dict[int, bool] = {}
@@ -75,12 +79,17 @@ def _ffi_target(kind: int, p: np.ndarray) -> str | None:
 
 
 def _ffi_call(name: str, s: jax.Array, act: jax.Array, wind: jax.Array, p: jax.Array,
-              with_jac: bool) -> Any:
+              with_jac: bool, free: tuple[jax.Array, jax.Array] | None = None) -> Any:
+    """Call the handler: F, with_jac: and J, free (slots, steps): and Jp (..., 6, k)."""
     shapes = [s.shape] + ([s.shape + (6,)] if with_jac else [])
+    extra: list[jax.Array] = []
+    if free is not None:
+        shapes.append(s.shape + (free[0].shape[0],))
+        extra = list(free)
     out = [jax.ShapeDtypeStruct(x, jnp.float64)  # type: ignore[no-untyped-call]
            for x in shapes]
     # float64 only: the handler reads the buffers' bytes as doubles
-    args = [jnp.asarray(x, dtype=jnp.float64) for x in (s, act, wind, p)]
+    args = [jnp.asarray(x, dtype=jnp.float64) for x in (s, act, wind, p, *extra)]
     return jax.ffi.ffi_call(name, out, vmap_method='broadcast_all')(*args)
 
 
@@ -109,10 +118,15 @@ def _ffi_agrees(kind: int, name: str, p: np.ndarray) -> bool:
     return same
 
 
-def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.Array]:
+def physics_fn(kind: int, p: np.ndarray, ffi: bool = True,
+               free: Sequence[int] | np.ndarray = (), steps: Sequence[float] | np.ndarray = ()
+               ) -> Callable[..., jax.Array]:
     """
     Return ds/dt (B, 6) of the family as a differentiable JAX function of the states (B, 6).
 
+    f(s, act, wind) -> (B, 6); with ``free`` parameter slots (k,): f(s, act, wind, theta),
+    theta (k,) their values (replacing p's), differentiable too (forward differences with
+    ``steps`` (k,): the training of the network and the coefficients together).
     Actuators (B, n_outputs) and wind (B, 2) are data (zero cotangent); ``kind``: the family
     code. ffi: call the kernel as an XLA FFI handler (``_bridge.ffi_handler``) when XLA takes
     it; False (or refused): through ``jax.pure_callback``, the same kernel with Python between
@@ -122,48 +136,71 @@ def physics_fn(kind: int, p: np.ndarray, ffi: bool = True) -> Callable[..., jax.
     tag = family_tag(kind)
     target = _ffi_target(kind, p) if ffi else None
     p_jax = jnp.asarray(p)
+    idx = np.asarray(free, dtype=np.int64)
+    hp = np.asarray(steps, dtype=float)
+    k = idx.shape[0]
+    if hp.shape != (k,) or (k and not np.all(hp > 0)):
+        raise ValueError(f'physics_fn: {k} free slots need {k} positive steps, got {hp}')
+    free_jax = (jnp.asarray(idx, dtype=jnp.float64), jnp.asarray(hp))
 
-    def host(s: np.ndarray, act: np.ndarray, wind: np.ndarray, with_jac: bool
-             ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def host(s: np.ndarray, act: np.ndarray, wind: np.ndarray, theta: np.ndarray,
+             with_jac: bool) -> np.ndarray | tuple[np.ndarray, ...]:
         s = np.ascontiguousarray(s, dtype=float)
+        act = np.ascontiguousarray(act, dtype=float)
+        wind = np.ascontiguousarray(wind, dtype=float)
+        q = p.copy()
+        q[idx] = theta
         B = s.shape[0]
         F = np.empty((B, 6))
         J = np.empty((B, 6, 6))
-        batch_derivative(tag, p, s, np.ascontiguousarray(act, dtype=float),
-                         np.ascontiguousarray(wind, dtype=float), F, J, with_jac)
-        return (F, J) if with_jac else F
+        batch_derivative(tag, q, s, act, wind, F, J, with_jac)
+        if not with_jac:
+            return F
+        Jp = np.empty((B, 6, k))
+        if k:
+            batch_param_jacobian(tag, q, s, act, wind, F, idx, hp, Jp)
+        return F, J, Jp
 
     # (jax's ShapeDtypeStruct.__init__ has no annotations)
-    def shape(s: jax.Array) -> jax.ShapeDtypeStruct:
-        return jax.ShapeDtypeStruct(s.shape, jnp.float64)  # type: ignore[no-untyped-call]
+    def shape(*dims: int) -> jax.ShapeDtypeStruct:
+        return jax.ShapeDtypeStruct(dims, jnp.float64)  # type: ignore[no-untyped-call]
+
+    def full(theta: jax.Array) -> jax.Array:
+        return p_jax.at[idx].set(theta) if k else p_jax
 
     @jax.custom_vjp
-    def f(s: jax.Array, act: jax.Array, wind: jax.Array) -> jax.Array:
+    def f(s: jax.Array, act: jax.Array, wind: jax.Array, theta: jax.Array) -> jax.Array:
         if target is not None:
-            out: jax.Array = _ffi_call(target, s, act, wind, p_jax, False)[0]
+            out: jax.Array = _ffi_call(target, s, act, wind, full(theta), False)[0]
             return out
-        out = jax.pure_callback(lambda a, b, c: host(a, b, c, False), shape(s), s, act, wind,
-                                vmap_method='sequential')
+        out = jax.pure_callback(lambda a, b, c, t: host(a, b, c, t, False), shape(*s.shape),
+                                s, act, wind, theta, vmap_method='sequential')
         return out
 
-    def fwd(s: jax.Array, act: jax.Array, wind: jax.Array
-            ) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
+    def fwd(s: jax.Array, act: jax.Array, wind: jax.Array, theta: jax.Array
+            ) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array, jax.Array]]:
         if target is not None:
-            F, J = _ffi_call(target, s, act, wind, p_jax, True)
+            got = _ffi_call(target, s, act, wind, full(theta), True, free_jax if k else None)
+            F, J = got[0], got[1]
+            Jp = got[2] if k else jnp.zeros(s.shape + (0,))
         else:
-            jac = jax.ShapeDtypeStruct(s.shape + (6,),  # type: ignore[no-untyped-call]
-                                       jnp.float64)
-            F, J = jax.pure_callback(lambda a, b, c: host(a, b, c, True), (shape(s), jac),
-                                     s, act, wind, vmap_method='sequential')
-        return F, (J, act, wind)
+            F, J, Jp = jax.pure_callback(
+                lambda a, b, c, t: host(a, b, c, t, True),
+                (shape(*s.shape), shape(*s.shape, 6), shape(*s.shape, k)), s, act, wind, theta,
+                vmap_method='sequential')
+        return F, (J, Jp, act, wind)
 
-    def bwd(res: tuple[jax.Array, jax.Array, jax.Array], g: jax.Array
-            ) -> tuple[jax.Array, jax.Array, jax.Array]:
-        J, act, wind = res
-        return jnp.einsum('bi,bij->bj', g, J), jnp.zeros_like(act), jnp.zeros_like(wind)
+    def bwd(res: tuple[jax.Array, jax.Array, jax.Array, jax.Array], g: jax.Array
+            ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+        J, Jp, act, wind = res
+        return (jnp.einsum('bi,bij->bj', g, J), jnp.zeros_like(act), jnp.zeros_like(wind),
+                jnp.einsum('bi,bik->k', g, Jp))
 
     f.defvjp(fwd, bwd)
-    return f
+    if k:
+        return f
+    none = jnp.zeros(0)
+    return lambda s, act, wind: f(s, act, wind, none)
 
 
 class MLP(eqx.Module):
@@ -196,15 +233,66 @@ class MLP(eqx.Module):
                 tuple(np.asarray(la.bias, dtype=float) for la in self.layers))
 
 
+@dataclass(frozen=True)
+class Coefficients:
+    """
+    Physics coefficients trained with the network: slots, start, box, steps and prior.
+
+    theta = clip(start + width z, lower, upper), z trained from 0 (``Joint.z``); the prior
+    adds weight x sum(((theta - centre) / width)^2) to the loss (weight in loss units);
+    steps: the forward-difference steps of the parameter Jacobian.
+    """
+
+    slots: np.ndarray     # (k,) int, never the wind's, the current's or the antenna's
+    start: np.ndarray     # (k,) the values training starts from (the tuned ones)
+    lower: np.ndarray
+    upper: np.ndarray
+    centre: np.ndarray    # (k,) the prior's centre (the published values)
+    weight: float         # the prior's weight [loss units]
+
+    @property
+    def width(self) -> np.ndarray:
+        w: np.ndarray = self.upper - self.lower
+        return w
+
+    @property
+    def steps(self) -> np.ndarray:
+        h: np.ndarray = FD_REL_STEP * np.maximum(self.width, np.abs(self.start))
+        return h
+
+    def values(self, z: jax.Array) -> jax.Array:
+        """Return theta (k,) of the trained offsets z (k,)."""
+        return jnp.clip(jnp.asarray(self.start) + jnp.asarray(self.width) * z,
+                        jnp.asarray(self.lower), jnp.asarray(self.upper))
+
+    def penalty(self, z: jax.Array) -> jax.Array:
+        d = (self.values(z) - jnp.asarray(self.centre)) / jnp.asarray(self.width)
+        return self.weight * jnp.sum(d * d)
+
+
+class Joint(eqx.Module):
+    """The network and the physics coefficients' offsets z, trained together."""
+
+    net: MLP
+    z: jax.Array
+
+
 def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float,
-                   x_mean: np.ndarray, x_std: np.ndarray, y_scale: np.ndarray) -> Simulate:
+                   x_mean: np.ndarray, x_std: np.ndarray, y_scale: np.ndarray,
+                   coefficients: Coefficients | None = None) -> Simulate:
     """
     Return simulate(model, x0, hist, inp, act, wind) -> (observed, residual).
 
     Observed (B, H, 6) and residual (B, H, 3) for a batch of windows, mirroring
     ``learn.residual.simulate_hybrid_one`` (one step per sample, the residual held over it).
+    With ``coefficients`` the model is a :class:`Joint` (the network and the coefficients).
     """
-    phys = physics_fn(kind, p)
+    free = coefficients
+    if free is not None and (not physics or set(free.slots.tolist()) & _NOT_FREE):
+        raise ValueError('free coefficients need the physics, and never the wind, current or '
+                         'antenna slots (the features read them)')
+    phys = physics_fn(kind, p) if free is None else \
+        physics_fn(kind, p, True, free.slots, free.steps)
     Vc, dirc, ax, ay = (float(p[_Vc]), float(p[_dirc]), float(p[_ax]), float(p[_ay]))
     mean = jnp.asarray(x_mean)
     std = jnp.asarray(x_std)
@@ -221,9 +309,11 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
         wv = -wind[:, 0] * jnp.sin(rel) - vg
         return jnp.concatenate([s[:, 3:6], inp, wu[:, None], wv[:, None]], axis=1)
 
-    def deriv(s: jax.Array, act: jax.Array, wind: jax.Array, a: jax.Array) -> jax.Array:
+    def deriv(s: jax.Array, act: jax.Array, wind: jax.Array, a: jax.Array,
+              theta: jax.Array | None) -> jax.Array:
         if physics:
-            return phys(s, act, wind) + jnp.concatenate([jnp.zeros_like(s[:, :3]), a], axis=1)
+            f = phys(s, act, wind) if theta is None else phys(s, act, wind, theta)
+            return f + jnp.concatenate([jnp.zeros_like(s[:, :3]), a], axis=1)
         psi, u, v, r = s[:, 2], s[:, 3], s[:, 4], s[:, 5]
         c, sn = jnp.cos(psi), jnp.sin(psi)
         dx = u * c - v * sn
@@ -243,8 +333,13 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             o = o.at[:, 3].add(Vc * jnp.cos(dirc - psi)).at[:, 4].add(Vc * jnp.sin(dirc - psi))
         return o
 
-    def simulate(model: MLP, x0: ArrayLike, hist: ArrayLike, inp: ArrayLike, act: ArrayLike,
-                 wind: ArrayLike) -> tuple[jax.Array, jax.Array]:
+    def simulate(model: MLP | Joint, x0: ArrayLike, hist: ArrayLike, inp: ArrayLike,
+                 act: ArrayLike, wind: ArrayLike) -> tuple[jax.Array, jax.Array]:
+        theta = None
+        if isinstance(model, Joint):
+            assert free is not None
+            theta = free.values(model.z)
+            model = model.net
         net = jax.vmap(model)
 
         def step(carry: tuple[jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array, jax.Array]
@@ -255,11 +350,11 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             full = jnp.concatenate([ring, row[:, None, :]], axis=1)
             z = ((full - mean) / std).reshape(full.shape[0], -1)
             a = net(z) * yscale
-            k1 = deriv(s, act_k, wind_k, a)
+            k1 = deriv(s, act_k, wind_k, a, theta)
             if rk4:
-                k2 = deriv(s + 0.5 * dt * k1, act_k, wind_k, a)
-                k3 = deriv(s + 0.5 * dt * k2, act_k, wind_k, a)
-                k4 = deriv(s + dt * k3, act_k, wind_k, a)
+                k2 = deriv(s + 0.5 * dt * k1, act_k, wind_k, a, theta)
+                k3 = deriv(s + 0.5 * dt * k2, act_k, wind_k, a, theta)
+                k4 = deriv(s + dt * k3, act_k, wind_k, a, theta)
                 s = s + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
             else:
                 s = s + dt * k1
@@ -274,7 +369,8 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
 
 
 def make_loss(simulate: Simulate, sigma: np.ndarray, y_scale: np.ndarray, l2: float,
-              physics: bool) -> tuple[DataLoss, Total]:
+              physics: bool, coefficients: Coefficients | None = None
+              ) -> tuple[DataLoss, Total]:
     """
     Return the batch losses data_loss(model, b, w) and total(model, b, w).
 
@@ -282,12 +378,13 @@ def make_loss(simulate: Simulate, sigma: np.ndarray, y_scale: np.ndarray, l2: fl
     ((simulated - measured) / sigma)^2 (Wakita et al. 2022's simulation-based loss, heading
     wrapped), each window weighted by w; the total adds l2 x the mean squared residual in
     y_scale units, weighted alike (hybrid: keeps it small where the physics is right) or x the
-    mean squared weight (pure network).
+    mean squared weight (pure network); with ``coefficients`` (a :class:`Joint` model) also
+    their prior's penalty.
     """
     inv = jnp.asarray(1.0 / np.asarray(sigma))
     inv_y2 = jnp.asarray(1.0 / np.asarray(y_scale) ** 2)
 
-    def data_loss(model: MLP, b: Mapping[str, ArrayLike], w: ArrayLike
+    def data_loss(model: MLP | Joint, b: Mapping[str, ArrayLike], w: ArrayLike
                   ) -> tuple[jax.Array, jax.Array, jax.Array]:
         obs, res = simulate(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
         e = obs - b['target']
@@ -295,16 +392,21 @@ def make_loss(simulate: Simulate, sigma: np.ndarray, y_scale: np.ndarray, l2: fl
         per = jnp.mean((e * inv) ** 2, axis=(1, 2))
         return jnp.sum(per * w) / jnp.sum(w), res, per
 
-    def total(model: MLP, b: Mapping[str, ArrayLike], w: ArrayLike
+    def total(model: MLP | Joint, b: Mapping[str, ArrayLike], w: ArrayLike
               ) -> tuple[jax.Array, jax.Array]:
         d, res, _ = data_loss(model, b, w)
         if physics:   # weighted as the data loss: a window weighing more is held closer
             per = jnp.mean(res ** 2, axis=1) @ inv_y2 / 3.0
             reg: jax.Array | float = jnp.sum(per * w) / jnp.sum(w)
         else:
+            assert isinstance(model, MLP)
             leaves = [la.weight for la in model.layers]
             reg = sum(jnp.sum(x ** 2) for x in leaves) / sum(x.size for x in leaves)
-        return d + l2 * reg, d
+        out = d + l2 * reg
+        if isinstance(model, Joint):
+            assert coefficients is not None
+            out = out + coefficients.penalty(model.z)
+        return out, d
 
     return data_loss, total
 

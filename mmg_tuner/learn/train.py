@@ -13,12 +13,13 @@ is imported.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
 from mmg_tuner.core.correction import feature_names, N_FEATURES
+from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
@@ -27,7 +28,7 @@ from mmg_tuner.learn.residual import ResidualNet
 import numpy as np
 
 if TYPE_CHECKING:   # annotations only: JAX is imported when a network is trained
-    from mmg_tuner.learn._engine import MLP
+    from mmg_tuner.learn._engine import Joint, MLP
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
 BALANCE = ('window', 'trial', 'group')
@@ -140,6 +141,41 @@ class ResidualConfig:
                 raise _bad(name, getattr(self, name), what)
 
 
+@dataclass(frozen=True)
+class JointCoefficients:
+    """
+    Physics coefficients :func:`train_residual` trains together with the network.
+
+    names: the coefficients (the tuning's targets; never the wind's, the current's or the
+    antenna's); start: their values training starts from (the tuned ones); lower, upper:
+    their box; centre: the prior's centre (the values the tuning started from); weight: the
+    prior's pull, per unit of the physics' own training loss: the loss gains weight x
+    (that loss) x sum(((theta - centre) / (upper - lower))^2), so a coefficient moves only
+    where the simulated windows pull harder (``tune``'s prior weight over its mean J per
+    sample keeps the tuning's balance between data and prior).
+    """
+
+    names: tuple[str, ...]
+    start: tuple[float, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    centre: tuple[float, ...]
+    weight: float = 0.0
+
+    def __post_init__(self) -> None:
+        k = len(self.names)
+        if not k or any(len(x) != k for x in (self.start, self.lower, self.upper, self.centre)):
+            raise ConfigError(f'joint coefficients: {k} names need as many start, lower, upper '
+                              'and centre values')
+        lo, hi, st = (np.asarray(x, dtype=float) for x in (self.lower, self.upper, self.start))
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)
+                and np.all((lo <= st) & (st <= hi))):
+            raise ConfigError('joint coefficients: every box must be finite with lower < '
+                              f'upper and hold its start ({dict(zip(self.names, st))})')
+        if not (math.isfinite(self.weight) and self.weight >= 0):
+            raise ConfigError(f'joint coefficients: weight {self.weight!r} must be >= 0')
+
+
 @dataclass
 class ResidualFit:
     """
@@ -171,6 +207,8 @@ class ResidualFit:
     notes: list[str] = field(default_factory=list)
     val_by_group: dict[str, dict[str, float]] = field(default_factory=dict)
     share_by_group: dict[str, float] = field(default_factory=dict)
+    # trained together with the network (coefficients=...): their values, by name
+    coefficients: dict[str, float] = field(default_factory=dict)
 
     @property
     def val_gain(self) -> float | None:
@@ -295,7 +333,8 @@ def _versions() -> dict[str, str]:
 def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                    validation: Sequence[Trial] | None = None,
                    groups: Mapping[str, str] | None = None,
-                   config: ResidualConfig = ResidualConfig()) -> ResidualFit:
+                   config: ResidualConfig = ResidualConfig(),
+                   coefficients: JointCoefficients | None = None) -> ResidualFit:
     """
     Train the residual (or the pure network) of ``ship`` on recorded trials.
 
@@ -303,8 +342,10 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     physics was identified first (CMA-ES, with its boxes and identifiability checks), so its
     coefficients keep their physical meaning and its extrapolation to manoeuvres the trials
     do not cover; the network, regularised to stay small, only takes up what the physics
-    structure cannot produce. Training both jointly would let the network and the
-    coefficients trade off against each other, undoing the tuning's meaning.
+    structure cannot produce. ``coefficients``: train those physics coefficients together
+    with the network (within their boxes, pulled toward their prior centre), through the same
+    simulation; they then trade off with the network, held by the prior and the regulariser
+    (the fit's ``coefficients``; the net's physics is ``ship.with_params(fit.coefficients)``).
 
     trials: the training set (one sample interval); validation: held-out trials for early
     stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
@@ -381,23 +422,42 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     sigma = obs.std(axis=0)
     sigma = np.where(sigma > 0, sigma, 1.0)
 
+    free = None
+    if coefficients is not None:
+        if not cfg.physics:
+            raise TuningError('train_residual: coefficients are trained with the physics (a '
+                              'hybrid), not with the network alone')
+        jc = coefficients
+        bad = [n for n in jc.names if n not in PARAM_INDEX]
+        if bad:
+            raise TuningError(f'train_residual: unknown coefficients {bad}')
+        # the prior's weight is set below, once the physics' own loss is known
+
+        def arr(x: Sequence[float]) -> np.ndarray:
+            return np.asarray(x, dtype=float)
+
+        free = E.Coefficients(np.array([PARAM_INDEX[n] for n in jc.names]), arr(jc.start),
+                              arr(jc.lower), arr(jc.upper), arr(jc.centre), 0.0)
+        ship = ship.with_params(dict(zip(jc.names, jc.start)), 'joint coefficients')
     sim = E.make_simulator(ship.kind, ship.params, cfg.physics, cfg.integrator == 'rk4', dt,
-                           x_mean, x_std, y_scale)
-    data_loss, total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics)
+                           x_mean, x_std, y_scale, free)
+    data_loss, total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics, free)
     sizes = [cfg.window * N_FEATURES, *cfg.hidden, 3]
-    model = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
+    net0 = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
+    model: MLP | Joint = net0 if free is None else \
+        E.Joint(net0, jax.numpy.zeros(len(free.slots)))
     opt = E.optimiser(cfg.learning_rate)
     opt_state = opt.init(eqx.filter(model, eqx.is_array))
 
     @eqx.filter_jit
-    def train_step(model: MLP, opt_state: Any, b: Mapping[str, np.ndarray], w: np.ndarray
-                   ) -> tuple[MLP, Any, jax.Array]:
+    def train_step(model: MLP | Joint, opt_state: Any, b: Mapping[str, np.ndarray],
+                   w: np.ndarray) -> tuple[MLP | Joint, Any, jax.Array]:
         (_, d), grads = eqx.filter_value_and_grad(total, has_aux=True)(model, b, w)
         updates, opt_state = opt.update(grads, opt_state, eqx.filter(model, eqx.is_array))
         return eqx.apply_updates(model, updates), opt_state, d
 
     @eqx.filter_jit
-    def window_losses(model: MLP, b: Mapping[str, np.ndarray], w: np.ndarray) -> jax.Array:
+    def window_losses(model: MLP | Joint, b: Mapping[str, np.ndarray], w: np.ndarray) -> jax.Array:
         return data_loss(model, b, w)[2]
 
     B = min(cfg.batch_size, len(w_tr))
@@ -407,7 +467,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         return {'x0': t.x0, 'hist': t.hist, 'inp': t.inp, 'act': t.act, 'wind': t.wind,
                 'target': t.target}
 
-    def per_window(model: MLP, w: Windows) -> np.ndarray:
+    def per_window(model: MLP | Joint, w: Windows) -> np.ndarray:
         """Return the data loss of each window of w (fixed-size chunks: one shape)."""
         n = len(w)
         out = []
@@ -418,7 +478,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             out.append(np.asarray(window_losses(model, as_batch(w, idx), wt))[:int(wt.sum())])
         return np.concatenate(out)
 
-    def mean_loss(model: MLP, w: Windows, wt: np.ndarray) -> float:
+    def mean_loss(model: MLP | Joint, w: Windows, wt: np.ndarray) -> float:
         return float(np.mean(per_window(model, w) * wt))
 
     def by_group(losses: np.ndarray) -> np.ndarray:
@@ -430,6 +490,10 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     physics_val = float(np.mean(physics_windows * wt_va))
     physics_train = mean_loss(model, w_tr, wt_tr)
     physics_groups = by_group(physics_windows)
+    if free is not None and coefficients is not None and coefficients.weight > 0:
+        # the prior in loss units: its pull relative to the physics' own training loss
+        free = replace(free, weight=coefficients.weight * physics_train)
+        total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics, free)[1]
 
     def criterion(val: float, losses: np.ndarray) -> float:
         if not cfg.physics:
@@ -485,6 +549,17 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                      zip(group_names, by_group(physics_windows), by_group(best_windows))}
                     if cfg.physics else {})
     train_loss = mean_loss(model, w_tr, wt_tr)
+    trained: dict[str, float] = {}
+    if isinstance(model, E.Joint):
+        assert free is not None and coefficients is not None
+        trained = dict(zip(coefficients.names, map(float, np.asarray(free.values(model.z)))))
+        ship = ship.with_params(trained, 'joint coefficients')
+        batch_derivative(family_tag(ship.kind), ship.params, ms, act, wind, F,
+                         np.empty((1, 6, 6)), False)   # the share: of the trained physics
+        notes.append('coefficients trained with the network: ' + ', '.join(
+            f'{n} {coefficients.start[i]:.6g} -> {v:.6g}' for i, (n, v) in
+            enumerate(trained.items())))
+        model = model.net
     weights, biases = model.export()
     features = feature_names(ship.family)
     net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
@@ -507,7 +582,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             'physics_train_loss': physics_train if cfg.physics else None,
             'physics_val_loss': physics_val if cfg.physics else None,
             'share': share, 'share_by_component': parts, 'share_by_group': share_by_group,
-            'val_by_group': val_by_group, 'seconds': seconds,
+            'val_by_group': val_by_group, 'seconds': seconds, 'coefficients': trained,
             'seed': cfg.seed, 'config': asdict(cfg), 'sigma': sigma.tolist(),
             'versions': _versions(), 'notes': notes,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
@@ -517,7 +592,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,
                        physics_train if cfg.physics else None,
                        physics_val if cfg.physics else None, best_epoch, notes, val_by_group,
-                       share_by_group)
+                       share_by_group, trained)
 
 
 def ensemble(nets: Sequence[ResidualNet]) -> ResidualNet:
