@@ -39,6 +39,7 @@ PONDS = ROOT / 'data' / 'esso_osaka_frt'
 SHIP = 'esso_osaka_3m'
 WITHIN = 1.05   # D1
 MAX_FACTOR, COVERAGE = 3.0, (0.80, 0.95)   # I1
+EXTRA = 'joint physics'   # the joint's coefficients without its network: scored, no candidate
 
 
 def benchmark(quick: bool, argv: list[str]) -> dict:
@@ -72,7 +73,7 @@ def _table(scores: dict[str, dict[str, float]], chosen: str) -> str:
 
 def _verdicts(scores: dict[str, dict[str, float]], chosen: str) -> dict[str, dict[str, bool]]:
     """D1 and D2 per kind; a non-finite score (a failed run) fails the kind."""
-    cands = [m for m in scores if m != 'published']
+    cands = [m for m in scores if m not in ('published', 'recommended', EXTRA)]
     d1, d2 = {}, {}
     for k in scores[chosen]:
         best = min(scores[m][k] for m in cands)
@@ -132,6 +133,8 @@ def main(argv: list[str] | None = None) -> dict:
         scores = {'published': index_by_kind(published, runs, kind_of)}
         for name, model in res.candidates.items():
             scores[name] = index_by_kind(model, runs, kind_of)
+        if 'joint' in res.candidates:   # J2: its physics alone
+            scores[EXTRA] = index_by_kind(res.candidates['joint'].ship, runs, kind_of)
         per_fold[fold] = {'recommended': chosen, 'scores': scores, 'auto_wall_s': auto_s,
                           'verdicts': _verdicts(scores, chosen),
                           'interval': _interval(res.candidates[chosen], runs)}
@@ -165,6 +168,15 @@ def main(argv: list[str] | None = None) -> dict:
         print('not every candidate was trained in every fold: D1 undecided')
         verdicts['D1'] = {}
     _print_verdicts(verdicts)
+    if 'joint' in mean and 'hybrid' in mean:   # registered in esso_joint_folds_preregistration
+        better = {k: bool(mean['joint'][k] < mean['hybrid'][k]) for k in kinds}
+        verdicts['J1'] = better
+        print(f'J1 (joint < hybrid on >= 3 of 4 kinds): '
+              f'{"PASS" if sum(better.values()) >= 3 else "FAIL"} ({better})')
+    if EXTRA in mean:
+        verdicts['J2'] = {k: bool(mean[EXTRA][k] < mean['published'][k]) for k in kinds}
+        print(f'J2 (the joint physics < published on every kind): '
+              f'{"PASS" if all(verdicts["J2"].values()) else "FAIL"} ({verdicts["J2"]})')
     i1 = all(pf['interval'] is not None and pf['interval']['pass'] for pf in per_fold.values())
     verdicts['I1'] = {f'fold {f}': bool(pf['interval'] and pf['interval']['pass'])
                       for f, pf in per_fold.items()}
