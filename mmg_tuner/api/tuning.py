@@ -663,7 +663,7 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
     """
     from mmg_tuner.learn import JointCoefficients
     cfg = result.config
-    rc = _residual_config(replace(cfg, residual='hybrid'))
+    rc = _residual_config(replace(cfg, residual='hybrid', model='physics'))
     physics = result.tuned_ship
     space = result.space
     free = [i for i, n in enumerate(space.names) if n not in NOT_JOINT]

@@ -187,7 +187,7 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
                   residual_seeds=2, groups=groups,
                   residual_options={'epochs': 2, 'hidden': (6,), 'horizon_s': 6.0})
     c = res.choice
-    assert list(c.by_kind) == ['physics', 'hybrid', 'network', 'blend']
+    assert list(c.by_kind) == ['physics', 'hybrid', 'network', 'blend', 'joint']
     assert c.score[c.chosen] == min(c.score.values()) >= 1.0
     # every candidate compared is kept, each scoring as the table says (to score elsewhere)
     assert list(res.candidates) == list(c.by_kind)
@@ -205,7 +205,8 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
         assert ('interval' in res.residual.net.meta) != any(
             n.startswith('no prediction interval') for n in res.choice_notes), res.choice_notes
         back = load_model('suzaku', tmp_path / 'out' / 'params.yaml')
-        assert back.kind == {'network': 'pure network'}.get(c.chosen, c.chosen)
+        assert back.kind == {'network': 'pure network', 'joint': 'hybrid'}.get(c.chosen,
+                                                                               c.chosen)
     with pytest.raises(mt.MmgTunerError, match='model'):
         mt.TuneConfig(model='best')
 
@@ -236,6 +237,40 @@ def test_a_recommended_ensemble_whose_interval_fails_is_written_without_one(
     res.write(tmp_path / 'out', plots=False)
     assert load_model('suzaku', tmp_path / 'out' / 'params.yaml').kind == 'pure network'
 
+
+def test_a_recommended_joint_model_writes_its_own_physics(trials, tmp_path, monkeypatch):
+    """
+    The joint candidate chosen: its coefficients are the physics written, J reported for it.
+
+    Its physics starts from the tuned values, moves within the boxes, and is what params.yaml
+    holds with the network; the report says so.
+    """
+    pytest.importorskip('jax')
+    from mmg_tuner.api import tuning as api_tuning
+
+    def joint(cands, *a, **k):   # recommend the joint model whatever the scores
+        return Choice('joint', {n: {'turning': 1.0} for n in cands}, dict.fromkeys(cands, 1.0))
+
+    monkeypatch.setattr(api_tuning, 'choose_model', joint)
+    ship = mt.load_ship('suzaku')
+    targets = ['N_r', 'Y_v', 'R_0']
+    res = mt.tune(ship, trials, targets=targets, max_evals=40, model='auto', prior=0.1,
+                  residual_seeds=2, groups={t.name: KINDS[t.name] for t in trials},
+                  residual_options={'epochs': 3, 'hidden': (6,), 'horizon_s': 6.0,
+                                    'learning_rate': 3e-2, 'significance': 0.0})
+    assert res.choice.chosen == 'joint' and res.residual.kind == 'joint'
+    coeffs = res.residual.config['coefficients']
+    assert set(coeffs) == set(targets)
+    written = res.candidates['joint'].ship
+    for n in targets:   # in the box, and the physics written is the joint's
+        assert res.space.lower[res.space.names.index(n)] <= coeffs[n] <= \
+            res.space.upper[res.space.names.index(n)]
+        assert res.params[n] == coeffs[n] == written[n]
+    res.write(tmp_path / 'out', plots=False)
+    back = load_model('suzaku', tmp_path / 'out' / 'params.yaml')
+    assert back.kind == 'hybrid' and all(back.ship[n] == coeffs[n] for n in targets)
+    assert any('joint' in n for n in res.choice_notes)
+    assert 'Its physics coefficients were trained' in (tmp_path / 'out' / 'report.md').read_text()
 
 def test_the_fresh_test_was_registered_with_its_hypotheses():
     reg = (ROOT / 'bench' / 'esso_fresh_preregistration.md').read_text()
