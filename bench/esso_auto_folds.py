@@ -13,6 +13,7 @@ as the command reads them, 0.5 s grid, ``mt.evaluate``: RK4, restarts every 100 
 pooled over the fold). Prints the per-fold and the mean tables, and the verdicts D1 and D2;
 and (amendment 1) the interval the command wrote: its factors and its coverage of the fold's
 held-out runs, verdict I1 (every fold: largest factor <= 3, coverage in [0.80, 0.95]).
+``--joint``: the auto command with ``--joint`` (J1, J2: bench/esso_joint_folds_preregistration.md).
 ``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
 """
 from __future__ import annotations
@@ -47,12 +48,14 @@ def benchmark(quick: bool, argv: list[str]) -> dict:
     return main((['--quick'] if quick else []) + argv)
 
 
-def _auto(files: list[Path], quick: bool) -> mt.TuneResult:
+def _auto(files: list[Path], quick: bool, joint: bool = False) -> mt.TuneResult:
     """Run the guide's auto command on ``files``, as the command configures and reads them."""
     argv = [str(f) for f in files] + ['--ship', SHIP, '--dt', '0.5', '--model', 'auto',
                                       '--residual-seeds', '3', '--out', 'unused', '--quiet']
     if quick:
         argv += ['--residual-epochs', '3']
+    if joint:   # the joint candidate too (esso_joint_folds_preregistration.md)
+        argv += ['--joint']
     parser = build_parser()
     args = parser.parse_args(argv)
     ship = mt.load_ship(SHIP)
@@ -109,6 +112,7 @@ def _print_verdicts(verdicts: dict[str, dict[str, bool]], prefix: str = '') -> N
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(prog='python -m bench run esso_auto_folds')
     ap.add_argument('--quick', action='store_true')
+    ap.add_argument('--joint', action='store_true', help='tune --joint: the joint candidate')
     args = ap.parse_args(argv)
     files = runs_by_kind(PONDS)
     published = mt.load_ship(SHIP)
@@ -121,7 +125,7 @@ def main(argv: list[str] | None = None) -> dict:
             train += a
             test += b
         t1 = time.perf_counter()
-        res = _auto(train, args.quick)
+        res = _auto(train, args.quick, args.joint)
         auto_s = time.perf_counter() - t1
         assert res.choice is not None   # model='auto'
         chosen = res.choice.chosen

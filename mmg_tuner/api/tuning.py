@@ -74,7 +74,9 @@ class TuneConfig:
     residuals (``tuning/lsq.py``; 0: none). prior_choices: prior weights to choose from by
     cross-validation over sessions (days) of the tuning trials, the published values always
     a candidate (``tuning/prior_cv.py``; the choice and its table are in the result's
-    ``prior_choice``); empty: use ``prior``.
+    ``prior_choice``); empty: use ``prior``. joint: with model 'auto', a fifth candidate, one
+    hybrid network trained together with the tuned coefficients (``learn.JointCoefficients``;
+    about five times a hybrid seed's training: not in the default).
     """
 
     targets: tuple[str, ...] | None = None
@@ -97,6 +99,7 @@ class TuneConfig:
     model: str = 'physics'
     polish: int = 0
     prior_choices: tuple[float, ...] = ()
+    joint: bool = False
 
     def __post_init__(self) -> None:
         E = TuningError
@@ -106,6 +109,10 @@ class TuneConfig:
                E)
         _check('model', self.model, self.model == 'physics' or self.residual is None,
                "'physics' with residual set (model 'auto' trains the networks itself)", E)
+        _check('joint', self.joint, isinstance(self.joint, bool) and
+               (not self.joint or self.model == 'auto'),
+               "True or False; True only with model 'auto' (the joint is one of its "
+               'candidates)', E)
         _check('polish', self.polish, _is_int(self.polish) and self.polish >= 0,
                'a whole number >= 0 (0: no least-squares polish)', E)
         _check('segment_s', self.segment_s, _finite(self.segment_s) and self.segment_s >= 0,
@@ -515,7 +522,8 @@ def choose_prior_by_days(ship: ShipConfig, trials: Sequence[Trial], cfg: TuneCon
                        'tuning itself (max_evals=0 with a polish is the quick way)',
                        len(fold_names) * len(priors), cfg.max_evals)
     space = ParameterSpace.around(ship, cfg.targets, cfg.a_r, dict(cfg.bounds))
-    fit_cfg = replace(cfg, prior_choices=(), residual=None, model='physics')
+    fit_cfg = replace(cfg, prior_choices=(), residual=None, model='physics',
+                      joint=False)
     held: dict[str, dict[str, float | None]] = {PUBLISHED: {}, **{label(w): {} for w in priors}}
     sims, t0 = 0, time.perf_counter()
     for i, out in enumerate(fold_names, 1):
@@ -588,7 +596,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         notes.append(f'networks not trained: {exc}')
     else:
         for kind in ('hybrid', 'network'):
-            sub = replace(result, config=replace(cfg, residual=kind, model='physics'),
+            sub = replace(result, config=replace(cfg, residual=kind, model='physics', joint=False),
                           residual=None)
             try:
                 r = _train_residual(sub)
@@ -601,7 +609,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         if 'hybrid' in trained and 'network' in trained:
             trained['blend'] = _blend(result, trained['hybrid'], trained['network'])
             cands['blend'] = Model(physics, trained['blend'].net)
-        if 'hybrid' in trained and result.space.dim:
+        if cfg.joint and 'hybrid' in trained and result.space.dim:
             try:
                 joint, joint_params = _train_joint(result, groups)
             except MmgTunerError as exc:
@@ -663,7 +671,7 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
     """
     from mmg_tuner.learn import JointCoefficients
     cfg = result.config
-    rc = _residual_config(replace(cfg, residual='hybrid', model='physics'))
+    rc = _residual_config(replace(cfg, residual='hybrid', model='physics', joint=False))
     physics = result.tuned_ship
     space = result.space
     free = [i for i, n in enumerate(space.names) if n not in NOT_JOINT]

@@ -151,6 +151,9 @@ def build_parser() -> argparse.ArgumentParser:
                     'on the last quarter of each trial per kind of run (the folder of the trial) '
                     'and write the recommended one (report.md: the table); with '
                     '--residual-seeds N >= 2 it carries a calibrated 90 %% interval')
+    ap.add_argument('--joint', action='store_true',
+                    help='with --model auto: a fifth candidate, one hybrid network trained '
+                    "together with the tuned coefficients (about 5 x a hybrid seed's time)")
     ap.add_argument('--polish', type=nonneg_int, default=0, metavar='N',
                     help='after CMA-ES, a local least-squares polish of at most N simulations '
                     '(0: none)')
@@ -393,7 +396,8 @@ def tune_config(args: argparse.Namespace) -> api.TuneConfig:
                           residual=kind, residual_options=opts,
                           residual_seeds=1 if seeds is None else seeds,
                           model=getattr(args, 'model', 'physics'),
-                          polish=getattr(args, 'polish', 0))
+                          polish=getattr(args, 'polish', 0),
+                          joint=getattr(args, 'joint', False))
 
 
 RECIPE_KEYS = ('targets', 'weights', 'segment', 'balance', 'prior', 'prior_choices', 'max_evals',

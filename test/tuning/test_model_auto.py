@@ -184,7 +184,7 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
     pytest.importorskip('jax')
     groups = {t.name: KINDS[t.name] for t in trials}
     res = mt.tune(mt.load_ship('suzaku'), trials, max_evals=40, model='auto',
-                  residual_seeds=2, groups=groups,
+                  residual_seeds=2, groups=groups, joint=True,
                   residual_options={'epochs': 2, 'hidden': (6,), 'horizon_s': 6.0})
     c = res.choice
     assert list(c.by_kind) == ['physics', 'hybrid', 'network', 'blend', 'joint']
@@ -209,6 +209,13 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
                                                                                c.chosen)
     with pytest.raises(mt.MmgTunerError, match='model'):
         mt.TuneConfig(model='best')
+    with pytest.raises(mt.MmgTunerError, match='joint'):   # a candidate of auto only
+        mt.TuneConfig(joint=True)
+    # without joint=True auto compares the four of before
+    assert 'joint' not in mt.tune(mt.load_ship('suzaku'), trials[:2], max_evals=20,
+                                  model='auto', residual_seeds=1, groups=groups,
+                                  residual_options={'epochs': 1, 'hidden': (4,),
+                                                    'horizon_s': 6.0}).candidates
 
 
 def test_a_recommended_ensemble_whose_interval_fails_is_written_without_one(
@@ -255,6 +262,7 @@ def test_a_recommended_joint_model_writes_its_own_physics(trials, tmp_path, monk
     ship = mt.load_ship('suzaku')
     targets = ['N_r', 'Y_v', 'R_0']
     res = mt.tune(ship, trials, targets=targets, max_evals=40, model='auto', prior=0.1,
+                  joint=True,
                   residual_seeds=2, groups={t.name: KINDS[t.name] for t in trials},
                   residual_options={'epochs': 3, 'hidden': (6,), 'horizon_s': 6.0,
                                     'learning_rate': 3e-2, 'significance': 0.0})
@@ -271,6 +279,7 @@ def test_a_recommended_joint_model_writes_its_own_physics(trials, tmp_path, monk
     assert back.kind == 'hybrid' and all(back.ship[n] == coeffs[n] for n in targets)
     assert any('joint' in n for n in res.choice_notes)
     assert 'Its physics coefficients were trained' in (tmp_path / 'out' / 'report.md').read_text()
+
 
 def test_the_fresh_test_was_registered_with_its_hypotheses():
     reg = (ROOT / 'bench' / 'esso_fresh_preregistration.md').read_text()
