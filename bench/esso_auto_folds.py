@@ -13,7 +13,8 @@ as the command reads them, 0.5 s grid, ``mt.evaluate``: RK4, restarts every 100 
 pooled over the fold). Prints the per-fold and the mean tables, and the verdicts D1 and D2;
 and (amendment 1) the interval the command wrote: its factors and its coverage of the fold's
 held-out runs, verdict I1 (every fold: largest factor <= 3, coverage in [0.80, 0.95]).
-``--joint``: the auto command with ``--joint`` (J1, J2: bench/esso_joint_folds_preregistration.md).
+``--joint``: the auto command with ``--joint`` (J1, J2:
+bench/esso_joint_folds_preregistration.md).
 ``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
 """
 from __future__ import annotations
