@@ -11,6 +11,7 @@ from typing import Any, Callable, cast, Mapping, Sequence
 from mmg_tuner._outdir import OutputDir
 from mmg_tuner.api._common import (_as_list, _check, _check_common, _config, _finite, _is_int,
                                    _write_all, config_fields)
+from mmg_tuner.core.correction import FEATURE_PARAMS
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.data.trial import Trial
@@ -364,7 +365,7 @@ def _write_with_residual(res: TuneResult, out: str | Path | OutputDir, params_te
         text = params_text + (f'# the {r.kind} network beside this file (mmg_tuner tune '
                               f'--residual)\nresidual: {RESIDUAL_FILE}\n')
         images = {}
-        if plots and r.kind == 'hybrid':   # the physics curves (the hybrid's: evaluate)
+        if plots and r.kind in ('hybrid', 'joint'):   # the physics curves (the hybrid's: evaluate)
             images = plot_trials(res.ship, res.trials + res.test,
                                  {'pre-determined': res.ship.params,
                                   'tuned physics': res.ship.with_params(res.params).params},
@@ -609,7 +610,11 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         if 'hybrid' in trained and 'network' in trained:
             trained['blend'] = _blend(result, trained['hybrid'], trained['network'])
             cands['blend'] = Model(physics, trained['blend'].net)
-        if cfg.joint and 'hybrid' in trained and result.space.dim:
+        published = result.prior_choice is not None and result.prior_choice.prior is None
+        if cfg.joint and published:
+            notes.append('joint: not trained (the prior choice kept the published values: '
+                         'nothing tuned to train on)')
+        elif cfg.joint and 'hybrid' in trained and result.space.dim:
             try:
                 joint, joint_params = _train_joint(result, groups)
             except MmgTunerError as exc:
@@ -628,11 +633,16 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
         result.params = {**result.params, **joint_params}
         result.J = _fit(_report_sets(result.ship, result.trials, result.test, cfg),
                         result.tuned_ship.params)
+        result.bounds_hit = result.space.on_bound(
+            np.array([result.params[n] for n in result.space.names]))
         notes.append("the physics written is the joint training's (its coefficients moved "
                      'from the tuned values with the network); J above is of those')
     if choice.chosen != 'physics':
         r = trained[choice.chosen]
-        if r.seeds >= 2:
+        if r.seeds < 2:
+            notes.append(f'no prediction interval: the {choice.chosen} is one network (an '
+                         'interval needs an ensemble of >= 2)')
+        else:
             try:
                 # (the chosen is not the physics: a Model with its network)
                 # members that differ in physics as well as weights (the tuned physics and
@@ -674,7 +684,7 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
     rc = _residual_config(replace(cfg, residual='hybrid', model='physics', joint=False))
     physics = result.tuned_ship
     space = result.space
-    free = [i for i, n in enumerate(space.names) if n not in NOT_JOINT]
+    free = [i for i, n in enumerate(space.names) if n not in FEATURE_PARAMS]
     names = tuple(space.names[i] for i in free)
     if not names:
         raise TuningError('no tuned coefficient can be trained with the network (only '
@@ -683,8 +693,9 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
     if cfg.prior:
         obj = _fitting_objective(result.ship, result.trials, cfg, space, groups)
         p = physics.params[None]
+        J, _ = obj.per_trial(p)   # inf where a run failed (the call's total is a ranking)
         total, pull = float(obj(p)[0]), float(obj.prior(p)[0]) if obj.prior else 0.0
-        if obj.prior is not None and math.isfinite(total) and total - pull > 0:
+        if obj.prior is not None and np.all(np.isfinite(J)) and total - pull > 0:
             weight = obj.prior.weight / (total - pull)
     coeffs = JointCoefficients(names, tuple(float(physics[n]) for n in names),
                                tuple(float(space.lower[i]) for i in free),
@@ -693,6 +704,10 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
     logger.info('training the joint model: one network and %d coefficients (seed %d, prior '
                 "weight %.3g per unit of the physics' loss)", len(names), rc.seed, weight)
     fit = train_residual(physics, result.trials, config=rc, coefficients=coeffs)
+    # the physics written if it is chosen: it must run alone as any tuned physics (raises)
+    check_before_writing(result.ship, {**result.params, **fit.coefficients},
+                         result.trials + result.test, 'joint coefficients',
+                         integrator=cfg.integrator, substeps=cfg.substeps)
     joint = result.ship.with_params({**result.params, **fit.coefficients})
     model = Model(joint, fit.net)
     index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
@@ -727,9 +742,6 @@ def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult
 # ---------------------------------------------------------------------------------- residual
 RESIDUAL_FILE = 'params.residual.npz'
 RESIDUAL_KINDS = ('hybrid', 'network')
-NOT_JOINT = ('current_speed', 'current_dir', 'antenna_x', 'antenna_y', 'wind_speed',
-             'wind_dir')
-"""Parameters never trained with the network: the network's features read them."""
 MODEL_CHOICES = ('physics', 'auto')
 
 

@@ -629,6 +629,8 @@ def _residual_line(r: ResidualResult) -> str:
             f'; held-out index (eq. 26) {r.index["test"]["physics"]:.4g} -> '
             f'{r.index["test"]["model"]:.4g} ({100 * r.heldout_gain:+.1f} % gain)')
     share = {'hybrid': f'share of the acceleration {100 * r.share:.1f} %',
+             'joint': f'share of the acceleration {100 * r.share:.1f} %, its coefficients '
+                      'trained with it',
              'blend': f'{100 * r.net.physics:.0f} % of the physics plus the mean output of '
                       'the hybrid and pure networks'}.get(r.kind, 'the network alone')
     seeds = (f'seed {r.seed}' if r.seeds == 1 else

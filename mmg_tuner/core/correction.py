@@ -32,6 +32,9 @@ state through the water (u, v_m [m/s], r [rad/s]), rpm [rev/min], rudder [rad] (
 and stern thrusters [rev/s] (zero when the ship has none) and the apparent wind (the air's
 velocity relative to the ship) in body axes [m/s]."""
 N_FEATURES = len(FEATURES)
+FEATURE_PARAMS = ('current_speed', 'current_dir', 'antenna_x', 'antenna_y', 'wind_speed',
+                  'wind_dir')
+"""Parameters the features (and the kinematics) read: never trained with the network."""
 
 
 def feature_names(family: Family) -> tuple[str, ...]:

@@ -19,6 +19,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
+from mmg_tuner.core.correction import FEATURE_PARAMS
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.learn._bridge import (batch_derivative, batch_param_jacobian, FD_REL_STEP,
@@ -35,7 +36,7 @@ _Vc = PARAM_INDEX['current_speed']
 _dirc = PARAM_INDEX['current_dir']
 _ax = PARAM_INDEX['antenna_x']
 _ay = PARAM_INDEX['antenna_y']
-_NOT_FREE = {_Vc, _dirc, _ax, _ay, PARAM_INDEX['wind_speed'], PARAM_INDEX['wind_dir']}
+_NOT_FREE = {PARAM_INDEX[n] for n in FEATURE_PARAMS}   # the features read them
 
 # a batch of windows simulated: (model, x0, hist, inp, act, wind) -> (observed, residual)
 Simulate = Callable[['MLP | Joint', ArrayLike, ArrayLike, ArrayLike, ArrayLike, ArrayLike],
@@ -238,7 +239,9 @@ class Coefficients:
     """
     Physics coefficients trained with the network: slots, start, box, steps and prior.
 
-    theta = clip(start + width z, lower, upper), z trained from 0 (``Joint.z``); the prior
+    theta = start + width z, z trained from 0 (``Joint.z``) and projected back into the box
+    after every step (:meth:`project`: a clip inside the loss would zero the gradient at an
+    edge and keep the coefficient there for good); the prior
     adds weight x sum(((theta - centre) / width)^2) to the loss (weight in loss units);
     steps: the forward-difference steps of the parameter Jacobian.
     """
@@ -262,8 +265,13 @@ class Coefficients:
 
     def values(self, z: jax.Array) -> jax.Array:
         """Return theta (k,) of the trained offsets z (k,)."""
-        return jnp.clip(jnp.asarray(self.start) + jnp.asarray(self.width) * z,
-                        jnp.asarray(self.lower), jnp.asarray(self.upper))
+        return jnp.asarray(self.start) + jnp.asarray(self.width) * z
+
+    def project(self, z: jax.Array) -> jax.Array:
+        """Return z moved into the box (each theta within [lower, upper])."""
+        w = self.width
+        return jnp.clip(z, jnp.asarray((self.lower - self.start) / w),
+                        jnp.asarray((self.upper - self.start) / w))
 
     def penalty(self, z: jax.Array) -> jax.Array:
         d = (self.values(z) - jnp.asarray(self.centre)) / jnp.asarray(self.width)

@@ -18,7 +18,7 @@ import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import feature_names, N_FEATURES
+from mmg_tuner.core.correction import FEATURE_PARAMS, feature_names, N_FEATURES
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
@@ -167,6 +167,8 @@ class JointCoefficients:
         if not k or any(len(x) != k for x in (self.start, self.lower, self.upper, self.centre)):
             raise ConfigError(f'joint coefficients: {k} names need as many start, lower, upper '
                               'and centre values')
+        if len(set(self.names)) != k:
+            raise ConfigError(f'joint coefficients: a name given twice in {list(self.names)}')
         lo, hi, st = (np.asarray(x, dtype=float) for x in (self.lower, self.upper, self.start))
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)
                 and np.all((lo <= st) & (st <= hi))):
@@ -330,6 +332,45 @@ def _versions() -> dict[str, str]:
             'optax': optax.__version__, 'numpy': np.__version__, 'numba': numba.__version__}
 
 
+def _entering(jc: JointCoefficients, ship: ShipConfig, S: np.ndarray, A: np.ndarray,
+              Wd: np.ndarray) -> tuple[JointCoefficients, list[str]]:
+    """
+    Return the coefficients the dynamics read on these rows, and the names of the others.
+
+    A coefficient acting before the kernel (an actuator's command scale or lag, a time
+    offset: the training's inputs are computed once) has a zero parameter Jacobian: only the
+    prior would move it, and the physics written would differ from the one trained.
+    """
+    from mmg_tuner.core.dynamics import family_tag
+    from mmg_tuner.learn._bridge import batch_derivative, batch_param_jacobian, FD_REL_STEP
+    rows = np.unique(np.linspace(0, len(S) - 1, min(len(S), 2000)).astype(int))
+    S, A, Wd = (np.ascontiguousarray(x[rows]) for x in (S, A, Wd))
+    k = len(jc.names)
+    p = ship.params.copy()
+    slots = np.array([PARAM_INDEX[n] for n in jc.names])
+    p[slots] = jc.start
+    width = np.asarray(jc.upper) - np.asarray(jc.lower)
+    steps = FD_REL_STEP * np.maximum(width, np.abs(np.asarray(jc.start)))
+    F = np.empty((len(rows), 6))
+    Jp = np.empty((len(rows), 6, k))
+    tag = family_tag(ship.kind)
+    batch_derivative(tag, p, S, A, Wd, F, np.empty((1, 6, 6)), False)
+    batch_param_jacobian(tag, p, S, A, Wd, F, slots, steps, Jp)
+    reads = np.nan_to_num(np.abs(Jp)).max(axis=(0, 1)) > 0
+    if not reads.any():
+        raise TuningError(f'train_residual: the dynamics read none of {list(jc.names)} on the '
+                          'training rows: nothing to train with the network')
+    keep = np.flatnonzero(reads)
+
+    def pick(x: Sequence[float]) -> tuple[float, ...]:
+        return tuple(float(x[int(i)]) for i in keep)
+
+    names = tuple(jc.names[int(i)] for i in keep)
+    return (JointCoefficients(names, pick(jc.start), pick(jc.lower), pick(jc.upper),
+                              pick(jc.centre), jc.weight),
+            [n for n, r in zip(jc.names, reads) if not r])
+
+
 def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                    validation: Sequence[Trial] | None = None,
                    groups: Mapping[str, str] | None = None,
@@ -423,6 +464,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     sigma = np.where(sigma > 0, sigma, 1.0)
 
     free = None
+    jc: JointCoefficients | None = None
+    joint_notes: list[str] = []
     if coefficients is not None:
         if not cfg.physics:
             raise TuningError('train_residual: coefficients are trained with the physics (a '
@@ -431,6 +474,15 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         bad = [n for n in jc.names if n not in PARAM_INDEX]
         if bad:
             raise TuningError(f'train_residual: unknown coefficients {bad}')
+        fixed = [n for n in jc.names if n in FEATURE_PARAMS]
+        if fixed:
+            raise TuningError(f'train_residual: {fixed} cannot be trained with the network '
+                              '(its features read the current, the wind and the antenna)')
+        jc, dropped = _entering(jc, ship, ms, act, wind)
+        if dropped:
+            joint_notes.append(f'not trained with the network: {", ".join(dropped)} (the '
+                               'dynamics do not read them: they act before the kernel, e.g. '
+                               'on the actuator commands, or not at all here)')
         # the prior's weight is set below, once the physics' own loss is known
 
         def arr(x: Sequence[float]) -> np.ndarray:
@@ -454,7 +506,11 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                    w: np.ndarray) -> tuple[MLP | Joint, Any, jax.Array]:
         (_, d), grads = eqx.filter_value_and_grad(total, has_aux=True)(model, b, w)
         updates, opt_state = opt.update(grads, opt_state, eqx.filter(model, eqx.is_array))
-        return eqx.apply_updates(model, updates), opt_state, d
+        new = eqx.apply_updates(model, updates)
+        if isinstance(new, E.Joint):   # the coefficients back into their boxes
+            assert free is not None
+            new = eqx.tree_at(lambda m: m.z, new, free.project(new.z))
+        return new, opt_state, d
 
     @eqx.filter_jit
     def window_losses(model: MLP | Joint, b: Mapping[str, np.ndarray], w: np.ndarray) -> jax.Array:
@@ -492,6 +548,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     physics_groups = by_group(physics_windows)
     if free is not None and coefficients is not None and coefficients.weight > 0:
         # the prior in loss units: its pull relative to the physics' own training loss
+        if not math.isfinite(physics_train):
+            raise TuningError('train_residual: the physics alone diverges on a training '
+                              "window: the coefficients' prior has no loss to be measured in")
         free = replace(free, weight=coefficients.weight * physics_train)
         total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics, free)[1]
 
@@ -505,7 +564,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     z = cfg.significance if cfg.physics else 0.0
     history = [{'epoch': 0, 'train': physics_train, 'val': physics_val, 'criterion': crit0,
                 'seconds': time.perf_counter() - t_start}]
-    notes = [val_note]
+    notes = [val_note, *joint_notes]
     skipped = 0
     epoch = 0
     for epoch in range(1, cfg.epochs + 1):
@@ -551,13 +610,13 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     train_loss = mean_loss(model, w_tr, wt_tr)
     trained: dict[str, float] = {}
     if isinstance(model, E.Joint):
-        assert free is not None and coefficients is not None
-        trained = dict(zip(coefficients.names, map(float, np.asarray(free.values(model.z)))))
+        assert free is not None and jc is not None
+        trained = dict(zip(jc.names, map(float, np.asarray(free.values(model.z)))))
         ship = ship.with_params(trained, 'joint coefficients')
         batch_derivative(family_tag(ship.kind), ship.params, ms, act, wind, F,
                          np.empty((1, 6, 6)), False)   # the share: of the trained physics
         notes.append('coefficients trained with the network: ' + ', '.join(
-            f'{n} {coefficients.start[i]:.6g} -> {v:.6g}' for i, (n, v) in
+            f'{n} {jc.start[i]:.6g} -> {v:.6g}' for i, (n, v) in
             enumerate(trained.items())))
         model = model.net
     weights, biases = model.export()

@@ -15,7 +15,9 @@ measurement; over a longer free run it is extrapolated.
 An interval calibrated with the start error (``calibrate_interval(start_error=True)``) also
 carries sigma_j, the recorded state's error: the node then steps, beside the members, the
 model started with state j raised by sigma_j, and adds their departures and sigma_i itself in
-quadrature, as the calibration did (the start the node is given is taken to be a recorded one).
+quadrature, as the calibration did (the start the node is given is taken to be a recorded one;
+as at a calibration restart, nothing at the start itself; a raised start that fails, or that
+the simulator refuses, counts as no departure).
 
 Mapping (REP-103/105, the node's frames): pose covariance over (x east, y north, z, roll,
 pitch, yaw) in ``odom`` gets the variances of the model's y (east), x (north) and psi; twist
@@ -32,6 +34,7 @@ from typing import Any
 
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.stepper import ShipSimulator
+from mmg_tuner.errors import SimulationError
 from mmg_tuner.learn.model import Model
 from mmg_tuner.tuning.interval import model_interval
 import numpy as np
@@ -76,9 +79,12 @@ class EnsembleSpread:
         for j in np.flatnonzero(sigma > 0):
             x0 = np.array(sim.x0, dtype=float)
             x0[j] += sigma[j]
-            raised.append(ShipSimulator(sim.ship, sim.dt, x0, sim.rpm0, sim.rudder0,
-                                        integrator, sim.substeps, residual=sim.residual,
-                                        commands=start))
+            try:
+                raised.append(ShipSimulator(sim.ship, sim.dt, x0, sim.rpm0, sim.rudder0,
+                                            integrator, sim.substeps, residual=sim.residual,
+                                            commands=start))
+            except SimulationError:   # e.g. a raised speed beyond the ship's limits
+                continue
         every = members + raised
         return cls(every, scale, [True] * len(every), n_start=len(raised), start_sigma=sigma)
 
@@ -107,8 +113,8 @@ class EnsembleSpread:
         Return c_i x the spread about ``centre`` (6,), or None.
 
         The spread: the members' standard deviation, with the start error's departures and
-        sigma added in quadrature when the interval carries them (a raised start that failed
-        counts as no departure).
+        sigma added in quadrature when the interval carries them (after the first step; a
+        raised start that failed counts as no departure).
         """
         k = len(self.members) - self.n_start
         states = [m.observed() for m, ok in zip(self.members[:k], self.alive[:k]) if ok]
@@ -121,8 +127,9 @@ class EnsembleSpread:
             return d
 
         var = np.sum(dev(states) ** 2, axis=0) / (len(states) - 1)
-        raised = [m.observed() for m, ok in zip(self.members[k:], self.alive[k:]) if ok]
-        var += np.sum(dev(raised) ** 2, axis=0) + self.start_sigma ** 2
+        if self.n_start and self.members[0].steps > 0:   # nothing at the start itself
+            raised = [m.observed() for m, ok in zip(self.members[k:], self.alive[k:]) if ok]
+            var += np.sum(dev(raised) ** 2, axis=0) + self.start_sigma ** 2
         s: np.ndarray = self.scale * np.sqrt(var)
         return s
 

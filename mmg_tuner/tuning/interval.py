@@ -139,7 +139,8 @@ def _start_variance(model: Model, trial: Trial, pred: np.ndarray, sigma: Sequenc
         states[starts, j] += s_j
         moved, _, _ = predict(model, replace(trial, states=states), restart_every_s,
                               integrator)
-        var += _wrapped(moved - pred) ** 2
+        # a raised start that fails counts as no departure (as the simulator node counts it)
+        var += np.nan_to_num(_wrapped(moved - pred)) ** 2
     var += np.asarray(sigma)[None] ** 2
     var[starts] = 0.0   # the restart itself is the recorded state (error 0 there)
     return var

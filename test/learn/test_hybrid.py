@@ -527,15 +527,22 @@ def test_joint_training_moves_the_coefficient_the_data_pull_on(suzaku):
     truth = 1.3 * n_r
     trials = make_trials(suzaku, {'N_r': truth})
     lo, hi = sorted((0.5 * n_r, 1.5 * n_r))
-    jc = JointCoefficients(('N_r',), (n_r,), (lo,), (hi,), (n_r,), 0.0)
+    rpm = suzaku['rpm_scale']   # acts on the commands, before the kernel: not trained
+    jc = JointCoefficients(('N_r', 'rpm_scale'), (n_r, rpm), (lo, 0.5 * rpm), (hi, 1.5 * rpm),
+                           (n_r, rpm), 0.0)
     # Adam moves z by about the learning rate a step (box widths): 1e-2 reaches the truth's
     # N_r within the CI's few steps (3e-3, the default, gets a quarter of the way)
     fit = train_residual(suzaku, trials[:4], coefficients=jc,
                          config=ResidualConfig(**{**CI, 'learning_rate': 1e-2}, seed=0))
     moved = fit.coefficients['N_r']
     assert (moved - n_r) / (truth - n_r) > 1 / 3, (n_r, moved, truth)
-    assert fit.net.meta['coefficients'] == fit.coefficients
+    assert fit.net.meta['coefficients'] == fit.coefficients and set(fit.coefficients) == {'N_r'}
     assert any('N_r' in note for note in fit.notes)
+    assert any(n.startswith('not trained with the network: rpm_scale') for n in fit.notes)
+    with pytest.raises(mt.MmgTunerError, match='current'):   # the features read it
+        train_residual(suzaku, trials[:4], config=ResidualConfig(**CI, seed=0),
+                       coefficients=JointCoefficients(('current_speed',), (0.0,), (0.0,),
+                                                      (0.5,), (0.0,)))
     with pytest.raises(ConfigError, match='hold its start'):   # a box without the start
         JointCoefficients(('N_r',), (n_r,), (2 * abs(n_r),), (3 * abs(n_r),), (n_r,))
 
