@@ -18,7 +18,7 @@ import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import FEATURE_PARAMS, feature_names, N_FEATURES
+from mmg_tuner.core.correction import feature_names, FEATURE_PARAMS, N_FEATURES
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
