@@ -616,7 +616,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
                          'nothing tuned to train on)')
         elif cfg.joint and 'hybrid' in trained and result.space.dim:
             try:
-                joint, joint_params = _train_joint(result, groups)
+                joint, joint_params = _train_joint(result, groups, trained['hybrid'])
             except MmgTunerError as exc:
                 notes.append(f'joint: not trained ({exc})')
                 logger.warning('--model auto: the joint model was not trained: %s', exc)
@@ -658,7 +658,8 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
             else:
                 # (the interval's model is the chosen network's, which it keeps)
                 r.net = cast(ResidualNet, with_interval(iv).residual)
-                cands[choice.chosen] = Model(physics, r.net)   # the model written
+                # the model written (the joint's physics is its own)
+                cands[choice.chosen] = Model(cast(Model, cands[choice.chosen]).ship, r.net)
                 notes.append('prediction interval: nominal 90 %, factors '
                              f'{iv.to_dict()["scale"]} (calibrated on the validation part; '
                              f'members: the {len(iv.members) - 2} networks, the tuned and the '
@@ -667,17 +668,18 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
     result.choice, result.choice_notes, result.candidates = choice, notes, cands
 
 
-def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
-                 ) -> tuple[ResidualResult, dict[str, float]]:
+def _train_joint(result: TuneResult, groups: Mapping[str, str] | None,
+                 hybrid: ResidualResult) -> tuple[ResidualResult, dict[str, float]]:
     """
-    Train one hybrid network and the tuned coefficients together (``--model auto``'s joint).
+    Train the hybrid on together with the tuned coefficients (``--model auto``'s joint).
 
-    The coefficients start from the tuned values, stay in the tuning's boxes and are pulled
-    toward the values the tuning started from with the tuning's prior weight, carried into the
-    training loss's units (its ratio to the fitting objective's data part at the tuned values:
-    the same balance of data and prior). One seed: networks each with their own physics are
-    not one ensemble. Returns the result (scored against the tuned physics) and the
-    coefficients.
+    Training goes on from the trained hybrid (its ensemble: each member keeps its own block,
+    one set of coefficients under them all), so the joint starts where the hybrid is and keeps
+    an epoch only if it beats it on the validation windows. The coefficients start from the
+    tuned values, stay in the tuning's boxes and are pulled toward the values the tuning
+    started from with the tuning's prior weight, carried into the training loss's units (its
+    ratio to the fitting objective's data part at the tuned values: the same balance of data
+    and prior). Returns the result (scored against the tuned physics) and the coefficients.
     """
     from mmg_tuner.learn import JointCoefficients
     cfg = result.config
@@ -703,7 +705,8 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
                                tuple(float(space.pre[i]) for i in free), weight)
     logger.info('training the joint model: one network and %d coefficients (seed %d, prior '
                 "weight %.3g per unit of the physics' loss)", len(names), rc.seed, weight)
-    fit = train_residual(physics, result.trials, config=rc, coefficients=coeffs)
+    fit = train_residual(physics, result.trials, config=rc, coefficients=coeffs,
+                         start=hybrid.net)
     # the physics written if it is chosen: it must run alone as any tuned physics (raises)
     check_before_writing(result.ship, {**result.params, **fit.coefficients},
                          result.trials + result.test, 'joint coefficients',
@@ -716,7 +719,8 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None
                 100 * fit.share)
     return (ResidualResult(fit.net, 'joint', fit.share, fit.val_gain, index,
                            index.get('test', {}).get('gain'), fit.seconds, fit.epochs,
-                           fit.seed, {**asdict(rc), 'coefficients': fit.coefficients}, 1),
+                           fit.seed, {**asdict(rc), 'coefficients': fit.coefficients,
+                                      'start': 'the hybrid'}, len(members(fit.net))),
             fit.coefficients)
 
 

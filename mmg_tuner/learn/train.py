@@ -283,6 +283,60 @@ def _group(name: str, groups: Mapping[str, str] | None) -> str:
     return str(groups[name])
 
 
+def _check_start(net: ResidualNet, cfg: ResidualConfig, dt: float, ship: ShipConfig
+                 ) -> ResidualNet:
+    """Return ``net`` if training can go on from it with ``cfg`` on ``ship``'s trials."""
+    why = []
+    if net.window != cfg.window:
+        why.append(f"its window is {net.window} samples, the training's {cfg.window}")
+    if abs(net.dt_s - dt) > 1e-9:
+        why.append(f"its sample step is {net.dt_s:g} s, the trials' {dt:g} s")
+    if float(net.physics) != float(cfg.physics):
+        why.append(f"its physics weight is {net.physics:g}, the training's "
+                   f'{float(cfg.physics):g} (a blend cannot train on)')
+    if tuple(net.features) != tuple(feature_names(ship.family)):
+        why.append(f'it reads the features of another family than {ship.family}')
+    if why:
+        raise TuningError('train_residual: cannot train on from the given network: '
+                          + '; '.join(why))
+    return net
+
+
+def _block_masks(net: ResidualNet) -> list[tuple[int, np.ndarray]]:
+    """
+    Return (layer, mask) of an ensemble's block-diagonal layers (see :func:`ensemble`).
+
+    The first layer (members' rows stacked) and the output layer (their columns side by
+    side) are dense; each deeper hidden layer is zero outside the members' diagonal blocks.
+    """
+    k = len(members(net))
+    out = []
+    for i, w in enumerate(net.weights[1:-1], 1):
+        r, c = w.shape[0] // k, w.shape[1] // k
+        out.append((i, np.kron(np.eye(k), np.ones((r, c)))))
+    return out if k > 1 else []
+
+
+def _layers(model: Any) -> list[Any]:
+    """Return the network's layers of an ``MLP`` or a ``Joint`` model."""
+    return cast(list[Any], (model.net if hasattr(model, 'net') else model).layers)
+
+
+def _ensemble_meta(start: ResidualNet, bias: np.ndarray) -> dict[str, Any]:
+    """
+    Return the ensemble keys of a network trained on from the ensemble ``start``.
+
+    The ensemble's output bias is the mean of its members' (each kept in the meta): training
+    moved the mean, so each member's moves by as much.
+    """
+    meta = dict(start.meta)
+    shift = np.asarray(bias, float) - np.asarray(start.biases[-1], float)
+    own = meta.get('member_output_biases') or [start.biases[-1]] * len(meta['ensemble_of_seeds'])
+    return {'ensemble_of_seeds': meta['ensemble_of_seeds'], 'members': meta.get('members', []),
+            'member_physics': meta.get('member_physics', [start.physics] * len(own)),
+            'member_output_biases': [(np.asarray(b, float) + shift).tolist() for b in own]}
+
+
 def _significant(gain: np.ndarray, z: float) -> bool:
     """Return whether the paired per-window gains are > z standard errors above zero."""
     if z <= 0:
@@ -375,7 +429,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                    validation: Sequence[Trial] | None = None,
                    groups: Mapping[str, str] | None = None,
                    config: ResidualConfig = ResidualConfig(),
-                   coefficients: JointCoefficients | None = None) -> ResidualFit:
+                   coefficients: JointCoefficients | None = None,
+                   start: ResidualNet | None = None) -> ResidualFit:
     """
     Train the residual (or the pure network) of ``ship`` on recorded trials.
 
@@ -387,6 +442,11 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     with the network (within their boxes, pulled toward their prior centre), through the same
     simulation; they then trade off with the network, held by the prior and the regulariser
     (the fit's ``coefficients``; the net's physics is ``ship.with_params(fit.coefficients)``).
+    ``start``: train on from this network (e.g. a trained hybrid, to refine it with
+    ``coefficients``) instead of from a zero output: its weights are rewritten exactly in this
+    training's scales, an ensemble's members keep their own blocks (each member trains apart,
+    their mean is what is simulated), and the kept epoch must beat that start, not the physics
+    alone.
 
     trials: the training set (one sample interval); validation: held-out trials for early
     stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
@@ -498,8 +558,12 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     net0 = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
     model: MLP | Joint = net0 if free is None else \
         E.Joint(net0, jax.numpy.zeros(len(free.slots)))
+    warm: ResidualNet | None = None
+    blocks: list[tuple[int, np.ndarray]] = []
+    if start is not None:
+        warm = restandardised(_check_start(start, cfg, dt, ship), x_mean, x_std, y_scale)
+        blocks = _block_masks(warm)
     opt = E.optimiser(cfg.learning_rate)
-    opt_state = opt.init(eqx.filter(model, eqx.is_array))
 
     @eqx.filter_jit
     def train_step(model: MLP | Joint, opt_state: Any, b: Mapping[str, np.ndarray],
@@ -510,6 +574,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         if isinstance(new, E.Joint):   # the coefficients back into their boxes
             assert free is not None
             new = eqx.tree_at(lambda m: m.z, new, free.project(new.z))
+        if blocks:   # an ensemble's members stay apart: zero outside their diagonal blocks
+            new = eqx.tree_at(lambda m: [_layers(m)[i].weight for i, _ in blocks], new,
+                              [_layers(new)[i].weight * mask for i, mask in blocks])
         return new, opt_state, d
 
     @eqx.filter_jit
@@ -541,7 +608,6 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         return group_losses(losses, wt_va, g_va, group_names)
 
     rng = np.random.default_rng(cfg.seed)
-    initial = model
     physics_windows = per_window(model, w_va)   # the zero-initialised output: physics alone
     physics_val = float(np.mean(physics_windows * wt_va))
     physics_train = mean_loss(model, w_tr, wt_tr)
@@ -559,10 +625,19 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             return val
         return selection_score(cfg.select, val, by_group(losses), physics_groups)
 
-    crit0 = criterion(physics_val, physics_windows)
-    best = (crit0, model, 0, physics_windows, physics_val)
+    start_windows, start_val, start_train = physics_windows, physics_val, physics_train
+    if warm is not None:   # training goes on from the given network
+        wnet = E.MLP.of(warm.weights, warm.biases)
+        model = wnet if free is None else E.Joint(wnet, jax.numpy.zeros(len(free.slots)))
+        start_windows = per_window(model, w_va)
+        start_val = float(np.mean(start_windows * wt_va))
+        start_train = mean_loss(model, w_tr, wt_tr)
+    initial = model
+    opt_state = opt.init(eqx.filter(model, eqx.is_array))
+    crit0 = criterion(start_val, start_windows)
+    best = (crit0, model, 0, start_windows, start_val)
     z = cfg.significance if cfg.physics else 0.0
-    history = [{'epoch': 0, 'train': physics_train, 'val': physics_val, 'criterion': crit0,
+    history = [{'epoch': 0, 'train': start_train, 'val': start_val, 'criterion': crit0,
                 'seconds': time.perf_counter() - t_start}]
     notes = [val_note, *joint_notes]
     skipped = 0
@@ -594,10 +669,12 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         if cfg.max_seconds is not None and time.perf_counter() - t_start > cfg.max_seconds:
             notes.append(f'stopped at epoch {epoch}: max_seconds = {cfg.max_seconds:g} s')
             break
-    if best[2] > 0 and not _significant((physics_windows - best[3]) * wt_va, z):
-        notes.append(f'the best epoch ({best[2]}) did not beat the physics alone by {z:g} '
-                     'standard errors of the paired validation windows: the residual is zero')
-        best = (crit0, initial, 0, physics_windows, physics_val)
+    if best[2] > 0 and not _significant((start_windows - best[3]) * wt_va, z):
+        where = 'the physics alone' if warm is None else 'the network it started from'
+        notes.append(f'the best epoch ({best[2]}) did not beat {where} by {z:g} standard '
+                     'errors of the paired validation windows: '
+                     + ('the residual is zero' if warm is None else 'that network is kept'))
+        best = (crit0, initial, 0, start_windows, start_val)
     elif best[2] == 0 and cfg.physics and cfg.select == 'every_group':
         notes.append('no epoch beat the physics alone on every validation group: the residual '
                      'is zero')
@@ -646,6 +723,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             'versions': _versions(), 'notes': notes,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
                     'the states x, y, psi, u, v, r of ((simulated - measured) / sigma)^2'}
+    if warm is not None and len(members(warm)) > 1:
+        meta.update(_ensemble_meta(warm, biases[-1]))
     net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
                       cfg.seed, meta, features)
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,

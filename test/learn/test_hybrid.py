@@ -547,6 +547,48 @@ def test_joint_training_moves_the_coefficient_the_data_pull_on(suzaku):
         JointCoefficients(('N_r',), (n_r,), (2 * abs(n_r),), (3 * abs(n_r),), (n_r,))
 
 
+def test_joint_training_goes_on_from_an_ensemble_keeping_its_members_apart(suzaku, hidden_fit):
+    """
+    Training on from a trained ensemble: it starts there, and stays an ensemble.
+
+    Epoch 0 is the start's validation loss (not the physics alone's); the deeper layer keeps
+    its block-diagonal zeros, so members() splits the result into networks whose mean is it;
+    with a significance no epoch can meet, the start comes back unchanged (to rounding).
+    """
+    from mmg_tuner.errors import TuningError
+    from mmg_tuner.learn import ensemble, JointCoefficients, ResidualConfig, train_residual
+    from mmg_tuner.learn.train import members
+    _, trials = hidden_fit
+    cfg = ResidualConfig(**{**CI, 'hidden': (6, 5), 'epochs': 3}, seed=0)
+    start = ensemble([train_residual(suzaku, trials[:4],
+                                    config=replace(cfg, seed=s, significance=0.0)).net
+                      for s in (0, 1)])
+    n_r = suzaku['N_r']
+    lo, hi = sorted((0.5 * n_r, 1.5 * n_r))
+    jc = JointCoefficients(('N_r',), (n_r,), (lo,), (hi,), (n_r,), 0.0)
+    fit = train_residual(suzaku, trials[:4], coefficients=jc, start=start,
+                         config=replace(cfg, significance=0.0, learning_rate=1e-2))
+    assert fit.history[0]['val'] != fit.physics_val_loss
+    parts = members(fit.net)
+    assert len(parts) == 2 and fit.net.weights[1].shape == (10, 12)
+    assert np.all(fit.net.weights[1][:5, 6:] == 0) and np.all(fit.net.weights[1][5:, :6] == 0)
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        x = rng.normal(0, 1, 3 * N_FEATURES)
+        assert np.allclose(_forward(fit.net, x), np.mean([_forward(m, x) for m in parts], 0),
+                           rtol=1e-10, atol=1e-14)
+    kept = train_residual(suzaku, trials[:4], coefficients=jc, start=start,
+                          config=replace(cfg, significance=1e9))
+    assert kept.best_epoch == 0 and kept.coefficients == {'N_r': n_r}
+    assert any('the network it started from' in n for n in kept.notes)
+    for _ in range(3):
+        x = rng.normal(0, 2, 3 * N_FEATURES)
+        assert np.allclose(_raw_forward(kept.net, x), _raw_forward(start, x), rtol=1e-9,
+                           atol=1e-14)
+    with pytest.raises(TuningError, match='window is 3 samples'):
+        train_residual(suzaku, trials[:4], start=start, config=replace(cfg, window=4))
+
+
 # ------------------------------------------------------- balance and selection (kinds alike)
 def test_window_weights_balance_trials_and_groups():
     from mmg_tuner.errors import TuningError
