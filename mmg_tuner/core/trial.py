@@ -149,6 +149,17 @@ class Trial:
     def __len__(self) -> int:
         return self.t.size
 
+    def segments(self, restart_every_s: float | None) -> list[tuple[int, int]]:
+        """
+        Return the samples [a, b) of each run restarted from the measured state every N s.
+
+        Restarts at t = 0, N, 2N, ... s (N = ``restart_every_s`` rounded to whole samples, at
+        least one; 0 or None: one run); the last may be one sample long (the restart itself).
+        """
+        T = len(self)
+        K = T if not restart_every_s else max(1, int(round(restart_every_s / self.dt)))
+        return [(a, min(T, a + K)) for a in range(0, T, K)]
+
     def __getitem__(self, name: str) -> np.ndarray:
         if name == 't':
             return self.t

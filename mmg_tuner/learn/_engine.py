@@ -234,9 +234,10 @@ class MLP(eqx.Module):
         """Return the network with these weights ((out, in) each) and biases: a warm start."""
         sizes = [np.shape(weights[0])[1], *(np.shape(w)[0] for w in weights)]
         net = cls(sizes, jax.random.PRNGKey(0))
-        return eqx.tree_at(lambda m: [x for la in m.layers for x in (la.weight, la.bias)], net,
-                           [jnp.asarray(x, dtype=jnp.float64)
-                            for w, b in zip(weights, biases) for x in (w, b)])
+        out: MLP = eqx.tree_at(lambda m: [x for la in m.layers for x in (la.weight, la.bias)],
+                               net, [jnp.asarray(x, dtype=jnp.float64)
+                                     for w, b in zip(weights, biases) for x in (w, b)])
+        return out
 
     def export(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         return (tuple(np.asarray(la.weight, dtype=float) for la in self.layers),

@@ -407,8 +407,7 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
     if restart_every_s is None:
         segs = [(0, T, fitted_start(trial))]
     else:
-        K = T if not restart_every_s else max(1, int(round(restart_every_s / dt)))
-        segs = [(a, min(T, a + K), trial.states[a]) for a in range(0, T, K)]
+        segs = [(a, b, trial.states[a]) for a, b in trial.segments(restart_every_s)]
     out = np.full((T, 6), np.nan)
     fail_t, why = None, ''
     for a, b, x0 in segs:

@@ -76,13 +76,10 @@ def predict(model: ShipConfig | Model, trial: Trial, restart_every_s: float = 10
                                                    float(restart_every_s or 0.0), substeps,
                                                    params)
         return states, fail_t, why
-    T = len(trial)
-    K = T if not restart_every_s else max(1, int(round(restart_every_s / trial.dt)))
     inputs = trial.input_array(ship.family.channels)
-    out = np.full((T, 6), np.nan)
+    out = np.full((len(trial), 6), np.nan)
     fail_t, why = None, ''
-    for a in range(0, T, K):
-        b = min(T, a + K)
+    for a, b in trial.segments(restart_every_s):
         if b - a < 2:  # a one-sample tail: the restart itself
             out[a] = trial.states[a]
             continue
@@ -232,8 +229,8 @@ class EvaluateResult:
         every = self.restart_every_s
         stems = file_stems(list(self.trials))
         for tr, (name, s), stem in zip(self.recorded, self.trials.items(), stems):
-            step = max(1, round(every / tr.dt)) if every else len(tr)
-            restarts = tr.t[step::step]  # where predict() restarted from the measurement
+            # where predict() restarted from the measurement
+            restarts = tr.t[[a for a, _ in tr.segments(every)][1:]]
             how = (f'restarted from the measured state every {every:g} s' if every
                    else 'one run from the start')
             title = trial_title(name, how, {'model': s.index},

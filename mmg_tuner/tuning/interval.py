@@ -93,9 +93,7 @@ def ensemble_members(model: Model) -> tuple[Model, ...]:
 
 def _restarts(trial: Trial, restart_every_s: float) -> np.ndarray:
     """Return the samples a simulation restarts from the recorded state (as ``predict``)."""
-    T = len(trial)
-    K = T if not restart_every_s else max(1, int(round(restart_every_s / trial.dt)))
-    return np.arange(0, T, K)
+    return np.array([a for a, _ in trial.segments(restart_every_s)], dtype=int)
 
 
 def _wrapped(d: np.ndarray) -> np.ndarray:

@@ -560,9 +560,9 @@ def test_joint_training_goes_on_from_an_ensemble_keeping_its_members_apart(suzak
     from mmg_tuner.learn.train import members
     _, trials = hidden_fit
     cfg = ResidualConfig(**{**CI, 'hidden': (6, 5), 'epochs': 3}, seed=0)
-    start = ensemble([train_residual(suzaku, trials[:4],
-                                    config=replace(cfg, seed=s, significance=0.0)).net
-                      for s in (0, 1)])
+    fits = [train_residual(suzaku, trials[:4], config=replace(cfg, seed=s, significance=0.0))
+            for s in (0, 1)]
+    start = ensemble([f.net for f in fits])
     n_r = suzaku['N_r']
     lo, hi = sorted((0.5 * n_r, 1.5 * n_r))
     jc = JointCoefficients(('N_r',), (n_r,), (lo,), (hi,), (n_r,), 0.0)
