@@ -425,50 +425,39 @@ def _entering(jc: JointCoefficients, ship: ShipConfig, S: np.ndarray, A: np.ndar
             [n for n, r in zip(jc.names, reads) if not r])
 
 
-def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
-                   validation: Sequence[Trial] | None = None,
-                   groups: Mapping[str, str] | None = None,
-                   config: ResidualConfig = ResidualConfig(),
-                   coefficients: JointCoefficients | None = None,
-                   start: ResidualNet | None = None) -> ResidualFit:
-    """
-    Train the residual (or the pure network) of ``ship`` on recorded trials.
+@dataclass
+class _Sets:
+    """What one training reads: its windows, their weights and groups, and its scales."""
 
-    The physics part keeps the ship's (tuned) parameters and only the network trains: the
-    physics was identified first (CMA-ES, with its boxes and identifiability checks), so its
-    coefficients keep their physical meaning and its extrapolation to manoeuvres the trials
-    do not cover; the network, regularised to stay small, only takes up what the physics
-    structure cannot produce. ``coefficients``: train those physics coefficients together
-    with the network (within their boxes, pulled toward their prior centre), through the same
-    simulation; they then trade off with the network, held by the prior and the regulariser
-    (the fit's ``coefficients``; the net's physics is ``ship.with_params(fit.coefficients)``).
-    ``start``: train on from this network (e.g. a trained hybrid, to refine it with
-    ``coefficients``) instead of from a zero output: its weights are rewritten exactly in this
-    training's scales, an ensemble's members keep their own blocks (each member trains apart,
-    their mean is what is simulated), and the kept epoch must beat that start, not the physics
-    alone.
+    dt: float
+    train_trials: list[Trial]
+    val_trials: list[Trial]
+    val_note: str
+    horizon: int          # samples per window
+    stride: int           # samples between window starts
+    tr_arrs: list[TrialArrays]
+    w_tr: Windows
+    w_va: Windows
+    wt_tr: np.ndarray     # the windows' weights (balance)
+    wt_va: np.ndarray
+    g_va: np.ndarray      # each validation window's group
+    group_names: list[str]
+    x_mean: np.ndarray    # input standardisation (the training rows)
+    x_std: np.ndarray
+    y_scale: np.ndarray   # output scale (the physics' RMS accelerations)
+    sigma: np.ndarray     # the loss's per-state deviation over the training trials
+    ms: np.ndarray        # the training rows: model states, actuator tuples, winds
+    act: np.ndarray
+    wind: np.ndarray
+    F: np.ndarray         # the physics' derivative at those rows
 
-    trials: the training set (one sample interval); validation: held-out trials for early
-    stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
-    name -> group (e.g. the manoeuvre kind) for ``balance='group'`` and
-    ``select='every_group'`` (default: each trial its own group).
 
-    Example::
-
-        fit = train_residual(ship, trials[:6], validation=trials[6:],
-                             config=ResidualConfig(epochs=50, seed=1))
-        fit.net.save('residual.npz')
-    """
-    require_jax()
-    import equinox as eqx
-    import jax
-
+def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial] | None,
+          groups: Mapping[str, str] | None, cfg: ResidualConfig) -> _Sets:
+    """Return the windows, weights and scales :func:`train_residual` trains on (raises)."""
     from mmg_tuner.core.dynamics import family_tag
-    from mmg_tuner.learn import _engine as E
-    from mmg_tuner.learn._bridge import batch_derivative, teacher_residuals
+    from mmg_tuner.learn._bridge import batch_derivative
 
-    t_start = time.perf_counter()
-    cfg = config
     trials = list(trials)
     dt = _check_trials(trials, 'training', ship)
     if validation is None:
@@ -523,6 +512,20 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     sigma = obs.std(axis=0)
     sigma = np.where(sigma > 0, sigma, 1.0)
 
+    return _Sets(dt, train_trials, val_trials, val_note, H, stride, tr_arrs, w_tr, w_va, wt_tr,
+                 wt_va, g_va, group_names, x_mean, x_std, y_scale, sigma, ms, act, wind, F)
+
+
+def _free(coefficients: JointCoefficients | None, ship: ShipConfig, d: _Sets,
+          cfg: ResidualConfig) -> tuple[Any, JointCoefficients | None, ShipConfig, list[str]]:
+    """
+    Return the coefficients trained with the network (``_engine.Coefficients`` or None).
+
+    With the checked names (those the dynamics read), the ship at their start values and the
+    notes; the prior's weight is 0 here: it is set once the physics' own loss is known.
+    """
+    from mmg_tuner.learn import _engine as E
+    ms, act, wind = d.ms, d.act, d.wind
     free = None
     jc: JointCoefficients | None = None
     joint_notes: list[str] = []
@@ -551,9 +554,58 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         free = E.Coefficients(np.array([PARAM_INDEX[n] for n in jc.names]), arr(jc.start),
                               arr(jc.lower), arr(jc.upper), arr(jc.centre), 0.0)
         ship = ship.with_params(dict(zip(jc.names, jc.start)), 'joint coefficients')
-    sim = E.make_simulator(ship.kind, ship.params, cfg.physics, cfg.integrator == 'rk4', dt,
-                           x_mean, x_std, y_scale, free)
-    data_loss, total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics, free)
+    return free, jc, ship, joint_notes
+
+
+def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
+                   validation: Sequence[Trial] | None = None,
+                   groups: Mapping[str, str] | None = None,
+                   config: ResidualConfig = ResidualConfig(),
+                   coefficients: JointCoefficients | None = None,
+                   start: ResidualNet | None = None) -> ResidualFit:
+    """
+    Train the residual (or the pure network) of ``ship`` on recorded trials.
+
+    The physics part keeps the ship's (tuned) parameters and only the network trains: the
+    physics was identified first (CMA-ES, with its boxes and identifiability checks), so its
+    coefficients keep their physical meaning and its extrapolation to manoeuvres the trials
+    do not cover; the network, regularised to stay small, only takes up what the physics
+    structure cannot produce. ``coefficients``: train those physics coefficients together
+    with the network (within their boxes, pulled toward their prior centre), through the same
+    simulation; they then trade off with the network, held by the prior and the regulariser
+    (the fit's ``coefficients``; the net's physics is ``ship.with_params(fit.coefficients)``).
+    ``start``: train on from this network (e.g. a trained hybrid, to refine it with
+    ``coefficients``) instead of from a zero output: its weights are rewritten exactly in this
+    training's scales, an ensemble's members keep their own blocks (each member trains apart,
+    their mean is what is simulated), and the kept epoch must beat that start, not the physics
+    alone.
+
+    trials: the training set (one sample interval); validation: held-out trials for early
+    stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
+    name -> group (e.g. the manoeuvre kind) for ``balance='group'`` and
+    ``select='every_group'`` (default: each trial its own group).
+
+    Example::
+
+        fit = train_residual(ship, trials[:6], validation=trials[6:],
+                             config=ResidualConfig(epochs=50, seed=1))
+        fit.net.save('residual.npz')
+    """
+    require_jax()
+    import equinox as eqx
+    import jax
+
+    from mmg_tuner.core.dynamics import family_tag
+    from mmg_tuner.learn import _engine as E
+    from mmg_tuner.learn._bridge import batch_derivative, teacher_residuals
+
+    t_start = time.perf_counter()
+    cfg = config
+    ds = _sets(ship, trials, validation, groups, cfg)
+    free, jc, ship, joint_notes = _free(coefficients, ship, ds, cfg)
+    sim = E.make_simulator(ship.kind, ship.params, cfg.physics, cfg.integrator == 'rk4', ds.dt,
+                           ds.x_mean, ds.x_std, ds.y_scale, free)
+    data_loss, total = E.make_loss(sim, ds.sigma, ds.y_scale, cfg.l2, cfg.physics, free)
     sizes = [cfg.window * N_FEATURES, *cfg.hidden, 3]
     net0 = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
     model: MLP | Joint = net0 if free is None else \
@@ -561,7 +613,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     warm: ResidualNet | None = None
     blocks: list[tuple[int, np.ndarray]] = []
     if start is not None:
-        warm = restandardised(_check_start(start, cfg, dt, ship), x_mean, x_std, y_scale)
+        warm = restandardised(_check_start(start, cfg, ds.dt, ship), ds.x_mean, ds.x_std,
+                              ds.y_scale)
         blocks = _block_masks(warm)
     opt = E.optimiser(cfg.learning_rate)
 
@@ -583,7 +636,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     def window_losses(model: MLP | Joint, b: Mapping[str, np.ndarray], w: np.ndarray) -> jax.Array:
         return data_loss(model, b, w)[2]
 
-    B = min(cfg.batch_size, len(w_tr))
+    B = min(cfg.batch_size, len(ds.w_tr))
 
     def as_batch(w: Windows, idx: np.ndarray) -> dict[str, np.ndarray]:
         t = w.take(idx)
@@ -605,12 +658,12 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         return float(np.mean(per_window(model, w) * wt))
 
     def by_group(losses: np.ndarray) -> np.ndarray:
-        return group_losses(losses, wt_va, g_va, group_names)
+        return group_losses(losses, ds.wt_va, ds.g_va, ds.group_names)
 
     rng = np.random.default_rng(cfg.seed)
-    physics_windows = per_window(model, w_va)   # the zero-initialised output: physics alone
-    physics_val = float(np.mean(physics_windows * wt_va))
-    physics_train = mean_loss(model, w_tr, wt_tr)
+    physics_windows = per_window(model, ds.w_va)   # the zero-initialised output: physics alone
+    physics_val = float(np.mean(physics_windows * ds.wt_va))
+    physics_train = mean_loss(model, ds.w_tr, ds.wt_tr)
     physics_groups = by_group(physics_windows)
     if free is not None and coefficients is not None and coefficients.weight > 0:
         # the prior in loss units: its pull relative to the physics' own training loss
@@ -618,7 +671,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             raise TuningError('train_residual: the physics alone diverges on a training '
                               "window: the coefficients' prior has no loss to be measured in")
         free = replace(free, weight=coefficients.weight * physics_train)
-        total = E.make_loss(sim, sigma, y_scale, cfg.l2, cfg.physics, free)[1]
+        total = E.make_loss(sim, ds.sigma, ds.y_scale, cfg.l2, cfg.physics, free)[1]
 
     def criterion(val: float, losses: np.ndarray) -> float:
         if not cfg.physics:
@@ -629,9 +682,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     if warm is not None:   # training goes on from the given network
         wnet = E.MLP.of(warm.weights, warm.biases)
         model = wnet if free is None else E.Joint(wnet, jax.numpy.zeros(len(free.slots)))
-        start_windows = per_window(model, w_va)
-        start_val = float(np.mean(start_windows * wt_va))
-        start_train = mean_loss(model, w_tr, wt_tr)
+        start_windows = per_window(model, ds.w_va)
+        start_val = float(np.mean(start_windows * ds.wt_va))
+        start_train = mean_loss(model, ds.w_tr, ds.wt_tr)
     initial = model
     opt_state = opt.init(eqx.filter(model, eqx.is_array))
     crit0 = criterion(start_val, start_windows)
@@ -639,24 +692,24 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     z = cfg.significance if cfg.physics else 0.0
     history = [{'epoch': 0, 'train': start_train, 'val': start_val, 'criterion': crit0,
                 'seconds': time.perf_counter() - t_start}]
-    notes = [val_note, *joint_notes]
+    notes = [ds.val_note, *joint_notes]
     skipped = 0
     epoch = 0
     for epoch in range(1, cfg.epochs + 1):
-        perm = rng.permutation(len(w_tr))
+        perm = rng.permutation(len(ds.w_tr))
         losses = []
         for a in range(0, len(perm), B):
             idx = perm[a:a + B] if a + B <= len(perm) else perm[-B:]
-            new_model, new_state, d_arr = train_step(model, opt_state, as_batch(w_tr, idx),
-                                                     wt_tr[idx])
+            new_model, new_state, d_arr = train_step(model, opt_state, as_batch(ds.w_tr, idx),
+                                                     ds.wt_tr[idx])
             d = float(d_arr)
             if not math.isfinite(d):  # a diverging window: skip the step, keep going
                 skipped += 1
                 continue
             model, opt_state = new_model, new_state
             losses.append(d)
-        val_windows = per_window(model, w_va)
-        val = float(np.mean(val_windows * wt_va))
+        val_windows = per_window(model, ds.w_va)
+        val = float(np.mean(val_windows * ds.wt_va))
         crit = criterion(val, val_windows)
         history.append({'epoch': epoch, 'train': float(np.mean(losses)) if losses else math.nan,
                         'val': val, 'criterion': crit, 'seconds': time.perf_counter() - t_start})
@@ -669,7 +722,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         if cfg.max_seconds is not None and time.perf_counter() - t_start > cfg.max_seconds:
             notes.append(f'stopped at epoch {epoch}: max_seconds = {cfg.max_seconds:g} s')
             break
-    if best[2] > 0 and not _significant((start_windows - best[3]) * wt_va, z):
+    if best[2] > 0 and not _significant((start_windows - best[3]) * ds.wt_va, z):
         where = 'the physics alone' if warm is None else 'the network it started from'
         notes.append(f'the best epoch ({best[2]}) did not beat {where} by {z:g} standard '
                      'errors of the paired validation windows: '
@@ -682,15 +735,15 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         notes.append(f'{skipped} minibatch step(s) skipped: a simulated window diverged')
     _, model, best_epoch, best_windows, val_loss = best
     val_by_group = ({g: {'physics': float(a), 'hybrid': float(b)} for g, a, b in
-                     zip(group_names, by_group(physics_windows), by_group(best_windows))}
+                     zip(ds.group_names, by_group(physics_windows), by_group(best_windows))}
                     if cfg.physics else {})
-    train_loss = mean_loss(model, w_tr, wt_tr)
+    train_loss = mean_loss(model, ds.w_tr, ds.wt_tr)
     trained: dict[str, float] = {}
     if isinstance(model, E.Joint):
         assert free is not None and jc is not None
         trained = dict(zip(jc.names, map(float, np.asarray(free.values(model.z)))))
         ship = ship.with_params(trained, 'joint coefficients')
-        batch_derivative(family_tag(ship.kind), ship.params, ms, act, wind, F,
+        batch_derivative(family_tag(ship.kind), ship.params, ds.ms, ds.act, ds.wind, ds.F,
                          np.empty((1, 6, 6)), False)   # the share: of the trained physics
         notes.append('coefficients trained with the network: ' + ', '.join(
             f'{n} {jc.start[i]:.6g} -> {v:.6g}' for i, (n, v) in
@@ -698,35 +751,30 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         model = model.net
     weights, biases = model.export()
     features = feature_names(ship.family)
-    net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
-                      cfg.seed, features=features)
-    share, parts = _share(net, tr_arrs, F, teacher_residuals)
-    share_by_group = {}
-    if groups is not None:
-        off = np.cumsum([0] + [a.rows.shape[0] for a in tr_arrs])
-        for g in dict.fromkeys(_group(t.name, groups) for t in train_trials):
-            ks = [i for i, t in enumerate(train_trials) if _group(t.name, groups) == g]
-            Fg = np.concatenate([F[off[i]:off[i + 1]] for i in ks])
-            share_by_group[g] = _share(net, [tr_arrs[i] for i in ks], Fg, teacher_residuals)[0]
+    net = ResidualNet(cfg.window, ds.dt, weights, biases, ds.x_mean, ds.x_std, ds.y_scale,
+                      cfg.physics, cfg.seed, features=features)
+    share, parts = _share(net, ds.tr_arrs, ds.F, teacher_residuals)
+    share_by_group = _shares_by_group(net, ds, groups)
     seconds = time.perf_counter() - t_start
     meta = {'ship': ship.name, 'model': ship.model, 'features': list(features),
-            'trials': [t.name for t in train_trials],
-            'validation': [t.name for t in val_trials], 'windows_train': len(w_tr),
-            'windows_val': len(w_va), 'horizon_samples': H, 'stride_samples': stride,
+            'trials': [t.name for t in ds.train_trials],
+            'validation': [t.name for t in ds.val_trials], 'windows_train': len(ds.w_tr),
+            'windows_val': len(ds.w_va), 'horizon_samples': ds.horizon,
+            'stride_samples': ds.stride,
             'epochs': epoch, 'best_epoch': best_epoch, 'train_loss': train_loss,
             'val_loss': val_loss,
             'physics_train_loss': physics_train if cfg.physics else None,
             'physics_val_loss': physics_val if cfg.physics else None,
             'share': share, 'share_by_component': parts, 'share_by_group': share_by_group,
             'val_by_group': val_by_group, 'seconds': seconds, 'coefficients': trained,
-            'seed': cfg.seed, 'config': asdict(cfg), 'sigma': sigma.tolist(),
+            'seed': cfg.seed, 'config': asdict(cfg), 'sigma': ds.sigma.tolist(),
             'versions': _versions(), 'notes': notes,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
                     'the states x, y, psi, u, v, r of ((simulated - measured) / sigma)^2'}
     if warm is not None and len(members(warm)) > 1:
         meta.update(_ensemble_meta(warm, biases[-1]))
-    net = ResidualNet(cfg.window, dt, weights, biases, x_mean, x_std, y_scale, cfg.physics,
-                      cfg.seed, meta, features)
+    net = ResidualNet(cfg.window, ds.dt, weights, biases, ds.x_mean, ds.x_std, ds.y_scale,
+                      cfg.physics, cfg.seed, meta, features)
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,
                        physics_train if cfg.physics else None,
                        physics_val if cfg.physics else None, best_epoch, notes, val_by_group,
@@ -859,6 +907,21 @@ def members(net: ResidualNet) -> list[ResidualNet]:
                                net.x_std, net.y_scale, phys[m] if phys else net.physics,
                                int(seeds[m]),
                                dict(infos[m]) if m < len(infos) else {}, net.features))
+    return out
+
+
+def _shares_by_group(net: ResidualNet, ds: _Sets, groups: Mapping[str, str] | None
+                     ) -> dict[str, float]:
+    """Return the residual's share (:func:`_share`) on each group's training trials."""
+    from mmg_tuner.learn._bridge import teacher_residuals
+    out: dict[str, float] = {}
+    if groups is None:
+        return out
+    off = np.cumsum([0] + [a.rows.shape[0] for a in ds.tr_arrs])
+    for g in dict.fromkeys(_group(t.name, groups) for t in ds.train_trials):
+        ks = [i for i, t in enumerate(ds.train_trials) if _group(t.name, groups) == g]
+        Fg = np.concatenate([ds.F[off[i]:off[i + 1]] for i in ks])
+        out[g] = _share(net, [ds.tr_arrs[i] for i in ks], Fg, teacher_residuals)[0]
     return out
 
 
