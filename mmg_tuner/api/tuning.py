@@ -75,9 +75,9 @@ class TuneConfig:
     residuals (``tuning/lsq.py``; 0: none). prior_choices: prior weights to choose from by
     cross-validation over sessions (days) of the tuning trials, the published values always
     a candidate (``tuning/prior_cv.py``; the choice and its table are in the result's
-    ``prior_choice``); empty: use ``prior``. joint: with model 'auto', a fifth candidate, one
-    hybrid network trained together with the tuned coefficients (``learn.JointCoefficients``;
-    about five times a hybrid seed's training: not in the default).
+    ``prior_choice``); empty: use ``prior``. joint: with model 'auto', a fifth candidate, the
+    trained hybrid trained on together with the tuned coefficients (``learn.JointCoefficients``;
+    not in the default: registered, it gained nothing over the hybrid).
     """
 
     targets: tuple[str, ...] | None = None
@@ -703,8 +703,8 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None,
                                tuple(float(space.lower[i]) for i in free),
                                tuple(float(space.upper[i]) for i in free),
                                tuple(float(space.pre[i]) for i in free), weight)
-    logger.info('training the joint model: one network and %d coefficients (seed %d, prior '
-                "weight %.3g per unit of the physics' loss)", len(names), rc.seed, weight)
+    logger.info('training the joint model: the hybrid trained on with %d coefficients (prior '
+                "weight %.3g per unit of the physics' loss)", len(names), weight)
     fit = train_residual(physics, result.trials, config=rc, coefficients=coeffs,
                          start=hybrid.net)
     # the physics written if it is chosen: it must run alone as any tuned physics (raises)
@@ -818,7 +818,9 @@ class ResidualResult:
         return d
 
     def markdown(self) -> str:
-        mean = '' if self.seeds == 1 else f' (mean over the {self.seeds} networks)'
+        # (a joint's figures are its ensemble's own: its members trained together)
+        mean = '' if self.seeds == 1 or self.kind == 'joint' else \
+            f' (mean over the {self.seeds} networks)'
         lines = ['', f'## Neural residual ({self.kind})', '',
                  f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, '
                  + (f'seed {self.seed}' if self.seeds == 1 else

@@ -152,8 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
                     'and write the recommended one (report.md: the table); with '
                     '--residual-seeds N >= 2 it carries a calibrated 90 %% interval')
     ap.add_argument('--joint', action='store_true',
-                    help='with --model auto: a fifth candidate, one hybrid network trained '
-                    "together with the tuned coefficients (about 5 x a hybrid seed's time)")
+                    help='with --model auto: a fifth candidate, the trained hybrid trained on '
+                    'together with the tuned coefficients (kept only if it beats the hybrid)')
     ap.add_argument('--polish', type=nonneg_int, default=0, metavar='N',
                     help='after CMA-ES, a local least-squares polish of at most N simulations '
                     '(0: none)')

@@ -576,9 +576,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     (the fit's ``coefficients``; the net's physics is ``ship.with_params(fit.coefficients)``).
     ``start``: train on from this network (e.g. a trained hybrid, to refine it with
     ``coefficients``) instead of from a zero output: its weights are rewritten exactly in this
-    training's scales, an ensemble's members keep their own blocks (each member trains apart,
-    their mean is what is simulated), and the kept epoch must beat that start, not the physics
-    alone.
+    training's scales, an ensemble's members keep their own blocks (no weight joins two
+    members; they train together on their mean's loss, so they may co-adapt), and the kept
+    epoch must beat that start, not the physics alone.
 
     trials: the training set (one sample interval); validation: held-out trials for early
     stopping (default: the last ``validation_fraction`` of each training trial); groups: trial
@@ -622,12 +622,16 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     def train_step(model: MLP | Joint, opt_state: Any, b: Mapping[str, np.ndarray],
                    w: np.ndarray) -> tuple[MLP | Joint, Any, jax.Array]:
         (_, d), grads = eqx.filter_value_and_grad(total, has_aux=True)(model, b, w)
+        if blocks:   # an ensemble's members stay apart: no gradient outside their blocks
+            # (before the step: the clip's global norm must not count them)
+            grads = eqx.tree_at(lambda g: [_layers(g)[i].weight for i, _ in blocks], grads,
+                                [_layers(grads)[i].weight * mask for i, mask in blocks])
         updates, opt_state = opt.update(grads, opt_state, eqx.filter(model, eqx.is_array))
         new = eqx.apply_updates(model, updates)
         if isinstance(new, E.Joint):   # the coefficients back into their boxes
             assert free is not None
             new = eqx.tree_at(lambda m: m.z, new, free.project(new.z))
-        if blocks:   # an ensemble's members stay apart: zero outside their diagonal blocks
+        if blocks:   # (and exactly zero there whatever the optimiser's rounding)
             new = eqx.tree_at(lambda m: [_layers(m)[i].weight for i, _ in blocks], new,
                               [_layers(new)[i].weight * mask for i, mask in blocks])
         return new, opt_state, d
@@ -729,8 +733,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                      + ('the residual is zero' if warm is None else 'that network is kept'))
         best = (crit0, initial, 0, start_windows, start_val)
     elif best[2] == 0 and cfg.physics and cfg.select == 'every_group':
-        notes.append('no epoch beat the physics alone on every validation group: the residual '
-                     'is zero')
+        notes.append('no epoch beat the physics alone on every validation group: '
+                     + ('the residual is zero' if warm is None else
+                        'the network it started from is kept'))
     if skipped:
         notes.append(f'{skipped} minibatch step(s) skipped: a simulated window diverged')
     _, model, best_epoch, best_windows, val_loss = best
