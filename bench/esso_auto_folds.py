@@ -182,6 +182,10 @@ def main(argv: list[str] | None = None) -> dict:
         verdicts['J1'] = {**better, 'pass (>= 3 of 4)': sum(better.values()) >= 3}
         print(f'J1 (joint < hybrid on >= 3 of 4 kinds): '
               f'{"PASS" if sum(better.values()) >= 3 else "FAIL"} ({better})')
+        # amendment 1: the warm-started joint no worse than the hybrid within 5 %, every kind
+        verdicts['J3'] = {k: bool(mean['joint'][k] <= WITHIN * mean['hybrid'][k]) for k in kinds}
+        print(f'J3 (joint <= 1.05 x hybrid on every kind): '
+              f'{"PASS" if all(verdicts["J3"].values()) else "FAIL"} ({verdicts["J3"]})')
     elif 'joint' in mean:
         print('J1, J2: undecided (the joint was not trained in every fold)')
     if EXTRA in mean and complete:

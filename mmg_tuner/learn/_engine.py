@@ -23,7 +23,7 @@ from mmg_tuner.core.correction import FEATURE_PARAMS
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.learn._bridge import (batch_derivative, batch_param_jacobian, FD_REL_STEP,
-                                     ffi_handler)
+                                     ffi_handler, param_steps)
 import numpy as np
 import optax
 
@@ -270,8 +270,7 @@ class Coefficients:
 
     @property
     def steps(self) -> np.ndarray:
-        h: np.ndarray = FD_REL_STEP * np.maximum(self.width, np.abs(self.start))
-        return h
+        return param_steps(self.start, self.lower, self.upper)
 
     def values(self, z: jax.Array) -> jax.Array:
         """Return theta (k,) of the trained offsets z (k,)."""

@@ -396,15 +396,14 @@ def _entering(jc: JointCoefficients, ship: ShipConfig, S: np.ndarray, A: np.ndar
     prior would move it, and the physics written would differ from the one trained.
     """
     from mmg_tuner.core.dynamics import family_tag
-    from mmg_tuner.learn._bridge import batch_derivative, batch_param_jacobian, FD_REL_STEP
+    from mmg_tuner.learn._bridge import batch_derivative, batch_param_jacobian, param_steps
     rows = np.unique(np.linspace(0, len(S) - 1, min(len(S), 2000)).astype(int))
     S, A, Wd = (np.ascontiguousarray(x[rows]) for x in (S, A, Wd))
     k = len(jc.names)
     p = ship.params.copy()
     slots = np.array([PARAM_INDEX[n] for n in jc.names])
     p[slots] = jc.start
-    width = np.asarray(jc.upper) - np.asarray(jc.lower)
-    steps = FD_REL_STEP * np.maximum(width, np.abs(np.asarray(jc.start)))
+    steps = param_steps(jc.start, jc.lower, jc.upper)
     F = np.empty((len(rows), 6))
     Jp = np.empty((len(rows), 6, k))
     tag = family_tag(ship.kind)
