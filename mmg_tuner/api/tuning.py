@@ -18,7 +18,7 @@ from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import MissingDependencyError, MmgTunerError, TuningError
 from mmg_tuner.learn import ensemble, require_jax, ResidualConfig, ResidualNet, train_residual
 from mmg_tuner.learn.model import Model
-from mmg_tuner.learn.train import members, split_validation
+from mmg_tuner.learn.train import members, n_members, split_validation
 from mmg_tuner.tuning.choice import Choice, choose_model
 from mmg_tuner.tuning.evaluate import compare_index, evaluate, pooled_sigma
 from mmg_tuner.tuning.factory import make_objective, ObjectiveSpec
@@ -429,7 +429,7 @@ def tune(ship: ShipConfig, trials: Trial | Sequence[Trial],
         result.evaluations += prior_choice.simulations
         result.wall_s += prior_choice.wall_s
     if cfg.residual is not None and not result.interrupted:
-        result.residual = _train_residual(result)
+        result.residual = _train_residual(result, groups)
     if cfg.model == 'auto' and not result.interrupted:
         _choose(result, groups)
     return result
@@ -600,7 +600,7 @@ def _choose(result: TuneResult, groups: Mapping[str, str] | None) -> None:
             sub = replace(result, config=replace(cfg, residual=kind, model='physics', joint=False),
                           residual=None)
             try:
-                r = _train_residual(sub)
+                r = _train_residual(sub, groups)
             except MmgTunerError as exc:   # e.g. trials too short for its windows
                 notes.append(f'{kind}: not trained ({exc})')
                 logger.warning('--model auto: the %s network was not trained: %s', kind, exc)
@@ -713,31 +713,36 @@ def _train_joint(result: TuneResult, groups: Mapping[str, str] | None,
                          integrator=cfg.integrator, substeps=cfg.substeps)
     joint = result.ship.with_params({**result.params, **fit.coefficients})
     model = Model(joint, fit.net)
-    index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
-             for which, trials in (('tune', result.trials), ('test', result.test)) if trials}
+    index, held = _scored(physics, model, result, rc)
     logger.info('   joint: %.1f s, %d epochs; share %.1f %%', fit.seconds, fit.epochs,
                 100 * fit.share)
-    return (ResidualResult(fit.net, 'joint', fit.share, fit.val_gain, index,
-                           index.get('test', {}).get('gain'), fit.seconds, fit.epochs,
-                           fit.seed, {**asdict(rc), 'coefficients': fit.coefficients,
-                                      'start': 'the hybrid'}, len(members(fit.net))),
+    return (ResidualResult(fit.net, 'joint', fit.share, fit.val_gain, index, held,
+                           fit.seconds, fit.epochs, fit.seed,
+                           {**asdict(rc), 'coefficients': fit.coefficients,
+                            'start': 'the hybrid'}, n_members(fit.net)),
             fit.coefficients)
+
+
+def _scored(physics: ShipConfig, model: Model, result: TuneResult, rc: ResidualConfig
+            ) -> tuple[dict[str, dict[str, Any]], float | None]:
+    """Return the index of physics and model on the tuning and test trials, and the gain."""
+    index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
+             for which, trials in (('tune', result.trials), ('test', result.test)) if trials}
+    return index, index.get('test', {}).get('gain')
 
 
 def _blend(result: TuneResult, hybrid: ResidualResult, network: ResidualResult
            ) -> ResidualResult:
     """Return the ensemble of every member of the hybrid and the pure network, scored."""
-    physics = result.ship.with_params(result.params)
+    physics = result.tuned_ship
     nets = members(hybrid.net) + members(network.net)
     net = ensemble(nets)
     model = Model(physics, net)
-    rc = _residual_config(result.config)
-    index = {which: compare_index(physics, model, trials, integrator=rc.integrator)
-             for which, trials in (('tune', result.trials), ('test', result.test)) if trials}
+    index, held = _scored(physics, model, result, _residual_config(result.config))
     k = len(nets)
     share = (hybrid.share * hybrid.seeds + network.seeds) / k   # a pure net's share is 1
-    return ResidualResult(net, 'blend', float(share), None, index,
-                          index.get('test', {}).get('gain'), hybrid.seconds + network.seconds,
+    return ResidualResult(net, 'blend', float(share), None, index, held,
+                          hybrid.seconds + network.seconds,
                           max(hybrid.epochs, network.epochs), hybrid.seed,
                           {'blend_of': {'hybrid': hybrid.config, 'network': network.config}},
                           k)
@@ -825,7 +830,8 @@ class ResidualResult:
                  f'Trained in {self.seconds:.1f} s ({self.epochs} epochs, '
                  + (f'seed {self.seed}' if self.seeds == 1 else
                     f'the mean of {self.seeds} networks, seeds {self.seed} to '
-                    f'{self.seed + self.seeds - 1}') + '); '
+                    f'{self.seed + self.seeds // (2 if self.kind == "blend" else 1) - 1}'
+                    + (' of each kind' if self.kind == 'blend' else '')) + '); '
                  f'weights in `{RESIDUAL_FILE}`, named by params.yaml. '
                  + (f'Share of the total acceleration{mean}: {100 * self.share:.1f} %. '
                     if self.kind in ('hybrid', 'joint') else 'The network alone gives the '
@@ -854,31 +860,30 @@ def _fmt_gain_frac(g: float | None) -> str:
     return '—' if g is None else f'{100 * g:+.1f} %'
 
 
-def _train_residual(result: TuneResult) -> ResidualResult:
+def _train_residual(result: TuneResult, groups: Mapping[str, str] | None = None
+                    ) -> ResidualResult:
     """
     Train the residual on the tuning trials with the tuned physics and score both.
 
-    Train the residual on the tuning trials (its validation: the last part of each) with the tuned
-    physics, and score both on the tuning and test trials.
+    Its validation: the last part of each tuning trial; scored on the tuning and test trials.
+    groups: trial name -> kind (a trial not named is its own group), for the options that
+    balance or select by group.
     """
     cfg = result.config
     rc = _residual_config(cfg)
-    physics = result.ship.with_params(result.params)
+    physics = result.tuned_ship
     logger.info('training the %s network on %d trial(s) (seed %d, up to %d epochs)',
                 'residual' if rc.physics else 'pure', len(result.trials), rc.seed, rc.epochs)
+    full = None if groups is None else {t.name: groups.get(t.name, t.name) for t in result.trials}
     fits = []
     for k in range(cfg.residual_seeds):
         if k:
             logger.info('   seed %d (%d of %d)', rc.seed + k, k + 1, cfg.residual_seeds)
-        fits.append(train_residual(physics, result.trials, config=replace(rc, seed=rc.seed + k)))
+        fits.append(train_residual(physics, result.trials, groups=full,
+                                   config=replace(rc, seed=rc.seed + k)))
     fit = fits[0]
     net = fit.net if len(fits) == 1 else ensemble([f.net for f in fits])
-    model = Model(physics, net)
-    index = {}
-    for which, trials in (('tune', result.trials), ('test', result.test)):
-        if trials:
-            index[which] = compare_index(physics, model, trials, integrator=rc.integrator)
-    held = index.get('test', {}).get('gain')
+    index, held = _scored(physics, Model(physics, net), result, rc)
     # with several seeds: the members' mean share and validation gain (the ensemble's own
     # would need another pass over the trials), their total time, the longest training
     seconds = float(sum(f.seconds for f in fits))

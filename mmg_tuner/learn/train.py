@@ -28,7 +28,7 @@ from mmg_tuner.learn.residual import ResidualNet
 import numpy as np
 
 if TYPE_CHECKING:   # annotations only: JAX is imported when a network is trained
-    from mmg_tuner.learn._engine import Joint, MLP
+    from mmg_tuner.learn._engine import Coefficients, Joint, MLP
 
 INSTALL_HINT = 'the hybrid model needs JAX: pip install jax equinox optax'
 BALANCE = ('window', 'trial', 'group')
@@ -309,7 +309,7 @@ def _block_masks(net: ResidualNet) -> list[tuple[int, np.ndarray]]:
     The first layer (members' rows stacked) and the output layer (their columns side by
     side) are dense; each deeper hidden layer is zero outside the members' diagonal blocks.
     """
-    k = len(members(net))
+    k = n_members(net)
     out = []
     for i, w in enumerate(net.weights[1:-1], 1):
         r, c = w.shape[0] // k, w.shape[1] // k
@@ -317,8 +317,8 @@ def _block_masks(net: ResidualNet) -> list[tuple[int, np.ndarray]]:
     return out if k > 1 else []
 
 
-def _layers(model: Any) -> list[Any]:
-    """Return the network's layers of an ``MLP`` or a ``Joint`` model."""
+def _layers(model: MLP | Joint) -> list[Any]:
+    """Return the network's layers of an ``MLP`` or a ``Joint`` model (or their gradients)."""
     return cast(list[Any], (model.net if hasattr(model, 'net') else model).layers)
 
 
@@ -330,11 +330,31 @@ def _ensemble_meta(start: ResidualNet, bias: np.ndarray) -> dict[str, Any]:
     moved the mean, so each member's moves by as much.
     """
     meta = dict(start.meta)
+    seeds = meta['ensemble_of_seeds']
     shift = np.asarray(bias, float) - np.asarray(start.biases[-1], float)
-    own = meta.get('member_output_biases') or [start.biases[-1]] * len(meta['ensemble_of_seeds'])
-    return {'ensemble_of_seeds': meta['ensemble_of_seeds'], 'members': meta.get('members', []),
+    own = meta.get('member_output_biases') or [start.biases[-1]] * len(seeds)
+    # (the members' own training figures no longer describe their weights: not carried)
+    return {'ensemble_of_seeds': seeds,
+            'members': [{'seed': s, 'trained_on': 'with the ensemble (train_residual start=): '
+                         "its figures are the ensemble's"} for s in seeds],
             'member_physics': meta.get('member_physics', [start.physics] * len(own)),
             'member_output_biases': [(np.asarray(b, float) + shift).tolist() for b in own]}
+
+
+def _derivatives(kind: int, p: np.ndarray, S: np.ndarray, A: np.ndarray, Wd: np.ndarray
+                 ) -> np.ndarray:
+    """Return the family's ds/dt (B, 6) at rows of states, actuator tuples and winds."""
+    from mmg_tuner.core.dynamics import family_tag
+    from mmg_tuner.learn._bridge import batch_derivative
+    F = np.empty((S.shape[0], 6))
+    batch_derivative(family_tag(kind), p, S, A, Wd, F, np.empty((1, 6, 6)), False)
+    return F
+
+
+def n_members(net: ResidualNet) -> int:
+    """Return how many networks an :func:`ensemble` averages (1 for one network)."""
+    seeds = net.meta.get('ensemble_of_seeds') if isinstance(net.meta, dict) else None
+    return len(seeds) if seeds and len(seeds) >= 2 else 1
 
 
 def _significant(gain: np.ndarray, z: float) -> bool:
@@ -396,7 +416,7 @@ def _entering(jc: JointCoefficients, ship: ShipConfig, S: np.ndarray, A: np.ndar
     prior would move it, and the physics written would differ from the one trained.
     """
     from mmg_tuner.core.dynamics import family_tag
-    from mmg_tuner.learn._bridge import batch_derivative, batch_param_jacobian, param_steps
+    from mmg_tuner.learn._bridge import batch_param_jacobian, param_steps
     rows = np.unique(np.linspace(0, len(S) - 1, min(len(S), 2000)).astype(int))
     S, A, Wd = (np.ascontiguousarray(x[rows]) for x in (S, A, Wd))
     k = len(jc.names)
@@ -404,11 +424,9 @@ def _entering(jc: JointCoefficients, ship: ShipConfig, S: np.ndarray, A: np.ndar
     slots = np.array([PARAM_INDEX[n] for n in jc.names])
     p[slots] = jc.start
     steps = param_steps(jc.start, jc.lower, jc.upper)
-    F = np.empty((len(rows), 6))
     Jp = np.empty((len(rows), 6, k))
-    tag = family_tag(ship.kind)
-    batch_derivative(tag, p, S, A, Wd, F, np.empty((1, 6, 6)), False)
-    batch_param_jacobian(tag, p, S, A, Wd, F, slots, steps, Jp)
+    F = _derivatives(ship.kind, p, S, A, Wd)
+    batch_param_jacobian(family_tag(ship.kind), p, S, A, Wd, F, slots, steps, Jp)
     reads = np.nan_to_num(np.abs(Jp)).max(axis=(0, 1)) > 0
     if not reads.any():
         raise TuningError(f'train_residual: the dynamics read none of {list(jc.names)} on the '
@@ -454,9 +472,6 @@ class _Sets:
 def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial] | None,
           groups: Mapping[str, str] | None, cfg: ResidualConfig) -> _Sets:
     """Return the windows, weights and scales :func:`train_residual` trains on (raises)."""
-    from mmg_tuner.core.dynamics import family_tag
-    from mmg_tuner.learn._bridge import batch_derivative
-
     trials = list(trials)
     dt = _check_trials(trials, 'training', ship)
     if validation is None:
@@ -485,6 +500,8 @@ def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial]
     n_tr, n_va = names_of(train_trials, tr_arrs), names_of(val_trials, va_arrs)
     wt_tr = window_weights(n_tr, cfg.balance, groups)
     wt_va = window_weights(n_va, cfg.balance, groups)
+    for t in train_trials:   # (raises now, not after the training, for a missing one)
+        _group(t.name, groups)
     g_va = np.array([_group(n, groups) for n in n_va])
     group_names = list(dict.fromkeys(g_va))
     for what, w, ts in (('training', w_tr, train_trials), ('validation', w_va, val_trials)):
@@ -502,9 +519,7 @@ def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial]
     ms = np.ascontiguousarray(np.concatenate([a.model_states for a in tr_arrs]))
     act = np.ascontiguousarray(np.concatenate([a.act for a in tr_arrs]))
     wind = np.ascontiguousarray(np.concatenate([a.wind for a in tr_arrs]))
-    F = np.empty((ms.shape[0], 6))
-    batch_derivative(family_tag(ship.kind), ship.params, ms, act, wind, F,
-                     np.empty((1, 6, 6)), False)
+    F = _derivatives(ship.kind, ship.params, ms, act, wind)
     y_scale = np.sqrt(np.mean(F[:, 3:6] ** 2, axis=0))
     y_scale = np.maximum(y_scale, max(1e-3 * float(y_scale.max()), 1e-9))
     obs = np.concatenate([a.observed for a in tr_arrs])
@@ -515,8 +530,9 @@ def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial]
                  wt_va, g_va, group_names, x_mean, x_std, y_scale, sigma, ms, act, wind, F)
 
 
-def _free(coefficients: JointCoefficients | None, ship: ShipConfig, d: _Sets,
-          cfg: ResidualConfig) -> tuple[Any, JointCoefficients | None, ShipConfig, list[str]]:
+def _free(coefficients: JointCoefficients | None, ship: ShipConfig, ds: _Sets,
+          cfg: ResidualConfig
+          ) -> tuple[Coefficients | None, JointCoefficients | None, ShipConfig, list[str]]:
     """
     Return the coefficients trained with the network (``_engine.Coefficients`` or None).
 
@@ -524,7 +540,6 @@ def _free(coefficients: JointCoefficients | None, ship: ShipConfig, d: _Sets,
     notes; the prior's weight is 0 here: it is set once the physics' own loss is known.
     """
     from mmg_tuner.learn import _engine as E
-    ms, act, wind = d.ms, d.act, d.wind
     free = None
     jc: JointCoefficients | None = None
     joint_notes: list[str] = []
@@ -540,12 +555,12 @@ def _free(coefficients: JointCoefficients | None, ship: ShipConfig, d: _Sets,
         if fixed:
             raise TuningError(f'train_residual: {fixed} cannot be trained with the network '
                               '(its features read the current, the wind and the antenna)')
-        jc, dropped = _entering(jc, ship, ms, act, wind)
+        jc, dropped = _entering(jc, ship, ds.ms, ds.act, ds.wind)
         if dropped:
             joint_notes.append(f'not trained with the network: {", ".join(dropped)} (the '
                                'dynamics do not read them: they act before the kernel, e.g. '
                                'on the actuator commands, or not at all here)')
-        # the prior's weight is set below, once the physics' own loss is known
+        # the prior's weight is set by train_residual, once the physics' own loss is known
 
         def arr(x: Sequence[float]) -> np.ndarray:
             return np.asarray(x, dtype=float)
@@ -594,9 +609,8 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     import equinox as eqx
     import jax
 
-    from mmg_tuner.core.dynamics import family_tag
     from mmg_tuner.learn import _engine as E
-    from mmg_tuner.learn._bridge import batch_derivative, teacher_residuals
+    from mmg_tuner.learn._bridge import teacher_residuals
 
     t_start = time.perf_counter()
     cfg = config
@@ -732,9 +746,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
                      + ('the residual is zero' if warm is None else 'that network is kept'))
         best = (crit0, initial, 0, start_windows, start_val)
     elif best[2] == 0 and cfg.physics and cfg.select == 'every_group':
-        notes.append('no epoch beat the physics alone on every validation group: '
-                     + ('the residual is zero' if warm is None else
-                        'the network it started from is kept'))
+        notes.append('no epoch beat the physics alone on every validation group: the residual '
+                     'is zero' if warm is None else 'no epoch beat the network it started '
+                     'from (the worst group against the physics alone): it is kept')
     if skipped:
         notes.append(f'{skipped} minibatch step(s) skipped: a simulated window diverged')
     _, model, best_epoch, best_windows, val_loss = best
@@ -747,11 +761,11 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
         assert free is not None and jc is not None
         trained = dict(zip(jc.names, map(float, np.asarray(free.values(model.z)))))
         ship = ship.with_params(trained, 'joint coefficients')
-        batch_derivative(family_tag(ship.kind), ship.params, ds.ms, ds.act, ds.wind, ds.F,
-                         np.empty((1, 6, 6)), False)   # the share: of the trained physics
-        notes.append('coefficients trained with the network: ' + ', '.join(
-            f'{n} {jc.start[i]:.6g} -> {v:.6g}' for i, (n, v) in
-            enumerate(trained.items())))
+        # the share: of the trained physics
+        ds = replace(ds, F=_derivatives(ship.kind, ship.params, ds.ms, ds.act, ds.wind))
+        notes.append('coefficients trained with the network: ' + (', '.join(
+            f'{n} {jc.start[i]:.6g} -> {v:.6g}' for i, (n, v) in enumerate(trained.items()))
+            if best_epoch else 'none moved (the start was kept)'))
         model = model.net
     weights, biases = model.export()
     features = feature_names(ship.family)
@@ -775,8 +789,11 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             'versions': _versions(), 'notes': notes,
             'loss': 'Wakita et al. 2022 simulation-based loss: mean over windows, steps and '
                     'the states x, y, psi, u, v, r of ((simulated - measured) / sigma)^2'}
-    if warm is not None and len(members(warm)) > 1:
-        meta.update(_ensemble_meta(warm, biases[-1]))
+    if warm is not None:
+        meta['start'] = {'members': n_members(warm),
+                         'hidden': [int(w.shape[0]) for w in warm.weights[:-1]]}
+        if n_members(warm) > 1:
+            meta.update(_ensemble_meta(warm, biases[-1]))
     net = ResidualNet(cfg.window, ds.dt, weights, biases, ds.x_mean, ds.x_std, ds.y_scale,
                       cfg.physics, cfg.seed, meta, features)
     return ResidualFit(net, history, train_loss, val_loss, share, seconds, epoch, cfg.seed,

@@ -8,6 +8,7 @@ differences; a small training must find an effect the physics lacks and nothing 
 """
 from dataclasses import replace
 import math
+import re
 import subprocess
 import sys
 import zipfile
@@ -591,6 +592,21 @@ def test_joint_training_goes_on_from_an_ensemble_keeping_its_members_apart(suzak
                            atol=1e-14)
     with pytest.raises(TuningError, match='window is 3 samples'):
         train_residual(suzaku, trials[:4], start=start, config=replace(cfg, window=4))
+
+
+def test_a_training_trial_without_its_group_is_refused_before_any_training(suzaku, hidden_fit,
+                                                                           monkeypatch):
+    from mmg_tuner.errors import TuningError
+    from mmg_tuner.learn import _engine, ResidualConfig, train_residual
+    _, trials = hidden_fit
+
+    def never(*a, **k):
+        raise AssertionError('the training started')
+    monkeypatch.setattr(_engine, 'make_simulator', never)
+    groups = {trials[1].name: 'a', trials[2].name: 'a'}   # trials[0] has none
+    with pytest.raises(TuningError, match=re.escape(f'trial {trials[0].name!r} has no group')):
+        train_residual(suzaku, trials[:2], validation=trials[2:3], groups=groups,
+                       config=ResidualConfig(**{**CI, 'epochs': 1}))
 
 
 # ------------------------------------------------------- balance and selection (kinds alike)

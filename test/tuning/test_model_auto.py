@@ -223,6 +223,21 @@ def test_tune_model_auto_trains_compares_and_writes_the_recommended_model(trials
                                                     'horizon_s': 6.0}).candidates
 
 
+def test_tune_gives_its_groups_to_the_residual_training(trials):
+    """
+    balance='group' needs the trials' groups: tune passes its own (a trial not named: its own).
+
+    Before, the residual's training never saw them and refused ("needs groups").
+    """
+    pytest.importorskip('jax')
+    groups = {t.name: KINDS[t.name] for t in trials[:3]}   # the fourth unnamed
+    res = mt.tune(mt.load_ship('suzaku'), trials, max_evals=10, residual='hybrid',
+                  groups=groups, residual_options={'epochs': 1, 'hidden': (4,),
+                                                   'horizon_s': 6.0, 'balance': 'group'})
+    assert set(res.residual.net.meta['share_by_group']) == {'turning', 'zigzag',
+                                                            trials[3].name}
+
+
 def test_a_recommended_ensemble_whose_interval_fails_is_written_without_one(
         trials, tmp_path, monkeypatch):
     """
