@@ -14,7 +14,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from mmg_tuner.core.channels import CONTROL_NAMES, ENVIRONMENT, TABLE
 from mmg_tuner.core.layout import STATE_NAMES
-from mmg_tuner.errors import TrialDataError
+from mmg_tuner.errors import TrialDataError, TuningError
 import numpy as np
 import numpy.typing as npt
 
@@ -207,6 +207,21 @@ class Trial:
         return replace(self, t=grid, states=states,
                        inputs=self._map_inputs(lambda a: np.interp(grid, self.t, a)),
                        notes=self.notes + [f'resampled on dt = {dt:g} s (linear)'])
+
+
+def common_dt(trials: Sequence[Trial], where: str) -> float:
+    """
+    Return the one sample step [s] of ``trials`` (to 1 ns), for a batch simulated on one grid.
+
+    TuningError, prefixed by ``where``, when there are none or their steps differ.
+    """
+    if not trials:
+        raise TuningError(f'{where}: no trials given')
+    dts = {round(t.dt, 9) for t in trials}
+    if len(dts) != 1:
+        raise TuningError(f'{where}: the trials have different sample steps {sorted(dts)} s; '
+                          'resample them on one grid (--dt)')
+    return float(dts.pop())
 
 
 def input_array(channels: Sequence[str], values: Mapping[str, Any], T: int, where: str = 'inputs'

@@ -21,7 +21,7 @@ from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 from mmg_tuner.core.correction import feature_names, FEATURE_PARAMS, N_FEATURES
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
-from mmg_tuner.core.trial import Trial
+from mmg_tuner.core.trial import common_dt, Trial
 from mmg_tuner.errors import ConfigError, MissingDependencyError, TuningError
 from mmg_tuner.learn._windows import cut, prepare, starts, TrialArrays, Windows
 from mmg_tuner.learn.residual import ResidualNet
@@ -381,18 +381,13 @@ def split_validation(trials: list[Trial], fraction: float, window: int
 def _check_trials(trials: Sequence[Trial], what: str, ship: ShipConfig) -> float:
     """Return the trials' one sample step; refuse none, mixed steps or non-finite features."""
     channels = [c for c in feature_names(ship.family)[3:-2] if c]
-    if not trials:
-        raise TuningError(f'train_residual: no {what} trials given')
-    dts = {round(t.dt, 9) for t in trials}
-    if len(dts) != 1:
-        raise TuningError(f'train_residual: {what} trials have different sample steps '
-                          f'{sorted(dts)}; resample them on one grid (--dt)')
+    dt = common_dt(trials, f'train_residual ({what})')
     for tr in trials:   # the channels the network reads (a missing one: its default)
         inputs = tr.input_array(channels)
         if not (np.all(np.isfinite(tr.states)) and np.all(np.isfinite(inputs))):
             raise TuningError(f'train_residual: {what} trial {tr.name} has non-finite states '
                               f'or commands ({", ".join(channels)})')
-    return float(dts.pop())
+    return dt
 
 
 def _versions() -> dict[str, str]:

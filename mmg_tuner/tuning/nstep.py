@@ -36,6 +36,7 @@ from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code, simulate_batch
+from mmg_tuner.core.trial import common_dt
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 from mmg_tuner.learn.model import Model
@@ -173,12 +174,7 @@ def nstep_errors(ship: ShipConfig | Model, trials: Sequence[Trial], horizons: Se
     net = model.residual
     hs = check_horizons(horizons)
     trials = list(trials)
-    if not trials:
-        raise TuningError('n-step prediction: no trials given')
-    dts = {round(t.dt, 9) for t in trials}
-    if len(dts) != 1:
-        raise TuningError(f'n-step prediction: the trials have different sample steps '
-                          f'{sorted(dts)} s; resample them to one (--dt)')
+    common_dt(trials, 'n-step prediction')
     dt = trials[0].dt
     if net is not None and abs(dt - net.dt_s) > 1e-6 * net.dt_s:
         raise TuningError(f'n-step prediction: trial {trials[0].name} has a sample step of '

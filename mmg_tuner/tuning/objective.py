@@ -9,7 +9,7 @@ from mmg_tuner.core.channels import TABLE
 from mmg_tuner.core.integrate import cost_many
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
-from mmg_tuner.core.trial import fitted_first_state, fitted_state_at
+from mmg_tuner.core.trial import common_dt, fitted_first_state, fitted_state_at
 from mmg_tuner.data.trial import Trial
 from mmg_tuner.errors import TuningError
 import numpy as np
@@ -43,12 +43,7 @@ class TrialBatch:
         the first x0_window_s seconds (0: the raw first sample): a noisy start would otherwise
         drift the whole simulation and bias the tuned parameters.
         """
-        if not trials:
-            raise TuningError('no trials given')
-        dts = {round(t.dt, 9) for t in trials}
-        if len(dts) != 1:
-            raise TuningError(f'trials have different sample steps {sorted(dts)}; resample them '
-                              'on one grid (--dt)')
+        dt = common_dt(trials, 'the objective')
         T = max(len(t) for t in trials)
         M = len(trials)
         channels = tuple(dict.fromkeys(n for t in trials for n in t.inputs))
@@ -73,7 +68,7 @@ class TrialBatch:
             meas[j, n:] = tr.states[-1]
             ctrls[j, n:] = inputs[-1]
         return cls([t.name for t in trials], meas, ctrls,
-                   np.array([len(t) for t in trials], dtype=np.int64), float(dts.pop()),
+                   np.array([len(t) for t in trials], dtype=np.int64), dt,
                    channels, float(x0_window_s))
 
     def inputs_for(self, channels: Sequence[str], ship: str = 'the ship') -> np.ndarray:

@@ -215,3 +215,22 @@ def test_horizons_are_checked(esso):
     with pytest.raises(mt.ConfigError, match='horizons'):
         mt.EvaluateConfig(horizons=())
     assert mt.EvaluateConfig(horizons=(10, 1, 10)).horizons == (1, 10)
+
+
+def test_one_sample_step_is_required_alike_by_the_objective_nstep_and_training(esso):
+    """
+    Trials on two grids are refused with one message, naming where, by each batch user.
+
+    (``core.trial.common_dt``: before, three copies with their own messages.)
+    """
+    from mmg_tuner.core.trial import common_dt
+    from mmg_tuner.tuning.nstep import nstep_errors
+    from mmg_tuner.tuning.objective import TrialBatch
+    tr = _trial(esso, 0)
+    mixed = [tr, tr.resampled(2 * tr.dt)]
+    assert common_dt([tr], 'x') == pytest.approx(0.5)
+    for where, call in (('the objective', lambda: TrialBatch.from_trials(mixed)),
+                        ('n-step prediction', lambda: nstep_errors(esso, mixed, (1,))),
+                        ('nothing', lambda: common_dt([], 'nothing'))):
+        with pytest.raises(mt.TuningError, match=f'^{where}: '):
+            call()
