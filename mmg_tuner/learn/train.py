@@ -18,7 +18,8 @@ import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import feature_names, FEATURE_PARAMS, N_FEATURES
+from mmg_tuner.core.correction import (feature_names, FEATURE_PARAMS, features_fit,
+                                       N_FEATURES)
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import common_dt, Trial
@@ -289,12 +290,12 @@ def _check_start(net: ResidualNet, cfg: ResidualConfig, dt: float, ship: ShipCon
     why = []
     if net.window != cfg.window:
         why.append(f"its window is {net.window} samples, the training's {cfg.window}")
-    if abs(net.dt_s - dt) > 1e-9:
+    if abs(dt - net.dt_s) > 1e-6 * net.dt_s:   # (residual._check_dt's tolerance)
         why.append(f"its sample step is {net.dt_s:g} s, the trials' {dt:g} s")
     if float(net.physics) != float(cfg.physics):
         why.append(f"its physics weight is {net.physics:g}, the training's "
                    f'{float(cfg.physics):g} (a blend cannot train on)')
-    if tuple(net.features) != tuple(feature_names(ship.family)):
+    if not features_fit(net.features, ship.family):   # (as residual.check_fits reads them)
         why.append(f'it reads the features of another family than {ship.family}')
     if why:
         raise TuningError('train_residual: cannot train on from the given network: '
@@ -310,11 +311,10 @@ def _block_masks(net: ResidualNet) -> list[tuple[int, np.ndarray]]:
     side) are dense; each deeper hidden layer is zero outside the members' diagonal blocks.
     """
     k = n_members(net)
-    out = []
-    for i, w in enumerate(net.weights[1:-1], 1):
-        r, c = w.shape[0] // k, w.shape[1] // k
-        out.append((i, np.kron(np.eye(k), np.ones((r, c)))))
-    return out if k > 1 else []
+    if k < 2:
+        return []
+    return [(i, np.kron(np.eye(k), np.ones((w.shape[0] // k, w.shape[1] // k))))
+            for i, w in enumerate(net.weights[1:-1], 1)]
 
 
 def _layers(model: MLP | Joint) -> list[Any]:
