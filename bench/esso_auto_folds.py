@@ -14,7 +14,9 @@ pooled over the fold). Prints the per-fold and the mean tables, and the verdicts
 and (amendment 1) the interval the command wrote: its factors and its coverage of the fold's
 held-out runs, verdict I1 (every fold: largest factor <= 3, coverage in [0.80, 0.95]).
 ``--joint``: the auto command with ``--joint`` (J1, J2:
-bench/esso_joint_folds_preregistration.md).
+bench/esso_joint_folds_preregistration.md). ``--physics-input``: its networks read the
+physics' prediction (P1-P3: bench/esso_physics_input_preregistration.md, against the default
+run stored in bench/results/esso_auto_folds.json).
 ``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
 """
 from __future__ import annotations
@@ -49,7 +51,8 @@ def benchmark(quick: bool, argv: list[str]) -> dict:
     return main((['--quick'] if quick else []) + argv)
 
 
-def _auto(files: list[Path], quick: bool, joint: bool = False) -> mt.TuneResult:
+def _auto(files: list[Path], quick: bool, joint: bool = False,
+          physics_input: bool = False) -> mt.TuneResult:
     """Run the guide's auto command on ``files``, as the command configures and reads them."""
     argv = [str(f) for f in files] + ['--ship', SHIP, '--dt', '0.5', '--model', 'auto',
                                       '--residual-seeds', '3', '--out', 'unused', '--quiet']
@@ -57,6 +60,8 @@ def _auto(files: list[Path], quick: bool, joint: bool = False) -> mt.TuneResult:
         argv += ['--residual-epochs', '3']
     if joint:   # the joint candidate too (esso_joint_folds_preregistration.md)
         argv += ['--joint']
+    if physics_input:   # esso_physics_input_preregistration.md
+        argv += ['--residual-physics-input']
     parser = build_parser()
     args = parser.parse_args(argv)
     ship = mt.load_ship(SHIP)
@@ -110,10 +115,36 @@ def _print_verdicts(verdicts: dict[str, dict[str, bool]], prefix: str = '') -> N
               + ', '.join(f'{k} {"pass" if v else "fail"}' for k, v in by_kind.items()) + ')')
 
 
+def _physics_input_verdicts(mean: dict[str, dict[str, float]], kinds: list[str]
+                            ) -> dict[str, dict[str, bool]]:
+    """P1-P3 of esso_physics_input_preregistration.md against the stored default run."""
+    import json
+    stored = json.loads((ROOT / 'bench' / 'results' / 'esso_auto_folds.json').read_text())
+    base = stored['figures']['mean_index_by_kind']
+    out = {}
+    for name, m in (('P1', 'hybrid'), ('P2', 'network')):
+        better = {k: bool(mean[m][k] < base[m][k]) for k in kinds}
+        out[name] = {**better, 'pass (>= 3 of 4)': sum(better.values()) >= 3}
+        print(f'{name} ({m} with physics input < default on >= 3 of 4 kinds): '
+              f'{"PASS" if sum(better.values()) >= 3 else "FAIL"} ('
+              + ', '.join(f'{k} {mean[m][k]:.4g} vs {base[m][k]:.4g}' for k in kinds) + ')')
+    r, b = mean['recommended'], base['recommended']
+    p3 = {k: bool(r[k] <= WITHIN * b[k]) for k in kinds}
+    wins = sum(r[k] < b[k] for k in kinds)
+    out['P3'] = {**p3, 'pass (within 5 % every kind, better on >= 3)': all(p3.values())
+                 and wins >= 3}
+    print(f'P3 (recommended within 5 % of the default on every kind, better on >= 3): '
+          f'{"PASS" if all(p3.values()) and wins >= 3 else "FAIL"} ('
+          + ', '.join(f'{k} {r[k]:.4g} vs {b[k]:.4g}' for k in kinds) + ')')
+    return out
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(prog='python -m bench run esso_auto_folds')
     ap.add_argument('--quick', action='store_true')
     ap.add_argument('--joint', action='store_true', help='tune --joint: the joint candidate')
+    ap.add_argument('--physics-input', action='store_true',
+                    help="tune --residual-physics-input: networks read the physics' prediction")
     args = ap.parse_args(argv)
     files = runs_by_kind(PONDS)
     published = mt.load_ship(SHIP)
@@ -126,7 +157,7 @@ def main(argv: list[str] | None = None) -> dict:
             train += a
             test += b
         t1 = time.perf_counter()
-        res = _auto(train, args.quick, args.joint)
+        res = _auto(train, args.quick, args.joint, args.physics_input)
         auto_s = time.perf_counter() - t1
         assert res.choice is not None   # model='auto'
         chosen = res.choice.chosen
@@ -192,6 +223,8 @@ def main(argv: list[str] | None = None) -> dict:
         verdicts['J2'] = {k: bool(mean[EXTRA][k] < mean['published'][k]) for k in kinds}
         print(f'J2 (the joint physics < published on every kind): '
               f'{"PASS" if all(verdicts["J2"].values()) else "FAIL"} ({verdicts["J2"]})')
+    if args.physics_input and complete:
+        verdicts.update(_physics_input_verdicts(mean, kinds))
     i1 = all(pf['interval'] is not None and pf['interval']['pass'] for pf in per_fold.values())
     verdicts['I1'] = {f'fold {f}': bool(pf['interval'] and pf['interval']['pass'])
                       for f, pf in per_fold.items()}

@@ -142,6 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='residual: length of each simulated training window [s] (default 10)')
     ap.add_argument('--residual-max-seconds', type=positive_float, metavar='S',
                     help='residual: stop training after this wall time [s]')
+    ap.add_argument('--residual-physics-input', action='store_true', default=None,
+                    help="residual: the network also reads the physics' accelerations at each "
+                    'sample (the prediction it corrects)')
     ap.add_argument('--residual-seeds', type=bounded(int, 1, 32, 'residual seeds'), metavar='N',
                     help='residual: train N networks (seeds --seed, --seed + 1, ...) and keep '
                     'their mean, one exact ensemble (default 1; N times the training time)')
@@ -366,7 +369,8 @@ def show_log(quiet: bool = False) -> Iterator[None]:
 # ----------------------------------------------------------------------------- the command
 RESIDUAL_OPTIONS = {'residual_epochs': 'epochs', 'residual_window': 'window',
                     'residual_hidden': 'hidden', 'residual_horizon': 'horizon_s',
-                    'residual_max_seconds': 'max_seconds'}
+                    'residual_max_seconds': 'max_seconds',
+                    'residual_physics_input': 'physics_input'}
 
 
 def tune_config(args: argparse.Namespace) -> api.TuneConfig:

@@ -5,8 +5,9 @@ The one sample loop (``integrate.drive``) adds a small MLP's (du, dv_m, dr) to t
 accelerations when a network is attached (``learn/residual.py`` trains, stores and loads it).
 The network sees a window of the most recent samples (the current one included) of its
 family's features (:func:`feature_names`: the state, the family's first channels by name, the
-apparent wind), each standardised and ordered oldest first, and its output is held over the
-sample interval, as the recorded inputs are. Only NumPy and numba: a ROS install without JAX
+apparent wind and, when it was trained so, the physics' own accelerations at that sample),
+each standardised and ordered oldest first, and its output is held over the sample interval,
+as the recorded inputs are. Only NumPy and numba: a ROS install without JAX
 runs trained hybrids.
 """
 from __future__ import annotations
@@ -32,14 +33,20 @@ state through the water (u, v_m [m/s], r [rad/s]), rpm [rev/min], rudder [rad] (
 and stern thrusters [rev/s] (zero when the ship has none) and the apparent wind (the air's
 velocity relative to the ship) in body axes [m/s]."""
 N_FEATURES = len(FEATURES)
+PHYSICS_FEATURES: tuple[str, ...] = ('phys_du', 'phys_dv', 'phys_dr')
+"""Optional last features: the family's accelerations (du, dv_m [m/s^2], dr [rad/s^2]) at the
+sample's state and inputs, without the network (the physics' prediction the network then
+corrects; ``ResidualConfig.physics_input``)."""
 FEATURE_PARAMS = ('current_speed', 'current_dir', 'antenna_x', 'antenna_y', 'wind_speed',
                   'wind_dir')
 """Parameters the features (and the kinematics) read: never trained with the network."""
 
 
-def feature_names(family: Family) -> tuple[str, ...]:
+def feature_names(family: Family, physics_input: bool = False) -> tuple[str, ...]:
     """
     Return the names of a family's feature row: u, v, r, its commands, wind_u, wind_v.
+
+    physics_input: then the physics' accelerations (:data:`PHYSICS_FEATURES`).
 
     The command slots hold the family's first N_COMMAND_SLOTS input channels in kernel order
     (the kernel reads them by position), then empty names (zero) when it has fewer. Each must
@@ -59,7 +66,14 @@ def feature_names(family: Family) -> tuple[str, ...]:
         raise ConfigError(f'the {family.name!r} family reads {", ".join(inputs)}: a residual '
                           f'network reads its first {N_COMMAND_SLOTS} channels, each always '
                           'recorded (the ones that may be NaN after them)')
-    return ('u', 'v', 'r') + inputs[:n] + ('',) * (N_COMMAND_SLOTS - n) + ('wind_u', 'wind_v')
+    return ('u', 'v', 'r') + inputs[:n] + ('',) * (N_COMMAND_SLOTS - n) + \
+        ('wind_u', 'wind_v') + (PHYSICS_FEATURES if physics_input else ())
+
+
+def reads_physics(names: Sequence[str]) -> bool:
+    """Whether a network of feature ``names`` reads the physics' accelerations too."""
+    return len(names) == N_FEATURES + len(PHYSICS_FEATURES) and \
+        tuple(names[N_FEATURES:]) == PHYSICS_FEATURES
 
 
 def features_fit(names: Sequence[str], family: Family) -> bool:
@@ -70,7 +84,7 @@ def features_fit(names: Sequence[str], family: Family) -> bool:
     may carry any name the family lacks (networks saved before the names were per family
     call SUZAKU's empty slots bow_thruster and stern_thruster; zero either way).
     """
-    own = feature_names(family)
+    own = feature_names(family, reads_physics(names))
     if len(names) != len(own):
         return False
     return all(a == b or (b == '' and a not in family.inputs) for a, b in zip(names, own))

@@ -244,6 +244,28 @@ def use_measured_wind(p: FloatArray, ctrl: FloatArray, k: int) -> None:
         p[_dirw] = math.atan2(-we, -wn)  # blows from the opposite of where the air goes
 
 
+@njit(cache=True, fastmath=FASTMATH)
+def physics_accelerations(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a: FloatArray,
+                          ctrl: FloatArray, k: int, shift: float, T: int,
+                          h: float) -> tuple[float, float, float]:
+    """
+    The family's (du, dv_m, dr) at state s with the inputs of sample k: the physics' prediction.
+
+    What the first integration step of :func:`advance` would apply without a network (the
+    actuators advanced over one step h from their states ``a``, which are left untouched);
+    zeros where the inputs stop the run (advance then reports why). A network trained with
+    ``physics_input`` reads it (``core.correction.PHYSICS_FEATURES``). Not inlined: the
+    forces compiled once more into every whole-run loop would slow the tuning's.
+    """
+    st, held = actuate_hold(kind, p, ctrl, k, shift, T, h)
+    if st != OK:
+        return 0.0, 0.0, 0.0
+    b = a.copy()
+    act = actuate_output(kind, p, held, b)
+    d = rhs(kind, p, s, act)
+    return d[3], d[4], d[5]
+
+
 RECORD = 0     # the driver writes the observed states (T, 6)
 COST = 1       # it sums the weighted squared errors against a measured trial
 RESIDUALS = 2  # it writes those weighted errors, one per (sample, channel)
@@ -277,7 +299,8 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
     physics weight, feature rows before the start (the last n_hist valid), n_hist, out (T, 3))
     (``core/correction.py``; :func:`no_net` without one, window 0): its accelerations, from
     the window of feature rows ending at the sample, are held over each sample interval and
-    written to out[k] (NaN from the failure on and at T - 1); restarts keep the window.
+    written to out[k] (NaN from the failure on and at T - 1); restarts keep the window. Rows
+    longer than N_FEATURES end with the physics' prediction (:func:`physics_accelerations`).
     Returns (status, k_fail, J): k_fail < T when the run failed (diverged or left the model's
     range) at that sample; J covers the samples before it.
     """
@@ -355,6 +378,12 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
             else:
                 input_row(ctrl, k, shift, T, inp)
             feature_row(p, s, inp, frow)
+            if nf > N_FEATURES:
+                ph = physics_accelerations(kind, p, s, a, src, 0 if steered else k,
+                                           step_shift, step_T, h)
+                frow[N_FEATURES] = ph[0]
+                frow[N_FEATURES + 1] = ph[1]
+                frow[N_FEATURES + 2] = ph[2]
             if k == 0:   # the window before the first sample: the history, else padded
                 for i in range(window - 1):
                     back = window - 1 - i

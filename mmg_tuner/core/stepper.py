@@ -15,9 +15,10 @@ import math
 from typing import Any, Mapping, TYPE_CHECKING
 
 from mmg_tuner.core.actuators import actuator
-from mmg_tuner.core.correction import FEATURES, features_fit, N_COMMAND_SLOTS
+from mmg_tuner.core.correction import FEATURES, features_fit, N_COMMAND_SLOTS, reads_physics
 from mmg_tuner.core.dynamics import apparent_wind, family_tag, N_ACT_STATES
-from mmg_tuner.core.integrate import advance, observe, start_actuators, start_state
+from mmg_tuner.core.integrate import (advance, observe, physics_accelerations, start_actuators,
+                                      start_state)
 from mmg_tuner.core.layout import DIVERGED, OK, PARAM_INDEX, STATE_NAMES, STATUS_TEXT
 from mmg_tuner.core.limits import CommandLimit, input_limits, InputLimits
 from mmg_tuner.core.ship import ShipConfig
@@ -481,8 +482,12 @@ class ShipSimulator:
         done = 0
         while done < n:
             if (self.steps + done) % self._every == 0:
-                self._acc = self._residual.accelerations(
-                    s, self._feature_commands, apparent_wind_body(self.ship, s))
+                seen: tuple[Any, ...] = (s, self._feature_commands,
+                                         apparent_wind_body(self.ship, s))
+                if reads_physics(getattr(net, 'features', FEATURES)):   # what advance applies
+                    seen += (physics_accelerations(self._tag, p, s, self._a, inp, 0, 0.0, 1,
+                                                   self.dt / self.substeps),)
+                self._acc = self._residual.accelerations(*seen)
             chunk = min(n - done, self._every - (self.steps + done) % self._every)
             status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,
                                          self.method, chunk,

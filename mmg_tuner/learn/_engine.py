@@ -296,13 +296,16 @@ class Joint(eqx.Module):
 
 def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float,
                    x_mean: np.ndarray, x_std: np.ndarray, y_scale: np.ndarray,
-                   coefficients: Coefficients | None = None) -> Simulate:
+                   coefficients: Coefficients | None = None,
+                   physics_input: bool = False) -> Simulate:
     """
     Return simulate(model, x0, hist, inp, act, wind) -> (observed, residual).
 
     Observed (B, H, 6) and residual (B, H, 3) for a batch of windows, mirroring
     ``learn.residual.simulate_hybrid_one`` (one step per sample, the residual held over it).
-    With ``coefficients`` the model is a :class:`Joint` (the network and the coefficients).
+    With ``coefficients`` the model is a :class:`Joint` (the network and the coefficients);
+    physics_input: each row ends with the physics' accelerations at the sample (the first
+    stage's, computed once for both).
     """
     free = coefficients
     if free is not None and (not physics or set(free.slots.tolist()) & _NOT_FREE):
@@ -326,10 +329,14 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
         wv = -wind[:, 0] * jnp.sin(rel) - vg
         return jnp.concatenate([s[:, 3:6], inp, wu[:, None], wv[:, None]], axis=1)
 
+    def phys_at(s: jax.Array, act: jax.Array, wind: jax.Array,
+                theta: jax.Array | None) -> jax.Array:
+        return phys(s, act, wind) if theta is None else phys(s, act, wind, theta)
+
     def deriv(s: jax.Array, act: jax.Array, wind: jax.Array, a: jax.Array,
-              theta: jax.Array | None) -> jax.Array:
+              theta: jax.Array | None, f: jax.Array | None = None) -> jax.Array:
         if physics:
-            f = phys(s, act, wind) if theta is None else phys(s, act, wind, theta)
+            f = phys_at(s, act, wind, theta) if f is None else f
             return f + jnp.concatenate([jnp.zeros_like(s[:, :3]), a], axis=1)
         psi, u, v, r = s[:, 2], s[:, 3], s[:, 4], s[:, 5]
         c, sn = jnp.cos(psi), jnp.sin(psi)
@@ -364,10 +371,14 @@ def make_simulator(kind: int, p: np.ndarray, physics: bool, rk4: bool, dt: float
             s, ring = carry
             inp_k, act_k, wind_k = xs
             row = features(s, inp_k, wind_k)
+            f0 = None
+            if physics_input:
+                f0 = phys_at(s, act_k, wind_k, theta)
+                row = jnp.concatenate([row, f0[:, 3:6]], axis=1)
             full = jnp.concatenate([ring, row[:, None, :]], axis=1)
             z = ((full - mean) / std).reshape(full.shape[0], -1)
             a = net(z) * yscale
-            k1 = deriv(s, act_k, wind_k, a, theta)
+            k1 = deriv(s, act_k, wind_k, a, theta, f0)
             if rk4:
                 k2 = deriv(s + 0.5 * dt * k1, act_k, wind_k, a, theta)
                 k3 = deriv(s + 0.5 * dt * k2, act_k, wind_k, a, theta)

@@ -8,18 +8,13 @@ simulates and the measured (observed) states it is compared with.
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 
 from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.integrate import actuator_outputs
-from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import Trial
-from mmg_tuner.learn.residual import trial_rows
+from mmg_tuner.learn.residual import sample_winds, trial_rows
 import numpy as np
-
-_Vw = PARAM_INDEX['wind_speed']
-_dirw = PARAM_INDEX['wind_dir']
 
 
 @dataclass
@@ -27,7 +22,7 @@ class TrialArrays:
     """
     One trial as the training reads it.
 
-    Feature rows (T, N_FEATURES), model states (T, 6), observed states (T, 6), the actuator
+    Feature rows (T, n_features), model states (T, 6), observed states (T, 6), the actuator
     tuples (T, n: ``Family.outputs``, e.g. n_P [rev/s], actual rudder [rad], thrusters
     [rev/s]) and wind (T, 2: speed [m/s], direction it blows from [rad]).
     """
@@ -40,27 +35,20 @@ class TrialArrays:
     wind: np.ndarray
 
 
-def prepare(ship: ShipConfig, trial: Trial) -> TrialArrays:
+def prepare(ship: ShipConfig, trial: Trial, physics_input: bool = False) -> TrialArrays:
     """
     Return the arrays of one trial, with the inputs as the kernels apply them.
 
     The ship's actuators, one step per sample (their effects included: rpm scale, rudder
-    offset, steering-gear lag); measured wind held when missing.
+    offset, steering-gear lag); measured wind held when missing; physics_input: the rows end
+    with the physics' accelerations (``residual.trial_rows``).
     """
-    rows, ms = trial_rows(ship, trial)
+    rows, ms = trial_rows(ship, trial, physics_input)
     T = len(trial)
-    p = ship.params
     ctrl = np.ascontiguousarray(trial.input_array(ship.family.channels))
     act = np.empty((T, len(ship.family.outputs)))
-    actuator_outputs(ship.kind, p, ctrl, T, float(trial.dt), act)
-    wind = np.empty((T, 2))
-    vw, dw = float(p[_Vw]), float(p[_dirw])
-    for k in range(T):
-        if trial.wind is not None:
-            wn, we = trial.wind[k]
-            if wn == wn and we == we:
-                vw, dw = math.sqrt(wn * wn + we * we), math.atan2(-we, -wn)
-        wind[k] = vw, dw
+    actuator_outputs(ship.kind, ship.params, ctrl, T, float(trial.dt), act)
+    wind = sample_winds(ship, trial)
     return TrialArrays(trial.name, rows, ms, np.asarray(trial.states, float), act, wind)
 
 
@@ -108,7 +96,8 @@ def cut(arrs: list[TrialArrays], window: int, horizon: int, stride: int) -> Wind
             parts['wind'].append(a.wind[k0:k0 + horizon])
             parts['target'].append(a.observed[k0 + 1:k0 + horizon + 1])
     if not parts['x0']:
-        return Windows(np.zeros((0, 6)), np.zeros((0, window - 1, N_FEATURES)),
+        nf = arrs[0].rows.shape[1] if arrs else N_FEATURES
+        return Windows(np.zeros((0, 6)), np.zeros((0, window - 1, nf)),
                        np.zeros((0, horizon, 4)),
                        np.zeros((0, horizon, arrs[0].act.shape[1] if arrs else 2)),
                        np.zeros((0, horizon, 2)), np.zeros((0, horizon, 6)))

@@ -12,7 +12,6 @@ import math
 from typing import Any, cast
 
 from mmg_tuner.core import maneuvers as mv
-from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import OK, STATUS_TEXT
 from mmg_tuner.core.simulate import integrator_code
@@ -49,7 +48,7 @@ def hybrid_maneuver(model: Model, spec: mv.ManeuverSpec) -> Trial:
     status, k_fail = simulate_hybrid_one(
         family_tag(ship.kind), np.ascontiguousarray(ship.params, dtype=float),
         phys.states[0].copy(),
-        np.zeros((max(1, net.window - 1), N_FEATURES)), 0, ctrl, T, float(spec.dt),
+        np.zeros((max(1, net.window - 1), net.n_features)), 0, ctrl, T, float(spec.dt),
         int(spec.substeps), integrator_code(spec.integrator), int(net.window), sizes, flat,
         net.x_mean, net.x_std, net.y_scale, float(net.physics), out, res)
     kw: dict[str, Any] = {} if status == OK else {

@@ -36,11 +36,12 @@ from mmg_tuner._atomic import write_atomic
 from mmg_tuner._limits import json_default, json_loads, load_yaml, read_npz
 from mmg_tuner.core._jit import FASTMATH
 from mmg_tuner.core.correction import (feature_names, feature_row, FEATURES, features_fit,
-                                       N_COMMAND_SLOTS, N_FEATURES, window_residual)
+                                       N_COMMAND_SLOTS, N_FEATURES, PHYSICS_FEATURES,
+                                       reads_physics, window_residual)
 from mmg_tuner.core.correction import mlp_forward  # noqa: F401  (re-exported: the tests')
 from mmg_tuner.core.dynamics import family_tag
-from mmg_tuner.core.integrate import (drive, has_measured_wind, input_row, N_ENV, RECORD,
-                                      start_state, STEERED, use_measured_wind)
+from mmg_tuner.core.integrate import (actuator_outputs, drive, has_measured_wind, input_row,
+                                      N_ENV, RECORD, start_state, STEERED, use_measured_wind)
 from mmg_tuner.core.layout import OK, PARAM_INDEX, STATUS_TEXT
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.simulate import integrator_code
@@ -48,6 +49,7 @@ from mmg_tuner.core.simulate import simulate as _simulate
 from mmg_tuner.core.stepper import apparent_wind_body  # noqa: F401  (re-exported: the node's)
 from mmg_tuner.core.trial import fitted_first_state, Trial
 from mmg_tuner.errors import ConfigError, SimulationError
+from mmg_tuner.learn._bridge import batch_derivative
 from numba import njit
 import numpy as np
 
@@ -61,6 +63,8 @@ X0_WINDOW_S = 10.0
 """The start-state fit of ``mt.simulate`` (tuning.objective.initial_state's default)."""
 
 _toff = PARAM_INDEX['time_offset']
+_Vw = PARAM_INDEX['wind_speed']
+_dirw = PARAM_INDEX['wind_dir']
 
 
 # ------------------------------------------------------------------------------- the network
@@ -71,7 +75,7 @@ class ResidualNet:
 
     window: samples of history fed to the net (the current one included); dt_s: the sample
     interval the window is built on [s]; weights[l] (out, in) and biases[l] (out,) of the
-    MLP layers (tanh between them, linear output); x_mean, x_std: (N_FEATURES,) input
+    MLP layers (tanh between them, linear output); x_mean, x_std: (n_features,) input
     standardisation, applied to every row of the window; y_scale (3,): output scale, du
     [m/s^2], dv [m/s^2], dr [rad/s^2]; physics: the weight of the physics' accelerations
     added to the network's output, 1.0 (True) = physics + residual (hybrid), 0.0 (False) =
@@ -79,8 +83,8 @@ class ResidualNet:
     networks (:func:`~mmg_tuner.learn.train.ensemble`: the hybrids' share); seed: the
     training seed; meta: training facts (trials, epochs, losses, share, seconds, versions);
     features: the names of a feature row (``core.correction.feature_names`` of the family it
-    was trained for): a ship whose family reads other channels is refused
-    (:func:`check_fits`).
+    was trained for; ending with ``PHYSICS_FEATURES`` when it reads the physics' prediction):
+    a ship whose family reads other channels is refused (:func:`check_fits`).
     """
 
     window: int
@@ -105,9 +109,19 @@ class ResidualNet:
         return ResidualStepper(self)
 
     @property
+    def n_features(self) -> int:
+        """Length of one feature row (N_FEATURES, plus 3 when it reads the physics)."""
+        return len(self.features)
+
+    @property
+    def physics_input(self) -> bool:
+        """Whether the network reads the physics' accelerations (``PHYSICS_FEATURES``)."""
+        return reads_physics(self.features)
+
+    @property
     def n_inputs(self) -> int:
         """Length of the standardised, flattened window the MLP reads."""
-        return self.window * N_FEATURES
+        return self.window * self.n_features
 
     def packed(self) -> tuple[np.ndarray, np.ndarray]:
         """(layer sizes (L+1,) int64, flat float64 weights+biases) for the kernels."""
@@ -155,9 +169,12 @@ class ResidualNet:
             raise ConfigError(f"{path}: key 'format' = {fmt!r}, expected {FORMAT!r} or "
                               f'{FORMAT_BLEND!r}')
         feats = tuple(str(f) for f in np.atleast_1d(get('features')))
-        if len(feats) != N_FEATURES or feats[:3] != FEATURES[:3] or feats[-2:] != FEATURES[-2:]:
+        base = feats[:N_FEATURES]
+        if len(base) != N_FEATURES or base[:3] != FEATURES[:3] or base[-2:] != FEATURES[-2:] \
+                or (len(feats) > N_FEATURES and not reads_physics(feats)):
             raise ConfigError(f"{path}: key 'features' = {feats}, this version reads u, v, r, "
-                              f'{N_COMMAND_SLOTS} command channels, wind_u, wind_v')
+                              f'{N_COMMAND_SLOTS} command channels, wind_u, wind_v[, '
+                              f'{", ".join(PHYSICS_FEATURES)}]')
         try:
             n = int(get('n_layers'))
             meta = json_loads(str(get('meta')), path, what="key 'meta'", limit=1 << 20)
@@ -231,7 +248,12 @@ def _check_net(net: ResidualNet, where: str) -> None:
     if len(net.weights) != len(net.biases) or not net.weights:
         raise ConfigError(f'{where}: keys W*/b*: {len(net.weights)} weight and '
                           f'{len(net.biases)} bias arrays (need the same number, >= 1)')
-    n_in = net.window * N_FEATURES
+    nf = len(net.features)
+    if nf != N_FEATURES and not reads_physics(net.features):
+        raise ConfigError(f"{where}: key 'features' holds {nf} names, need {N_FEATURES} "
+                          f'(or {N_FEATURES + len(PHYSICS_FEATURES)} ending with '
+                          f'{", ".join(PHYSICS_FEATURES)})')
+    n_in = net.window * nf
     for i, (w, b) in enumerate(zip(net.weights, net.biases)):
         if w.ndim != 2 or w.shape[1] != n_in or b.shape != (w.shape[0],):
             raise ConfigError(f"{where}: key 'W{i}'/'b{i}' shapes {w.shape}/{b.shape} do "
@@ -242,7 +264,7 @@ def _check_net(net: ResidualNet, where: str) -> None:
     if n_in != 3:
         raise ConfigError(f"{where}: key 'W{len(net.weights) - 1}' gives {n_in} outputs, "
                           'need 3 (du, dv, dr)')
-    for key, a, n in (('x_mean', net.x_mean, N_FEATURES), ('x_std', net.x_std, N_FEATURES),
+    for key, a, n in (('x_mean', net.x_mean, nf), ('x_std', net.x_std, nf),
                       ('y_scale', net.y_scale, 3)):
         if a.shape != (n,) or not np.all(np.isfinite(a)):
             raise ConfigError(f'{where}: key {key!r} must be {n} finite numbers, got shape '
@@ -274,7 +296,8 @@ def zero_net(window: int, dt_s: float, hidden: Sequence[int] = (16,), physics: b
 def measured_rows(kind: tuple[int, ...], p_in: FloatArray, states: FloatArray, ctrl: FloatArray,
                   T: int, dt: float, rows: FloatArray, model_states: FloatArray) -> None:
     """
-    Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
+    Fill feature rows (T, N_FEATURES: the physics' prediction not included) and model states
+    (T, 6) of a measured history.
 
     Each observed state is turned into the model's (antenna to midship, velocities through
     the water), with the inputs and measured wind of its sample.
@@ -304,7 +327,7 @@ def simulate_hybrid_one(kind: tuple[int, ...], p_in: FloatArray, x0: FloatArray,
     """
     One hybrid run over T samples (``integrate.simulate_one`` plus the residual).
 
-    x0: first observed state; hist (>= window-1, N_FEATURES): the feature rows before it, of
+    x0: first observed state; hist (>= window-1, n_features): the feature rows before it, of
     which the last n_hist are valid (the rest of the window is padded with the first sample's
     row); res_out (T, 3): the residual held over each interval. Returns (status, k_fail).
     The core's one sample loop (``integrate.drive``) with the network attached.
@@ -339,7 +362,7 @@ def steer_hybrid_one(kind: tuple[int, ...], p: FloatArray, x0: FloatArray, ctrl:
     status, k_fail, _ = drive(kind, p, start, ctrl, T, dt, substeps, method, 0, STEERED, gear,
                               np.empty(0, np.int64), out, rudder_out,
                               (window, sizes, flat, x_mean, x_std, y_scale, physics,
-                               np.zeros((1, N_FEATURES)), 0, res_out))
+                               np.zeros((1, x_mean.shape[0])), 0, res_out))
     return status, k_fail
 
 
@@ -349,15 +372,52 @@ def fitted_start(trial: Trial, window_s: float = X0_WINDOW_S) -> np.ndarray:
     return fitted_first_state(trial, window_s)
 
 
-def trial_rows(ship: ShipConfig, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
-    """Feature rows (T, N_FEATURES) and model states (T, 6) of a trial's measured states."""
+def trial_rows(ship: ShipConfig, trial: Trial, physics_input: bool = False,
+               params: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Feature rows (T, n_features) and model states (T, 6) of a trial's measured states.
+
+    physics_input: the rows end with the physics' accelerations at each measured state, with
+    the ship's actuators run over the recorded inputs (``integrate.actuator_outputs``, one step
+    per sample) and the sample's wind (:func:`sample_winds`). params: the ship's by default.
+    """
+    p = np.ascontiguousarray(ship.params if params is None else params, dtype=float)
     ctrl = np.ascontiguousarray(trial.input_array(ship.family.channels))
     T = len(trial)
-    rows = np.empty((T, N_FEATURES))
+    rows = np.empty((T, N_FEATURES + (len(PHYSICS_FEATURES) if physics_input else 0)))
     ms = np.empty((T, 6))
-    measured_rows(family_tag(ship.kind), ship.params, np.ascontiguousarray(trial.states), ctrl, T,
-                  float(trial.dt), rows, ms)
+    base = np.empty((T, N_FEATURES))
+    measured_rows(family_tag(ship.kind), p, np.ascontiguousarray(trial.states), ctrl, T,
+                  float(trial.dt), base, ms)
+    rows[:, :N_FEATURES] = base
+    if physics_input:
+        act = np.empty((T, len(ship.family.outputs)))
+        actuator_outputs(ship.kind, p, ctrl, T, float(trial.dt), act)
+        F = np.empty((T, 6))
+        batch_derivative(family_tag(ship.kind), p, ms, act, sample_winds(ship, trial, p), F,
+                         np.empty((0, 6, 6)), False)
+        rows[:, N_FEATURES:] = F[:, 3:]
     return rows, ms
+
+
+def sample_winds(ship: ShipConfig, trial: Trial, params: np.ndarray | None = None
+                 ) -> np.ndarray:
+    """
+    Wind (T, 2: speed [m/s], direction it blows from [rad]) at each sample, as kernels apply it.
+
+    The measured wind where recorded, else the last measured one held, else the parameters'.
+    """
+    p = ship.params if params is None else params
+    T = len(trial)
+    wind = np.empty((T, 2))
+    vw, dw = float(p[_Vw]), float(p[_dirw])
+    for k in range(T):
+        if trial.wind is not None:
+            wn, we = trial.wind[k]
+            if wn == wn and we == we:
+                vw, dw = math.sqrt(wn * wn + we * we), math.atan2(-we, -wn)
+        wind[k] = vw, dw
+    return wind
 
 
 def check_fits(net: ResidualNet, ship: ShipConfig) -> None:
@@ -402,7 +462,8 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
     if net is not None:
         check_fits(net, ship)
         _check_dt(net, dt, trial.name)
-        rows, _ = trial_rows(ship, trial) if restart_every_s is not None else (None, None)
+        rows = trial_rows(ship, trial, net.physics_input, p)[0] \
+            if restart_every_s is not None else None
         sizes, flat = net.packed()
     if restart_every_s is None:
         segs = [(0, T, fitted_start(trial))]
@@ -424,10 +485,11 @@ def simulate_segments(ship: ShipConfig, net: ResidualNet | None, trial: Trial,
             seg = np.empty((b - a, 6))
             seg_res = np.empty((b - a, 3))
             if rows is None or a == 0:
-                hist, n_hist = np.zeros((max(1, net.window - 1), N_FEATURES)), 0
+                hist, n_hist = np.zeros((max(1, net.window - 1), net.n_features)), 0
             else:
                 lo = max(0, a - (net.window - 1))
-                hist = np.ascontiguousarray(rows[lo:a]) if a > lo else np.zeros((1, N_FEATURES))
+                hist = np.ascontiguousarray(rows[lo:a]) if a > lo else \
+                    np.zeros((1, net.n_features))
                 n_hist = a - lo
             st, k_fail = simulate_hybrid_one(
                 family_tag(ship.kind), p, np.asarray(x0, float), hist, n_hist, inputs[a:b],
@@ -486,8 +548,8 @@ class ResidualStepper:
     def __init__(self, net: ResidualNet) -> None:
         self.net = net
         self._sizes, self._flat = net.packed()
-        self._ring = np.empty((net.window, N_FEATURES))
-        self._row = np.empty(N_FEATURES)
+        self._ring = np.empty((net.window, net.n_features))
+        self._row = np.empty(net.n_features)
         self._z = np.empty(net.n_inputs)
         nb = int(self._sizes.max())
         self._a = np.empty(nb)
@@ -500,15 +562,23 @@ class ResidualStepper:
         self._fresh = True
 
     def accelerations(self, state: np.ndarray | Sequence[float], act: Sequence[float],
-                      wind_body: np.ndarray | Sequence[float]) -> tuple[float, float, float]:
+                      wind_body: np.ndarray | Sequence[float],
+                      physics: Sequence[float] | None = None) -> tuple[float, float, float]:
         """
         Return the residual's (du [m/s^2], dv [m/s^2], dr [rad/s^2]) for this sample.
 
         state: model state (x, y, psi, u, v_m, r), velocities through the water; act: inputs
         held over the interval (rpm [rev/min], rudder [rad][, bow, stern [rev/s]]);
-        wind_body: the apparent wind in body axes [m/s] (:func:`apparent_wind_body`).
+        wind_body: the apparent wind in body axes [m/s] (:func:`apparent_wind_body`);
+        physics: the family's (du, dv, dr) at this sample
+        (``core.integrate.physics_accelerations``), needed when the network reads them.
         """
         r = self._row
+        if self.net.physics_input:
+            if physics is None:
+                raise ValueError("this residual network reads the physics' accelerations: "
+                                 'pass physics=(du, dv, dr) of the sample')
+            r[N_FEATURES:] = physics[:3]
         r[0] = state[3]
         r[1] = state[4]
         r[2] = state[5]

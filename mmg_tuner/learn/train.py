@@ -18,8 +18,7 @@ import math
 import time
 from typing import Any, Callable, cast, Mapping, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import (feature_names, FEATURE_PARAMS, features_fit,
-                                       N_FEATURES)
+from mmg_tuner.core.correction import feature_names, FEATURE_PARAMS, features_fit
 from mmg_tuner.core.layout import PARAM_INDEX
 from mmg_tuner.core.ship import ShipConfig
 from mmg_tuner.core.trial import common_dt, Trial
@@ -85,6 +84,10 @@ class ResidualConfig:
     ``groups``: over the trials), of a group's validation loss to the physics' alone, so an
     epoch that helps on average but hurts one regime is not kept: the residual stays zero
     unless the validation says it helps on every group.
+    physics_input: the network also reads the physics' accelerations at each sample (the
+    prediction it corrects, ``core.correction.PHYSICS_FEATURES``): of the ship's coefficients
+    (with ``coefficients``, of the trained ones inside the simulated windows and of the
+    starting ones in the measured history before them).
     """
 
     window: int = 5
@@ -104,6 +107,7 @@ class ResidualConfig:
     significance: float = 2.0
     balance: str = 'window'
     select: str = 'mean'
+    physics_input: bool = False
 
     def __post_init__(self) -> None:
         def whole(x: object, lo: int) -> bool | np.bool_:
@@ -126,6 +130,7 @@ class ResidualConfig:
                 ('seed', whole(self.seed, 0) and self.seed < 2**31, 'a whole number in '
                  '[0, 2^31)'),
                 ('physics', isinstance(self.physics, bool), 'True or False'),
+                ('physics_input', isinstance(self.physics_input, bool), 'True or False'),
                 ('integrator', self.integrator in ('euler', 'rk4'), "'euler' or 'rk4'"),
                 ('batch_size', whole(self.batch_size, 1), 'a whole number >= 1'),
                 ('stride_s', self.stride_s is None or pos(self.stride_s),
@@ -297,6 +302,10 @@ def _check_start(net: ResidualNet, cfg: ResidualConfig, dt: float, ship: ShipCon
                    f'{float(cfg.physics):g} (a blend cannot train on)')
     if not features_fit(net.features, ship.family):   # (as residual.check_fits reads them)
         why.append(f'it reads the features of another family than {ship.family}')
+    if net.physics_input != cfg.physics_input:
+        does = 'reads' if net.physics_input else 'does not read'
+        why.append(f"it {does} the physics' accelerations, the training's network "
+                   + ('does' if cfg.physics_input else 'not'))
     if why:
         raise TuningError('train_residual: cannot train on from the given network: '
                           + '; '.join(why))
@@ -481,8 +490,8 @@ def _sets(ship: ShipConfig, trials: Sequence[Trial], validation: Sequence[Trial]
         val_note = 'validation: ' + ', '.join(t.name for t in val_trials)
     H = max(1, int(round(cfg.horizon_s / dt)))
     stride = max(1, int(round((cfg.stride_s or cfg.horizon_s / 2) / dt)))
-    tr_arrs = [prepare(ship, t) for t in train_trials]
-    va_arrs = [prepare(ship, t) for t in val_trials]
+    tr_arrs = [prepare(ship, t, cfg.physics_input) for t in train_trials]
+    va_arrs = [prepare(ship, t, cfg.physics_input) for t in val_trials]
     w_tr = cut(tr_arrs, cfg.window, H, stride)
     w_va = cut(va_arrs, cfg.window, H, stride)
     if cfg.balance == 'group' and groups is None:
@@ -612,9 +621,9 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
     ds = _sets(ship, trials, validation, groups, cfg)
     free, jc, ship, joint_notes = _free(coefficients, ship, ds, cfg)
     sim = E.make_simulator(ship.kind, ship.params, cfg.physics, cfg.integrator == 'rk4', ds.dt,
-                           ds.x_mean, ds.x_std, ds.y_scale, free)
+                           ds.x_mean, ds.x_std, ds.y_scale, free, cfg.physics_input)
     data_loss, total = E.make_loss(sim, ds.sigma, ds.y_scale, cfg.l2, cfg.physics, free)
-    sizes = [cfg.window * N_FEATURES, *cfg.hidden, 3]
+    sizes = [cfg.window * ds.x_mean.shape[0], *cfg.hidden, 3]
     net0 = E.MLP(sizes, jax.random.PRNGKey(cfg.seed))
     model: MLP | Joint = net0 if free is None else \
         E.Joint(net0, jax.numpy.zeros(len(free.slots)))
@@ -763,7 +772,7 @@ def train_residual(ship: ShipConfig, trials: Sequence[Trial], *,
             if best_epoch else 'none moved (the start was kept)'))
         model = model.net
     weights, biases = model.export()
-    features = feature_names(ship.family)
+    features = feature_names(ship.family, cfg.physics_input)
     net = ResidualNet(cfg.window, ds.dt, weights, biases, ds.x_mean, ds.x_std, ds.y_scale,
                       cfg.physics, cfg.seed, features=features)
     share, parts = _share(net, ds.tr_arrs, ds.F, teacher_residuals)

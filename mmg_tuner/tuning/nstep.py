@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 import math
 from typing import Any, cast, Sequence, TYPE_CHECKING
 
-from mmg_tuner.core.correction import N_FEATURES
 from mmg_tuner.core.dynamics import family_tag
 from mmg_tuner.core.layout import STATE_NAMES
 from mmg_tuner.core.ship import ShipConfig
@@ -140,7 +139,7 @@ def _learned_windows(model: Model, trial: Trial, x0s: np.ndarray, ctrl: np.ndarr
     tag = family_tag(model.ship.kind)
     out = np.full((len(x0s), ctrl.shape[1], 6), np.nan)
     res = np.empty((ctrl.shape[1], 3))
-    empty = np.zeros((max(1, w - 1), N_FEATURES))
+    empty = np.zeros((max(1, w - 1), net.n_features))
     for i in range(len(x0s)):
         k = first + i
         lo = max(0, k - (w - 1))
@@ -193,7 +192,7 @@ def nstep_errors(ship: ShipConfig | Model, trials: Sequence[Trial], horizons: Se
             raise TuningError(f'n-step prediction: trial {tr.name} has fewer than 2 samples')
         inputs = tr.input_array(ship.family.channels)
         x0s, ctrl, lengths = _window_arrays(tr, inputs, n_max)
-        rows = trial_rows(ship, tr)[0] if net is not None else None
+        rows = trial_rows(ship, tr, net.physics_input, p)[0] if net is not None else None
         sq = np.zeros_like(total_sq)
         cnt = np.zeros(len(hs), dtype=np.int64)
         fail = np.zeros(len(hs), dtype=np.int64)

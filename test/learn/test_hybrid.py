@@ -21,6 +21,8 @@ from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import apparent_wind_body
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError
+from mmg_tuner.core.correction import FEATURES, PHYSICS_FEATURES
+from mmg_tuner.core.integrate import physics_accelerations
 from mmg_tuner.learn.residual import (fitted_start, N_FEATURES, ResidualNet, ResidualStepper,
                                       simulate_hybrid, simulate_segments, zero_net)
 import numpy as np
@@ -32,15 +34,24 @@ CI = {'window': 3, 'hidden': (16,), 'horizon_s': 20.0, 'epochs': 60, 'patience':
       'integrator': 'rk4'}
 
 
-def random_net(window=3, dt=1.0, hidden=(8,), scale=1e-3, seed=1, physics=True):
-    """Make a network with an output of about ``scale`` (small enough not to diverge)."""
+def random_net(window=3, dt=1.0, hidden=(8,), scale=1e-3, seed=1, physics=True,
+               physics_input=False):
+    """
+    Make a network with an output of about ``scale`` (small enough not to diverge).
+
+    physics_input: it reads the physics' accelerations too (standardised by 1e-2: they
+    matter to its output).
+    """
     rng = np.random.default_rng(seed)
-    sizes = [window * N_FEATURES, *hidden, 3]
+    nf = N_FEATURES + (3 if physics_input else 0)
+    sizes = [window * nf, *hidden, 3]
     ws = tuple(rng.normal(0, 0.5, (o, i)) for i, o in zip(sizes[:-1], sizes[1:]))
     bs = tuple(rng.normal(0, 0.1, o) for o in sizes[1:])
-    return ResidualNet(window, dt, ws, bs, rng.normal(0, 1, N_FEATURES),
-                       rng.uniform(0.5, 2, N_FEATURES), np.full(3, scale), physics, seed,
-                       {'note': 'test', 'values': [1, 2.5]})
+    x_std = rng.uniform(0.5, 2, nf)
+    x_std[N_FEATURES:] = 1e-2
+    return ResidualNet(window, dt, ws, bs, rng.normal(0, 1, nf) * (x_std > 0.1), x_std,
+                       np.full(3, scale), physics, seed, {'note': 'test', 'values': [1, 2.5]},
+                       FEATURES + (PHYSICS_FEATURES if physics_input else ()))
 
 
 def make_trials(ship, effect: dict, duration=200.0):
@@ -106,7 +117,45 @@ def test_load_names_the_file_and_the_bad_key(tmp_path):
         ResidualNet.load(bad)
 
 
+def test_a_network_reading_the_physics_round_trips_and_a_wrong_name_is_refused(tmp_path):
+    net = random_net(physics_input=True)
+    path = tmp_path / 'residual.npz'
+    net.save(path)
+    back = ResidualNet.load(path)
+    assert back.physics_input and back.features == net.features and back.n_features == 12
+    assert np.array_equal(back.weights[0], net.weights[0])
+    bad = tmp_path / 'bad.npz'
+    _rewrite(path, bad, change={'features': np.array(FEATURES + ('du', 'dv', 'dr'))})
+    with pytest.raises(ConfigError, match="bad.npz.*'features'.*phys_du"):
+        ResidualNet.load(bad)
+    with pytest.raises(ValueError, match='physics=.du, dv, dr'):   # the caller must give them
+        ResidualStepper(net).accelerations(np.zeros(6), (60.0, 0.0), (0.0, 0.0))
+
+
 # -------------------------------------------------------------------------------- inference
+def test_a_pure_network_passing_the_physics_through_is_the_physics(suzaku, trial):
+    """
+    A pure network whose output is its physics input is the physics (Euler, restarts too).
+
+    Its hidden layer reads the last row's physics columns scaled by eps (tanh(eps a) / eps
+    = a to eps^2): Euler's step uses the accelerations at the sample's start, exactly what
+    the features hold, so the runs agree; a feature taken at another state, or from other
+    inputs or actuators, would not.
+    """
+    eps, window, nf = 1e-4, 2, N_FEATURES + 3
+    w0 = np.zeros((3, window * nf))
+    w0[:, (window - 1) * nf + N_FEATURES:] = eps * np.eye(3)
+    net = ResidualNet(window, trial.dt, (w0, np.eye(3) / eps), (np.zeros(3), np.zeros(3)),
+                      np.zeros(nf), np.ones(nf), np.ones(3), False,
+                      features=FEATURES + PHYSICS_FEATURES)
+    for restart in (None, 30.0):
+        ref = simulate_segments(suzaku, None, trial, 'euler', restart)[0]
+        got = simulate_segments(suzaku, net, trial, 'euler', restart)[0]
+        np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-8)
+    rk4 = simulate_segments(suzaku, net, trial, 'rk4', None)[0]   # held, not re-evaluated
+    assert np.max(np.abs(rk4 - simulate_segments(suzaku, None, trial, 'rk4')[0])) > 1e-4
+
+
 def test_fitted_start_is_the_tuning_objectives_rule(trial):
     from mmg_tuner.tuning.report import start_state as tuning_start
     assert np.array_equal(fitted_start(trial), tuning_start(trial))
@@ -151,9 +200,11 @@ def test_wrong_sample_interval_is_refused(suzaku, trial):
         simulate_hybrid(suzaku, random_net(dt=0.5), trial)
 
 
-@pytest.mark.parametrize('integrator', [pytest.param('euler', marks=pytest.mark.slow), 'rk4'])
-def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
-    net = random_net(scale=1e-3)
+@pytest.mark.parametrize('integrator,physics_input',
+                         [pytest.param('euler', False, marks=pytest.mark.slow), ('rk4', False),
+                          ('rk4', True)])
+def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator, physics_input):
+    net = random_net(scale=1e-3, physics_input=physics_input)
     ref = simulate_hybrid(suzaku, net, trial, integrator=integrator)
     p = np.array(suzaku.params)
     s = np.empty(6)
@@ -166,8 +217,11 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator):
     got = [s.copy()]
     for k in range(len(trial) - 1):
         rpm, rudder = trial.controls[k]
-        a = stepper.accelerations(s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
         row = np.array([[rpm, rudder, np.nan, np.nan]])   # one sample: commands, no wind
+        seen = (s, (rpm, rudder, 0.0, 0.0), apparent_wind_body(suzaku, s))
+        if physics_input:
+            seen += (physics_accelerations(tag, p, s, gear, row, 0, 0.0, 1, trial.dt),)
+        a = stepper.accelerations(*seen)
         st = advance(tag, p, s, gear, row, 0, 0.0, 1, trial.dt, 1, INTEGRATORS[integrator], *a,
                      True)
         assert st == OK
@@ -391,7 +445,8 @@ def test_bridge_parameter_gradient_matches_finite_differences(any_ship):
 
 def _window_batch(ship, trial, net, k0, H):
     from mmg_tuner.learn._windows import cut, prepare
-    w = cut([prepare(ship, trial)], net.window, H, 1).take([k0 - net.window + 1])
+    w = cut([prepare(ship, trial, net.physics_input)], net.window, H, 1).take(
+        [k0 - net.window + 1])
     return {'x0': w.x0, 'hist': w.hist, 'inp': w.inp, 'act': w.act, 'wind': w.wind,
             'target': w.target}
 
@@ -592,6 +647,8 @@ def test_joint_training_goes_on_from_an_ensemble_keeping_its_members_apart(suzak
                            atol=1e-14)
     with pytest.raises(TuningError, match='window is 3 samples'):
         train_residual(suzaku, trials[:4], start=start, config=replace(cfg, window=4))
+    with pytest.raises(TuningError, match="does not read the physics' accelerations"):
+        train_residual(suzaku, trials[:4], start=start, config=replace(cfg, physics_input=True))
 
 
 def test_a_training_trial_without_its_group_is_refused_before_any_training(suzaku, hidden_fit,
@@ -792,13 +849,17 @@ def sailed(ship, T=121, dt=0.2):
     return run
 
 
-@pytest.mark.parametrize('family', sorted(FAMILY_SHIPS))
-def test_training_simulation_equals_inference_for_every_family(family):
+@pytest.mark.parametrize('family,physics_input,physics',
+                         [(f, False, True) for f in sorted(FAMILY_SHIPS)]
+                         + [(f, True, True) for f in sorted(FAMILY_SHIPS)]
+                         + [('container', True, False)])
+def test_training_simulation_equals_inference_for_every_family(family, physics_input, physics):
     """
     The JAX window simulation equals the compiled hybrid run for every family (1e-12).
 
     A network of the family's features (its first channels by name: a tug's shaft speeds
-    and azimuths) with a current and an antenna offset, restarted at the same sample.
+    and azimuths; with physics_input, the physics' accelerations) with a current and an
+    antenna offset, restarted at the same sample; a pure network reading the physics too.
     """
     pytest.importorskip('jax')
     import equinox as eqx
@@ -810,15 +871,16 @@ def test_training_simulation_equals_inference_for_every_family(family):
     ship = load_ship(FAMILY_SHIPS[family]).with_params(
         {'antenna_x': 0.3, 'current_speed': 0.05, 'current_dir': 1.0})
     trial = sailed(ship)
-    names = feature_names(ship.family)
+    names = feature_names(ship.family, physics_input)
     assert names[3:3 + min(4, len(ship.family.inputs))] == ship.family.inputs[:4]
-    net = replace(random_net(dt=trial.dt, scale=1e-3), features=names)
+    net = replace(random_net(dt=trial.dt, scale=1e-3 if physics else 0.3,
+                             physics_input=physics_input, physics=physics), features=names)
     k0, H = 40, 20
     model = MLP([net.n_inputs, 8, 3], jax.random.PRNGKey(0))
     model = eqx.tree_at(lambda m: [la.weight for la in m.layers] + [la.bias for la in m.layers],
                         model, [jnp.asarray(x) for x in net.weights + net.biases])
-    sim = make_simulator(ship.kind, ship.params, True, True, trial.dt, net.x_mean, net.x_std,
-                         net.y_scale)
+    sim = make_simulator(ship.kind, ship.params, physics, True, trial.dt, net.x_mean,
+                         net.x_std, net.y_scale, physics_input=physics_input)
     b = _window_batch(ship, trial, net, k0, H)
     obs, res = sim(model, b['x0'], b['hist'], b['inp'], b['act'], b['wind'])
     ref, _, _, _ = simulate_segments(ship, net, trial, 'rk4', k0 * trial.dt)

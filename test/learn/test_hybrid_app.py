@@ -179,11 +179,15 @@ def test_tune_residual_options_are_checked(trial_dir, tmp_path, capsys):
                        (['--residual-epochs', '3'], 'only with --residual'),
                        (['--residual-seeds', '2'], '--residual-seeds: only with'),
                        (['--residual', '--residual-seeds', '0'], 'residual seeds'),
-                       (['--residual', '--residual-window', '0'], '--residual-window')):
+                       (['--residual', '--residual-window', '0'], '--residual-window'),
+                       (['--residual-physics-input'], '--residual-physics-input: only with')):
         with pytest.raises(SystemExit) as e:
             main(base + argv)
         err = capsys.readouterr().err
         assert e.value.code == 2 and what in err and 'Traceback' not in err
+    from mmg_tuner.cli.tune import build_parser, tune_config
+    args = build_parser().parse_args(base + ['--model', 'auto', '--residual-physics-input'])
+    assert tune_config(args).residual_options == {'physics_input': True}
     with pytest.raises(mt.MmgTunerError, match='residual'):
         mt.TuneConfig(residual='both')
     with pytest.raises(mt.MmgTunerError, match='nope'):
