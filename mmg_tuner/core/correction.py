@@ -138,7 +138,7 @@ def feature_row(p: FloatArray, s: FloatArray, inp: FloatArray, row: FloatArray) 
 def window_residual(ring: FloatArray, window: int, sizes: IntArray, flat: FloatArray,
                     x_mean: FloatArray, x_std: FloatArray, y_scale: FloatArray, z: FloatArray,
                     buf_a: FloatArray, buf_b: FloatArray) -> tuple[float, float, float]:
-    """(du, dv, dr) of the network for the window ring (window, N_FEATURES), oldest first."""
+    """(du, dv, dr) of the network for the window ring (window, n_features), oldest first."""
     nf = ring.shape[1]
     for i in range(window):
         for f in range(nf):

@@ -549,7 +549,8 @@ def rhs(kind: tuple[int, ...], p: FloatArray, s: FloatArray | tuple[float, ...],
         dr += ar
     if physics == 1.0:
         return dx, dy, r, du + r0, dv + r1, dr + r2
-    if physics == 0.0:   # not 0 * du: a pure network never sees the physics' inf or NaN
+    if physics == 0.0:   # not 0 * du: a pure network's run never takes the physics' inf or
+        # NaN (one that reads them as features, ``core.correction.PHYSICS_FEATURES``, does)
         return dx, dy, r, r0, r1, r2
     return dx, dy, r, physics * du + r0, physics * dv + r1, physics * dr + r2
 

@@ -249,13 +249,15 @@ def physics_accelerations(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a
                           ctrl: FloatArray, k: int, shift: float, T: int,
                           h: float) -> tuple[float, float, float]:
     """
-    The family's (du, dv_m, dr) at state s with the inputs of sample k: the physics' prediction.
+    Return the family's (du, dv_m, dr) at state s, inputs of sample k: the physics' prediction.
 
-    What the first integration step of :func:`advance` would apply without a network (the
-    actuators advanced over one step h from their states ``a``, which are left untouched);
-    zeros where the inputs stop the run (advance then reports why). A network trained with
-    ``physics_input`` reads it (``core.correction.PHYSICS_FEATURES``). Not inlined: the
-    forces compiled once more into every whole-run loop would slow the tuning's.
+    The actuators advanced over h from their states ``a`` (left untouched), h the *sample*
+    interval whatever the integration step, as the training's rows hold them (one actuator
+    step per sample, ``actuator_outputs``): a network's input must not depend on ``substeps``
+    or on the node's step; zeros where the inputs stop the run (advance then reports why). A
+    network trained with ``physics_input`` reads it (``core.correction.PHYSICS_FEATURES``).
+    Not inlined: the forces compiled once more into every whole-run loop would slow the
+    tuning's.
     """
     st, held = actuate_hold(kind, p, ctrl, k, shift, T, h)
     if st != OK:
@@ -380,7 +382,7 @@ def drive(kind: tuple[int, ...], p_in: FloatArray, meas: FloatArray, ctrl: Float
             feature_row(p, s, inp, frow)
             if nf > N_FEATURES:
                 ph = physics_accelerations(kind, p, s, a, src, 0 if steered else k,
-                                           step_shift, step_T, h)
+                                           step_shift, step_T, dt)
                 frow[N_FEATURES] = ph[0]
                 frow[N_FEATURES + 1] = ph[1]
                 frow[N_FEATURES + 2] = ph[2]

@@ -172,7 +172,8 @@ class ShipSimulator:
                  commands: Mapping[str, float] | None = None) -> None:
         self.ship = ship
         # a learned residual network (``learn.ResidualNet``, or anything with dt_s, physics and
-        # stepper() -> .accelerations(state, commands, wind_body), .reset()) or None
+        # stepper() -> .accelerations(state, commands, wind_body[, physics]), .reset(); the
+        # physics' accelerations when its features end with them) or None
         self.residual = residual
         self._tag = family_tag(ship.kind)
         fam = ship.family
@@ -484,9 +485,10 @@ class ShipSimulator:
             if (self.steps + done) % self._every == 0:
                 seen: tuple[Any, ...] = (s, self._feature_commands,
                                          apparent_wind_body(self.ship, s))
-                if reads_physics(getattr(net, 'features', FEATURES)):   # what advance applies
+                if reads_physics(getattr(net, 'features', FEATURES)):   # over a sample, as
+                    # offline (physics_accelerations), not over this simulator's step
                     seen += (physics_accelerations(self._tag, p, s, self._a, inp, 0, 0.0, 1,
-                                                   self.dt / self.substeps),)
+                                                   float(net.dt_s)),)
                 self._acc = self._residual.accelerations(*seen)
             chunk = min(n - done, self._every - (self.steps + done) % self._every)
             status, k = _advance_checked(self._tag, p, s, self._a, inp, self.dt, self.substeps,

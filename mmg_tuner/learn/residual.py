@@ -9,7 +9,9 @@ most recent samples (the current one included) of
     u, v_m, r (the model state, through the water), the family's first four command channels
     (a screw-and-rudder ship's rpm [rev/min], rudder [rad] and thrusters [rev/s], a tug's shaft
     speeds and measured azimuths; zero where it has fewer) and the apparent wind (air velocity
-    relative to the ship) in body axes [m/s]: ``core.correction.feature_names``,
+    relative to the ship) in body axes [m/s]: ``core.correction.feature_names``; optionally
+    then the family's own accelerations at the sample (``PHYSICS_FEATURES``, the prediction
+    the network corrects: ``ResidualConfig.physics_input``),
 
 each standardised by ``x_mean``/``x_std`` and ordered oldest first. The residual is
 evaluated once per sample from the sampled window and held over the sample interval, as the
@@ -296,8 +298,9 @@ def zero_net(window: int, dt_s: float, hidden: Sequence[int] = (16,), physics: b
 def measured_rows(kind: tuple[int, ...], p_in: FloatArray, states: FloatArray, ctrl: FloatArray,
                   T: int, dt: float, rows: FloatArray, model_states: FloatArray) -> None:
     """
-    Fill feature rows (T, N_FEATURES: the physics' prediction not included) and model states
-    (T, 6) of a measured history.
+    Fill feature rows (T, N_FEATURES) and model states (T, 6) of a measured history.
+
+    The physics' prediction is not among them (:func:`trial_rows` adds it).
 
     Each observed state is turned into the model's (antenna to midship, velocities through
     the water), with the inputs and measured wind of its sample.
@@ -540,9 +543,9 @@ class ResidualStepper:
     The residual one sample at a time (the simulator node's engine).
 
     A ring buffer holds the window. Call :meth:`accelerations` once per sample interval with
-    the model state at its start, the inputs held over it and the apparent wind; hold the
-    result over the interval (pass it to :func:`advance_hybrid`). This reproduces
-    :func:`simulate_hybrid` step by step.
+    the model state at its start, the inputs held over it and the apparent wind (and the
+    physics' accelerations when the network reads them); hold the result over the interval.
+    This reproduces :func:`simulate_hybrid` step by step.
     """
 
     def __init__(self, net: ResidualNet) -> None:

@@ -86,8 +86,8 @@ class ResidualConfig:
     unless the validation says it helps on every group.
     physics_input: the network also reads the physics' accelerations at each sample (the
     prediction it corrects, ``core.correction.PHYSICS_FEATURES``): of the ship's coefficients
-    (with ``coefficients``, of the trained ones inside the simulated windows and of the
-    starting ones in the measured history before them).
+    (with ``coefficients``, of the trained ones inside the simulated windows, of the ship's
+    in the measured history before them).
     """
 
     window: int = 5
@@ -305,7 +305,7 @@ def _check_start(net: ResidualNet, cfg: ResidualConfig, dt: float, ship: ShipCon
     if net.physics_input != cfg.physics_input:
         does = 'reads' if net.physics_input else 'does not read'
         why.append(f"it {does} the physics' accelerations, the training's network "
-                   + ('does' if cfg.physics_input else 'not'))
+                   + ('does' if cfg.physics_input else 'does not'))
     if why:
         raise TuningError('train_residual: cannot train on from the given network: '
                           + '; '.join(why))

@@ -14,15 +14,14 @@ import sys
 import zipfile
 
 import mmg_tuner as mt
+from mmg_tuner.core.correction import FEATURES, PHYSICS_FEATURES
 from mmg_tuner.core.dynamics import family_tag, N_ACT_STATES
-from mmg_tuner.core.integrate import advance, start_state
+from mmg_tuner.core.integrate import advance, physics_accelerations, start_state
 from mmg_tuner.core.layout import INTEGRATORS, OK, PARAM_INDEX
 from mmg_tuner.core.ship import load_ship
 from mmg_tuner.core.stepper import apparent_wind_body
 from mmg_tuner.data.generate import generate_trial, SensorNoise
 from mmg_tuner.errors import ConfigError, MissingDependencyError, SimulationError
-from mmg_tuner.core.correction import FEATURES, PHYSICS_FEATURES
-from mmg_tuner.core.integrate import physics_accelerations
 from mmg_tuner.learn.residual import (fitted_start, N_FEATURES, ResidualNet, ResidualStepper,
                                       simulate_hybrid, simulate_segments, zero_net)
 import numpy as np
@@ -47,9 +46,10 @@ def random_net(window=3, dt=1.0, hidden=(8,), scale=1e-3, seed=1, physics=True,
     sizes = [window * nf, *hidden, 3]
     ws = tuple(rng.normal(0, 0.5, (o, i)) for i, o in zip(sizes[:-1], sizes[1:]))
     bs = tuple(rng.normal(0, 0.1, o) for o in sizes[1:])
+    x_mean = rng.normal(0, 1, nf)   # (drawn in this order: the 9-feature nets of before)
     x_std = rng.uniform(0.5, 2, nf)
-    x_std[N_FEATURES:] = 1e-2
-    return ResidualNet(window, dt, ws, bs, rng.normal(0, 1, nf) * (x_std > 0.1), x_std,
+    x_mean[N_FEATURES:], x_std[N_FEATURES:] = 0.0, 1e-2
+    return ResidualNet(window, dt, ws, bs, x_mean, x_std,
                        np.full(3, scale), physics, seed, {'note': 'test', 'values': [1, 2.5]},
                        FEATURES + (PHYSICS_FEATURES if physics_input else ()))
 
@@ -227,6 +227,70 @@ def test_stepper_reproduces_simulate_hybrid(suzaku, trial, integrator, physics_i
         assert st == OK
         got.append(s.copy())
     np.testing.assert_allclose(np.array(got), ref.states, rtol=1e-12, atol=1e-12)
+
+
+def test_the_node_stepper_feeds_a_network_the_physics_as_offline(suzaku):
+    """
+    The node's ShipSimulator with a network reading the physics equals the offline run.
+
+    A lagging steering gear, a rudder step mid-run, the node's 0.25 s steps against 0.5 s
+    samples integrated in two substeps: the physics' input is taken over the sample interval
+    both ways (its actuators' step must not depend on the simulator's step).
+    """
+    from mmg_tuner.core.stepper import ShipSimulator
+    from mmg_tuner.core.trial import Trial
+    ship = suzaku.with_params({'rudder_lag_tau': 2.0})
+    net = random_net(window=3, dt=0.5, scale=1e-3, physics_input=True)
+    x0 = [0.0, 0.0, 0.0, 3.0, 0.0, 0.0]
+    sim = ShipSimulator(ship, dt=0.25, x0=x0, rpm=100.0, rudder_rad=0.0, residual=net)
+    assert sim.step(20)   # 10 samples straight, then 35 deg
+    sim.set_rudder(0.6)
+    assert sim.step(180)
+    T = 101
+    rudder = np.where(np.arange(T) < 10, 0.0, 0.6)
+    tr = Trial(np.arange(T) * 0.5, np.tile(x0, (T, 1)),
+               np.column_stack([np.full(T, 100.0), rudder]))
+    off = simulate_hybrid(ship, net, tr, restart_every_s=0.0, substeps=2)
+    np.testing.assert_allclose(sim.observed(), off.states[-1], rtol=1e-9, atol=1e-9)
+    plain = simulate_hybrid(ship, random_net(window=3, dt=0.5, scale=1e-3), tr,
+                            restart_every_s=0.0, substeps=2)
+    assert not np.allclose(plain.states[-1], off.states[-1], atol=1e-3)   # the input matters
+
+
+def test_the_history_rows_hold_the_physics_of_each_measured_sample(suzaku):
+    """
+    trial_rows' physics columns: the loop's own physics at each measured model state.
+
+    With a current, an antenna offset, measured wind that changes and the parameters given
+    (not the ship's): each row equals ``physics_accelerations`` at the model state of that
+    sample (antenna to midship, through the water) with that sample's wind and inputs (the
+    gear without lag: its state is the recorded angle; the lag is the node test's).
+    """
+    from mmg_tuner.core.trial import Trial
+    from mmg_tuner.learn.residual import trial_rows
+    ship = suzaku.with_params({'current_speed': 0.2, 'current_dir': 1.0, 'antenna_x': 2.0})
+    p = ship.with_params({'N_r': 1.2 * ship['N_r']}).params
+    T = 60
+    rng = np.random.default_rng(3)
+    states = np.column_stack([np.cumsum(rng.normal(0, 1, T)), rng.normal(0, 1, T),
+                              rng.normal(0, 0.1, T), 3 + rng.normal(0, 0.1, T),
+                              rng.normal(0, 0.1, T), rng.normal(0, 0.01, T)])
+    ctrl = np.column_stack([np.full(T, 100.0), np.where(np.arange(T) < 20, 0.0, 0.5)])
+    wind = np.column_stack([np.linspace(-3, 5, T), np.full(T, 2.0)])
+    tr = Trial(np.arange(T) * 0.5, states, ctrl, wind=wind)
+    rows, ms = trial_rows(ship, tr, True, p)
+    assert rows.shape == (T, N_FEATURES + 3)
+    inputs = np.ascontiguousarray(tr.input_array(ship.family.channels))
+    tag = family_tag(ship.kind)
+    for k in (0, 19, 20, 21, 59):
+        gear = np.zeros(N_ACT_STATES)
+        gear[0] = ctrl[k, 1] + ship['rudder_offset']
+        q = p.copy()
+        q[PARAM_INDEX['wind_speed']] = math.hypot(*wind[k])
+        q[PARAM_INDEX['wind_dir']] = math.atan2(-wind[k, 1], -wind[k, 0])
+        want = physics_accelerations(tag, q, ms[k], gear, inputs, k, 0.0, T, 0.5)
+        np.testing.assert_allclose(rows[k, N_FEATURES:], want, rtol=1e-12, atol=1e-15)
+    assert not np.allclose(rows[:, N_FEATURES:], trial_rows(ship, tr, True)[0][:, N_FEATURES:])
 
 
 def test_core_residual_runs_without_jax():
@@ -649,6 +713,20 @@ def test_joint_training_goes_on_from_an_ensemble_keeping_its_members_apart(suzak
         train_residual(suzaku, trials[:4], start=start, config=replace(cfg, window=4))
     with pytest.raises(TuningError, match="does not read the physics' accelerations"):
         train_residual(suzaku, trials[:4], start=start, config=replace(cfg, physics_input=True))
+
+
+def test_a_network_reading_the_physics_trains_and_runs(suzaku, hidden_fit):
+    """Training with physics_input end to end: 12 features, saved names, a finite run."""
+    from mmg_tuner.learn import ResidualConfig, train_residual
+    _, trials = hidden_fit
+    fit = train_residual(suzaku, trials[:3], config=ResidualConfig(
+        **{**CI, 'epochs': 2}, seed=0, significance=0.0, physics_input=True))
+    net = fit.net
+    assert net.physics_input and net.n_inputs == CI['window'] * (N_FEATURES + 3)
+    assert net.x_std[N_FEATURES:].min() < 0.1   # standardised by the physics' spread
+    assert fit.best_epoch > 0 and np.any(net.weights[-1] != 0)
+    run = simulate_hybrid(suzaku, net, trials[4], restart_every_s=50.0)
+    assert run.ok and np.all(np.isfinite(run.states))
 
 
 def test_a_training_trial_without_its_group_is_refused_before_any_training(suzaku, hidden_fit,
