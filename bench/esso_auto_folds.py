@@ -16,7 +16,8 @@ held-out runs, verdict I1 (every fold: largest factor <= 3, coverage in [0.80, 0
 ``--joint``: the auto command with ``--joint`` (J1, J2:
 bench/esso_joint_folds_preregistration.md). ``--physics-input``: its networks read the
 physics' prediction (P1-P3: bench/esso_physics_input_preregistration.md, against the default
-run stored in bench/results/esso_auto_folds.json).
+run stored in bench/results/esso_auto_folds.json: give ``--results-dir`` elsewhere, or the
+run replaces that baseline).
 ``--quick``: fold 1 only, 3 epochs per network (a check that it runs; verdicts meaningless).
 """
 from __future__ import annotations

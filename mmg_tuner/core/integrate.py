@@ -253,11 +253,12 @@ def physics_accelerations(kind: tuple[int, ...], p: FloatArray, s: FloatArray, a
 
     The actuators advanced over h from their states ``a`` (left untouched), h the *sample*
     interval whatever the integration step, as the training's rows hold them (one actuator
-    step per sample, ``actuator_outputs``): a network's input must not depend on ``substeps``
-    or on the node's step; zeros where the inputs stop the run (advance then reports why). A
-    network trained with ``physics_input`` reads it (``core.correction.PHYSICS_FEATURES``).
-    Not inlined: the forces compiled once more into every whole-run loop would slow the
-    tuning's.
+    step per sample, ``actuator_outputs``): the input's definition must not depend on
+    ``substeps`` or on the node's step (the actuators' states do, where their response over
+    a sample is not exact in steps: a rate-limited azimuth); zeros where the inputs stop the
+    run (advance then reports why). A network trained with ``physics_input`` reads it
+    (``core.correction.PHYSICS_FEATURES``). Not inlined: the forces compiled once more into
+    every whole-run loop would slow the tuning's.
     """
     st, held = actuate_hold(kind, p, ctrl, k, shift, T, h)
     if st != OK:

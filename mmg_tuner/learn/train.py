@@ -87,7 +87,8 @@ class ResidualConfig:
     physics_input: the network also reads the physics' accelerations at each sample (the
     prediction it corrects, ``core.correction.PHYSICS_FEATURES``): of the ship's coefficients
     (with ``coefficients``, of the trained ones inside the simulated windows, of the ship's
-    in the measured history before them).
+    in the measured history before them and in the standardisation; a run of the result
+    uses the trained ones throughout).
     """
 
     window: int = 5
