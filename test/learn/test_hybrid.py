@@ -134,7 +134,7 @@ def test_a_network_reading_the_physics_round_trips_and_a_wrong_name_is_refused(t
 
 # -------------------------------------------------------------------------------- inference
 def _pass_through(dt, eps=1e-4, window=2):
-    """A pure network whose output is the physics' input of the last row (to eps^2)."""
+    """Return a pure network whose output is the physics' input of its last row (to eps^2)."""
     nf = N_FEATURES + 3
     w0 = np.zeros((3, window * nf))
     w0[:, (window - 1) * nf + N_FEATURES:] = eps * np.eye(3)
