@@ -4,7 +4,8 @@ Which tuned parameters do the trials determine.
 Gauss-Newton standard errors at the optimum.
 
 The weighted residuals r(theta) of all trials are linearised by central differences in the
-unit box; cov = s^2 (J'J)^-1 with s^2 = SSR / (n - p). A parameter whose standard error is a
+unit box; cov = s^2 (J'J + s^2 / BOX_VARIANCE I)^-1 with s^2 = SSR / (n - p): the data's
+information and the box's (:data:`BOX_VARIANCE`). A parameter whose standard error is a
 small fraction of its box is identified by the data; a large one means the data cannot tell
 it apart from others (a correlated combination), so its tuned value carries no information.
 Residuals along a trajectory are correlated, so these errors are optimistic: use them to rank,
@@ -18,6 +19,16 @@ from mmg_tuner.core.integrate import residuals_many
 from mmg_tuner.tuning.objective import Objective
 from mmg_tuner.tuning.parameters import ParameterSpace
 import numpy as np
+
+BOX_VARIANCE = 1.0 / 12.0
+"""The box as prior information: the variance of a uniform distribution over it (unit box).
+Its information (1 / BOX_VARIANCE per parameter, in units of s^2) is added to the data's, so a
+direction the trials leave undetermined gets the box's own standard error (0.29 of its width)
+and one they determine is unchanged (its variance by about 12 SE^2, SE in box widths). Without
+it the paper's problem (four SUZAKU turns; t_R, a_H, x_H and the rudder inflow coefficients
+leave a direction undetermined) had an eigenvalue of J'J at rounding level, and the
+pseudo-inverse gave a_H 0.051 or 264 box widths depending on the differences' step
+(bench/identifiability_steps_preregistration.md)."""
 
 
 def residuals(objective: Objective, params: np.ndarray) -> np.ndarray:
@@ -74,9 +85,21 @@ def standard_errors(objective: Objective, space: ParameterSpace, theta: np.ndarr
                     h: float = 1e-3) -> np.ndarray:
     """Return standard error of each tuned parameter (in its own units) at theta."""
     Jac, s2 = jacobian(objective, space, theta, h)
-    cov = s2 * np.linalg.pinv(Jac.T @ Jac)
+    cov = s2 * inverse_information(Jac, s2)
     se: np.ndarray = np.sqrt(np.clip(np.diag(cov), 0, None)) * (space.upper - space.lower)
     return se
+
+
+def inverse_information(Jac: np.ndarray, s2: float) -> np.ndarray:
+    """
+    Return (J'J + s^2 / BOX_VARIANCE I)^-1: the unit box's covariance per s^2.
+
+    The data's information J'J and the box's (:data:`BOX_VARIANCE`); a pseudo-inverse still
+    where s^2 = 0 (residuals that vanish: nothing to weigh the box against).
+    """
+    H = Jac.T @ Jac + s2 / BOX_VARIANCE * np.eye(Jac.shape[1])
+    out: np.ndarray = np.linalg.pinv(H)
+    return out
 
 
 def trial_robust_standard_errors(objective: Objective, space: ParameterSpace,
@@ -89,14 +112,15 @@ def trial_robust_standard_errors(objective: Objective, space: ParameterSpace,
     simulated trajectory they are not (the start-state error, a sensor's drift), and within a
     trial they share one error. The trial-robust ones are the sandwich (cluster-robust, one
     cluster per trial; the infinitesimal jackknife over trials) covariance
-    H^-1 (n / (n - 1) sum_i g_i g_i') H^-1, with H = J'J and g_i trial i's gradient J_i' r_i
+    H^-1 (n / (n - 1) sum_i g_i g_i') H^-1, with H = J'J + s^2 / BOX_VARIANCE I (the box's
+    information too, as :func:`standard_errors`) and g_i trial i's gradient J_i' r_i
     at theta (a prior's rows count in H only). The g_i are not centred: a fit stopped short of
     its optimum (a least-squares fit stopped by its tolerance, a coefficient held on a bound)
     has sum_i g_i != 0, and the step it leaves counts as error too. Needs two trials or more
     (NaN otherwise). Both in the parameters' own units.
     """
     Jac, s2 = jacobian(objective, space, theta, h)
-    Hi = np.linalg.pinv(Jac.T @ Jac)
+    Hi = inverse_information(Jac, s2)
     width = space.upper - space.lower
     gn = np.sqrt(np.clip(s2 * np.diag(Hi), 0, None)) * width
     b = objective.batch
