@@ -103,10 +103,39 @@ def test_noisy_data_test_set_gain(suzaku):
     J_truth = obj_test(space.full_params(suzaku.params, theta))[0]
     assert J_tuned < 0.1 * J_pre
     assert J_tuned < 5 * J_truth
-    # the data pin R_0 (resistance) far better than the rudder interaction coefficients
+    # the data pin R_0 (resistance) far better than the rudder interaction coefficients,
+    # which these trials leave in a direction only the box bounds (R_0 0.034, a_H 0.22 box
+    # widths here; before the box's information a_H's error was set by rounding there)
     se = standard_errors(obj, space, theta) / (space.upper - space.lower)
     names = list(space.names)
     assert se[names.index('R_0')] < 0.1 < se[names.index('a_H')]
+
+
+def test_a_direction_the_trials_leave_undetermined_gets_the_box_error(suzaku):
+    """
+    The box's information bounds what the trials do not determine; nothing else moves.
+
+    CD_t (a windage coefficient) does not enter a windless run of a ship with no windage
+    area: its Jacobian column is exactly zero, and the pseudo-inverse of J'J alone called it
+    perfectly known (error 0). It gets the box's own error, 1/sqrt(12) of the width; R_0's
+    error does not feel it (within 1 %) and does not depend on the differences' step.
+    """
+    from mmg_tuner.tuning.identifiability import BOX_VARIANCE, trial_robust_standard_errors
+    space = ParameterSpace.around(suzaku, ['R_0', 'CD_t'], overrides={'CD_t': (0.0, 1.0)})
+    tr = trials(suzaku, TUNE_SPECS[:1], SensorNoise(), 3)
+    obj = Objective(suzaku, TrialBatch.from_trials(tr))
+    theta = space.pre
+    width = space.upper - space.lower
+    se = standard_errors(obj, space, theta) / width
+    assert se[1] == pytest.approx(math.sqrt(BOX_VARIANCE), rel=1e-6)
+    assert se[0] < 0.05
+    alone = ParameterSpace.around(suzaku, ['R_0'])
+    se_alone = standard_errors(obj, alone, theta[:1]) / (alone.upper - alone.lower)
+    assert se[0] == pytest.approx(se_alone[0], rel=0.01)
+    assert standard_errors(obj, space, theta, h=1e-5)[0] / width[0] == pytest.approx(
+        se[0], rel=0.01)
+    gn, robust = trial_robust_standard_errors(obj, space, theta)
+    np.testing.assert_allclose(gn, se * width, rtol=1e-9)
 
 
 def test_candidates_stay_in_the_box_and_divergence_is_penalised(suzaku):
@@ -348,7 +377,7 @@ def test_trial_robust_errors_are_the_sandwich_over_trials(suzaku):
     independent route to the residuals' layout; a trial-robust error needs two trials (NaN
     with one), and the Gauss-Newton errors are :func:`standard_errors`'.
     """
-    from mmg_tuner.tuning.identifiability import jacobian, residuals
+    from mmg_tuner.tuning.identifiability import BOX_VARIANCE, jacobian, residuals
     from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
 
     specs = [mv.ManeuverSpec('turning', rudder_deg=20, duration_s=60),
@@ -368,7 +397,8 @@ def test_trial_robust_errors_are_the_sandwich_over_trials(suzaku):
         H = H + Ji.T @ Ji
         G.append(Ji.T @ ri)
     G = np.array(G)
-    Hi = np.linalg.inv(H)
+    s2 = jacobian(obj, space, theta, 1e-3)[1]   # the box's information, in units of s^2
+    Hi = np.linalg.inv(H + s2 / BOX_VARIANCE * np.eye(3))
     want = np.sqrt(np.diag(Hi @ (1.5 * G.T @ G) @ Hi)) * (space.upper - space.lower)
     np.testing.assert_allclose(robust, want, rtol=1e-6)
     assert np.all(robust > 0)
