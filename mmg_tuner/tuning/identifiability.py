@@ -6,8 +6,9 @@ Gauss-Newton standard errors at the optimum.
 The weighted residuals r(theta) of all trials are linearised by central differences in the
 unit box; cov = s^2 (J'J + s^2 / BOX_VARIANCE I)^-1 with s^2 = SSR / (n - p): the data's
 information and the box's (:data:`BOX_VARIANCE`). A parameter whose standard error is a
-small fraction of its box is identified by the data; a large one means the data cannot tell
-it apart from others (a correlated combination), so its tuned value carries no information.
+small fraction of its box is identified by the data; one near the box's own (0.29 of its
+width) means the data cannot tell it apart from others (a correlated combination), so its
+tuned value carries no information.
 Residuals along a trajectory are correlated, so these errors are optimistic: use them to rank,
 not as confidence intervals.
 """
@@ -24,7 +25,9 @@ BOX_VARIANCE = 1.0 / 12.0
 """The box as prior information: the variance of a uniform distribution over it (unit box).
 Its information (1 / BOX_VARIANCE per parameter, in units of s^2) is added to the data's, so a
 direction the trials leave undetermined gets the box's own standard error (0.29 of its width)
-and one they determine is unchanged (its variance by about 12 SE^2, SE in box widths). Without
+and one they determine is unchanged (its variance changes by a relative 12 SE^2, SE in box
+widths); no error exceeds the box's own. The estimate itself is not pulled by it (the tuning
+has no such term): the errors rank what the trials determine. Without
 it the paper's problem (four SUZAKU turns; t_R, a_H, x_H and the rudder inflow coefficients
 leave a direction undetermined) had an eigenvalue of J'J at rounding level, and the
 pseudo-inverse gave a_H 0.051 or 264 box widths depending on the differences' step
@@ -94,11 +97,17 @@ def inverse_information(Jac: np.ndarray, s2: float) -> np.ndarray:
     """
     Return (J'J + s^2 / BOX_VARIANCE I)^-1: the unit box's covariance per s^2.
 
-    The data's information J'J and the box's (:data:`BOX_VARIANCE`); a pseudo-inverse still
-    where s^2 = 0 (residuals that vanish: nothing to weigh the box against).
+    The data's information J'J and the box's (:data:`BOX_VARIANCE`), inverted through J'J's
+    eigenvalues (clipped at 0: rounding leaves an undetermined direction's slightly negative)
+    with no cut-off: a pseudo-inverse's (1e-15 of the largest) would drop the box's term where
+    it is smaller than that (nearly noise-free residuals). With s^2 = 0 (residuals that
+    vanish: nothing to weigh the box against) the pseudo-inverse of J'J.
     """
-    H = Jac.T @ Jac + s2 / BOX_VARIANCE * np.eye(Jac.shape[1])
-    out: np.ndarray = np.linalg.pinv(H)
+    A = Jac.T @ Jac
+    if not s2 > 0.0:
+        return np.asarray(np.linalg.pinv(A))
+    lam, V = np.linalg.eigh(A)
+    out: np.ndarray = (V / (np.clip(lam, 0.0, None) + s2 / BOX_VARIANCE)) @ V.T
     return out
 
 
@@ -116,8 +125,10 @@ def trial_robust_standard_errors(objective: Objective, space: ParameterSpace,
     information too, as :func:`standard_errors`) and g_i trial i's gradient J_i' r_i
     at theta (a prior's rows count in H only). The g_i are not centred: a fit stopped short of
     its optimum (a least-squares fit stopped by its tolerance, a coefficient held on a bound)
-    has sum_i g_i != 0, and the step it leaves counts as error too. Needs two trials or more
-    (NaN otherwise). Both in the parameters' own units.
+    has sum_i g_i != 0, and the step it leaves counts as error too. Along a direction the
+    trials leave undetermined no g_i points, so the trial-robust error there is near 0 while
+    Gauss-Newton's is the box's: take the larger. Needs two trials or more (NaN otherwise).
+    Both in the parameters' own units.
     """
     Jac, s2 = jacobian(objective, space, theta, h)
     Hi = inverse_information(Jac, s2)
@@ -145,7 +156,8 @@ def stiff_directions(objective: Objective, space: ParameterSpace, theta: np.ndar
     """
     Parameter combinations the trials determine.
 
-    unit-box eigen-directions of J'J whose standard error is below max_se (fraction of the box).
+    unit-box eigen-directions of J'J whose standard error is below max_se (fraction of the box),
+    from the trials alone (the box's information, 0.29 of its width, is far above max_se).
     Returns (directions (k, d) as rows, their standard errors (k,)).
     """
     Jac, s2 = jacobian(objective, space, theta, h)
@@ -162,7 +174,8 @@ def aliasing(objective: Objective, space: ParameterSpace, theta: np.ndarray,
 
     Probe parameter j's Jacobian column is split into the part the other parameters can mimic
     (least squares on their columns) and the rest; only the rest is evidence. Returns
-    {name: {'r2': share mimicked, 'se': standard error of j with the others free (own units),
+    {name: {'r2': share mimicked, 'se': standard error of j with the others free (own units;
+    the trials alone, no box's information: what they cannot tell apart must show),
     'mimicked_by': the three largest contributors}}. A standard error above the magnitudes
     worth finding means the trials cannot identify the parameter while the others are tuned
     (e.g. an rpm scale error against wake fraction and thrust deduction).

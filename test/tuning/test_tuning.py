@@ -115,20 +115,22 @@ def test_a_direction_the_trials_leave_undetermined_gets_the_box_error(suzaku):
     """
     The box's information bounds what the trials do not determine; nothing else moves.
 
-    CD_t (a windage coefficient) does not enter a windless run of a ship with no windage
-    area: its Jacobian column is exactly zero, and the pseudo-inverse of J'J alone called it
-    perfectly known (error 0). It gets the box's own error, 1/sqrt(12) of the width; R_0's
-    error does not feel it (within 1 %) and does not depend on the differences' step.
+    CD_t (a wind-force coefficient) does not enter a run without wind: its Jacobian column
+    is exactly zero, and the pseudo-inverse of J'J alone called it perfectly known (error
+    0). It gets the box's own error, 1/sqrt(12) of the width (a uniform distribution's), in
+    the Gauss-Newton errors; the trial-robust ones see no trial's gradient along it (0: the
+    diagnosis reports the larger). R_0's error does not feel it (within 1 %) and does not
+    depend on the differences' step.
     """
-    from mmg_tuner.tuning.identifiability import BOX_VARIANCE, trial_robust_standard_errors
+    from mmg_tuner.tuning.identifiability import trial_robust_standard_errors
     space = ParameterSpace.around(suzaku, ['R_0', 'CD_t'], overrides={'CD_t': (0.0, 1.0)})
-    tr = trials(suzaku, TUNE_SPECS[:1], SensorNoise(), 3)
+    tr = trials(suzaku, TUNE_SPECS[:2], SensorNoise(), 3)
     obj = Objective(suzaku, TrialBatch.from_trials(tr))
     theta = space.pre
     width = space.upper - space.lower
     se = standard_errors(obj, space, theta) / width
-    assert se[1] == pytest.approx(math.sqrt(BOX_VARIANCE), rel=1e-6)
-    assert se[0] < 0.05
+    assert se[1] == pytest.approx(1.0 / math.sqrt(12.0), rel=1e-6)
+    assert se[0] < 0.05   # 0.0049 of the box: R_0 is determined
     alone = ParameterSpace.around(suzaku, ['R_0'])
     se_alone = standard_errors(obj, alone, theta[:1]) / (alone.upper - alone.lower)
     assert se[0] == pytest.approx(se_alone[0], rel=0.01)
@@ -136,6 +138,7 @@ def test_a_direction_the_trials_leave_undetermined_gets_the_box_error(suzaku):
         se[0], rel=0.01)
     gn, robust = trial_robust_standard_errors(obj, space, theta)
     np.testing.assert_allclose(gn, se * width, rtol=1e-9)
+    assert robust[0] > 0 and robust[1] == 0.0
 
 
 def test_candidates_stay_in_the_box_and_divergence_is_penalised(suzaku):
