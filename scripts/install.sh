@@ -25,7 +25,7 @@ echo "== colcon build"
 colcon build --base-paths . --event-handlers console_cohesion- >/dev/null 2>log/colcon_build.err \
   || { cat log/colcon_build.err; exit 1; }
 # compile the kernels into the shared cache (core/_numba_cache.py) now, not on the first run
-echo "== precompile (the simulator's and tuning's kernels; first build: about 6 minutes)"
+echo "== precompile (the simulator's and tuning's kernels; first build: 6-15 minutes on 2 cores)"
 # shellcheck disable=SC1091
 set +u; source install/local_setup.bash; set -u
 install/mmg_tuner/lib/mmg_tuner/precompile >log/precompile.log 2>&1 || { cat log/precompile.log; exit 1; }
