@@ -9,10 +9,10 @@ effect that needs a little of that coefficient's room (an antenna offset, a prop
 force) is then lost. A tight error holds the coefficient; a loose one lets the trials move it.
 
 The prior's unit is the one the diagnosis' standard errors use
-(:func:`~mmg_tuner.tuning.identifiability.standard_errors`: cov = s^2 (J'J + ...)^-1 with
-s^2 = SSR / (n - p)): penalty = s^2 * sum(((theta - value) / se)^2), s^2 from the model's
-tuning J over its n weighted residuals. With it the tuned estimate is the usual combination of
-the measurement and what the trials say, each weighed by its inverse variance.
+(:func:`~mmg_tuner.tuning.identifiability.standard_errors`: cov = s^2 (J'J + s^2 / BOX_VARIANCE
+I)^-1 with s^2 = SSR / (n - p)): penalty = s^2 * sum(((theta - value) / se)^2), s^2 from the
+model's tuning J over its n weighted residuals. With it the tuned estimate is the usual
+combination of the measurement and what the trials say, each weighed by its inverse variance.
 
 File format (YAML, SI units and radians, as params.yaml)::
 
